@@ -1,0 +1,624 @@
+"""C back end: lowers each Kernel to straight-line optimised C and writes one extension source per robot.
+
+Lowering (shared with the CasADi back end, see ``lower``):
+
+1. robot constants (``Kernel.params``) are substituted numerically;
+2. every distinct ``sin(x)`` / ``cos(x)`` becomes a local computed once at the top;
+3. sums are factored greedily (multivariate Horner: pull out the factor shared by most
+   terms, recursively), then common subexpressions are shared (``sympy.cse``);
+4. for a 4x4 homogeneous-transform output one rotation column may be computed as the
+   cross product of the other two (thesis 3.3: n = o x a, o = a x n, a = n x o);
+5. the cheapest variant, counted by ``derive.opcount`` in the C text itself, is kept.
+
+The printer writes no ``pow()`` (integer powers become products, half powers ``sqrt``),
+no allocation, and avoids unary minus by folding signs into subtractions.
+
+The emitted file is a complete CPython extension module (plain C API + buffer
+protocol, no numpy headers): for each kernel a ``static inline`` row function, a
+batched loop over N rows inside C, a NaN/inf scan of the inputs, and a ``run()`` entry
+point used by ``rccl.kinematics.backend``.
+"""
+from __future__ import annotations
+
+import itertools
+import json
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import sympy as sp
+
+from derive.kernel import Kernel
+from derive import opcount
+
+#: Functions the C printer knows, with their C spelling.
+C_FUNCS = {
+    sp.sin: "sin", sp.cos: "cos", sp.tan: "tan", sp.atan2: "atan2", sp.atan: "atan",
+    sp.asin: "asin", sp.acos: "acos", sp.Abs: "fabs", sp.exp: "exp", sp.log: "log",
+}
+
+
+@dataclass
+class Program:
+    """A kernel lowered to a list of assignments (the form both C and CasADi print)."""
+
+    kernel: Kernel
+    in_names: list[list[str]]          # C name of every input element, per input arg
+    out_names: list[list[str]]         # C name of every output element, per output arg (+ guards)
+    trig: list[tuple[sp.Symbol, sp.Expr]]   # (local, sin(x) or cos(x))
+    temps: list[tuple[sp.Symbol, sp.Expr]]  # common subexpressions, in order
+    outputs: list[tuple[str, sp.Expr]]      # (output element name, expression)
+    symbol_names: dict[sp.Symbol, str]      # input symbol -> C name
+    variant: str = ""
+
+
+def arg_elements(value: sp.Matrix) -> list[sp.Expr]:
+    """Flatten a kernel argument matrix row-major (the layout of the numpy array)."""
+    return [value[i, j] for i in range(value.shape[0]) for j in range(value.shape[1])]
+
+
+def _input_symbols(kernel: Kernel) -> tuple[list[list[str]], dict[sp.Symbol, str]]:
+    names: list[list[str]] = []
+    sym_names: dict[sp.Symbol, str] = {}
+    for i, arg in enumerate(kernel.inputs):
+        row = []
+        for j, el in enumerate(arg_elements(arg.value)):
+            if not isinstance(el, sp.Symbol):
+                raise ValueError(f"kernel {kernel.robot}.{kernel.name}: input {arg.name}[{j}] is {el}, not a symbol")
+            cname = f"in{i}[{j}]"
+            sym_names[el] = cname
+            row.append(cname)
+        names.append(row)
+    return names, sym_names
+
+
+def _outputs(kernel: Kernel) -> tuple[list[list[str]], list[sp.Expr]]:
+    names: list[list[str]] = []
+    exprs: list[sp.Expr] = []
+    for i, arg in enumerate(kernel.outputs):
+        els = arg_elements(arg.value)
+        names.append([f"out{i}[{j}]" for j in range(len(els))])
+        exprs.extend(els)
+    gi = len(kernel.outputs)
+    for k, g in enumerate(kernel.guards):
+        names.append([f"out{gi + k}[0]"])
+        exprs.append(g.expr)
+    return names, exprs
+
+
+def _numeric(kernel: Kernel, exprs: list[sp.Expr]) -> list[sp.Expr]:
+    subs = {k: sp.Float(v, 17) if not float(v).is_integer() else sp.Integer(int(v)) for k, v in kernel.params.items()}
+    return [sp.sympify(e).xreplace(subs) if subs else sp.sympify(e) for e in exprs]
+
+
+def _extract_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tuple[sp.Symbol, sp.Expr]]]:
+    """Replace every distinct sin(x)/cos(x) by a local symbol computed once.
+
+    A compound argument (q2 + q3) is itself computed once, before its sin and cos.
+    """
+    calls: set[sp.Expr] = set()
+    for e in exprs:
+        calls |= {f for f in e.atoms(sp.sin, sp.cos)}
+    # sort for a deterministic file: by argument text, sin before cos
+    ordered = sorted(calls, key=lambda f: (sp.default_sort_key(f.args[0]), f.func.__name__ != "sin"))
+    trig: list[tuple[sp.Symbol, sp.Expr]] = []
+    subs: dict[sp.Expr, sp.Symbol] = {}
+    arg_syms: dict[sp.Expr, sp.Symbol] = {}
+    for f in ordered:
+        arg = f.args[0]
+        if not arg.is_Atom and arg not in arg_syms:
+            arg_syms[arg] = sp.Symbol(f"x_{len(arg_syms)}")
+            trig.append((arg_syms[arg], arg))
+        k = len(subs)
+        s = sp.Symbol(f"{'s' if f.func is sp.sin else 'c'}_{k}")
+        subs[f] = s
+        trig.append((s, f.func(arg_syms.get(arg, arg))))
+    return [e.xreplace(subs) for e in exprs], trig
+
+
+def _factor_sum(expr: sp.Expr, rank: dict[sp.Expr, int] | None = None) -> sp.Expr:
+    """Greedy multivariate Horner: pull a factor shared by several terms out of each sum.
+
+    Without ``rank`` the factor shared by most terms goes first; with it, the shared
+    factor of lowest rank (e.g. the trig of the joint nearest the base) goes first.
+    """
+    if expr.is_Atom:
+        return expr
+    args = [_factor_sum(a, rank) for a in expr.args]
+    if not expr.is_Add:
+        return expr.func(*args) if args != list(expr.args) else expr
+    terms = list(args)
+    counts: Counter = Counter()
+    for t in terms:
+        for f in set(_factors(t)):
+            counts[f] += 1
+    shared = sorted(((f, n) for f, n in counts.items() if n >= 2), key=lambda kv: sp.default_sort_key(kv[0]))
+    if not shared:
+        return sp.Add(*terms)
+    if rank:
+        big = 1 << 30
+        best = min(shared, key=lambda kv: (rank.get(kv[0], big), -kv[1]))[0]
+    else:
+        best = max(shared, key=lambda kv: kv[1])[0]
+    inside = [t for t in terms if best in _factors(t)]
+    rest = [t for t in terms if best not in _factors(t)]
+    inner = _factor_sum(sp.Add(*[_divide_out(t, best) for t in inside]), rank)
+    out = sp.Mul(best, inner, evaluate=False)
+    if rest:
+        return sp.Add(out, _factor_sum(sp.Add(*rest), rank), evaluate=False)
+    return out
+
+
+def _factors(term: sp.Expr) -> list[sp.Expr]:
+    """The non-numeric factors of a product (a power x**n contributes x)."""
+    fs = term.args if term.is_Mul else (term,)
+    out = []
+    for f in fs:
+        if f.is_Number:
+            continue
+        if f.is_Pow and f.exp.is_Integer and f.exp > 0:
+            out.append(f.base)
+        else:
+            out.append(f)
+    return out
+
+
+def _divide_out(term: sp.Expr, factor: sp.Expr) -> sp.Expr:
+    fs = list(term.args) if term.is_Mul else [term]
+    for i, f in enumerate(fs):
+        if f == factor:
+            del fs[i]
+            return sp.Mul(*fs)
+        if f.is_Pow and f.base == factor and f.exp.is_Integer and f.exp > 0:
+            fs[i] = factor ** (f.exp - 1)
+            return sp.Mul(*fs)
+    raise AssertionError("factor not found")
+
+
+def _transform_columns(kernel: Kernel) -> list[tuple[int, int]]:
+    """(output index, flat offset) of each 4x4 homogeneous-transform output."""
+    found = []
+    offset = 0
+    for i, arg in enumerate(kernel.outputs):
+        v = arg.value
+        if v.shape == (4, 4) and list(v[3, :]) == [0, 0, 0, 1]:
+            found.append((i, offset))
+        offset += v.shape[0] * v.shape[1]
+    return found
+
+
+def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = None,
+          collapse: bool = False) -> Program:
+    """Lower a kernel to assignments.
+
+    ``factor``: "" (none), "count" (most shared factor first), "base" / "tip" (trig of the
+    joint nearest the base / the tool first). ``cross`` maps a transform output to the
+    column (0 n, 1 o, 2 a) rebuilt by a cross product. ``collapse`` rewrites sums of
+    products of sines and cosines into sines and cosines of sums (C2 C3 - S2 S3 -> C23).
+    """
+    in_names, sym_names = _input_symbols(kernel)
+    out_names, exprs = _outputs(kernel)
+    exprs = _numeric(kernel, exprs)
+    if collapse:
+        exprs = [_collapse(e) for e in exprs]
+    flat_names = [n for row in out_names for n in row]
+    cross = cross or {}
+    # entries rebuilt from other outputs are left out of the CSE
+    rebuilt: dict[int, sp.Expr] = {}
+    for (oi, off) in _transform_columns(kernel):
+        col = cross.get(oi)
+        if col is None:
+            continue
+        a, b = (col + 1) % 3, (col + 2) % 3  # n = o x a, o = a x n, a = n x o
+        u = [sp.Symbol(f"__{flat_names[off + 4 * r + a]}") for r in range(3)]
+        w = [sp.Symbol(f"__{flat_names[off + 4 * r + b]}") for r in range(3)]
+        cr = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]]
+        for r in range(3):
+            rebuilt[off + 4 * r + col] = cr[r]
+    exprs, trig = _extract_trig(exprs)
+    keep = [k for k in range(len(exprs)) if k not in rebuilt]
+    work = [exprs[k] for k in keep]
+    if factor:
+        rank = None
+        if factor in ("base", "tip"):
+            syms = [s for s, _ in trig if s.name[0] in "sc"]
+            order = syms if factor == "base" else syms[::-1]
+            rank = {s: i for i, s in enumerate(order)}
+        work = [_factor_sum(sp.expand(e) if _is_poly_like(e) else e, rank) for e in work]
+    temps, reduced = sp.cse(work, symbols=sp.numbered_symbols("t"), optimizations="basic")
+    outputs: list[tuple[str, sp.Expr]] = [(flat_names[k], reduced[i]) for i, k in enumerate(keep)]
+    for k in sorted(rebuilt):
+        outputs.append((flat_names[k], rebuilt[k]))
+    variant = (f"horner[{factor}]+cse" if factor else "cse") + (", trig sums collapsed" if collapse else "")
+    variant += "".join(f", {'noa'[c]}=cross" for c in cross.values())
+    return Program(kernel, in_names, out_names, trig, list(temps), outputs, sym_names, variant)
+
+
+def _collapse(e: sp.Expr) -> sp.Expr:
+    """C_i C_j - S_i S_j -> C_ij and friends (SymPy's TR10i), on the expanded sum."""
+    from sympy.simplify.fu import TR10i
+    return TR10i(sp.expand(e)) if _is_poly_like_trig(e) else TR10i(e)
+
+
+def _is_poly_like_trig(e: sp.Expr) -> bool:
+    return all(isinstance(a, (sp.sin, sp.cos)) for a in sp.preorder_traversal(e) if isinstance(a, sp.Function)) and \
+        not any(p.is_Pow and not (p.exp.is_Integer and p.exp > 0) for p in sp.preorder_traversal(e))
+
+
+def _is_poly_like(e: sp.Expr) -> bool:
+    """True when expanding is safe (no division or functions left to blow up)."""
+    return not any(isinstance(a, sp.Function) for a in sp.preorder_traversal(e)) and not any(
+        p.is_Pow and not (p.exp.is_Integer and p.exp > 0) for p in sp.preorder_traversal(e))
+
+
+# ---------------------------------------------------------------- printing
+
+def _num(x: sp.Expr) -> str:
+    v = float(x)
+    if v.is_integer() and abs(v) < 1e15:
+        return f"{v:.1f}"
+    return repr(v)
+
+
+class CPrinter:
+    """Prints SymPy expressions as C without pow() and with signs folded into subtractions."""
+
+    def __init__(self, names: dict[sp.Symbol, str]):
+        self.names = names
+
+    def expr(self, e: sp.Expr) -> str:
+        s, neg = self._signed(e)
+        return f"-{self._wrap(s, e)}" if neg else s
+
+    def _wrap(self, s: str, e: sp.Expr) -> str:
+        return f"({s})" if (e.is_Add) else s
+
+    def _signed(self, e: sp.Expr) -> tuple[str, bool]:
+        """Text of |e| and whether e is negated, so callers can fold the sign."""
+        if e.is_Number:
+            return _num(abs(e)), bool(e < 0)
+        if e.is_Symbol:
+            return self.names.get(e, e.name), False
+        if e.is_Mul:
+            coeff, rest = e.as_coeff_Mul()
+            neg = coeff < 0
+            coeff = abs(coeff)
+            return self._product(coeff, rest), bool(neg)
+        if e.is_Add:
+            return self._sum(e), False
+        if e.is_Pow:
+            return self._pow(e), False
+        if e.func in C_FUNCS:
+            return f"{C_FUNCS[e.func]}({', '.join(self.expr(a) for a in e.args)})", False
+        if e.func is sp.Max:
+            return self._fold("fmax", e.args), False
+        if e.func is sp.Min:
+            return self._fold("fmin", e.args), False
+        raise ValueError(f"C printer: unsupported expression {e!r}")
+
+    def _fold(self, fn: str, args) -> str:
+        out = self.expr(args[0])
+        for a in args[1:]:
+            out = f"{fn}({out}, {self.expr(a)})"
+        return out
+
+    def _sum(self, e: sp.Expr) -> str:
+        pos, neg = [], []
+        for a in sorted(e.args, key=sp.default_sort_key):
+            s, n = self._signed(a)
+            (neg if n else pos).append(s)
+        head = " + ".join(pos) if pos else f"-{neg.pop(0)}"
+        return head + "".join(f" - {s}" for s in neg)
+
+    def _factor_text(self, f: sp.Expr) -> str:
+        s = self.expr(f)
+        return f"({s})" if (f.is_Add or (f.is_Mul and s.startswith("-")) or s.startswith("-")) else s
+
+    def _product(self, coeff: sp.Expr, rest: sp.Expr) -> str:
+        num, den = [], []
+        for f in (rest.args if rest.is_Mul else (rest,)):
+            if f.is_Pow and f.exp.is_Number and f.exp < 0:
+                den.append(sp.Pow(f.base, -f.exp))
+            else:
+                num.append(f)
+        if coeff.is_Rational and coeff.q != 1 and not den:
+            # a/q: one division is as cheap as multiplying by 1/q, keep exact text
+            pass
+        parts = [] if coeff == 1 else [_num(coeff)]
+        parts += [self._factor_text(f) for f in num]
+        text = "*".join(parts) if parts else "1.0"
+        if den:
+            d = "*".join(self._factor_text(f) for f in den)
+            text = f"{text}/" + (f"({d})" if len(den) > 1 else d)
+        return text
+
+    def _pow(self, e: sp.Pow) -> str:
+        b, x = e.base, e.exp
+        bt = self._factor_text(b)
+        if x.is_Integer and x > 0:
+            return "*".join([bt] * int(x))
+        if x.is_Integer and x < 0:
+            return "1.0/" + ("(" + "*".join([bt] * int(-x)) + ")" if -x > 1 else bt)
+        if x == sp.Rational(1, 2):
+            return f"sqrt({self.expr(b)})"
+        if x == sp.Rational(-1, 2):
+            return f"1.0/sqrt({self.expr(b)})"
+        if x == sp.Rational(3, 2):
+            return f"{bt}*sqrt({self.expr(b)})"
+        raise ValueError(f"C printer: power {e} has no pow()-free form")
+
+
+def kernel_body(prog: Program) -> str:
+    """The C statements of one row of a kernel (between the BEGIN/END markers)."""
+    names = dict(prog.symbol_names)
+    for s, _ in prog.trig:
+        names[s] = s.name
+    for s, _ in prog.temps:
+        names[s] = s.name
+    for name, _ in prog.outputs:
+        names[sp.Symbol(f"__{name}")] = name
+    pr = CPrinter(names)
+    lines = [f"    const double {s.name} = {pr.expr(f)};" for s, f in prog.trig]
+    lines += [f"    const double {s.name} = {pr.expr(v)};" for s, v in prog.temps]
+    lines += [f"    {name} = {pr.expr(v)};" for name, v in prog.outputs]
+    return "\n".join(lines)
+
+
+def best_program(kernel: Kernel) -> tuple[Program, str]:
+    """Try the lowering variants and keep the one with fewest counted operations."""
+    cols = [oi for oi, _ in _transform_columns(kernel)]
+    cross_choices: list[dict[int, int]] = [{}]
+    if len(cols) == 1:
+        cross_choices += [{cols[0]: c} for c in range(3)]
+    best = None
+    for collapse, factor, cross in itertools.product((False, True), ("", "count", "base", "tip"), cross_choices):
+        try:
+            prog = lower(kernel, factor=factor, cross=cross, collapse=collapse)
+            body = kernel_body(prog)
+        except ValueError:
+            if factor:
+                continue
+            raise
+        c = opcount.count_ops(body)
+        key = (c["mul_div"] + c["add_sub"], c["trig"], c["mul_div"])
+        if best is None or key < best[0]:
+            best = (key, prog, body)
+    assert best is not None
+    prog = _flip_signs(best[1])
+    return prog, kernel_body(prog)
+
+
+def _flip_signs(prog: Program) -> Program:
+    """Store -t instead of t for temps where that removes unary minus signs (greedy)."""
+    def cost(p: Program) -> tuple[int, int]:
+        c = opcount.count_ops(kernel_body(p))
+        return c["add_sub"] + c["mul_div"], c["neg"]
+
+    current = cost(prog)
+    for i, (sym, _) in enumerate(list(prog.temps)):
+        neg = sp.Symbol(sym.name + "_n")
+        sub = {sym: -neg}
+        temps = [(s, v.xreplace(sub)) for s, v in prog.temps]
+        temps[i] = (neg, -prog.temps[i][1])
+        trial = Program(prog.kernel, prog.in_names, prog.out_names, prog.trig, temps,
+                        [(n, v.xreplace(sub)) for n, v in prog.outputs], prog.symbol_names, prog.variant)
+        c = cost(trial)
+        if c < current:
+            prog, current = trial, c
+    return prog
+
+
+# ---------------------------------------------------------------- module text
+
+def _c_string(s: str) -> str:
+    return json.dumps(s)
+
+
+def kernel_c(prog: Program, body: str) -> str:
+    k = prog.kernel
+    nin, nout = len(prog.in_names), len(prog.out_names)
+    params = [f"const double *restrict in{i}" for i in range(nin)]
+    params += [f"double *restrict out{i}" for i in range(nout)]
+    sig = ", ".join(params)
+    call = ", ".join([f"in{i} + r * is[{i}]" for i in range(nin)] + [f"out{i} + r * os[{i}]" for i in range(nout)])
+    ins = ", ".join(f"(const double *)in[{i}]" for i in range(nin))
+    outs = ", ".join(f"(double *)out[{i}]" for i in range(nout))
+    return f"""
+/* {k.robot}.{k.name}: {k.doc.splitlines()[0] if k.doc else ''} (thesis {k.source or '-'}; lowering: {prog.variant}) */
+static inline void k_{k.name}({sig})
+{{
+/* BEGIN KERNEL {k.robot}.{k.name} */
+{body}
+/* END KERNEL {k.robot}.{k.name} */
+}}
+
+static void batch_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{{
+    {'; '.join(f'const double *in{i} = (const double *)in[{i}]' for i in range(nin))};
+    {'; '.join(f'double *out{i} = out[{i}]' for i in range(nout))};
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_{k.name}({call});
+}}
+"""
+
+
+def _sizes(args) -> list[int]:
+    return [a.value.shape[0] * a.value.shape[1] for a in args]
+
+
+def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> str:
+    kernels = "".join(kernel_c(p, b) for p, b in programs)
+    table = []
+    for p, _ in programs:
+        k = p.kernel
+        ins = _sizes(k.inputs)
+        outs = _sizes(k.outputs) + [1] * len(k.guards)
+        inames = [a.name for a in k.inputs]
+        table.append(
+            f"    {{{_c_string(k.name)}, batch_{k.name}, {len(ins)}, {len(outs)}, "
+            f"{{{', '.join(map(str, ins))}}}, {{{', '.join(map(str, outs))}}}, "
+            f"{{{', '.join(_c_string(n) for n in inames)}}}}},")
+    maxio = max([len(p.kernel.inputs) for p, _ in programs] + [len(p.kernel.outputs) + len(p.kernel.guards) for p, _ in programs] + [1])
+    return RUNTIME.format(
+        robot=robot, command=command, kernels=kernels, table="\n".join(table), nk=len(programs), maxio=maxio)
+
+
+RUNTIME = r"""/* Kinematics kernels of the {robot}, as a CPython extension module.
+ * GENERATED by `{command}` (derive/emit_c.py); do not edit by hand.
+ * Plain C API and the buffer protocol: no numpy headers. Each kernel has a row function
+ * (straight-line, no allocation, no pow()) and a batched loop over N rows in C.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+#define MAXIO {maxio}
+{kernels}
+typedef void (*batch_fn)(Py_ssize_t, const double *const *, const Py_ssize_t *, double *const *, const Py_ssize_t *);
+
+typedef struct {{
+    const char *name;
+    batch_fn fn;
+    int nin, nout;
+    Py_ssize_t in_size[MAXIO];
+    Py_ssize_t out_size[MAXIO];
+    const char *in_name[MAXIO];
+}} kernel_entry;
+
+static const kernel_entry KERNELS[{nk}] = {{
+{table}
+}};
+
+static int get_buffer(PyObject *obj, Py_buffer *view, int writable, const char *what, Py_ssize_t i)
+{{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, view, flags) < 0) {{
+        PyErr_Format(PyExc_TypeError, "%s %zd: need a C-contiguous float64 buffer%s", what, i,
+                     writable ? " (writable)" : "");
+        return -1;
+    }}
+    if (view->itemsize != 8 || view->format == NULL || strcmp(view->format, "d") != 0) {{
+        PyErr_Format(PyExc_TypeError, "%s %zd: need float64 elements, got format '%s'", what, i,
+                     view->format ? view->format : "?");
+        PyBuffer_Release(view);
+        return -1;
+    }}
+    return 0;
+}}
+
+/* run(index, n, inputs, outputs): inputs hold n rows or one row (broadcast); outputs n rows. */
+static PyObject *run(PyObject *self, PyObject *args)
+{{
+    int index;
+    Py_ssize_t n;
+    PyObject *ins, *outs;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "inO!O!", &index, &n, &PyTuple_Type, &ins, &PyTuple_Type, &outs))
+        return NULL;
+    if (index < 0 || index >= {nk}) {{
+        PyErr_Format(PyExc_IndexError, "no kernel %d", index);
+        return NULL;
+    }}
+    const kernel_entry *k = &KERNELS[index];
+    if (n < 0 || PyTuple_GET_SIZE(ins) != k->nin || PyTuple_GET_SIZE(outs) != k->nout) {{
+        PyErr_Format(PyExc_ValueError, "{robot}.%s: need %d inputs, %d outputs and n >= 0", k->name, k->nin, k->nout);
+        return NULL;
+    }}
+    Py_buffer iv[MAXIO], ov[MAXIO];
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    Py_ssize_t is[MAXIO], os[MAXIO];
+    int ni = 0, no = 0, ok = 0;
+    for (; ni < k->nin; ++ni) {{
+        if (get_buffer(PyTuple_GET_ITEM(ins, ni), &iv[ni], 0, "input", ni) < 0) goto done;
+        Py_ssize_t len = iv[ni].len / 8;
+        if (len == n * k->in_size[ni]) is[ni] = k->in_size[ni];
+        else if (len == k->in_size[ni]) is[ni] = 0;
+        else {{
+            PyErr_Format(PyExc_ValueError, "{robot}.%s: input '%s' has %zd values, need %zd per row for %zd rows",
+                         k->name, k->in_name[ni], len, k->in_size[ni], n);
+            ++ni; goto done;
+        }}
+        ip[ni] = (const double *)iv[ni].buf;
+        const double *p = ip[ni];
+        for (Py_ssize_t j = 0; j < len; ++j) {{
+            if (!isfinite(p[j])) {{
+                PyErr_Format(PyExc_ValueError, "{robot}.%s: input '%s' row %zd element %zd is %s",
+                             k->name, k->in_name[ni], k->in_size[ni] ? j / k->in_size[ni] : 0,
+                             k->in_size[ni] ? j % k->in_size[ni] : 0, isnan(p[j]) ? "NaN" : "infinite");
+                ++ni; goto done;
+            }}
+        }}
+    }}
+    for (; no < k->nout; ++no) {{
+        if (get_buffer(PyTuple_GET_ITEM(outs, no), &ov[no], 1, "output", no) < 0) goto done;
+        if (ov[no].len / 8 != n * k->out_size[no]) {{
+            PyErr_Format(PyExc_ValueError, "{robot}.%s: output %d has %zd values, need %zd",
+                         k->name, no, ov[no].len / 8, n * k->out_size[no]);
+            ++no; goto done;
+        }}
+        op[no] = (double *)ov[no].buf;
+        os[no] = k->out_size[no];
+    }}
+    if (n > 4096) {{
+        Py_BEGIN_ALLOW_THREADS
+        k->fn(n, ip, is, op, os);
+        Py_END_ALLOW_THREADS
+    }} else {{
+        k->fn(n, ip, is, op, os);
+    }}
+    ok = 1;
+done:
+    for (int i = 0; i < ni; ++i) PyBuffer_Release(&iv[i]);
+    for (int i = 0; i < no; ++i) PyBuffer_Release(&ov[i]);
+    if (!ok) return NULL;
+    Py_RETURN_NONE;
+}}
+
+/* kernels(): {{name: (index, input sizes, output sizes)}} so the loader can check it matches. */
+static PyObject *kernels(PyObject *self, PyObject *noargs)
+{{
+    (void)self; (void)noargs;
+    PyObject *d = PyDict_New();
+    if (!d) return NULL;
+    for (int i = 0; i < {nk}; ++i) {{
+        const kernel_entry *k = &KERNELS[i];
+        PyObject *ins = PyTuple_New(k->nin), *outs = PyTuple_New(k->nout);
+        if (!ins || !outs) {{ Py_XDECREF(ins); Py_XDECREF(outs); Py_DECREF(d); return NULL; }}
+        for (int j = 0; j < k->nin; ++j) PyTuple_SET_ITEM(ins, j, PyLong_FromSsize_t(k->in_size[j]));
+        for (int j = 0; j < k->nout; ++j) PyTuple_SET_ITEM(outs, j, PyLong_FromSsize_t(k->out_size[j]));
+        PyObject *v = Py_BuildValue("(iNN)", i, ins, outs);
+        if (!v || PyDict_SetItemString(d, k->name, v) < 0) {{ Py_XDECREF(v); Py_DECREF(d); return NULL; }}
+        Py_DECREF(v);
+    }}
+    return d;
+}}
+
+static PyMethodDef methods[] = {{
+    {{"run", run, METH_VARARGS, "run(index, n, inputs, outputs): evaluate kernel `index` on n rows"}},
+    {{"kernels", kernels, METH_NOARGS, "kernels() -> {{name: (index, input sizes, output sizes)}}"}},
+    {{NULL, NULL, 0, NULL}}
+}};
+
+static struct PyModuleDef moduledef = {{
+    PyModuleDef_HEAD_INIT, "{robot}", "Generated C kinematics kernels of the {robot} (see derive/emit_c.py).", -1, methods
+}};
+
+PyMODINIT_FUNC PyInit_{robot}(void)
+{{
+    return PyModule_Create(&moduledef);
+}}
+"""
+
+
+def write(robot: str, kernels: list[Kernel], out_dir: Path, command: str = "make derive") -> tuple[Path, list[tuple[Program, str]]]:
+    """Write ``out_dir/<robot>.c``; return its path and the chosen (program, body) per kernel."""
+    programs = [best_program(k) for k in kernels]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"{robot}.c"
+    text = module_c(robot, programs, command)
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+    return path, programs

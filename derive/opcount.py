@@ -1,0 +1,154 @@
+"""Operation counts read from the emitted C text (not from SymPy's idea of the expression).
+
+``count_ops`` tokenises the statements of a kernel body and counts
+
+* ``mul_div``: binary ``*`` and ``/``;
+* ``add_sub``: binary ``+`` and ``-`` plus unary minus (a negation costs an FP op too;
+  ``neg`` says how many of ``add_sub`` are negations);
+* ``trig``: calls of sin, cos, tan, atan2, atan, asin, acos;
+* ``sqrt`` and ``other`` (fabs, fmin, fmax, exp, log) calls, listed apart.
+
+``write_reports`` produces ``reports/opcounts.md`` and ``reports/opcounts.json`` from the
+generated C files, with the thesis figures (Table 3.3, section 6.1) beside them.
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+TRIG = {"sin", "cos", "tan", "atan2", "atan", "asin", "acos"}
+OTHER = {"fabs", "fmin", "fmax", "exp", "log"}
+
+_TOKEN = re.compile(
+    r"\s*(?:(?P<num>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)|(?P<id>[A-Za-z_]\w*)|(?P<op>[-+*/=(),;\[\]]))")
+_KERNEL = re.compile(r"/\* BEGIN KERNEL (?P<robot>\w+)\.(?P<name>\w+) \*/\n(?P<body>.*?)/\* END KERNEL", re.S)
+
+
+def tokens(text: str) -> list[tuple[str, str]]:
+    """(kind, text) tokens of C statements; kind is num, id or op."""
+    out, pos = [], 0
+    text = text.strip()
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if not m or m.end() == pos:
+            raise ValueError(f"opcount: cannot tokenise C near {text[pos:pos + 30]!r}")
+        kind = m.lastgroup
+        out.append((kind, m.group(kind)))
+        pos = m.end()
+    return out
+
+
+def count_ops(body: str) -> dict[str, int]:
+    """Count the floating-point operations in the statements of one kernel body."""
+    c = {"mul_div": 0, "add_sub": 0, "neg": 0, "trig": 0, "sqrt": 0, "other": 0}
+    toks = tokens(body)
+    prev: tuple[str, str] | None = None
+    for i, (kind, t) in enumerate(toks):
+        if kind == "op" and t in "*/":
+            c["mul_div"] += 1
+        elif kind == "op" and t in "+-":
+            # unary when it follows an operator or an opening bracket (or starts the text)
+            unary = prev is None or (prev[0] == "op" and prev[1] in "=(,*/+-[")
+            if unary and t == "+":
+                pass
+            else:
+                c["add_sub"] += 1
+                c["neg"] += unary
+        elif kind == "id" and i + 1 < len(toks) and toks[i + 1] == ("op", "("):
+            if t in TRIG:
+                c["trig"] += 1
+            elif t == "sqrt":
+                c["sqrt"] += 1
+            elif t in OTHER:
+                c["other"] += 1
+            else:
+                raise ValueError(f"opcount: unknown function {t!r} in emitted C")
+        prev = (kind, t)
+    return c
+
+
+def count_file(path: Path) -> list[dict]:
+    """One record per kernel found between the BEGIN/END KERNEL markers of a C file."""
+    rows = []
+    for m in _KERNEL.finditer(Path(path).read_text()):
+        rows.append({"robot": m["robot"], "kernel": m["name"], **count_ops(m["body"])})
+    return rows
+
+
+#: Thesis figures (multiplications/divisions, additions), trig calls excluded.
+#: Table 3.3 gives best/worst cases over the four Jacobian computations (3.71-3.74 and
+#: 3.75-3.78) in link 4; section 3.8 adds 8 mul + 4 add for each D/F map of (3.79) to
+#: frame 6. Section 6.1: RCCL's forward kinematics, 41 mul/div and 17 additions.
+THESIS = {
+    ("puma260", "jacobian_best"): (41, 23, "Table 3.3, PUMA 260 best case"),
+    ("puma260", "jacobian_worst"): (46, 23, "Table 3.3, PUMA 260 worst case"),
+    ("microbo", "jacobian_best"): (24, 13, "Table 3.3, Microbo best case"),
+    ("microbo", "jacobian_worst"): (31, 15, "Table 3.3, Microbo worst case"),
+    ("puma260", "fk"): (41, 17, "section 6.1, RCCL forward kinematics"),
+    "frame_map": (8, 4, "section 3.8: each transform of (3.79)"),
+}
+
+
+def thesis_figure(robot: str, kernel: str) -> tuple[int, int, str] | None:
+    """The thesis bound a kernel is compared against, or None.
+
+    Frame-4 Jacobian computations are held to the worst case of Table 3.3; frame-6 ones
+    to that plus one D/F map of (3.79) (8 mul, 4 add); forward kinematics to 6.1.
+    """
+    name = kernel.lower()
+    if name == "fk" or name.startswith("fk"):
+        return THESIS.get((robot, "fk"))
+    jac = ("cartesian_from_joint", "torque_from_force", "joint_from_cartesian", "force_from_torque")
+    if any(name.startswith(j) for j in jac):
+        worst = THESIS.get((robot, "jacobian_worst"))
+        if worst is None:
+            return None
+        if name.endswith("6"):
+            fm = THESIS["frame_map"]
+            return worst[0] + fm[0], worst[1] + fm[1], worst[2] + " + one map of (3.79)"
+        return worst
+    return None
+
+
+def write_reports(c_files: list[Path], md_path: Path, json_path: Path, command: str = "make derive") -> list[dict]:
+    """Write the Markdown and JSON op-count reports; return the records."""
+    rows = []
+    for f in c_files:
+        rows.extend(count_file(f))
+    for r in rows:
+        th = thesis_figure(r["robot"], r["kernel"])
+        if th:
+            r["thesis_mul_div"], r["thesis_add_sub"], r["thesis_source"] = th
+            r["at_or_below_thesis"] = r["mul_div"] <= th[0] and r["add_sub"] <= th[1]
+    json_path.parent.mkdir(parents=True, exist_ok=True)
+    _write_if_changed(json_path, json.dumps(rows, indent=1) + "\n")
+    lines = [
+        "# Operation counts of the generated C kernels",
+        "",
+        f"Regenerated by `{command}` (derive/opcount.py counts the operators in the emitted C,",
+        "`rccl/kinematics/_c/<robot>.c`, between each kernel's BEGIN/END markers).",
+        "",
+        "mul/div = binary `*` and `/`; add/sub = binary `+`, `-` and unary minus (neg);",
+        "trig = sin, cos, tan, atan2, asin, acos calls; sqrt counted apart. The thesis figures",
+        "exclude trigonometric calls (Table 3.3, section 3.8), as do our mul/div and add/sub.",
+        "",
+        "Thesis figures: Table 3.3 worst case for each Jacobian computation in frame 4 (PUMA 260",
+        "46 mul/div, 23 add; Microbo 31, 15); frame 6 adds one map of (3.79), 8 mul and 4 add",
+        "(section 3.8); forward kinematics against the 41 mul/div and 17 additions of section 6.1.",
+        "",
+        "| robot | kernel | mul/div | add/sub (neg) | trig | sqrt | thesis mul/div, add | at or below |",
+        "|---|---|---:|---:|---:|---:|---|---|",
+    ]
+    for r in rows:
+        th = f"{r['thesis_mul_div']}, {r['thesis_add_sub']} ({r['thesis_source']})" if "thesis_source" in r else ""
+        ok = ("yes" if r["at_or_below_thesis"] else "**no**") if "thesis_source" in r else ""
+        lines.append(f"| {r['robot']} | {r['kernel']} | {r['mul_div']} | {r['add_sub']} ({r['neg']}) | "
+                     f"{r['trig']} | {r['sqrt']} | {th} | {ok} |")
+    _write_if_changed(md_path, "\n".join(lines) + "\n")
+    return rows
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
