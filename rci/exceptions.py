@@ -17,3 +17,108 @@ class ModelError(RCIError):
         self.field = field
         self.problem = problem
         super().__init__(f"{self.path}: {field}: {problem}")
+
+
+# --- A.3 session errors -----------------------------------------------------------------
+class SessionError(RCIError):
+    """A session primitive was called in the wrong state (A.3 errors)."""
+
+
+class AlreadyOpen(SessionError):
+    """R_OPENP: the RCI control task is already open."""
+
+
+class NotOpen(SessionError):
+    """R_NOOPEN: the RCI control task is not open."""
+
+
+class ControlInProgress(SessionError):
+    """R_CONTROLP: a control is already in progress."""
+
+
+class NoControl(SessionError):
+    """R_NOCONTROL: no control is in progress."""
+
+
+class BadFunction(SessionError):
+    """R_NOFUNCTION: a control function is not callable."""
+
+
+class DeviceError(RCIError):
+    """R_BAD_OPEN / R_BAD_IOCTL / R_BAD_START: the robot link cannot be opened or used."""
+
+
+class Timeout(RCIError):
+    """R_TIMEOUT: no response from the robot within the allowed time."""
+
+
+class RobotRefused(RCIError):
+    """The robot answered a session request with an error frame (code and text)."""
+
+    def __init__(self, code: int, text: str) -> None:
+        self.code = code
+        self.text = text
+        super().__init__(f"robot refused: {text} (code {code})")
+
+
+# --- protocol (framing) errors ----------------------------------------------------------
+class ProtocolError(RCIError):
+    """A frame on the robot link is bad. ``code`` is the A.5.1 error number it maps to."""
+
+    code: int = 13  # R_BTEST
+
+
+class ChecksumError(ProtocolError):
+    """A frame's CRC-16 does not match its contents (maps to R_CHKSUM)."""
+
+    code = 11
+
+
+class FrameLengthError(ProtocolError):
+    """A frame's length field is impossible, or a payload has the wrong size for its type."""
+
+
+class UnknownFrameType(ProtocolError):
+    """A well-formed frame carries a type this side does not know."""
+
+
+class SequenceGap(ProtocolError):
+    """A frame's sequence number is not the one expected (a frame was lost or repeated)."""
+
+    code = 33  # R_SEQGAP
+
+    def __init__(self, expected: int, got: int) -> None:
+        self.expected = expected
+        self.got = got
+        super().__init__(f"sequence gap: expected {expected}, got {got}")
+
+
+class LinkClosed(ProtocolError):
+    """The other end closed the link (end of file on the byte stream)."""
+
+
+# --- control-level termination ---------------------------------------------------------
+class ControlTerminated(RCIError):
+    """A control ended on an error; raised in the planning level (thesis: SIGHUP).
+
+    ``termination`` is an ``rci.codes.Termination`` (code laid out as A.5.1 + detail).
+    """
+
+    def __init__(self, termination) -> None:
+        self.termination = termination
+        super().__init__(str(termination))
+
+    @property
+    def code(self) -> int:
+        return self.termination.code
+
+
+# --- recorder --------------------------------------------------------------------------
+class LogFormatError(RCIError):
+    """A recorder log file is malformed; the message names the file and the record/block."""
+
+    def __init__(self, path: str, where: str, problem: str) -> None:
+        self.path = str(path)
+        self.where = where
+        self.problem = problem
+        super().__init__(f"{self.path}: {where}: {problem}")

@@ -1,0 +1,136 @@
+"""The robot link: frames over a pyserial byte stream (device path / pty, socket://, loop://).
+
+``open_link(url)`` accepts anything ``serial.serial_for_url`` does: a device path such as
+``/dev/ttyUSB0`` or a pty slave ``/dev/pts/5``, ``socket://127.0.0.1:7600`` for simula, and
+``loop://`` for unit tests. The port is put in non-blocking mode once; ``Link.recv`` waits
+with select() on the port's file descriptor, so the control task never spins.
+"""
+from __future__ import annotations
+
+import select
+import time
+
+import serial
+
+from .exceptions import DeviceError, LinkClosed
+from .protocol import Frame, FrameDecoder, encode_frame
+
+
+class Link:
+    """A framed, bidirectional link to the robot (or simula) over a pyserial port."""
+
+    def __init__(self, port: serial.SerialBase, url: str = "") -> None:
+        self.port = port
+        self.url = url or getattr(port, "portstr", "") or ""
+        self.decoder = FrameDecoder()
+        self.port.timeout = 0            # non-blocking reads: we wait in select()
+        try:
+            self._fd: int | None = port.fileno()
+        except (AttributeError, NotImplementedError, OSError, serial.SerialException):
+            self._fd = None
+        self.bytes_in = 0
+        self.bytes_out = 0
+
+    # --- sending -------------------------------------------------------------------
+    def send(self, ftype: int, seq: int, payload: bytes = b"") -> None:
+        """Encode and write one frame; LinkClosed if the port is gone."""
+        data = encode_frame(ftype, seq, payload)
+        try:
+            n = self.port.write(data)
+            self.port.flush() if self._fd is None else None
+        except (serial.SerialException, OSError) as e:
+            raise LinkClosed(f"{self.url}: write failed: {e}") from None
+        if n is not None and n != len(data):
+            raise LinkClosed(f"{self.url}: short write ({n} of {len(data)} bytes)")
+        self.bytes_out += len(data)
+
+    def send_raw(self, data: bytes) -> None:
+        """Write raw bytes (fault injection in tests, or a monitor forwarding bytes)."""
+        try:
+            self.port.write(data)
+        except (serial.SerialException, OSError) as e:
+            raise LinkClosed(f"{self.url}: write failed: {e}") from None
+
+    # --- receiving -----------------------------------------------------------------
+    def _read_available(self, wait: float) -> bytes:
+        """Wait up to ``wait`` s for input, then read what is there (may be b'')."""
+        if self._fd is not None:
+            if wait > 0:
+                try:
+                    ready, _, _ = select.select([self._fd], [], [], wait)
+                except InterruptedError:
+                    return b""
+                if not ready:
+                    return b""
+            data = self.port.read(4096)
+        else:
+            self.port.timeout = max(wait, 0.0)
+            data = self.port.read(max(1, self.port.in_waiting))
+        return data
+
+    def recv(self, timeout: float) -> Frame | None:
+        """The next good frame, or None after ``timeout`` s.
+
+        Raises a ProtocolError for a bad frame (after dropping it) and LinkClosed when the
+        other end has gone (EOF, socket reset, pty master closed).
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            frame = self.decoder.next_frame()
+            if frame is not None:
+                return frame
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            try:
+                data = self._read_available(left)
+            except (serial.SerialException, OSError) as e:
+                raise LinkClosed(f"{self.url}: {e}") from None
+            if data:
+                self.bytes_in += len(data)
+                self.decoder.feed(data)
+
+    def pending_input(self) -> bool:
+        """True if a complete or partial frame, or unread bytes, are waiting."""
+        if self.decoder.buf:
+            return True
+        if self._fd is not None:
+            ready, _, _ = select.select([self._fd], [], [], 0)
+            return bool(ready)
+        return bool(self.port.in_waiting)
+
+    def drain(self) -> int:
+        """Discard all input now waiting; returns the number of bytes dropped."""
+        n = len(self.decoder.buf)
+        self.decoder.reset()
+        while True:
+            try:
+                data = self._read_available(0.0)
+            except (serial.SerialException, OSError) as e:
+                raise LinkClosed(f"{self.url}: {e}") from None
+            if not data:
+                return n
+            n += len(data)
+
+    def close(self) -> None:
+        try:
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+    @property
+    def is_open(self) -> bool:
+        return bool(self.port.is_open)
+
+
+def open_link(url: str, *, baudrate: int = 115200, connect_timeout: float = 5.0) -> Link:
+    """Open the robot link named by ``url`` (device path, ``socket://host:port`` or ``loop://``).
+
+    Raises DeviceError (thesis R_BAD_OPEN) naming the URL if it cannot be opened.
+    """
+    try:
+        port = serial.serial_for_url(url, baudrate=baudrate, timeout=connect_timeout,
+                                     write_timeout=connect_timeout)
+    except (serial.SerialException, OSError, ValueError) as e:
+        raise DeviceError(f"cannot open robot link {url!r}: {e}") from None
+    return Link(port, url)
