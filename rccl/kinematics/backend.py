@@ -1,0 +1,90 @@
+"""Loader of the compiled C kinematics kernels, the fast path behind the generated modules.
+
+The generated Python modules (``rccl.kinematics.puma260`` ...) ask ``kernel(robot, name,
+input shapes, output shapes)`` for each of their straight-line kernels. They get a
+``CKernel`` when the C extension ``rccl.kinematics._c.<robot>`` was compiled at install
+time and matches the kernel's shapes, and ``None`` otherwise, in which case they keep
+their own Python code. A missing or stale extension gives one ``RuntimeWarning`` per
+process, naming the cause and how to build it.
+
+Setting the environment variable ``RCCL_KINEMATICS=python`` before import selects the
+Python code without a warning (for comparisons and debugging).
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import os
+import warnings
+from pathlib import Path
+from typing import Any, Callable
+
+Shape = tuple[int, ...]
+
+_modules: dict[str, Any] = {}
+_warned = False
+
+
+def _warn_once(message: str) -> None:
+    global _warned
+    if not _warned:
+        _warned = True
+        warnings.warn(message, RuntimeWarning, stacklevel=3)
+
+
+def _source_hash(text: str) -> str:
+    """Same digest as derive.emit_c.source_hash (the file minus its hash line)."""
+    body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#define RCCL_SOURCE_HASH"))
+    return hashlib.sha256(body.encode()).hexdigest()
+
+
+def enabled() -> bool:
+    """False when ``RCCL_KINEMATICS=python`` asks for the Python kernels."""
+    return os.environ.get("RCCL_KINEMATICS", "c").lower() != "python"
+
+
+def c_module(robot: str) -> Any | None:
+    """The compiled kernel module of ``robot``, or None (with one warning) when it is unavailable."""
+    if robot in _modules:
+        return _modules[robot]
+    mod = None
+    if enabled():
+        try:
+            mod = importlib.import_module(f"rccl.kinematics._c.{robot}")
+        except ImportError as exc:
+            _warn_once(
+                f"rccl.kinematics: compiled kernels for {robot!r} are not available ({exc}); using the "
+                "slower generated Python code. Install a C compiler and reinstall (pip install -e .) to build them.")
+        else:
+            source = Path(__file__).with_name("_c") / f"{robot}.c"
+            if source.exists() and _source_hash(source.read_text()) != mod.source_hash():
+                _warn_once(
+                    f"rccl.kinematics: the compiled {robot} kernels were built from an older {source}; using the "
+                    "generated Python code. Rebuild with `pip install -e .` (or `python setup.py build_ext --inplace`).")
+                mod = None
+    _modules[robot] = mod
+    return mod
+
+
+def kernel(robot: str, name: str, in_shapes: tuple[Shape, ...], out_shapes: tuple[Shape, ...]) -> Callable | None:
+    """The compiled kernel ``robot.name`` if available and of the given shapes, else None.
+
+    ``out_shapes`` lists the outputs followed by one ``()`` per guard, as in the Kernel.
+    The returned callable takes one array per input, each of the input's shape or with a
+    leading batch axis N (unbatched inputs are broadcast over the batch), and returns a
+    tuple of outputs: arrays of the output shape, or ``(N,) + shape`` for a batch; scalar
+    outputs (guards) of an unbatched call are floats. Wrong shapes, mismatched N and
+    NaN/inf inputs raise ValueError naming the kernel, the input and the row.
+    """
+    mod = c_module(robot)
+    if mod is None:
+        return None
+    meta = mod.kernels().get(name)
+    want = (tuple(tuple(s) for s in in_shapes), tuple(tuple(s) for s in out_shapes))
+    if meta is None or tuple(meta) != want:
+        _warn_once(
+            f"rccl.kinematics: the compiled {robot} kernels do not match the generated code ({name!r} "
+            f"{'is missing' if meta is None else f'has shapes {meta}, expected {want}'}); using the generated "
+            "Python code. Rebuild with `pip install -e .` after `make derive`.")
+        return None
+    return getattr(mod, name)

@@ -1,0 +1,55 @@
+"""Build script for the compiled kinematics kernels (metadata lives in pyproject.toml).
+
+Every generated ``rccl/kinematics/_c/<robot>.c`` becomes the extension module
+``rccl.kinematics._c.<robot>``. The build is optional: without a working C compiler the
+install still succeeds, prints one warning, and the generated Python code is used.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from setuptools import Extension, setup
+from setuptools.command.build_ext import build_ext
+
+HERE = Path(__file__).parent
+C_DIR = Path("rccl", "kinematics", "_c")
+
+
+class OptionalBuildExt(build_ext):
+    """Compile the kernels with optimisation; warn once and carry on when that fails."""
+
+    def build_extensions(self) -> None:
+        if self.compiler.compiler_type == "unix":
+            for ext in self.extensions:
+                # -fno-math-errno lets sin/cos pairs become sincos and sqrt inline
+                ext.extra_compile_args = ["-O3", "-fno-math-errno", "-Wno-unused-variable"]
+        try:
+            super().build_extensions()
+        except Exception as exc:  # no compiler, missing headers: fall back to Python kernels
+            self._warn(exc)
+
+    def run(self) -> None:
+        try:
+            super().run()
+        except Exception as exc:
+            self._warn(exc)
+
+    @staticmethod
+    def _warn(exc: Exception) -> None:
+        print(f"WARNING: the C kinematics kernels were not compiled ({exc}); "
+              "rccl.kinematics will use the slower generated Python code.", file=sys.stderr)
+
+
+extensions = [
+    Extension(f"rccl.kinematics._c.{src.stem}", [str(src)], optional=True)
+    for src in sorted((HERE / C_DIR).glob("*.c"))
+    for src in [src.relative_to(HERE)]
+]
+
+setup(
+    ext_modules=extensions,
+    cmdclass={"build_ext": OptionalBuildExt},
+    # the generated C (for rebuilds and the staleness check) and the CasADi Function files
+    package_data={"rccl.kinematics": ["_c/*.c", "casadi/*/*.casadi"]},
+)
