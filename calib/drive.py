@@ -1,0 +1,52 @@
+"""The drive-train conversions a fit needs (thesis 4.28-4.36): counts to angles, ADC to torque.
+
+calib keeps the torque sensitivity sigma separate from the rest of K_adc (4.32,
+k_adc = V_g sigma / R_i) because Table 4.1 is what the first fit measures: the ADC
+reading times V_g / R_i is the motor current (A), and only sigma turns it into torque.
+The constants come from the runtime's own conversion module (rci.conversions) when a
+robot is named, so calib and the controller can never disagree about them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Drive:
+    """Linear maps between raw readings and joint quantities (SI units).
+
+    R: encoder counts per radian (6,6), lower triangular (coupled wrist), e = R theta + e0.
+    G: motor shaft angle per joint angle (6,6), theta_s = G theta.
+    amps_per_adc: V_g / R_i per channel (A per ADC count).
+    sigma: torque sensitivity per motor (N m / A), Table 4.1.
+    """
+
+    R: np.ndarray
+    G: np.ndarray
+    amps_per_adc: np.ndarray
+    sigma: np.ndarray
+    encoder_offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
+
+    def joint_angles(self, counts: np.ndarray) -> np.ndarray:
+        """Joint angles (rad), (N,6), from encoder counts (N,6) (4.30)."""
+        e = np.asarray(counts, dtype=float) - self.encoder_offset
+        return np.linalg.solve(self.R, e.T).T
+
+    def motor_angles(self, theta: np.ndarray) -> np.ndarray:
+        """Motor shaft angles (rad), (N,6), from joint angles (4.28)."""
+        return np.asarray(theta, dtype=float) @ self.G.T
+
+    def motor_currents(self, adc: np.ndarray) -> np.ndarray:
+        """Motor currents (A), (N,6), from ADC readings (Appendix C, 4.32)."""
+        return np.asarray(adc, dtype=float) * self.amps_per_adc
+
+    def joint_torques(self, adc: np.ndarray) -> np.ndarray:
+        """Joint torques (N m), (N,6): t_j = G^T K_adc v_adc (4.31, 4.36)."""
+        motor_torque = self.motor_currents(adc) * self.sigma
+        return motor_torque @ self.G
+
+    def with_sigma(self, sigma: np.ndarray) -> "Drive":
+        """The same drive with other torque sensitivities (e.g. fitted ones)."""
+        return replace(self, sigma=np.asarray(sigma, dtype=float))

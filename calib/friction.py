@@ -1,0 +1,140 @@
+"""Coulomb and viscous friction from constant-speed runs (thesis 4.27, 4.5.4, Tables 4.2-4.4).
+
+Each pass through a window with no change of potential energy does work against
+friction only, so its mean friction is W / |d theta| at the pass's speed.  Per joint and
+direction the points are fitted to 4.27, |f| = F_c + F_v |omega|, by least squares with
+F_c, F_v >= 0 (CasADi QP); the error is twice the fit's standard deviation, as 4.5.4.
+The variation of Table 4.4 is read from the same passes: the friction along the path,
+averaged over passes at each position, against its mean.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.drive import Drive
+from calib.errors import FitError, LogError
+from calib.lsq import bounded_lsq
+from calib.trace import Trace
+from calib.work import find_passes, window_time, window_work
+
+N_BINS = 24  # position bins over a window for the Table 4.4 profile
+
+
+@dataclass(frozen=True)
+class FrictionPoint:
+    """Mean friction (N m, positive) of one pass at one speed (rad/s, positive)."""
+
+    joint: int
+    direction: int
+    speed: float
+    friction: float
+    path: str
+
+
+@dataclass(frozen=True)
+class DirectionFit:
+    """4.27 for one joint and direction: F_c (N m), F_v (N m s/rad), errors = 2 std."""
+
+    coulomb: float
+    coulomb_err: float
+    viscous: float
+    viscous_err: float
+    points: int
+
+
+@dataclass(frozen=True)
+class FrictionResult:
+    """Tables 4.2-4.4 for one joint; variation is a fraction (0.10 = 10 %)."""
+
+    joint: int
+    plus: DirectionFit
+    minus: DirectionFit
+    variation: float
+
+
+def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np.ndarray | None]:
+    """Every pass of a friction log as a point, plus the log's relative friction profile.
+
+    The profile is half the difference of the torque going up and coming down at each
+    position, over its mean: gravity, the same both ways at one position, cancels, so
+    it also holds for joints 2 and 3 whose paths cannot avoid gravity.  None when the
+    log lacks one of the directions.
+    """
+    i = trace.joint_index()
+    w = trace.need("window", (list, tuple))
+    if len(w) != 2 or not float(w[0]) < float(w[1]):
+        raise LogError(trace.path, None, f"metadata 'window' = {w!r} is not [lo, hi] rad")
+    lo, hi = float(w[0]), float(w[1])
+    th = drive.joint_angles(trace.counts)[:, i]
+    tau = drive.joint_torques(trace.adc)[:, i]
+    points = []
+    edges = np.linspace(lo, hi, N_BINS + 1)
+    sums = {1: np.zeros(N_BINS), -1: np.zeros(N_BINS)}
+    counts = {1: np.zeros(N_BINS), -1: np.zeros(N_BINS)}
+    for p in find_passes(th, lo, hi):
+        work = window_work(th, tau, p, lo, hi)
+        dt = window_time(th, trace.t, p, lo, hi)
+        points.append(FrictionPoint(i + 1, p.direction, (hi - lo) / dt, work / (hi - lo),
+                                    trace.path))
+        seg = slice(p.first, p.last + 1)
+        idx = np.clip(np.digitize(th[seg], edges) - 1, 0, N_BINS - 1)
+        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=N_BINS)
+        counts[p.direction] += np.bincount(idx, minlength=N_BINS)
+    if not points:
+        raise LogError(trace.path, None, f"no complete pass of joint {i + 1} through "
+                       f"the window [{lo:.4f}, {hi:.4f}] rad")
+    if counts[1].min() == 0 or counts[-1].min() == 0:
+        return points, None
+    half = 0.5 * (sums[1] / counts[1] - sums[-1] / counts[-1])
+    return points, half / half.mean() - 1.0
+
+
+def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
+    """Least squares of |f| = F_c + F_v |omega| with both coefficients non-negative."""
+    speed = np.array([p.speed for p in points])
+    f = np.array([p.friction for p in points])
+    fit = bounded_lsq(np.c_[np.ones_like(speed), speed], f, lower=np.zeros(2), what=what)
+    return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=2 * float(fit.std[0]),
+                        viscous=float(fit.x[1]), viscous_err=2 * float(fit.std[1]),
+                        points=len(points))
+
+
+def profile_variation(profiles: list[np.ndarray]) -> float:
+    """Peak deviation of the averaged friction profile from its mean (fraction).
+
+    Averaging the logs' profiles at each position keeps the repeatable,
+    position-dependent part (gearing irregularities, 4.5.3) and averages away noise.
+    """
+    if not profiles:
+        return float("nan")
+    prof = np.mean(np.vstack(profiles), axis=0)
+    return float(np.max(np.abs(prof - prof.mean())))
+
+
+def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult], list[FrictionPoint]]:
+    """Tables 4.2-4.4 for every joint that has friction logs; also returns the points."""
+    by_joint: dict[int, list[FrictionPoint]] = {}
+    prof_by_joint: dict[int, list[np.ndarray]] = {}
+    for tr in traces:
+        pts, prof = friction_points(tr, drive)
+        by_joint.setdefault(pts[0].joint, []).extend(pts)
+        prof_by_joint.setdefault(pts[0].joint, [])
+        if prof is not None:
+            prof_by_joint[pts[0].joint].append(prof)
+    results = []
+    for j in sorted(by_joint):
+        pts = by_joint[j]
+        fits = {}
+        for d, name in ((1, "+"), (-1, "-")):
+            sel = [p for p in pts if p.direction == d]
+            if len(sel) < 2:
+                raise FitError(f"joint {j}: {len(sel)} pass(es) in the {name} direction; "
+                               "the fit needs passes at two speeds at least")
+            fits[d] = fit_direction(sel, f"joint {j} friction, {name} direction")
+        results.append(FrictionResult(joint=j, plus=fits[1], minus=fits[-1],
+                                      variation=profile_variation(prof_by_joint[j])))
+    if not results:
+        raise FitError("no friction log among the inputs")
+    return results, [p for j in sorted(by_joint) for p in by_joint[j]]

@@ -1,0 +1,168 @@
+"""Gravity loading coefficients from 180-degree sweeps (thesis 4.44-4.51, Tables 4.7-4.9).
+
+A joint phi, the others fixed, is driven through [phi0, phi0 + 180 deg]; the gravity
+torque on it is a pure sinusoid of phi, tau(phi0 + u) = a cos u + b sin u, so the work
+of the two 90-degree segments gives its value at the start of the pass,
+
+    tau0 = d (W1 - W2) / 2          (d = +1 moving up, -1 moving down),
+
+plus the friction difference between the segments.  (Printed 4.47 reads
+"tau0 = -2(Wg1 - Wg2)" and 4.44/4.46 lost their signs in the OCR; the form above is the
+one the sinusoid gives, see docs/calib.md.)  The friction difference is removed as
+4.49-4.51 do, by repeating the sweep over the same joint range with the arm reoriented
+so that gravity does the same work in both segments: the difference of the two tau0
+estimates is Y(q0) c - Y(q0') c, linear in the loading coefficients c, with Y the
+gravity regressor of the robot model.  Every pass of every position is one row of a
+least-squares fit for c.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.drive import Drive
+from calib.errors import FitError, LogError
+from calib.lsq import bounded_lsq
+from calib.trace import Trace
+from calib.work import find_passes, window_work
+
+Regressor = Callable[[np.ndarray], np.ndarray]  # q (6,) rad -> (6, k), tau_g = Y c
+
+
+@dataclass(frozen=True)
+class SweepPass:
+    """tau0 (N m) of one pass: joint, direction, the start pose q0 (rad)."""
+
+    position: str
+    role: str
+    joint: int
+    direction: int
+    q0: np.ndarray
+    tau0: float
+    path: str
+
+
+@dataclass(frozen=True)
+class GravityRow:
+    """One line of Table 4.8: a start position, joint and direction, with its tau0.
+
+    ``tau0`` is friction-compensated (4.51) when a repeat was measured; ``row`` is the
+    regressor combination it equals; ``raw_tau0`` is the uncompensated value.
+    """
+
+    position: str
+    joint: int
+    direction: int
+    tau0: float
+    raw_tau0: float
+    row: np.ndarray
+    raw_row: np.ndarray
+    passes: int
+
+
+@dataclass(frozen=True)
+class GravityResult:
+    """Table 4.9: coefficients, their combined error and the friction error."""
+
+    names: tuple[str, ...]
+    value: np.ndarray
+    error: np.ndarray
+    fit_std: np.ndarray
+    direction_diff: np.ndarray
+    friction_error: np.ndarray
+    rows: list[GravityRow]
+
+
+def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
+    """tau0 of every full pass of a gravity log (both directions)."""
+    i = trace.joint_index()
+    q_start = np.asarray(trace.need("q_start", (list, tuple)), dtype=float)
+    if q_start.shape != (6,):
+        raise LogError(trace.path, None, f"metadata 'q_start' has {q_start.size} angles, not 6")
+    lo = float(trace.need("phi_low", (int, float)))
+    hi = lo + np.pi
+    position = str(trace.need("position", str))
+    role = str(trace.meta.get("role", "main"))
+    if role not in ("main", "repeat"):
+        raise LogError(trace.path, None, f"metadata 'role' = {role!r} is not main or repeat")
+    theta = drive.joint_angles(trace.counts)
+    th, tau = theta[:, i], drive.joint_torques(trace.adc)[:, i]
+    mid = lo + np.pi / 2
+    out = []
+    for p in find_passes(th, lo, hi):
+        w_low = window_work(th, tau, p, lo, mid)
+        w_high = window_work(th, tau, p, mid, hi)
+        w1, w2 = (w_low, w_high) if p.direction > 0 else (w_high, w_low)
+        q0 = q_start.copy()
+        q0[i] = lo if p.direction > 0 else hi
+        out.append(SweepPass(position, role, i + 1, p.direction, q0,
+                             p.direction * (w1 - w2) / 2.0, trace.path))
+    if not out:
+        raise LogError(trace.path, None, f"no full pass of joint {i + 1} through "
+                       f"[{lo:.4f}, {hi:.4f}] rad")
+    return out
+
+
+def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[GravityRow]:
+    """Group passes by (position, joint, direction) and apply the repeat of 4.51."""
+    keys = sorted({(p.position, p.joint, p.direction) for p in passes if p.role == "main"},
+                  key=lambda k: (k[0], -k[2]))
+    rows = []
+    for pos, j, d in keys:
+        main = [p for p in passes if (p.position, p.joint, p.direction, p.role) == (pos, j, d, "main")]
+        rep = [p for p in passes if (p.position, p.joint, p.direction, p.role) == (pos, j, d, "repeat")]
+        raw_tau0 = float(np.mean([p.tau0 for p in main]))
+        raw_row = np.asarray(regressor(main[0].q0))[j - 1]
+        if rep:
+            tau0 = raw_tau0 - float(np.mean([p.tau0 for p in rep]))
+            row = raw_row - np.asarray(regressor(rep[0].q0))[j - 1]
+        else:
+            tau0, row = raw_tau0, raw_row
+        rows.append(GravityRow(pos, j, d, tau0, raw_tau0, row, raw_row, len(main) + len(rep)))
+    return rows
+
+
+def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    A = np.array([r.row if compensated else r.raw_row for r in rows]).reshape(-1, k)
+    y = np.array([r.tau0 if compensated else r.raw_tau0 for r in rows])
+    fit = bounded_lsq(A, y, what=what)
+    return fit.x, fit.std
+
+
+def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
+                names: tuple[str, ...]) -> GravityResult:
+    """Table 4.9 from gravity logs.
+
+    error = sqrt((2 std of the fit)^2 + (half the difference between the fits of the
+    two directions)^2), the thesis's combination of measurement uncertainty and
+    direction; friction_error = how much the result moves without the repeat (4.49).
+    """
+    passes = [p for tr in traces for p in sweep_passes(tr, drive)]
+    rows = gravity_rows(passes, regressor)
+    k = len(names)
+    value, std = _solve(rows, True, k, "gravity loading")
+    raw, _ = _solve(rows, False, k, "gravity loading without the friction repeat")
+    by_dir = []
+    for d in (1, -1):
+        sel = [r for r in rows if r.direction == d]
+        try:
+            by_dir.append(_solve(sel, True, k, "gravity loading, one direction")[0])
+        except FitError:
+            by_dir.append(None)
+    if by_dir[0] is not None and by_dir[1] is not None:
+        ddiff = np.abs(by_dir[0] - by_dir[1])
+    else:
+        ddiff = np.zeros(k)
+    error = np.sqrt((2 * std) ** 2 + (ddiff / 2) ** 2)
+    return GravityResult(names=names, value=value, error=error, fit_std=std,
+                         direction_diff=ddiff, friction_error=np.abs(value - raw), rows=rows)
+
+
+def row_result(row: GravityRow, result: GravityResult) -> tuple[str, float]:
+    """Table 4.8's last column: the row solved for its leading coefficient, the others
+    taken from the overall fit."""
+    lead = int(np.argmax(np.abs(row.row)))
+    others = row.row @ result.value - row.row[lead] * result.value[lead]
+    return result.names[lead], float((row.tau0 - others) / row.row[lead])

@@ -1,0 +1,62 @@
+"""Least squares with bounds (CasADi QP) and the parameter covariance of a linear fit."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from calib.errors import FitError
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """Result of fitting y ~ A x.
+
+    ``std`` is each parameter's standard deviation from the fit (residual variance
+    times (A^T A)^-1); a parameter held on a bound gets the standard deviation it would
+    have with the others free, so the error never reads as zero.
+    """
+
+    x: np.ndarray
+    std: np.ndarray
+    residual_std: float
+    n: int
+    active: np.ndarray
+
+
+def bounded_lsq(A: np.ndarray, y: np.ndarray, lower: np.ndarray | None = None,
+                what: str = "fit") -> LinearFit:
+    """Minimise ||A x - y||^2 subject to x >= lower (CasADi's active-set QP, qrqp).
+
+    Raises FitError when there are fewer observations than parameters or A has
+    dependent columns (the data do not determine the parameters).
+    """
+    A = np.atleast_2d(np.asarray(A, dtype=float))
+    y = np.asarray(y, dtype=float).ravel()
+    n, p = A.shape
+    if n < p:
+        raise FitError(f"{what}: {n} observations cannot determine {p} parameters")
+    if np.linalg.matrix_rank(A) < p:
+        raise FitError(f"{what}: the observations do not separate the {p} parameters "
+                       "(e.g. every run at the same speed)")
+    H = A.T @ A
+    g = -A.T @ y
+    lb = np.full(p, -np.inf) if lower is None else np.asarray(lower, dtype=float)
+    x_free = np.linalg.solve(H, -g)
+    if np.all(x_free >= lb):
+        x = x_free
+    else:
+        qp = {"h": ca.Sparsity.dense(p, p)}
+        solver = ca.conic("bounded_lsq", "qrqp", qp,
+                          {"print_iter": False, "print_header": False, "print_info": False,
+                           "error_on_fail": True})
+        sol = solver(h=ca.DM(H), g=ca.DM(g), lbx=ca.DM(lb), ubx=ca.DM(np.full(p, np.inf)))
+        x = np.array(sol["x"]).ravel()
+    active = np.isclose(x, lb) & (x_free < lb)
+    resid = A @ x - y
+    dof = max(n - p, 1)
+    s2 = float(resid @ resid) / dof
+    cov = s2 * np.linalg.inv(H)
+    return LinearFit(x=x, std=np.sqrt(np.diag(cov)), residual_std=float(np.sqrt(s2)),
+                     n=n, active=active)
