@@ -1,0 +1,259 @@
+"""The C and CasADi back ends on kernels built here (PUMA A-matrix product, a 2-link arm), independent of the derivation."""
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import subprocess
+import sys
+import sysconfig
+import warnings
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+import sympy as sp
+
+from derive import emit_c, emit_casadi, opcount
+from derive.kernel import Arg, Guard, Kernel
+
+A2, D3, D4 = 0.2032, 0.12624, 0.2032  # Table 3.1, metres
+ALPHA = np.deg2rad([90, 0, -90, 90, -90, 0])  # signs from the A matrices 3.4-3.9
+D = [0, 0, D3, D4, 0, 0]
+A = [0, A2, 0, 0, 0, 0]
+
+
+def _dh(theta, d, a, alpha) -> sp.Matrix:
+    ct, st = sp.cos(theta), sp.sin(theta)
+    ca_, sa = sp.nsimplify(sp.cos(alpha)), sp.nsimplify(sp.sin(alpha))
+    return sp.Matrix([[ct, -st * ca_, st * sa, a * ct], [st, ct * ca_, -ct * sa, a * st], [0, sa, ca_, d], [0, 0, 0, 1]])
+
+
+def puma_fk_kernel(robot: str = "testarm") -> Kernel:
+    q = sp.Matrix(sp.symbols("q1:7", real=True))
+    a2, d3, d4 = sp.symbols("a2 d3 d4", positive=True)
+    alpha = [sp.pi / 2, 0, -sp.pi / 2, sp.pi / 2, -sp.pi / 2, 0]
+    d, a = [0, 0, d3, d4, 0, 0], [0, a2, 0, 0, 0, 0]
+    t = sp.eye(4)
+    for i in range(6):
+        t = t * _dh(q[i], d[i], a[i], alpha[i])
+    t = t.applyfunc(sp.expand)
+    return Kernel(robot, "fk", "T6 of the PUMA 260 (A1..A6 of 3.4-3.9).", (Arg("q", q),), (Arg("T", t),),
+                  params={a2: A2, d3: D3, d4: D4}, source="3.16-3.17")
+
+
+def two_link_ik_kernel(robot: str = "testarm") -> Kernel:
+    x, y = sp.symbols("x y", real=True)
+    l1, l2 = sp.symbols("l1 l2", positive=True)
+    c2 = (x**2 + y**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    s2 = sp.sqrt(1 - c2**2)
+    q = sp.Matrix([sp.atan2(y, x) - sp.atan2(l2 * s2, l1 + l2 * c2), sp.atan2(s2, c2)])
+    return Kernel(robot, "ik2", "Planar 2-link inverse kinematics, elbow down.", (Arg("p", sp.Matrix([x, y])),),
+                  (Arg("q", q),), guards=(Guard("guard_reach", 1 - c2**2, "Unreachable", "out of reach"),),
+                  params={l1: 0.3, l2: 0.2})
+
+
+def scale_kernel(robot: str = "testarm") -> Kernel:
+    u = sp.Matrix(sp.symbols("u1:4", real=True))
+    k = sp.Symbol("k", real=True)
+    return Kernel(robot, "scale", "y = k u and s = u1 + u2.", (Arg("u", u), Arg("k", sp.Matrix([[k]]))),
+                  (Arg("y", u * k), Arg("s", sp.Matrix([[u[0] + u[1]]]))))
+
+
+KERNELS = [puma_fk_kernel(), two_link_ik_kernel(), scale_kernel()]
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """Emit and compile the test kernels into a fresh extension module."""
+    if shutil.which("gcc") is None:
+        pytest.skip("no C compiler on this machine")
+    d = tmp_path_factory.mktemp("cext")
+    path, programs = emit_c.write("testarm", KERNELS, d, command="tests/test_backends_emit.py")
+    so = d / ("testarm" + sysconfig.get_config_var("EXT_SUFFIX"))
+    cmd = ["gcc", "-O2", "-fno-math-errno", "-shared", "-fPIC", "-Wall", "-Werror", "-Wno-unused-variable",
+           "-I", sysconfig.get_paths()["include"], str(path), "-o", str(so)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    spec = importlib.util.spec_from_file_location("testarm", so)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    cas = emit_casadi.write("testarm", KERNELS, d / "casadi", programs)
+    return mod, path, programs, cas
+
+
+def _sympy_eval(kernel: Kernel, *inputs: np.ndarray) -> list[np.ndarray]:
+    syms = [s for a in kernel.inputs for s in a.value]
+    vals = [float(v) for x in inputs for v in np.ravel(x)]
+    subs = dict(zip(syms, vals)) | {k: v for k, v in kernel.params.items()}
+    return [np.array(a.value.xreplace(subs).evalf(), dtype=float).reshape(a.shape) for a in kernel.outputs]
+
+
+def _pinocchio_puma() -> tuple[pin.Model, int]:
+    """A Pinocchio model built directly from the DH rows (Rz(q) Tz(d) Tx(a) Rx(alpha))."""
+    model = pin.Model()
+    parent, placement = 0, pin.SE3.Identity()
+    for i in range(6):
+        parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"j{i + 1}")
+        rot_x = pin.utils.rotate("x", ALPHA[i])
+        placement = pin.SE3(np.eye(3), np.array([0, 0, D[i]])) * pin.SE3(rot_x, np.array([A[i], 0, 0]))
+    fid = model.addFrame(pin.Frame("link6", parent, 0, placement, pin.FrameType.OP_FRAME))
+    return model, fid
+
+
+def test_c_fk_matches_sympy_and_pinocchio(built):
+    mod = built[0]
+    model, fid = _pinocchio_puma()
+    data = model.createData()
+    rng = np.random.default_rng(1)
+    for q in rng.uniform(-np.pi, np.pi, (20, 6)):
+        (t,) = mod.fk(q)
+        pin.framesForwardKinematics(model, data, q)
+        np.testing.assert_allclose(t, data.oMf[fid].homogeneous, atol=1e-12)
+    q = rng.uniform(-np.pi, np.pi, 6)
+    np.testing.assert_allclose(mod.fk(q)[0], _sympy_eval(KERNELS[0], q)[0], atol=1e-12)
+
+
+def test_batched_equals_single(built):
+    mod = built[0]
+    rng = np.random.default_rng(2)
+    qs = rng.uniform(-np.pi, np.pi, (50, 6))
+    (tb,) = mod.fk(qs)
+    assert tb.shape == (50, 4, 4)
+    for i in (0, 17, 49):
+        np.testing.assert_array_equal(tb[i], mod.fk(qs[i])[0])
+    ps = rng.uniform(-0.3, 0.3, (30, 2))
+    qb, gb = mod.ik2(ps)
+    for i in range(30):
+        q1, g1 = mod.ik2(ps[i])
+        assert isinstance(g1, float) and g1 == gb[i]
+        np.testing.assert_array_equal(q1, qb[i])
+    assert mod.fk(np.empty((0, 6)))[0].shape == (0, 4, 4)
+
+
+def test_ik_guard_and_values(built):
+    mod = built[0]
+    q, g = mod.ik2([0.3, 0.2])
+    assert g >= 0
+    np.testing.assert_allclose(q, _sympy_eval(KERNELS[1], np.array([0.3, 0.2]))[0], atol=1e-12)
+    # forward check: the solution reaches the point
+    x = 0.3 * np.cos(q[0]) + 0.2 * np.cos(q[0] + q[1])
+    y = 0.3 * np.sin(q[0]) + 0.2 * np.sin(q[0] + q[1])
+    np.testing.assert_allclose([x, y], [0.3, 0.2], atol=1e-12)
+    _, g_far = mod.ik2([1.0, 0.0])
+    assert g_far < 0  # out of reach is flagged by the guard, never silently
+
+
+def test_broadcast_unbatched_input(built):
+    mod = built[0]
+    y, s = mod.scale(np.arange(12.0).reshape(4, 3), 2.0)
+    np.testing.assert_array_equal(y, 2 * np.arange(12.0).reshape(4, 3))
+    np.testing.assert_array_equal(s, [1, 7, 13, 19])
+    y1, s1 = mod.scale([1, 2, 3], [[0.5]] if False else 0.5)
+    assert s1 == 3.0 and isinstance(s1, float)
+
+
+@pytest.mark.parametrize("bad, words", [
+    (np.zeros(5), ["fk", "'q'", "(5,)", "(6,)"]),
+    (np.zeros((3, 5)), ["(3, 5)", "(N, 6)"]),
+    (np.zeros((2, 2, 6)), ["(2, 2, 6)"]),
+    (np.array([0, 0, np.nan, 0, 0, 0]), ["'q'", "element 2", "NaN"]),
+    (np.array([[0.0] * 6, [0, 0, 0, np.inf, 0, 0]]), ["row 1", "element 3", "infinite"]),
+])
+def test_bad_input_errors(built, bad, words):
+    mod = built[0]
+    with pytest.raises(ValueError) as e:
+        mod.fk(bad)
+    for w in words:
+        assert w in str(e.value)
+
+
+def test_mismatched_rows_and_arity(built):
+    mod = built[0]
+    with pytest.raises(ValueError, match="3 rows, an earlier input has 4"):
+        mod.scale(np.ones((4, 3)), np.ones(3))
+    with pytest.raises(TypeError, match="takes 2 inputs"):
+        mod.scale(np.ones(3))
+
+
+def test_non_float64_inputs_are_converted(built):
+    mod = built[0]
+    q = np.arange(6) / 10
+    np.testing.assert_allclose(mod.fk(q.astype(np.float32))[0], mod.fk(q)[0], atol=1e-7)
+    np.testing.assert_array_equal(mod.fk(list(q))[0], mod.fk(q)[0])
+    strided = np.zeros((6, 2))
+    strided[:, 0] = q
+    np.testing.assert_array_equal(mod.fk(strided[:, 0])[0], mod.fk(q)[0])
+
+
+def test_casadi_matches_c(built):
+    mod, _, _, cas = built
+    fk = ca.Function.load(str(cas[0]))
+    ik = ca.Function.load(str(cas[1]))
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(-np.pi, np.pi, (5, 6)):
+        np.testing.assert_allclose(np.array(fk(q)), mod.fk(q)[0], atol=1e-12)
+    p = np.array([0.1, -0.25])
+    q_ca, g_ca = ik(p)
+    q_c, g_c = mod.ik2(p)
+    np.testing.assert_allclose(np.array(q_ca).ravel(), q_c, atol=1e-12)
+    assert abs(float(g_ca) - g_c) < 1e-12
+    assert fk.name_in() == ["q"] and ik.name_out() == ["q", "guard_reach"]
+
+
+def test_emitted_c_has_no_pow_and_no_allocation(built):
+    text = built[1].read_text()
+    body = "".join(m["body"] for m in opcount._KERNEL.finditer(text))
+    assert "pow(" not in body and "malloc" not in text and "alloc(" not in body
+    # sin and cos of each angle are computed once
+    for j in range(6):
+        assert body.count(f"sin(in0[{j}])") <= 1 and body.count(f"cos(in0[{j}])") <= 1
+
+
+def test_fk_op_count_and_cross_product(built):
+    rows = {r["kernel"]: r for r in opcount.count_file(built[1])}
+    fk = rows["fk"]
+    assert fk["mul_div"] <= 41  # section 6.1: RCCL's forward kinematics, 41 multiplications
+    prog = next(p for p, _ in built[2] if p.kernel.name == "fk")
+    assert "cross" in prog.variant  # one rotation column rebuilt from the other two (3.3)
+
+
+def test_opcount_tokeniser():
+    c = opcount.count_ops("    const double t0 = -a*b + 1e-05*c/(d - e);\n    out0[3] = sin(t0) + sqrt(x) - atan2(y, -z);")
+    assert c == {"mul_div": 3, "add_sub": 6, "neg": 2, "trig": 2, "sqrt": 1, "other": 0}
+    with pytest.raises(ValueError, match="unknown function"):
+        opcount.count_ops("t = pow(a, 2);")
+
+
+def test_c_printer_without_pow():
+    x, y = sp.symbols("x y")
+    pr = emit_c.CPrinter({})
+    assert pr.expr(x**3) == "x*x*x"
+    assert pr.expr(1 / x**2) == "1.0/(x*x)"
+    assert pr.expr(sp.sqrt(x + y)) == "sqrt(x + y)"
+    assert pr.expr(x - 2 * y) == "x - 2.0*y"
+    with pytest.raises(ValueError, match="pow"):
+        pr.expr(x ** sp.Rational(1, 3))
+
+
+def test_loader_falls_back_with_one_warning(monkeypatch):
+    from rccl.kinematics import backend
+    monkeypatch.setattr(backend, "_warned", False)
+    monkeypatch.setattr(backend, "_modules", {})
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        assert backend.kernel("no_such_robot", "fk", ((6,),), ((4, 4),)) is None
+        assert backend.kernel("no_such_robot_either", "fk", ((6,),), ((4, 4),)) is None
+    msgs = [str(x.message) for x in w if issubclass(x.category, RuntimeWarning)]
+    assert len(msgs) == 1 and "Python code" in msgs[0]
+    monkeypatch.setenv("RCCL_KINEMATICS", "python")
+    monkeypatch.setattr(backend, "_modules", {})
+    assert backend.c_module("puma260") is None
+
+
+def test_emission_is_deterministic(tmp_path):
+    a, _ = emit_c.write("testarm", KERNELS[:2], tmp_path / "a")
+    b, _ = emit_c.write("testarm", KERNELS[:2], tmp_path / "b")
+    assert a.read_text() == b.read_text()
+    assert emit_c.source_hash(a.read_text()) in a.read_text()
