@@ -1,0 +1,111 @@
+"""Denavit-Hartenberg tables of the two arms and the A matrix of thesis eq. 3.3.
+
+The tables are symbolic (a2, d3, d4 stay symbols; numbers are substituted only when
+code is emitted) so that every derived expression can be compared with the print.
+Joint variables are ``q1..q6``; for the Microbo ``q2`` and ``q3`` are the prismatic
+extensions d2 and d3 (metres), every other joint variable an angle (radians).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+#: joint variables, shared by both robots (q2, q3 are lengths on the Microbo)
+Q = sp.symbols("q1:7", real=True)
+
+#: the PUMA's fixed link lengths of Table 3.1 (metres)
+a2, d3, d4 = sp.symbols("a2 d3 d4", positive=True)
+
+
+@dataclass(frozen=True)
+class Link:
+    """One row of a DH table (thesis 3.2.1 steps 8-11); angles in radians."""
+
+    d: sp.Expr
+    theta: sp.Expr
+    alpha: sp.Expr
+    a: sp.Expr
+    prismatic: bool = False
+
+
+@dataclass(frozen=True)
+class DHRobot:
+    """A serial arm as its DH table plus the names the derivation needs."""
+
+    name: str
+    links: tuple[Link, ...]
+    params: tuple[sp.Symbol, ...]  # fixed lengths that stay symbolic
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        return tuple(link.prismatic for link in self.links)
+
+
+def a_matrix(link: Link) -> sp.Matrix:
+    """Thesis eq. 3.3: transform from frame i-1 to frame i.
+
+    The print lost every minus sign of 3.3; this is the standard DH form
+    Rot(z, theta) Trans(z, d) Trans(x, a) Rot(x, alpha), which is what the printed
+    A matrices 3.4-3.15 are instances of.
+    """
+    ct, st = sp.cos(link.theta), sp.sin(link.theta)
+    ca, sa = sp.cos(link.alpha), sp.sin(link.alpha)
+    return sp.Matrix(
+        [
+            [ct, -st * ca, st * sa, link.a * ct],
+            [st, ct * ca, -ct * sa, link.a * st],
+            [0, sa, ca, link.d],
+            [0, 0, 0, 1],
+        ]
+    )
+
+
+_deg = sp.pi / 180
+
+#: Table 3.1 with the signs of alpha that the printed A matrices 3.4-3.9 require
+#: (the table itself prints |alpha| only): alpha = 90, 0, -90, 90, -90, 0 degrees.
+PUMA260 = DHRobot(
+    name="puma260",
+    links=(
+        Link(0, Q[0], 90 * _deg, 0),
+        Link(0, Q[1], 0, a2),
+        Link(d3, Q[2], -90 * _deg, 0),
+        Link(d4, Q[3], 90 * _deg, 0),
+        Link(0, Q[4], -90 * _deg, 0),
+        Link(0, Q[5], 0, 0),
+    ),
+    params=(a2, d3, d4),
+)
+
+#: Table 3.2: joint 2 (theta = 90 deg fixed) and joint 3 are prismatic; the alphas are
+#: those the printed A matrices 3.10-3.15 require (all non-zero alphas +90 degrees).
+MICROBO = DHRobot(
+    name="microbo",
+    links=(
+        Link(0, Q[0], 0, 0),
+        Link(Q[1], 90 * _deg, 90 * _deg, 0, prismatic=True),
+        Link(Q[2], 0, 0, 0, prismatic=True),
+        Link(0, Q[3], 90 * _deg, 0),
+        Link(0, Q[4], 90 * _deg, 0),
+        Link(0, Q[5], 0, 0),
+    ),
+    params=(),
+)
+
+ROBOTS = {r.name: r for r in (PUMA260, MICROBO)}
+
+
+def a_matrices(robot: DHRobot) -> list[sp.Matrix]:
+    """A_1..A_6 of a robot (thesis 3.4-3.9 for the PUMA, 3.10-3.15 for the Microbo)."""
+    return [a_matrix(link) for link in robot.links]
+
+
+def inverse_transform(t: sp.Matrix) -> sp.Matrix:
+    """Inverse of a homogeneous transform: (R^T, -R^T p)."""
+    r = t[:3, :3]
+    p = t[:3, 3]
+    out = sp.eye(4)
+    out[:3, :3] = r.T
+    out[:3, 3] = -r.T * p
+    return out

@@ -1,0 +1,256 @@
+"""Inverse kinematics by Paul's method (thesis 3.19-3.53).
+
+Premultiply T6 = A1..A6 by A1^-1, A2^-1 A1^-1, ... (3.19), read off the matrix elements
+that contain a single new unknown, and solve them with the atan2 forms (3.20, 3.21).
+The result is one closed-form expression per joint variable in terms of the entries of
+T6 (n, o, a, p) and the configuration signs, plus guards that say when no (or no unique)
+solution exists.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from derive.dh import MICROBO, PUMA260, Q, DHRobot, a2, d3, d4
+from derive.forward import link_to_link, tidy
+
+nx, ny, nz, ox, oy, oz, ax, ay, az, px, py, pz = sp.symbols(
+    "nx ny nz ox oy oz ax ay az px py pz", real=True
+)
+#: the pose T6 as a matrix of symbols (a homogeneous transform)
+POSE = sp.Matrix([[nx, ox, ax, px], [ny, oy, ay, py], [nz, oz, az, pz], [0, 0, 0, 1]])
+#: the same as a kernel input: the bottom row is read but not used by the solutions
+POSE_INPUT = sp.Matrix(POSE[:3, :].tolist() + [list(sp.symbols("b0:4", real=True))])
+arm, elbow, wrist = sp.symbols("arm elbow wrist", real=True)
+
+#: relative tolerance with which a boundary pose (stretched elbow, arm on the d3
+#: cylinder) still counts as reachable: a few hundred ulps of the squared reach
+REACH_RTOL = 1e-12
+#: |sin theta5| (or a normalised distance) below which the solution is not unique
+SINGULAR_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class PickedEquation:
+    """One element of L_i = U_i (3.19) used to solve for a joint variable."""
+
+    thesis: str  # equation number in the thesis
+    premultiplied: int  # how many inverse A matrices premultiply T6
+    row: int  # 1-based
+    col: int  # 1-based
+    lhs: sp.Expr  # in terms of T6 entries and joints already solved
+    rhs: sp.Expr  # in terms of the remaining joint variables
+
+
+@dataclass(frozen=True)
+class IKSolution:
+    """Closed-form inverse kinematics of one robot."""
+
+    robot: DHRobot
+    equations: tuple[PickedEquation, ...]
+    joints: tuple[sp.Expr, ...]  # q1..q6 as functions of POSE and the config signs
+    config: tuple[sp.Symbol, ...]
+    guards: tuple[tuple[str, sp.Expr, str, str], ...]  # (name, expr, error, message)
+    wrist_given_q4: tuple[sp.Expr, sp.Expr]  # q5, q6 with q1..q4 as inputs
+    named: dict[str, sp.Expr]  # intermediate quantities, for the report
+
+
+def premultiplied(robot: DHRobot, i: int, pose: sp.Matrix = POSE) -> tuple[sp.Matrix, sp.Matrix]:
+    """(L_i, U_i): (A1..Ai)^-1 T6 and A_{i+1}..A6, the two sides of thesis 3.19."""
+    left = (link_to_link(robot, i, 0) * pose).applyfunc(tidy)
+    right = link_to_link(robot, i, 6)
+    return left, right
+
+
+def pick(robot: DHRobot, thesis: str, i: int, row: int, col: int) -> PickedEquation:
+    left, right = premultiplied(robot, i)
+    return PickedEquation(thesis, i, row, col, left[row - 1, col - 1], right[row - 1, col - 1])
+
+
+def solve_sin_cos(a: sp.Expr, b: sp.Expr, c: sp.Expr, sign: sp.Expr) -> sp.Expr:
+    """Thesis 3.21: theta with a sin(theta) + b cos(theta) = c.
+
+    theta = -atan2(b, a) + atan2(c, sign*sqrt(a^2 + b^2 - c^2)); the radicand is clamped
+    at zero so that boundary poses within the reach tolerance stay finite (the guard
+    on the radicand rejects the others).
+    """
+    root = sp.sqrt(sp.Max(0, a**2 + b**2 - c**2))
+    return -sp.atan2(b, a) + sp.atan2(c, sign * root)
+
+
+def _unknown_coefficients(expr: sp.Expr, s: sp.Expr, c: sp.Expr) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
+    """Write expr = A s + B c + C (expr linear in s and c)."""
+    expr = sp.expand(expr)
+    a_ = expr.coeff(s)
+    b_ = expr.coeff(c)
+    rest = sp.expand(expr - a_ * s - b_ * c)
+    return a_, b_, rest
+
+
+def puma_ik() -> IKSolution:
+    """PUMA 260, eqs. 3.22-3.41; config signs arm, elbow, wrist (each +1 or -1)."""
+    r = PUMA260
+    q1, q2, q3, q4, q5, q6 = Q
+    s1, c1 = sp.sin(q1), sp.cos(q1)
+    eqs: list[PickedEquation] = []
+
+    # theta1: row 3 of the 4th column of A1^-1 T6 = U2 (3.23): px S1 - py C1 = d3
+    e_p1 = pick(r, "3.23", 1, 1, 4)
+    e_p2 = pick(r, "3.23", 1, 2, 4)
+    e_p3 = pick(r, "3.23", 1, 3, 4)
+    eqs += [e_p1, e_p2, e_p3]
+    a_, b_, rest = _unknown_coefficients(e_p3.lhs - e_p3.rhs, s1, c1)
+    assert rest == -d3, rest
+    theta1 = solve_sin_cos(a_, b_, d3, arm)
+    radicand1 = a_**2 + b_**2 - d3**2
+
+    # theta3: sum of squares of rows 1, 2 of (3.23) (3.25): 2 a2 d4 S3 = d
+    fp = e_p1.lhs  # C1 px + S1 py
+    squares = sp.expand(sp.trigsimp(sp.expand(e_p1.rhs**2 + e_p2.rhs**2)))
+    coeff_s3 = squares.coeff(sp.sin(q3))
+    assert sp.simplify(coeff_s3 + 2 * a2 * d4) == 0, coeff_s3
+    assert sp.simplify(squares - coeff_s3 * sp.sin(q3) - a2**2 - d4**2) == 0
+    f = 2 * a2 * d4
+    d = a2**2 + d4**2 - fp**2 - pz**2
+    # elbow up <=> elbow above the shoulder-wrist line <=> arm*C3 < 0 (see report)
+    theta3_of_q1 = solve_sin_cos(f, 0, d, -arm * elbow)
+    theta3 = theta3_of_q1.subs(q1, theta1)
+    radicand3 = (f**2 - d**2).subs(q1, theta1)
+
+    # theta2 + theta3: rows 1 and 3 of the 4th column of A3^-1 A2^-1 A1^-1 T6 = U4 (3.29)
+    e_23a = pick(r, "3.29", 3, 1, 4)
+    e_23b = pick(r, "3.29", 3, 3, 4)
+    eqs += [e_23a, e_23b]
+    s23, c23 = sp.sin(q2 + q3), sp.cos(q2 + q3)
+    sv, cv = sp.symbols("s23 c23", real=True)
+    lin = [
+        (e.lhs - e.rhs).subs({s23: sv, c23: cv}) for e in (e_23a, e_23b)
+    ]
+    sol = sp.solve(lin, [sv, cv], dict=True)[0]
+    num_s, den_s = sp.fraction(sp.factor(sol[sv]))
+    num_c, den_c = sp.fraction(sp.factor(sol[cv]))
+    assert sp.simplify(den_s - den_c) == 0
+    den = sp.expand(den_s)
+    # the common denominator must be fp^2 + pz^2 > 0 so that it drops out of atan2
+    sgn = 1 if sp.expand(den - (fp**2 + pz**2)) == 0 else -1
+    assert sp.expand(den - sgn * (fp**2 + pz**2)) == 0, den
+    theta23_of_q13 = sp.atan2(sgn * num_s, sgn * num_c)  # in terms of q1 and q3
+    theta23 = theta23_of_q13.subs({q1: theta1, q3: theta3}, simultaneous=True)
+    theta2 = theta23 - theta3
+    fold = (fp**2 + pz**2).subs(q1, theta1)
+
+    # theta4: rows 1, 2 of the 3rd column of (3.28) (3.31): rhs -C4 S5, -S4 S5
+    e_4a = pick(r, "3.31", 3, 1, 3)
+    e_4b = pick(r, "3.31", 3, 2, 3)
+    eqs += [e_4a, e_4b]
+    # the right-hand sides are k*C4*S5 and k*S4*S5 with k = +-1: read k off
+    k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
+    k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
+    assert k_c in (1, -1) and k_s in (1, -1)
+    # wrist = sign(S5) selects the branch (the 180 degree shift of the text after 3.31)
+    y4 = wrist * k_s * e_4b.lhs
+    x4 = wrist * k_c * e_4a.lhs
+    theta4_of_q123 = sp.atan2(y4, x4)
+    wrist_norm = sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2)  # = |S5|
+
+    # theta5: rows 1, 2 of the 3rd column of A4^-1..A1^-1 T6 = U5 (3.33)
+    e_5a = pick(r, "3.33", 4, 1, 3)
+    e_5b = pick(r, "3.33", 4, 2, 3)
+    eqs += [e_5a, e_5b]
+    ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
+    kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
+    theta5_of_q1234 = sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs)
+
+    # theta6: rows 1, 2 of the 2nd column of A5^-1..A1^-1 T6 = U6 (3.35)
+    e_6a = pick(r, "3.35", 5, 1, 2)
+    e_6b = pick(r, "3.35", 5, 2, 2)
+    eqs += [e_6a, e_6b]
+    ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
+    kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
+    theta6_of_q12345 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
+
+    sub123 = {q1: theta1, q2: theta2, q3: theta3}
+    theta4 = theta4_of_q123.subs(sub123, simultaneous=True)
+    theta5 = theta5_of_q1234.subs({**sub123, q4: theta4}, simultaneous=True)
+    theta6 = theta6_of_q12345.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
+    theta6_given_q4 = theta6_of_q12345.subs({q5: theta5_of_q1234})
+
+    scale = (a2 + d4 + d3) ** 2
+    guards = (
+        ("guard_arm_reach", radicand1 + REACH_RTOL * (px**2 + py**2 + d3**2), "Unreachable",
+         "the wrist centre lies inside the cylinder of radius d3 about the joint-1 axis"),
+        ("guard_elbow_reach", radicand3 + REACH_RTOL * f**2, "Unreachable",
+         "the wrist centre is farther from the shoulder than a2 + d4 (beyond the stretched elbow)"),
+        ("guard_folded", fold - SINGULAR_TOL**2 * scale, "Singular",
+         "the wrist centre is at the shoulder (elbow fully folded): theta2 is undetermined"),
+        ("guard_wrist", wrist_norm - SINGULAR_TOL, "Singular",
+         "sin(theta5) = 0: joints 4 and 6 are aligned and only theta4 + theta6 is determined"),
+    )
+    named = {
+        "f_p": fp, "f": f, "d": d, "r2": px**2 + py**2, "u1": a2 * sp.cos(q3),
+        "u2": d4 - a2 * sp.sin(q3), "theta1": theta1, "theta3": theta3_of_q1,
+        "theta23": theta23_of_q13, "theta4": theta4_of_q123, "theta5": theta5_of_q1234,
+        "theta6": theta6_of_q12345,
+    }
+    return IKSolution(r, tuple(eqs), (theta1, theta2, theta3, theta4, theta5, theta6),
+                      (arm, elbow, wrist), guards, (theta5_of_q1234, theta6_given_q4), named)
+
+
+def microbo_ik() -> IKSolution:
+    """Microbo Ecureuil, eqs. 3.42-3.53; config sign wrist (+1 or -1)."""
+    r = MICROBO
+    q1, q2, q3, q4, q5, q6 = Q
+    eqs: list[PickedEquation] = []
+    # 3.42: the fourth column of A1^-1 T6 = U2 (cylindrical coordinates)
+    e_p1 = pick(r, "3.42", 1, 1, 4)
+    e_p2 = pick(r, "3.42", 1, 2, 4)
+    e_p3 = pick(r, "3.42", 1, 3, 4)
+    eqs += [e_p1, e_p2, e_p3]
+    assert e_p2.rhs == 0 and e_p3.rhs == q2 and e_p1.rhs == q3
+    # -px S1 + py C1 = 0 with d3 = px C1 + py S1 > 0 (d3 cannot be negative): 3.43
+    theta1 = sp.atan2(py, px)
+    ext2 = pz  # 3.49
+    ext3 = sp.sqrt(px**2 + py**2)  # 3.44, 3.50
+
+    # theta4: third column of A1^-1 T6 = U2 (the print's 3.45 is this element set)
+    e_4a = pick(r, "3.45", 1, 2, 3)
+    e_4b = pick(r, "3.45", 1, 3, 3)
+    e_4c = pick(r, "3.45", 1, 1, 3)
+    eqs += [e_4c, e_4a, e_4b]
+    k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
+    k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
+    assert k_c in (1, -1) and k_s in (1, -1)
+    theta4_of_q1 = sp.atan2(wrist * k_s * e_4b.lhs, wrist * k_c * e_4a.lhs)
+    wrist_norm = sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2)
+
+    # theta5: third column of A4^-1..A1^-1 T6 = U5 (3.46)
+    e_5a = pick(r, "3.46", 4, 1, 3)
+    e_5b = pick(r, "3.46", 4, 2, 3)
+    eqs += [e_5a, e_5b]
+    ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
+    kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
+    theta5_of_q14 = sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs)
+
+    # theta6: second column of A5^-1..A1^-1 T6 = U6 (3.47)
+    e_6a = pick(r, "3.47", 5, 1, 2)
+    e_6b = pick(r, "3.47", 5, 2, 2)
+    eqs += [e_6a, e_6b]
+    ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
+    kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
+    theta6_of_q145 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
+
+    theta4 = theta4_of_q1.subs(q1, theta1)
+    theta5 = theta5_of_q14.subs({q1: theta1, q4: theta4}, simultaneous=True)
+    theta6 = theta6_of_q145.subs({q1: theta1, q4: theta4, q5: theta5}, simultaneous=True)
+    theta6_given_q4 = theta6_of_q145.subs(q5, theta5_of_q14)
+    guards = (
+        ("guard_axis", ext3 - SINGULAR_TOL, "Singular",
+         "the wrist centre is on the joint-1 axis (d3 = 0): theta1 is undetermined"),
+        ("guard_wrist", wrist_norm - SINGULAR_TOL, "Singular",
+         "sin(theta5) = 0: joints 4 and 6 are aligned and only theta4 + theta6 is determined"),
+    )
+    named = {"theta1": theta1, "d2": ext2, "d3": ext3, "theta4": theta4_of_q1,
+             "theta5": theta5_of_q14, "theta6": theta6_of_q145}
+    return IKSolution(r, tuple(eqs), (theta1, ext2, ext3, theta4, theta5, theta6), (wrist,),
+                      guards, (theta5_of_q14, theta6_given_q4), named)

@@ -1,0 +1,136 @@
+"""Differential kinematics: the D and F maps (1.13, 1.23), the link-4 Jacobian
+(3.54-3.61), the PUMA's modified 4J' (3.62-3.67), the symbolic inverses (3.68, 3.70),
+the four Jacobian computations (3.71-3.78) and the frame 4 <-> 6 maps (3.79-3.82).
+
+Differential vectors are (dx, dy, dz, delta_x, delta_y, delta_z); force vectors
+(fx, fy, fz, mx, my, mz); both observed in the frame named by the superscript.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from derive.dh import Q, DHRobot
+from derive.forward import link_to_link, tidy, tidy_matrix
+
+
+def _cross(u: sp.Matrix, v: sp.Matrix) -> sp.Matrix:
+    return u.cross(v)
+
+
+def d_map(x: sp.Matrix) -> sp.Matrix:
+    """Thesis 1.13: D_{O,X}, mapping a differential change seen in O to X.
+
+    x is the transform from O to X with columns n, o, a, p. Row blocks are
+    [n^T, (p x n)^T], [o^T, (p x o)^T], [a^T, (p x a)^T] for the translations and
+    [0, n^T], ... for the rotations (the print writes "p . n" for p x n).
+    """
+    n, o, a, p = (x[:3, j] for j in range(4))
+    rows = []
+    for v in (n, o, a):
+        rows.append(list(v.T) + list(_cross(p, v).T))
+    for v in (n, o, a):
+        rows.append([0, 0, 0] + list(v.T))
+    return sp.Matrix(rows)
+
+
+def f_map(x: sp.Matrix) -> sp.Matrix:
+    """Thesis 1.23: F_{O,X}, mapping a force vector seen in O to X (= D_{O,X}^-T)."""
+    n, o, a, p = (x[:3, j] for j in range(4))
+    rows = []
+    for v in (n, o, a):
+        rows.append(list(v.T) + [0, 0, 0])
+    for v in (n, o, a):
+        rows.append(list(_cross(p, v).T) + list(v.T))
+    return sp.Matrix(rows)
+
+
+def joint_screw(prismatic: bool) -> sp.Matrix:
+    """Thesis 3.56: c_i, a unit change along (prismatic) or about (revolute) z_{i-1}."""
+    c = sp.zeros(6, 1)
+    c[2 if prismatic else 5] = 1
+    return c
+
+
+def link_jacobian(robot: DHRobot, k: int) -> sp.Matrix:
+    """Thesis 3.57-3.61: kJ, the Jacobian of link 6's motion observed in link k.
+
+    Column i is D_{i-1,k}(c_i) with X = transform from frame i-1 to frame k. For
+    joints beyond k the transform is the inverse of A_k+1..A_i-1; this is valid because
+    the motion is of link 6, whose origin coincides with those of frames 4 and 5 on both
+    arms (A5 and A6 have no translation).
+    """
+    cols = []
+    for i in range(1, 7):
+        x = link_to_link(robot, i - 1, k)
+        cols.append(tidy_matrix(d_map(x) * joint_screw(robot.links[i - 1].prismatic)))
+    return sp.Matrix.hstack(*cols)
+
+
+def y_matrix() -> sp.Matrix:
+    """Thesis 3.63: Y with (dq1, dq2, dq2 + dq3, dq4, dq5, dq6) = Y dq."""
+    y = sp.eye(6)
+    y[2, 1] = 1
+    return y
+
+
+def block_inverse(j: sp.Matrix) -> sp.Matrix:
+    """Inverse of a 6x6 Jacobian whose top-right 3x3 block is zero.
+
+    Both arms' link-4 Jacobians have this shape (the wrist joints do not move the wrist
+    centre), so J^-1 = [[J11^-1, 0], [-J22^-1 J21 J11^-1, J22^-1]], each 3x3 inverse by
+    the adjugate and simplified.
+    """
+    assert j[:3, 3:] == sp.zeros(3, 3), "top-right block must vanish"
+    j11, j21, j22 = j[:3, :3], j[3:, :3], j[3:, 3:]
+    i11 = _inv3(j11)
+    i22 = _inv3(j22)
+    out = sp.zeros(6, 6)
+    out[:3, :3] = i11
+    out[3:, 3:] = i22
+    out[3:, :3] = (-i22 * j21 * i11).applyfunc(lambda e: sp.factor(tidy(e)))
+    return out
+
+
+def _inv3(m: sp.Matrix) -> sp.Matrix:
+    det = sp.factor(tidy(m.det()))
+    adj = m.adjugate().applyfunc(tidy)
+    return (adj / det).applyfunc(sp.factor)
+
+
+@dataclass(frozen=True)
+class Differential:
+    """Everything chapter 3.5-3.7 derives for one robot."""
+
+    robot: DHRobot
+    j4: sp.Matrix  # 4J
+    j6: sp.Matrix  # 6J
+    j4_reduced: sp.Matrix  # 4J' (PUMA) or 4J (Microbo): the matrix that is inverted
+    j4_reduced_inv: sp.Matrix
+    y: sp.Matrix  # 4J = 4J' Y (identity for the Microbo)
+    b: sp.Matrix  # 3.81/3.82: D_{4,6} = diag(B, B)
+    d46: sp.Matrix
+    f46: sp.Matrix
+    det_factors: tuple[sp.Expr, ...]  # denominators of the inverse (zero = singular)
+
+
+def differential(robot: DHRobot, reduce_23: bool) -> Differential:
+    j4 = link_jacobian(robot, 4)
+    j6 = link_jacobian(robot, 6)
+    y = y_matrix() if reduce_23 else sp.eye(6)
+    j4r = tidy_matrix(j4 * y.inv())
+    j4r_inv = block_inverse(j4r)
+    x46 = link_to_link(robot, 4, 6)
+    d46 = tidy_matrix(d_map(x46))
+    f46 = tidy_matrix(f_map(x46))
+    b = d46[:3, :3]
+    dens = set()
+    for e in j4r_inv:
+        _, den = sp.fraction(sp.factor(e))
+        for fac in sp.Mul.make_args(den):
+            base = fac.as_base_exp()[0]
+            if base.free_symbols & set(Q):
+                dens.add(base)
+    return Differential(robot, j4, j6, j4r, j4r_inv, y, b, d46, f46,
+                        tuple(sorted(dens, key=sp.default_sort_key)))
