@@ -67,3 +67,22 @@ def friction_torque(qd: np.ndarray, fc_plus, fc_minus, fv_plus, fv_minus) -> np.
     """4.27 for moving joints (N m), elementwise over (N,6) joint rates."""
     return np.where(qd > 0, fc_plus + fv_plus * qd,
                     np.where(qd < 0, -fc_minus + fv_minus * qd, 0.0))
+
+
+def write_rcilog(path: str, trace: Trace, robot: str = "puma260") -> str:
+    """Write a synthetic Trace as a real recorder log (rci.recorder), ADC rounded to
+    the 12-bit integers the controller reports."""
+    from rci.how import How
+    from rci.recorder import Recorder
+
+    with Recorder(path, robot=robot, nj=6, nadc=16, rate_hz=int(trace.rate_hz),
+                  meta=trace.meta) as rec:
+        for k in range(len(trace.t)):
+            adc = np.zeros(16, dtype=np.int64)
+            adc[:6] = np.clip(np.round(trace.adc[k]), -2047, 2047)
+            how = How(pos=trace.counts[k].astype(np.int64), adcr=adc, cycle=k,
+                      time_ns=int(round(trace.t[k] * 1e9)), rate_hz=int(trace.rate_hz))
+            rec.append(how, None)
+            if k % 512 == 511:
+                rec.flush()
+    return path

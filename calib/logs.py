@@ -1,0 +1,77 @@
+"""Reading recorder logs (docs/log-format.md) into Traces, with errors that say where."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from calib.errors import LogError, MixedLogsError
+from calib.trace import EXPERIMENTS, Trace, check_samples
+from rci.exceptions import LogFormatError
+from rci.recorder import read_log
+
+# ADC readings are 12-bit signed (docs/log-format.md): at the rails the current is unknown.
+ADC_RAIL = 2047
+
+
+def load_trace(path: str, allow_truncated: bool = False) -> Trace:
+    """One log as a Trace.  Raises LogError for a damaged, truncated (unless allowed)
+    or incomplete log, naming the file, the record and the problem."""
+    try:
+        log = read_log(path)
+    except LogFormatError as exc:
+        raise LogError(path, None, f"{exc.where}: {exc.problem}") from None
+    if not log.complete and not allow_truncated:
+        note = log.notes[-1] if log.notes else "no end marker"
+        raise LogError(path, len(log), f"truncated after record {len(log) - 1}: {note} "
+                       "(refit with --allow-truncated to use the records before it)")
+    header = log.meta
+    meta = header.get("meta")
+    if not isinstance(meta, dict):
+        raise LogError(path, None, "header has no run metadata object 'meta' "
+                       "(was the log written by a calib measurement program?)")
+    experiment = meta.get("experiment")
+    if experiment not in EXPERIMENTS:
+        raise LogError(path, None, f"metadata 'experiment' = {experiment!r} "
+                       f"is not one of {', '.join(EXPERIMENTS)}")
+    rec = log.records
+    names = rec.dtype.names or ()
+    for col in ("robot_time_ns", "how_pos", "how_adcr"):
+        if col not in names:
+            raise LogError(path, None, f"records lack the column '{col}'")
+    if len(rec) == 0:
+        raise LogError(path, None, "the log holds no records")
+    counts = np.asarray(rec["how_pos"], dtype=float)
+    adc = np.asarray(rec["how_adcr"], dtype=float)
+    if counts.ndim != 2 or counts.shape[1] < 6 or adc.ndim != 2 or adc.shape[1] < 6:
+        raise LogError(path, None, f"records hold {counts.shape[1:]} positions and "
+                       f"{adc.shape[1:]} ADC channels; a 6-joint robot is needed")
+    trace = Trace(path=str(path), robot=str(header.get("robot", "")),
+                  rate_hz=float(header.get("rate_hz", 0) or 0), meta=meta,
+                  t=np.asarray(rec["robot_time_ns"], dtype=np.int64) * 1e-9,
+                  counts=counts[:, :6], adc=adc[:, :6])
+    check_samples(trace)
+    return trace
+
+
+def load_traces(paths: Sequence[str], experiment: str | None = None,
+                allow_truncated: bool = False) -> list[Trace]:
+    """Several logs of one robot (and, if given, one experiment)."""
+    if not paths:
+        raise MixedLogsError("no log files given")
+    traces = [load_trace(p, allow_truncated) for p in paths]
+    robots = {tr.robot for tr in traces}
+    if len(robots) > 1:
+        by = "; ".join(f"{tr.path}: {tr.robot}" for tr in traces)
+        raise MixedLogsError(f"logs from different robots cannot be fitted together ({by})")
+    if experiment is not None:
+        for tr in traces:
+            if tr.experiment != experiment:
+                raise LogError(tr.path, None, f"is a '{tr.experiment}' log, "
+                               f"not a '{experiment}' one")
+    return traces
+
+
+def saturated_records(trace: Trace, joint: int) -> np.ndarray:
+    """Indices of records whose ADC channel of ``joint`` (0-based) sits at a rail."""
+    return np.flatnonzero(np.abs(trace.adc[:, joint]) >= ADC_RAIL)

@@ -1,0 +1,91 @@
+"""The calib command on real recorder files: tables, parameter file, plots, bad input."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from calib.__main__ import main
+from calib.params import read_params
+from tests.calib_synth import drive, friction_torque, sweep, to_trace, write_rcilog
+from tests.test_calib_fits import FC_M, FC_P, FV_M, FV_P, rates
+
+
+def _friction_log(tmp_path, joint: int, robot: str = "puma260", meta_extra=None, name=None) -> str:
+    rng = np.random.default_rng(joint)
+    t, q = sweep(np.zeros(6), joint - 1, -0.5, 0.5, [0.1, 0.4, 0.8, 1.2])
+    tau = friction_torque(rates(t, q), FC_P, FC_M, FV_P, FV_M)
+    meta = {"experiment": "friction", "joint": joint, "window": [-0.5, 0.5]}
+    meta.update(meta_extra or {})
+    tr = to_trace(t, q, tau, meta, drive(), rng)
+    return write_rcilog(str(tmp_path / (name or f"friction-j{joint}-{robot}.rcilog")), tr, robot)
+
+
+def test_fit_friction_prints_table_writes_params_and_plots(tmp_path, capsys):
+    logs = [_friction_log(tmp_path, j) for j in (1, 5)]
+    params = str(tmp_path / "fitted.toml")
+    rc = main(["fit", "friction", *logs, "--params", params, "--plots", str(tmp_path), "-q"])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "Table 4.2" in out and "Table 4.3" in out
+    data = read_params(params)
+    assert data["calib"]["robot"] == "puma260"
+    assert data["friction"]["coulomb_pos"][0] == pytest.approx(FC_P[0], abs=0.03)
+    assert data["friction"]["coulomb_neg"][4] == pytest.approx(FC_M[4], abs=0.01)
+    assert os.path.getsize(tmp_path / "calib-friction-j1.png") > 1000
+
+
+def test_truncated_log_names_file_and_record(tmp_path, capsys):
+    log = _friction_log(tmp_path, 1)
+    data = open(log, "rb").read()
+    open(log, "wb").write(data[: len(data) - 700])
+    rc = main(["fit", "friction", log, "-q"])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert log in err and "truncated after record" in err
+
+
+def test_corrupt_block_names_file_and_records(tmp_path, capsys):
+    log = _friction_log(tmp_path, 1)
+    data = bytearray(open(log, "rb").read())
+    data[len(data) // 2] ^= 0xFF
+    open(log, "wb").write(bytes(data))
+    rc = main(["fit", "friction", log, "-q"])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert log in err and "records" in err and "checksum" in err
+
+
+def test_mixed_robots_are_refused(tmp_path, capsys):
+    a = _friction_log(tmp_path, 1)
+    b = _friction_log(tmp_path, 2, robot="microbo")
+    rc = main(["fit", "friction", a, b, "-q"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "different robots" in err and b in err
+
+
+def test_missing_metadata_is_named(tmp_path, capsys):
+    log = _friction_log(tmp_path, 1, meta_extra={"window": None})
+    rc = main(["fit", "friction", log, "-q"])
+    err = capsys.readouterr().err
+    assert rc == 2 and log in err and "'window'" in err
+
+
+def test_wrong_kind_of_log_is_named(tmp_path, capsys):
+    log = _friction_log(tmp_path, 1)
+    rc = main(["fit", "gravity", log, "-q"])
+    err = capsys.readouterr().err
+    assert rc == 2 and log in err and "not a 'gravity'" in err
+
+
+def test_failed_fit_leaves_previous_parameters_untouched(tmp_path, capsys):
+    params = str(tmp_path / "fitted.toml")
+    assert main(["fit", "friction", _friction_log(tmp_path, 1), "--params", params, "-q"]) == 0
+    before = open(params, "rb").read()
+    bad = _friction_log(tmp_path, 2, name="bad.rcilog")
+    data = open(bad, "rb").read()
+    open(bad, "wb").write(data[:-900])
+    assert main(["fit", "friction", bad, "--params", params, "-q"]) == 2
+    assert open(params, "rb").read() == before
+    assert [f for f in os.listdir(tmp_path) if f.endswith(".tmp")] == []
