@@ -1,6 +1,9 @@
 """Reading recorder logs (docs/log-format.md) into Traces, with errors that say where."""
 from __future__ import annotations
 
+import gzip
+import tempfile
+import zlib
 from collections.abc import Sequence
 
 import numpy as np
@@ -18,7 +21,7 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
     """One log as a Trace.  Raises LogError for a damaged, truncated (unless allowed)
     or incomplete log, naming the file, the record and the problem."""
     try:
-        log = read_log(path)
+        log = _read(path)
     except LogFormatError as exc:
         raise LogError(path, None, f"{exc.where}: {exc.problem}") from None
     if not log.complete and not allow_truncated:
@@ -52,6 +55,26 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
                   counts=counts[:, :6], adc=adc[:, :6])
     check_samples(trace)
     return trace
+
+
+def _read(path: str):
+    """read_log, also for a gzip-compressed log (``.gz``: how calib/logs/ ships them)."""
+    if not str(path).endswith(".gz"):
+        return read_log(path)
+    try:
+        with gzip.open(path, "rb") as f:
+            data = f.read()
+    except (OSError, EOFError, zlib.error) as exc:
+        raise LogError(path, None, f"not a readable gzip file: {exc}") from None
+    with tempfile.NamedTemporaryFile(suffix=".rcilog") as tmp:
+        tmp.write(data)
+        tmp.flush()
+        try:
+            log = read_log(tmp.name)
+        except LogFormatError as exc:
+            raise LogFormatError(path, exc.where, exc.problem) from None
+    log.path = str(path)
+    return log
 
 
 def load_traces(paths: Sequence[str], experiment: str | None = None,

@@ -59,8 +59,10 @@ def _within(q: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None) -
 
 def repeat_sweep(main: Sweep, regressor: Callable[[np.ndarray], np.ndarray],
                  lower: np.ndarray | None = None, upper: np.ndarray | None = None,
-                 step_deg: float = 15.0, tol: float = 1e-9) -> Sweep:
-    """The friction-cancelling repeat of ``main`` (see the module docstring)."""
+                 step_deg: float = 15.0, tol: float = 1e-9) -> Sweep | None:
+    """The friction-cancelling repeat of ``main`` (see the module docstring), or None
+    when none fits in the joint ranges (the PUMA's joint 2: a zero start torque needs
+    theta2 = +-90 deg at one end of a 180-degree sweep, beyond its estimated range)."""
     i = main.joint - 1
     grid = np.arange(-180.0, 180.0 + 1e-9, step_deg) * DEG
     us = np.linspace(0.0, np.pi, 7)
@@ -111,7 +113,7 @@ def repeat_sweep(main: Sweep, regressor: Callable[[np.ndarray], np.ndarray],
             if best is None or dist < best[0]:
                 best = (dist, q, lo)
     if best is None:
-        raise ValueError(f"no friction-cancelling repeat found for sweep {main.name}")
+        return None
     q = best[1].copy()
     q[i] = best[2] + np.pi / 2
     return Sweep(main.name, "repeat", main.joint, q, best[2], "moved range")

@@ -89,3 +89,18 @@ def test_failed_fit_leaves_previous_parameters_untouched(tmp_path, capsys):
     assert main(["fit", "friction", bad, "--params", params, "-q"]) == 2
     assert open(params, "rb").read() == before
     assert [f for f in os.listdir(tmp_path) if f.endswith(".tmp")] == []
+
+
+def test_gzipped_log_fits_like_the_plain_one(tmp_path, capsys):
+    import gzip
+    log = _friction_log(tmp_path, 1)
+    gz = log + ".gz"
+    with open(log, "rb") as f, gzip.open(gz, "wb") as g:
+        g.write(f.read())
+    assert main(["fit", "friction", log, "-q"]) == 0
+    plain = capsys.readouterr().out
+    assert main(["fit", "friction", gz, "-q"]) == 0
+    assert capsys.readouterr().out.replace(".gz", "") .splitlines()[2:] == plain.splitlines()[2:]
+    open(gz, "wb").write(open(gz, "rb").read()[:-50])
+    assert main(["fit", "friction", gz, "-q"]) == 2
+    assert gz in capsys.readouterr().err

@@ -1,0 +1,129 @@
+"""The thesis's four measurements as joint paths plus the metadata their fits need.
+
+Each ``*_plan`` returns Plans: a path for the controller to follow, the log metadata
+(docs/calib.md) and a file name.  Poses are in the thesis's joint angles (DH of
+Table 3.1) and chosen with the gravity model: friction paths are centred where gravity
+does no net work (4.5.4), the sensitivity arcs are swept with and without the pulley
+(4.5.2), the gravity sweeps start from Table 4.7 (4.5.6) and the halts are random
+(4.5.5).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from calib.paths import Path, Segment, sweep_path
+from calib.poses import TABLE_4_7, main_sweep, repeat_sweep
+
+DEG = np.pi / 180
+ACCEL = 1.5  # rad/s^2 at the turns: gentle, so the servo keeps the setpoint
+
+# Friction poses: joint i sweeps a window centred on the pose's angle; the other joints
+# put the axis vertical (joints 1, 4, 5) or centre the window on the angle where the
+# arm points straight up, so that gravity's work over the window cancels (2, 3).
+# Degrees; tests/test_calib_programs.py checks each against the gravity regressor.
+FRICTION_POSES: dict[int, tuple[tuple[float, ...], float]] = {
+    1: ((90, 90, -90, 0, 0, 0), 60),      # joint 1 axis is always vertical
+    2: ((90, 90, -90, 90, 90, 0), 50),    # arm straight up at theta2 = 90
+    3: ((90, 90, -90, 90, 90, 0), 50),    # forearm straight up at theta2 + theta3 = 0
+    4: ((90, 90, -90, 0, 45, 0), 60),     # forearm vertical: joint 4 axis vertical
+    5: ((90, 90, 0, 90, 0, 0), 60),       # forearm horizontal, theta4 = 90: axis 5 vertical
+    6: ((90, 90, -90, 0, 0, 0), 60),      # theta5 = 0 under a vertical forearm: axis 6 vertical
+}
+FRICTION_SPEEDS_DEG = (5, 10, 20, 35, 50, 70)
+
+
+@dataclass
+class Plan:
+    """One measurement run: where to go, what to log with it, and the log's name."""
+
+    name: str
+    path: Path
+    meta: dict[str, Any]
+    simula_args: list[str] = field(default_factory=list)
+
+
+def _start_move(here: np.ndarray | None, to: np.ndarray) -> list[Segment]:
+    return [] if here is None else [Segment(here, to, 0.6, ACCEL, 0.5)]
+
+
+def _prepend(here: np.ndarray | None, path: Path) -> Path:
+    first = path.segments[0].start
+    return Path(tuple(_start_move(here, first)) + path.segments)
+
+
+def friction_plans(joints=range(1, 7), speeds_deg=FRICTION_SPEEDS_DEG, trips: int = 1) -> list[Plan]:
+    """4.5.4: passes in both directions at several constant speeds, no potential-energy change."""
+    plans = []
+    for j in joints:
+        qdeg, half = FRICTION_POSES[j]
+        q = np.array(qdeg, float) * DEG
+        lo, hi = q[j - 1] - half * DEG, q[j - 1] + half * DEG
+        path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
+        meta = {"experiment": "friction", "joint": j, "window": [lo, hi],
+                "pose": list(q), "speeds": [v * DEG for v in speeds_deg], "trips": trips}
+        plans.append(Plan(f"friction-j{j}", path, meta))
+    return plans
+
+
+def sensitivity_plans(mass_kg: float, radius_m: float, joints=range(1, 7),
+                      speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0) -> list[Plan]:
+    """4.5.2: the same arc with the pulley's mass and without it (two simula runs).
+
+    The pulley is a simula load option (``--load pulley:...``); its string winds on a
+    drum on the joint axis, and the mass rises as the joint angle increases (sign +1).
+    """
+    plans = []
+    for j in joints:
+        qdeg, _ = FRICTION_POSES[j]
+        q = np.array(qdeg, float) * DEG
+        lo, hi = q[j - 1] - arc_deg / 2 * DEG, q[j - 1] + arc_deg / 2 * DEG
+        for mass in (mass_kg, 0.0):
+            path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
+            meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
+                    "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1}}
+            tag = "loaded" if mass > 0 else "unloaded"
+            args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
+            plans.append(Plan(f"sensitivity-j{j}-{tag}", path, meta, args))
+    return plans
+
+
+def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarray,
+                  upper: np.ndarray, speed_deg: float = 20.0, trips: int = 1) -> list[Plan]:
+    """4.5.6: each Table 4.7 sweep and its friction-cancelling repeat (4.49-4.51)."""
+    plans = []
+    for name in TABLE_4_7:
+        main = main_sweep(name)
+        repeat = repeat_sweep(main, regressor, lower, upper)
+        for sw in (main, repeat) if repeat is not None else (main,):
+            j = sw.joint - 1
+            path = sweep_path(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi, [speed_deg * DEG],
+                              trips, ACCEL)
+            meta = {"experiment": "gravity", "joint": sw.joint, "position": name, "role": sw.role,
+                    "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how}
+            plans.append(Plan(f"gravity-{name}-{sw.role}", path, meta))
+    return plans
+
+
+def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: int = 1985,
+                speed_deg: float = 60.0, halt_s: float = 0.6, step_deg: float = 40.0,
+                start: np.ndarray | None = None) -> Plan:
+    """4.5.5, second method: the arm brought to a halt at random poses.
+
+    Each pose is a random step of up to ``step_deg`` per joint from the last (kept 10 %
+    inside the joint ranges), so the 275 halts take minutes rather than an hour.
+    """
+    rng = np.random.default_rng(seed)
+    margin = 0.1 * (upper - lower)
+    lo, hi = lower + margin, upper - margin
+    here = np.clip(start if start is not None else (lo + hi) / 2, lo, hi)
+    segs = [Segment(here, here, 1.0, ACCEL, halt_s)]
+    for _ in range(halts - 1):
+        q = np.clip(here + rng.uniform(-step_deg, step_deg, 6) * DEG, lo, hi)
+        segs.append(Segment(here, q, speed_deg * DEG, 3 * ACCEL, halt_s))
+        here = q
+    meta = {"experiment": "static", "halts": halts, "seed": seed, "halt_s": halt_s}
+    return Plan("static", Path(tuple(segs)), meta)
