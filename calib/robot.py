@@ -1,10 +1,9 @@
 """What calib needs to know about a robot: its drive conversions and its gravity model.
 
-Both come from the runtime when it offers them (rci.conversions and rci.robot_model for
-the drive, the generated rccl.kinematics module for the gravity regressor of 4.24), so
-calib fits the very model the controller uses.  Where one of those is not importable,
-calib reads the same robot data file (models/<robot>.toml) itself and uses 4.24 in the
-form the data file documents.
+Both come from the runtime (rci.conversions and rci.robot_model for the drive, the
+generated rccl.kinematics module for the gravity regressor of 4.24), so calib fits the
+very model the controller uses; until the generated module offers a regressor, calib
+uses 4.24 in the form the data file documents (thesis_regressor).
 """
 from __future__ import annotations
 
@@ -49,13 +48,6 @@ def _data_file(name: str) -> dict:
         raise CalibError(f"no robot data file {path} for robot {name!r}") from None
 
 
-def _vals(data: dict, *keys: str) -> np.ndarray:
-    node = data
-    for k in keys:
-        node = node[k]
-    return np.asarray(node["values"] if isinstance(node, dict) else node, dtype=float)
-
-
 def thesis_regressor(q: np.ndarray) -> np.ndarray:
     """Eq. 4.24 as a regressor (6,3) in (c12, c13, c15): tau_g = Y(q) c, q in rad."""
     t1, t2, t3, t4, t5, t6 = np.asarray(q, dtype=float)
@@ -81,46 +73,22 @@ def _regressor(name: str) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def robot_info(name: str) -> RobotInfo:
-    """Drive conversions, gravity regressor and nominal parameters of robot ``name``."""
-    data = _data_file(name)
+    """Drive conversions, gravity regressor and nominal parameters of robot ``name``.
+
+    The drive is rci.conversions' (the encoder ratio matrix in the form the runtime
+    uses), the ranges rci.robot_model's; the nominal values are the data file's.
+    """
+    from rci.conversions import Conversions
+    from rci.exceptions import ModelError
+    from rci.robot_model import load_robot
+
     try:
-        conv = data["conversion"]
-        G = _vals(conv, "gear_ratio")
-        R = _vals(conv, "encoder_ratio")
-        offset = _vals(conv, "encoder_offset") if "encoder_offset" in conv else np.zeros(6)
-        vg = float(_scalar(conv, "adc_volts_per_count", "V_g", "vg"))
-        rs = _vals(conv, _first(conv, "sense_resistance", "sense_resistor", "R_sense"))
-        sigma = _vals(data, "motors", "torque_sensitivity")
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CalibError(f"{MODELS / (name + '.toml')}: conversion constants incomplete ({exc})") from None
-    drive = Drive(R=R, G=G, amps_per_adc=vg / rs, sigma=sigma,
-                  encoder_offset=offset if offset.shape == (6,) else np.zeros(6))
-    drive = _prefer_runtime(name, drive)
-    joints = data.get("joints", [])
-    lower = np.radians([j["lower"]["value"] for j in joints]) if joints else np.full(6, -np.inf)
-    upper = np.radians([j["upper"]["value"] for j in joints]) if joints else np.full(6, np.inf)
-    return RobotInfo(name, drive, _regressor(name), data, lower, upper)
-
-
-def _first(table: dict, *keys: str) -> str:
-    for k in keys:
-        if k in table:
-            return k
-    raise KeyError(" or ".join(keys))
-
-
-def _scalar(table: dict, *keys: str) -> float:
-    node = table[_first(table, *keys)]
-    return float(node["value"] if isinstance(node, dict) else node)
-
-
-def _prefer_runtime(name: str, drive: Drive) -> Drive:
-    """The runtime's conversion constants when rci.conversions offers them."""
-    try:
-        conv = importlib.import_module("rci.conversions")
-    except ImportError:
-        return drive
-    factory = getattr(conv, "calib_drive", None)
-    if factory is None:
-        return drive
-    return factory(name, drive)
+        model = load_robot(name)
+        conv = Conversions.from_model(model)
+    except (ModelError, ValueError) as exc:
+        raise CalibError(f"robot {name!r}: {exc}") from None
+    drive = Drive(R=np.array(conv.R), G=np.array(conv.G),
+                  amps_per_adc=conv.v_g / np.array(conv.sense_resistance),
+                  sigma=np.array(conv.sigma), encoder_offset=np.array(conv.encoder_offset))
+    return RobotInfo(name, drive, _regressor(name), _data_file(name),
+                     np.array(model.lower, dtype=float), np.array(model.upper, dtype=float))
