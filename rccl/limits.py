@@ -1,0 +1,72 @@
+"""Velocity and acceleration limits the trajectory generator respects (joint and Cartesian).
+
+Joint ranges and joint velocity limits come from the robot data file (``models/<robot>.toml``,
+themselves tagged there as estimates). The thesis gives no acceleration limits and no
+Cartesian limits; the defaults below are ``estimate``s, with their reasoning beside them.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+MODELS = Path(__file__).resolve().parent.parent / "models"
+
+# estimate: a joint reaches its top speed in about a quarter of a second (small PM DC
+# servos through 30-70:1 gearing, light links); so a_max = v_max / 0.25 s.
+ACCEL_RAMP_S = 0.25
+# estimate: the PUMA 260's tool speed is rated around 0.5-1 m/s; RCCL programs typically
+# ran at 0.05-0.2 m/s. We allow 0.5 m/s and 3 rad/s (about 170 deg/s).
+MAX_TRANSLATIONAL_VELOCITY = 0.5
+MAX_ROTATIONAL_VELOCITY = 3.0
+# estimate: 2 m/s^2 and 10 rad/s^2 keep every joint below its own acceleration limit over
+# most of the workspace (the wrist joints are the fastest, the tool is 0.4 m from the shoulder).
+MAX_TRANSLATIONAL_ACCELERATION = 2.0
+MAX_ROTATIONAL_ACCELERATION = 10.0
+
+
+def _si(entry: dict, where: str) -> float:
+    value = float(entry["value"])
+    unit = entry.get("unit", "")
+    if unit == "deg":
+        return math.radians(value)
+    if unit in ("rad", "rad/s", "m", ""):
+        return value
+    if unit == "mm":
+        return value / 1000.0
+    raise ValueError(f"{where}: unit {unit!r} not understood")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Limits in SI units: rad, rad/s, rad/s^2 per joint; m/s, rad/s, m/s^2, rad/s^2 for the tool."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    joint_velocity: np.ndarray
+    joint_acceleration: np.ndarray
+    translational_velocity: float = MAX_TRANSLATIONAL_VELOCITY
+    rotational_velocity: float = MAX_ROTATIONAL_VELOCITY
+    translational_acceleration: float = MAX_TRANSLATIONAL_ACCELERATION
+    rotational_acceleration: float = MAX_ROTATIONAL_ACCELERATION
+    source: str = field(default="", compare=False)
+
+    def out_of_range(self, q: np.ndarray) -> int | None:
+        """Index of the first joint outside its range, or None."""
+        bad = np.nonzero((q < self.lower - 1e-9) | (q > self.upper + 1e-9))[0]
+        return int(bad[0]) if bad.size else None
+
+
+def load_limits(robot: str, path: Path | None = None) -> Limits:
+    """Limits of ``robot`` from its data file (joint ranges and velocities) plus the estimates above."""
+    path = path or MODELS / f"{robot}.toml"
+    with open(path, "rb") as fh:
+        data = tomllib.load(fh)
+    joints = data["joints"]
+    lower = np.array([_si(j["lower"], f"{path}: joint {j['index']} lower") for j in joints])
+    upper = np.array([_si(j["upper"], f"{path}: joint {j['index']} upper") for j in joints])
+    vel = np.array([_si(j["max_velocity"], f"{path}: joint {j['index']} max_velocity") for j in joints])
+    return Limits(lower, upper, vel, vel / ACCEL_RAMP_S, source=str(path))

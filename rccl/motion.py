@@ -1,0 +1,94 @@
+"""Motion requests (thesis 5.2, 5.3.2): the parameters set by setvel/settime/setmod/setconf and the request packet.
+
+``MotionParams`` holds what the planning level has set so far; ``move()`` copies it into a
+``Request`` together with the destination position and a snapshot of its ``hold``
+transforms, and queues it. Fields for the adaptive features of 5.4 (limit, evalfn, comply)
+and the conditional requests of 5.6.1 live in ``hooks`` so they can be added without
+changing this record.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from .exceptions import BadRequest
+from .position import Position, Snapshot
+
+MODES = ("joint", "cartesian")
+# estimate: RCCL's default transition was of the order of a few samples at 36 Hz; 0.2 s
+# (7 samples at 36 Hz) keeps accelerations modest at the default speeds.
+DEFAULT_TRANSITION = 0.2
+# estimate: slow, safe defaults for a first program (5 cm/s, about 30 deg/s)
+DEFAULT_VELOCITY = (0.05, math.radians(30.0))
+
+
+def _positive(value: float, what: str) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v <= 0:
+        raise BadRequest(f"{what} must be a positive finite number, got {value!r}")
+    return v
+
+
+@dataclass
+class MotionParams:
+    """Parameters applied to the next ``move`` (thesis 5.3.2). SI: m/s, rad/s, s."""
+
+    mode: str = "joint"
+    translational_velocity: float = DEFAULT_VELOCITY[0]
+    rotational_velocity: float = DEFAULT_VELOCITY[1]
+    travel_time: float | None = None      # explicit travel time (settime) overrides the velocities
+    transition_time: float = DEFAULT_TRANSITION
+    config: Any = None                    # requested arm configuration (setconf), None = keep current
+
+    def setvel(self, translational: float, rotational: float) -> None:
+        self.translational_velocity = _positive(translational, "setvel: translational velocity (m/s)")
+        self.rotational_velocity = _positive(rotational, "setvel: rotational velocity (rad/s)")
+        self.travel_time = None
+
+    def settime(self, transition: float, travel: float) -> None:
+        self.transition_time = _positive(transition, "settime: transition time (s)")
+        self.travel_time = _positive(travel, "settime: travel time (s)")
+
+    def setmod(self, mode: str) -> None:
+        m = {"j": "joint", "c": "cartesian"}.get(str(mode).lower(), str(mode).lower())
+        if m not in MODES:
+            raise BadRequest(f"setmod: mode {mode!r} is not 'joint' ('j') or 'cartesian' ('c')")
+        self.mode = m
+
+
+@dataclass(eq=False)
+class Request:
+    """One motion request packet (thesis 5.2): where, how, how fast; plus its completion status."""
+
+    position: Position
+    snap: Snapshot
+    params: MotionParams
+    serial: int = 0
+    repeat: bool = False          # an internal repetition of the last request (the arm holds)
+    hooks: dict = field(default_factory=dict)   # 5.4/5.6 features: limit, evalfn, comply, cond
+    status: str = "queued"        # queued -> running -> done | failed
+    error: BaseException | None = None
+    _done: threading.Event = field(default_factory=threading.Event, repr=False)
+
+    @property
+    def mode(self) -> str:
+        return self.params.mode
+
+    def finish(self, error: BaseException | None = None) -> None:
+        """Mark complete (trajectory level); signals the position's ``end`` unless it is a repetition."""
+        self.status = "failed" if error is not None else "done"
+        self.error = error
+        if not self.repeat:
+            self.position.end.signal()
+        self._done.set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until this request completes; True if it did."""
+        return self._done.wait(timeout)
+
+    def repeated(self) -> "Request":
+        """The repetition the generator runs when the queue is empty: same position, held (5.2)."""
+        return Request(self.position, self.snap, replace(self.params, travel_time=None, config=None),
+                       self.serial, repeat=True, status="running")

@@ -1,0 +1,177 @@
+"""The RCCL planning level: move, setvel, settime, setmod, setconf, stop, waitfor (thesis 5.3.2-5.3.4).
+
+``Planner`` is what a user program talks to. It keeps the current motion parameters,
+turns each ``move`` into a request packet, checks it *before* queueing (from where the
+previous request will leave the arm: unreachable targets, joint ranges, singular
+Cartesian paths, configuration changes in Cartesian mode all raise here, at the planning
+level, before any motion starts), and queues it for the trajectory generator. The
+generator re-plans each request from the arm's actual state when it reaches it.
+
+Errors the trajectory level meets later (a variable target that moved out of reach, a
+fault) are raised by the next primitive or by the ``waitfor`` that is blocked.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from .exceptions import BadRequest, MotionError, NotRunning, TrajectoryFault
+from .limits import Limits
+from .motion import MotionParams, Request
+from .position import Position
+from .queue import MotionQueue
+from .sync import Event
+from .trajectory import Kinematics, TrajectoryGenerator, plan_segment, resolve_config
+
+_CONF_LETTERS = {"l": ("arm", -1), "r": ("arm", 1), "u": ("elbow", 1), "d": ("elbow", -1),
+                 "f": ("wrist", -1), "n": ("wrist", 1)}
+_CONF_WORDS = {"left": ("arm", -1), "right": ("arm", 1), "up": ("elbow", 1), "down": ("elbow", -1),
+               "flip": ("wrist", -1), "noflip": ("wrist", 1)}
+
+
+def parse_config(spec) -> dict | object | None:
+    """A configuration request: None, a Config, or RCCL-style letters/words.
+
+    Letters: l/r (arm left/right), u/d (elbow up/down), n/f (wrist noflip/flip), e.g.
+    ``"ru"`` or ``"right up flip"``. Fields not named keep the arm's current value.
+    """
+    if spec is None or not isinstance(spec, str):
+        return spec
+    out: dict[str, int] = {}
+    words = spec.replace(",", " ").split()
+    tokens = words if any(w.lower() in _CONF_WORDS for w in words) else list(spec.replace(" ", ""))
+    for tok in tokens:
+        key = _CONF_WORDS.get(tok.lower()) or _CONF_LETTERS.get(tok.lower())
+        if key is None:
+            raise BadRequest(f"setconf: {tok!r} in {spec!r} is not one of l/r, u/d, n/f "
+                             "(left/right, up/down, noflip/flip)")
+        if key[0] in out and out[key[0]] != key[1]:
+            raise BadRequest(f"setconf: {spec!r} asks for both values of {key[0]}")
+        out[key[0]] = key[1]
+    return out
+
+
+class Planner:
+    """The planning-level RCCL primitives bound to one trajectory generator.
+
+    ``fault_check`` (optional) is called by every primitive and while ``waitfor`` blocks;
+    the RCI session uses it to deliver control-level terminations.
+    """
+
+    def __init__(self, kin: Kinematics, limits: Limits, generator: TrajectoryGenerator,
+                 fault_check: Callable[[], None] | None = None) -> None:
+        self.kin = kin
+        self.limits = limits
+        self.gen = generator
+        self.queue: MotionQueue[Request] = generator.queue
+        self.params = MotionParams()
+        self._serial = itertools.count(1)
+        self._fault_check = fault_check
+        self._reported = 0
+        self._pred_t6: np.ndarray | None = None
+        self._pred_q: np.ndarray | None = None
+        self.last: Request | None = None
+
+    # -- errors from the trajectory level ---------------------------------------------
+    def check(self) -> None:
+        """Raise the first trajectory-level error not yet reported (and any RCI termination)."""
+        if self._fault_check is not None:
+            self._fault_check()
+        errors = self.gen.errors
+        if self._reported < len(errors):
+            err = errors[self._reported]
+            self._reported += 1
+            self._pred_t6 = self._pred_q = None   # the arm did not go where we predicted
+            if isinstance(err, TrajectoryFault):
+                raise err
+            raise TrajectoryFault(f"a queued request was refused by the trajectory generator: {err}", err)
+
+    # -- parameters (5.3.2) ------------------------------------------------------------
+    def setvel(self, translational: float, rotational: float) -> None:
+        """Speeds for the next moves: translational m/s, rotational rad/s (cancels settime's travel time)."""
+        self.params.setvel(translational, rotational)
+
+    def settime(self, transition: float, travel: float) -> None:
+        """Transition time (s, whole transition) and travel time (s) for the next moves."""
+        self.params.settime(transition, travel)
+
+    def setmod(self, mode: str) -> None:
+        """Trajectory mode of the next moves: 'joint' ('j') or 'cartesian' ('c')."""
+        self.params.setmod(mode)
+
+    def setconf(self, spec=None) -> None:
+        """Arm configuration for the next joint-mode moves (e.g. "ru", "flip", a Config); None keeps the current."""
+        self.params.config = parse_config(spec)
+
+    # -- motion requests ---------------------------------------------------------------
+    def move(self, position: Position) -> Request:
+        """Queue a motion to ``position`` with the current parameters; return the request.
+
+        Raises (before anything moves) if the move cannot be made from where the previous
+        request leaves the arm.
+        """
+        self.check()
+        if not isinstance(position, Position):
+            raise BadRequest(f"move: {position!r} is not a position (use makeposition)")
+        req = Request(position, position.snapshot(), replace(self.params), next(self._serial))
+        self._precheck(req)
+        self.queue.put(req)
+        self.last = req
+        return req
+
+    def stop(self, time: float, transition: float | None = None) -> Request:
+        """Stay at the last position for about ``time`` s: a second move to it with that travel time (5.3.4)."""
+        self.check()
+        if self.last is None:
+            raise BadRequest("stop: no previous move to stop at")
+        saved = replace(self.params)
+        try:
+            self.params.settime(transition if transition is not None else saved.transition_time, time)
+            self.params.config = None
+            return self.move(self.last.position)
+        finally:
+            self.params = saved
+
+    def waitfor(self, event: Event | Request, timeout: float | None = None) -> None:
+        """Block until ``event`` (a position's ``end``) drops below one, or a request completes (5.3.3)."""
+        self.check()
+        if isinstance(event, Request):
+            while not event.wait(0.02):
+                self.check()
+                if timeout is not None:
+                    timeout -= 0.02
+                    if timeout <= 0:
+                        raise TimeoutError(f"waitfor: request to {event.position.name} not done")
+            self.check()
+            return
+        if not isinstance(event, Event):
+            raise BadRequest(f"waitfor: {event!r} is not an event (e.g. position.end) or a request")
+        event.wait(fault=self.check, timeout=timeout)
+        self.check()
+
+    # -- planning-level check -------------------------------------------------------------
+    def _precheck(self, req: Request) -> None:
+        if self._pred_q is None:
+            q = self.gen.q.copy()
+            self._pred_q, self._pred_t6 = q, self.kin.fk(q)
+        if req.params.mode == "cartesian" and req.params.config is not None:
+            cfg_b = self.kin.config_of(self._pred_q)
+            if resolve_config(self.kin, cfg_b, req.params.config) != cfg_b:
+                from .exceptions import ConfigurationChange
+                raise ConfigurationChange(
+                    f"move({req.position.name}): Cartesian mode cannot change the arm configuration; "
+                    "use setmod('joint') with setconf()")
+        seg = plan_segment(self.kin, self.limits, self.gen.dt, req, self._pred_t6, self._pred_q, 0.0,
+                           req.params.transition_time / 2.0)
+        self._pred_t6 = seg.dest_t6()
+        self._pred_q = seg.q_dest.copy()
+
+    @property
+    def running(self) -> bool:
+        return self.gen.faulted is None
+
+
+__all__ = ["Planner", "parse_config", "MotionError", "NotRunning"]
