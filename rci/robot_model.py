@@ -748,6 +748,7 @@ def _check_urdf(model: RobotModel) -> None:
             if abs(got - want) > _LIMIT_TOL:
                 raise ModelError(path, f"joint {j.name}.limit.{attr}",
                                  f"{got!r} disagrees with the data file {model.path.name} {src} = {want!r} (SI)")
+    _check_urdf_frames(model, root)
     for li in model.links:
         lname = f"link{li.index}"
         el = links.get(lname)
@@ -776,3 +777,63 @@ def _check_urdf(model: RobotModel) -> None:
             raise ModelError(path, f"link {lname}.inertial.origin", f"{xyz} disagrees with links.{li.index}.com = {li.com}")
         if max(abs(a - b) for a, b in zip(vals, want_vals)) > _INERTIAL_TOL:
             raise ModelError(path, f"link {lname}.inertial.inertia", f"{vals} disagrees with links.{li.index}.inertia")
+
+
+def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    """URDF fixed-axis roll-pitch-yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def _joint_motion(kind: str, axis: np.ndarray, q: float) -> np.ndarray:
+    """The (4, 4) motion of a URDF joint at value q (rotation about / slide along axis)."""
+    motion = np.eye(4)
+    if kind == "prismatic":
+        motion[:3, 3] = axis * q
+    elif kind in ("revolute", "continuous"):
+        k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+        motion[:3, :3] = np.eye(3) + math.sin(q) * k + (1.0 - math.cos(q)) * (k @ k)
+    return motion
+
+
+def _check_urdf_frames(model: RobotModel, root: ET.Element) -> None:
+    """URDF links link1..linkN must be the DH frames 1..N of the data file (a few q)."""
+    path = model.urdf_path
+    by_child: dict[str, ET.Element] = {}
+    for el in root.findall("joint"):
+        child = el.find("child")
+        if child is None or el.find("parent") is None:
+            raise ModelError(path, f"joint {el.get('name')}", "needs <parent> and <child>")
+        by_child[child.get("link", "")] = el
+    index = {j.name: i for i, j in enumerate(model.joints)}
+    span = model.upper - model.lower
+    for q in (np.zeros(model.n_joints), model.lower + 0.31 * span, model.lower + 0.77 * span):
+        dh = model.base_to_link(q)
+        for k in range(model.n_joints):
+            link, base_to_link, seen = f"link{k + 1}", np.eye(4), 0
+            while link != "base_link":
+                el = by_child.get(link)
+                seen += 1
+                if el is None or seen > 4 * model.n_joints + 4:
+                    raise ModelError(path, f"link link{k + 1}", "not connected to base_link")
+                origin = el.find("origin")
+                step = np.eye(4)
+                if origin is not None:
+                    step[:3, :3] = _rpy_matrix(_floats(origin.get("rpy", "0 0 0"), 3, path, f"joint {el.get('name')}.origin.rpy"))
+                    step[:3, 3] = _floats(origin.get("xyz", "0 0 0"), 3, path, f"joint {el.get('name')}.origin.xyz")
+                axis_el = el.find("axis")
+                axis = _floats(axis_el.get("xyz") if axis_el is not None else "1 0 0", 3, path, f"joint {el.get('name')}.axis")
+                if not np.linalg.norm(axis) > 0:
+                    raise ModelError(path, f"joint {el.get('name')}.axis", "zero axis")
+                qi = float(q[index[el.get("name")]]) if el.get("name") in index else 0.0
+                base_to_link = step @ _joint_motion(el.get("type", ""), axis / np.linalg.norm(axis), qi) @ base_to_link
+                link = el.find("parent").get("link", "")
+            diff = float(np.max(np.abs(base_to_link - dh[k])))
+            if diff > 1e-9:
+                raise ModelError(path, f"link link{k + 1}",
+                                 f"frame differs from DH frame {k + 1} of {model.path.name} by {diff:.3g} "
+                                 f"at q = {np.round(q, 4).tolist()} (URDF origins/axes disagree with the DH table)")

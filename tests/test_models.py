@@ -261,6 +261,13 @@ BROKEN = {
                             "link link6.inertial.mass", "disagrees"),
     "URDF com disagrees": ("puma260", "urdf/puma260.urdf", '<origin xyz="-0.16625508665 0 0.03"',
                            '<origin xyz="-0.166 0 0.03"', "link link2.inertial.origin", "disagrees"),
+    "URDF alpha sign wrong": ("puma260", "urdf/puma260.urdf", '<origin xyz="0 0 0.12624" rpy="-1.5707963267948966 0 0"/>',
+                              '<origin xyz="0 0 0.12624" rpy="1.5707963267948966 0 0"/>', "link link3",
+                              "differs from DH frame 3"),
+    "DH length changed without the URDF": ("puma260", "puma260.toml", "value = 126.24,", "value = 130.0,",
+                                           "link link3", "differs from DH frame 3"),
+    "URDF zero axis": ("microbo", "urdf/microbo.urdf", '<axis xyz="0 0 1"/>\n    <limit lower="0.2"',
+                       '<axis xyz="0 0 0"/>\n    <limit lower="0.2"', "joint joint3.axis", "zero axis"),
     "URDF not XML": ("microbo", "urdf/microbo.urdf", "</robot>", "</robt>", "<file>", "not valid XML"),
 }
 
@@ -275,8 +282,7 @@ def test_malformed_file_raises_model_error(case: str, tmp_path: Path) -> None:
     err = info.value
     assert err.field == field, str(err)
     assert problem in err.problem, str(err)
-    edited = root / target
-    assert Path(err.path) in (edited, root / f"{robot}.toml"), str(err)
+    assert Path(err.path) in (root / f"{robot}.toml", root / "urdf" / f"{robot}.urdf"), str(err)
     assert str(err).startswith(f"{err.path}: {field}: ")
 
 
