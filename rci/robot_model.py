@@ -38,7 +38,8 @@ is a record ``{value = ..., unit = "...", source = "...", why = "...", uncertain
 say ``why``.  Units are converted to SI on loading; a unit of the wrong dimension is an
 error.  Any malformed or inconsistent file (missing field, wrong unit, NaN, lower >
 upper, unknown joint kind, value without source, wrong number of joints, pose outside the
-ranges, missing URDF or a URDF whose joints/limits/inertials disagree with the data file)
+ranges, missing URDF or a URDF whose joints/limits/link frames/inertials disagree with the
+data file)
 raises :class:`rci.exceptions.ModelError` naming the file, the field and the problem.
 
 Models are looked up in ``$RCCI_MODELS`` if set, else in ``models/`` next to the package.
