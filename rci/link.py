@@ -7,6 +7,7 @@ with select() on the port's file descriptor, so the control task never spins.
 """
 from __future__ import annotations
 
+import os
 import select
 import time
 
@@ -30,6 +31,25 @@ class Link:
             self._fd = None
         self.bytes_in = 0
         self.bytes_out = 0
+        # a pipe that another thread writes to, to end a recv() wait early (release)
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self._woken = False
+
+    def wake(self) -> None:
+        """Make a recv() in progress (in another thread) return None now."""
+        try:
+            os.write(self._wake_w, b"w")
+        except (BlockingIOError, OSError):
+            pass
+
+    def _consume_wake(self) -> None:
+        try:
+            while os.read(self._wake_r, 64):
+                pass
+        except (BlockingIOError, OSError):
+            pass
 
     # --- sending -------------------------------------------------------------------
     def send(self, ftype: int, seq: int, payload: bytes = b"") -> None:
@@ -57,8 +77,12 @@ class Link:
         if self._fd is not None:
             if wait > 0:
                 try:
-                    ready, _, _ = select.select([self._fd], [], [], wait)
+                    ready, _, _ = select.select([self._fd, self._wake_r], [], [], wait)
                 except InterruptedError:
+                    return b""
+                if self._wake_r in ready:
+                    self._consume_wake()
+                    self._woken = True
                     return b""
                 if not ready:
                     return b""
@@ -75,12 +99,13 @@ class Link:
         other end has gone (EOF, socket reset, pty master closed).
         """
         deadline = time.monotonic() + timeout
+        self._woken = False
         while True:
             frame = self.decoder.next_frame()
             if frame is not None:
                 return frame
             left = deadline - time.monotonic()
-            if left <= 0:
+            if left <= 0 or self._woken:
                 return None
             try:
                 data = self._read_available(left)
@@ -117,6 +142,12 @@ class Link:
             self.port.close()
         except (serial.SerialException, OSError):
             pass
+        for fd in (self._wake_r, self._wake_w):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._wake_r = self._wake_w = -1
 
     @property
     def is_open(self) -> bool:

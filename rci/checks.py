@@ -1,0 +1,238 @@
+"""Run-time checks of the control task (thesis A.5.1) and the joint limits they use.
+
+Observed checks look at ``how`` (R_MAXPOS, R_MAXVEL, R_MAXCUR, plus a non-zero robot
+status); request checks look at ``chg`` before it is sent (R_REQPOS, R_REQVEL, R_REQCUR,
+R_TOOMANY, R_BADCMD, R_NANCMD). The six range checks can be switched off through
+``chg.checking`` (bit map ``codes.CHECK_*``), as A.5.1 allows; the general ones cannot.
+Positions are checked in joint space (radians), through the robot's encoder conversion,
+so that the PUMA's coupled wrist is handled once, in ``rci.conversions``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from . import codes
+from .chg import CUR, DAC_MAX, DAC_MIN, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd
+from .chg import MOTION_NAMES, rate_hz
+from .exceptions import ModelError
+from .how import How
+
+
+class Fault(Exception):
+    """Internal: a check failed; carries the termination code and a detail string."""
+
+    def __init__(self, code: int, detail: str) -> None:
+        self.code = code
+        self.detail = detail
+        super().__init__(detail)
+
+
+@dataclass
+class Limits:
+    """Joint limits for the checks, in SI units, plus the robot's counts -> radians map.
+
+    ``lower``/``upper`` joint angles (rad), ``max_velocity`` (rad/s), ``max_adc`` and
+    ``max_dac`` absolute motor-current limits in ADC and DAC units. ``counts_to_rad``
+    maps a full vector of encoder counts to joint angles.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    max_velocity: np.ndarray
+    max_adc: np.ndarray
+    max_dac: np.ndarray
+    counts_to_rad: Callable[[np.ndarray], np.ndarray]
+    velocity_margin: float = 1.2   # observed speed may exceed max_velocity by this factor (encoder quantisation, noise)
+
+    @classmethod
+    def linear(cls, lower, upper, max_velocity, counts_per_rad, offset_counts=0.0,
+               max_adc=2047, max_dac=2047) -> "Limits":
+        """Limits for a robot with uncoupled joints: q = (counts - offset) / counts_per_rad."""
+        cpr = np.asarray(counts_per_rad, dtype=float)
+        off = np.asarray(offset_counts, dtype=float)
+        n = len(np.atleast_1d(lower))
+        return cls(np.asarray(lower, float), np.asarray(upper, float), np.asarray(max_velocity, float),
+                   np.broadcast_to(np.asarray(max_adc, float), (n,)).copy(),
+                   np.broadcast_to(np.asarray(max_dac, float), (n,)).copy(),
+                   lambda c: (np.asarray(c, float) - off) / cpr)
+
+    @classmethod
+    def for_robot(cls, name: str) -> "Limits":
+        """Limits from the robot model (``rci.robot_model``) and its conversions (``rci.conversions``).
+
+        Current limits: the model's ``max_current`` (A) in ADC counts (``currents_to_adc``)
+        and in DAC counts (kappa times the ADC value, eq. 4.34), capped at the 12-bit range.
+        """
+        from .conversions import Conversions
+        from .robot_model import load_robot
+        model = load_robot(name)
+        conv = Conversions.from_model(model)
+        adc = np.abs(np.asarray(conv.currents_to_adc(np.asarray(model.max_current, float)), float))
+        dac = adc * np.asarray(conv.kappa, float)
+        return cls(np.asarray(model.lower, float), np.asarray(model.upper, float),
+                   np.asarray(model.max_velocity, float), np.minimum(adc, 2047.0), np.minimum(dac, 2047.0),
+                   conv.counts_to_angles)
+
+
+class Checker:
+    """Applies the A.5.1 checks once per cycle; raises ``Fault`` on the first failure."""
+
+    def __init__(self, nj: int, nadc: int, limits: Limits | None, *, max_commands: int = 16,
+                 checking: int = codes.CHECK_ALL) -> None:
+        self.nj, self.nadc = nj, nadc
+        self.limits = limits
+        # estimate: the thesis gives no figure for R_TOOMANY; 16 lets a cycle carry a
+        # motion and a setparam for every joint of a 6-joint arm plus four others.
+        self.max_commands = max_commands
+        self.checking = checking
+        self._q_prev: np.ndarray | None = None
+        self._skip_velocity = True
+
+    def reset(self) -> None:
+        """Forget the previous position (new control, or encoder counts were reset)."""
+        self._q_prev = None
+        self._skip_velocity = True
+
+    # --- observed ---------------------------------------------------------------------
+    def check_how(self, how: How, period: float) -> np.ndarray | None:
+        """Check a fresh ``how``; returns the joint angles (rad) when limits are known."""
+        if how.status:
+            raise Fault(codes.make_code(codes.R_ROBOT, codes.F_ROBOT | codes.F_SEVERE),
+                        f"how.status = {how.status}: {codes.STATUS_TEXT.get(how.status, 'unknown status')}")
+        lim = self.limits
+        chk = self.checking
+        if chk & codes.CHECK_MAXCUR and lim is not None:
+            over = np.abs(how.adcr[: self.nj]) > lim.max_adc
+            if over.any():
+                j = int(np.argmax(over))
+                raise Fault(codes.make_code(codes.R_MAXCUR, codes.F_RANGE | codes.F_SEVERE, j),
+                            f"joint {j + 1}: |adcr| = {abs(int(how.adcr[j]))} > {lim.max_adc[j]:.0f}")
+        if lim is None:
+            return None
+        q = np.asarray(lim.counts_to_rad(how.pos), dtype=float)
+        calibrated = how.calibrated
+        if chk & codes.CHECK_MAXPOS and calibrated:
+            bad = (q < lim.lower) | (q > lim.upper)
+            if bad.any():
+                j = int(np.argmax(bad))
+                raise Fault(codes.make_code(codes.R_MAXPOS, codes.F_RANGE | codes.F_SEVERE, j),
+                            f"joint {j + 1} at {q[j]:.4f} rad, range [{lim.lower[j]:.4f}, {lim.upper[j]:.4f}]")
+        if chk & codes.CHECK_MAXVEL and self._q_prev is not None and not self._skip_velocity:
+            v = np.abs(q - self._q_prev) / period
+            bad = v > lim.max_velocity * lim.velocity_margin
+            if bad.any():
+                j = int(np.argmax(bad))
+                raise Fault(codes.make_code(codes.R_MAXVEL, codes.F_RANGE | codes.F_SEVERE, j),
+                            f"joint {j + 1} moving at {v[j]:.3f} rad/s, limit {lim.max_velocity[j]:.3f} rad/s")
+        self._q_prev = q
+        self._skip_velocity = False
+        return q
+
+    # --- requested --------------------------------------------------------------------
+    def check_chg(self, chg: Chg, how: How, q_now: np.ndarray | None, period: float) -> int:
+        """Validate the pending commands of ``chg``; returns the new checking mask to use.
+
+        Raises Fault for NaN values, bad command codes, too many commands, and the REQ
+        range checks. Nothing is modified.
+        """
+        n = 0
+        motion_target: dict[int, int] = {}
+        stopcal = False
+        for i, c in enumerate(chg.motion):
+            if not c.com:
+                continue
+            n += 1
+            if c.com not in MOTION_NAMES or c.com == NONE:
+                raise Fault(codes.make_code(codes.R_BADCMD, 0, i), f"chg.motion[{i}].com = {c.com!r} is not POS/CUR/STOP/STOPCAL")
+            if c.com in (STOP,):
+                continue
+            v = _value(c, f"motion[{i}]")
+            if c.com == CUR:
+                if not (DAC_MIN <= v <= DAC_MAX):
+                    raise Fault(codes.make_code(codes.R_BADCMD, 0, i), f"chg.motion[{i}] CUR {v} outside the 12-bit DAC range")
+                if self.checking & codes.CHECK_REQCUR and self.limits is not None and abs(v) > self.limits.max_dac[i]:
+                    raise Fault(codes.make_code(codes.R_REQCUR, codes.F_RANGE, i),
+                                f"joint {i + 1}: CUR {v} exceeds {self.limits.max_dac[i]:.0f}")
+            elif c.com == POS:
+                motion_target[i] = v
+            elif c.com == STOPCAL:
+                stopcal = True
+        for i, c in enumerate(chg.setparam):
+            if c.com:
+                n += 1
+                _value(c, f"setparam[{i}]")
+        new_checking = self.checking
+        for name in VALUED:
+            c: Cmd = getattr(chg, name)
+            if not c.com:
+                continue
+            n += 1
+            v = _value(c, name)
+            if name == "hand" and v not in (1, 2):
+                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.hand.value = {v} is neither OPEN (1) nor CLOSE (2)")
+            if name == "rate":
+                try:
+                    rate_hz(v)
+                except ValueError as e:
+                    raise Fault(codes.make_code(codes.R_BADCMD), str(e)) from None
+            if name == "checking":
+                if not (0 <= v <= codes.CHECK_ALL):
+                    raise Fault(codes.make_code(codes.R_BADCMD), f"chg.checking.value = {v:#x} has bits outside {codes.CHECK_ALL:#x}")
+                new_checking = v
+            if name == "zindex" and not (0 <= v < (1 << self.nj)):
+                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.zindex.value = {v:#x} names joints beyond {self.nj}")
+            if name == "adco" and not (0 <= v < self.nadc):
+                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.adco.value = {v} is not an ADC channel (0..{self.nadc - 1})")
+            if name in ("outport1", "pendant") and not (0 <= v <= 0xFFFF):
+                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.{name}.value = {v} does not fit in 16 bits")
+        for name in UNVALUED:
+            if getattr(chg, name).com:
+                n += 1
+        if n > self.max_commands:
+            raise Fault(codes.make_code(codes.R_TOOMANY), f"{n} commands in one cycle, at most {self.max_commands}")
+        if motion_target and self.limits is not None:
+            self._check_targets(motion_target, how, q_now, period, new_checking)
+        if stopcal:
+            self.reset()   # encoder counts jump on STOPCAL: no velocity check next cycle
+        return new_checking
+
+    def _check_targets(self, target: dict[int, int], how: How, q_now: np.ndarray | None,
+                       period: float, checking: int) -> None:
+        lim = self.limits
+        assert lim is not None
+        counts = np.array(how.pos, dtype=float)
+        for i, v in target.items():
+            counts[i] = v
+        q_t = np.asarray(lim.counts_to_rad(counts), dtype=float)
+        if checking & codes.CHECK_REQPOS and how.calibrated:
+            bad = (q_t < lim.lower) | (q_t > lim.upper)
+            if bad.any():
+                j = int(np.argmax(bad))
+                raise Fault(codes.make_code(codes.R_REQPOS, codes.F_RANGE, j),
+                            f"joint {j + 1}: requested {q_t[j]:.4f} rad, range [{lim.lower[j]:.4f}, {lim.upper[j]:.4f}]")
+        if checking & codes.CHECK_REQVEL:
+            q0 = q_now if q_now is not None else np.asarray(lim.counts_to_rad(how.pos), dtype=float)
+            v = np.abs(q_t - q0) / period
+            bad = v > lim.max_velocity
+            if bad.any():
+                j = int(np.argmax(bad))
+                raise Fault(codes.make_code(codes.R_REQVEL, codes.F_RANGE, j),
+                            f"joint {j + 1}: requested step needs {v[j]:.3f} rad/s, limit {lim.max_velocity[j]:.3f} rad/s")
+
+
+def _value(c: Cmd, where: str) -> int:
+    """The integer value of a command; Fault(R_NANCMD) for NaN, inf or non-numbers."""
+    v = c.value
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        return int(v)
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise Fault(codes.make_code(codes.R_NANCMD, codes.F_USER), f"chg.{where}.value = {v!r} is not a number") from None
+    if not math.isfinite(f):
+        raise Fault(codes.make_code(codes.R_NANCMD, codes.F_USER), f"chg.{where}.value = {v!r}")
+    return int(round(f))

@@ -1,0 +1,112 @@
+"""Real-time set-up for the control task: SCHED_FIFO, memory locking, GC and GIL settings.
+
+Each measure is tried and, where the OS refuses (no privilege, not Linux), skipped; the
+outcome is reported in a ``RealtimeStatus`` so a program (and the bench) can say what it
+actually ran with.
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import gc
+import os
+import sys
+from dataclasses import dataclass, field
+
+MCL_CURRENT = 1
+MCL_FUTURE = 2
+
+
+@dataclass
+class RealtimeStatus:
+    """What the real-time set-up achieved (each entry: True, or a reason string)."""
+
+    sched_fifo: bool | str = "not tried"
+    mlockall: bool | str = "not tried"
+    gc: str = "not tried"
+    switch_interval: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        return (f"SCHED_FIFO: {self.sched_fifo}; mlockall: {self.mlockall}; gc: {self.gc}; "
+                f"GIL switch interval: {self.switch_interval * 1e6:.0f} us")
+
+
+_mlocked = False
+
+
+def lock_memory(status: RealtimeStatus) -> None:
+    """mlockall(MCL_CURRENT | MCL_FUTURE) once per process, so the control task never page-faults."""
+    global _mlocked
+    if _mlocked:
+        status.mlockall = True
+        return
+    if not sys.platform.startswith("linux"):
+        status.mlockall = f"not available on {sys.platform}"
+        return
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        if libc.mlockall(MCL_CURRENT | MCL_FUTURE) != 0:
+            err = ctypes.get_errno()
+            status.mlockall = f"refused: {os.strerror(err)}"
+            return
+    except OSError as e:
+        status.mlockall = f"unavailable: {e}"
+        return
+    _mlocked = True
+    status.mlockall = True
+
+
+def set_fifo(priority: int, status: RealtimeStatus) -> None:
+    """Put the *calling thread* under SCHED_FIFO at ``priority`` (Linux: pid 0 = this thread)."""
+    if not hasattr(os, "sched_setscheduler"):
+        status.sched_fifo = f"not available on {sys.platform}"
+        return
+    try:
+        lo, hi = os.sched_get_priority_min(os.SCHED_FIFO), os.sched_get_priority_max(os.SCHED_FIFO)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(max(lo, min(hi, priority))))
+        status.sched_fifo = True
+    except (PermissionError, OSError) as e:
+        status.sched_fifo = f"refused: {e.strerror or e}"
+
+
+class GCControl:
+    """Keeps the cyclic garbage collector out of the control cycles.
+
+    ``freeze`` (default) moves every existing object out of the collector's reach
+    (gc.freeze) and raises the generation-0 threshold, so collections are rare and short;
+    ``off`` disables the collector during a control (the planning level may call
+    ``gc.collect()`` itself); ``leave`` changes nothing. ``restore`` undoes it.
+    """
+
+    def __init__(self, mode: str = "freeze") -> None:
+        if mode not in ("freeze", "off", "leave"):
+            raise ValueError(f"gc mode must be 'freeze', 'off' or 'leave', not {mode!r}")
+        self.mode = mode
+        self._saved: tuple | None = None
+        self._was_enabled = True
+
+    def apply(self, status: RealtimeStatus) -> None:
+        self._saved = gc.get_threshold()
+        self._was_enabled = gc.isenabled()
+        if self.mode == "freeze":
+            gc.collect()
+            gc.freeze()
+            gc.set_threshold(50_000, 50, 100)
+            status.gc = "frozen, gen0 threshold 50000"
+        elif self.mode == "off":
+            gc.collect()
+            gc.disable()
+            status.gc = "disabled during control"
+        else:
+            status.gc = "left as is"
+
+    def restore(self) -> None:
+        if self._saved is None:
+            return
+        gc.set_threshold(*self._saved)
+        if self.mode == "freeze":
+            gc.unfreeze()
+        if self._was_enabled:
+            gc.enable()
+        self._saved = None

@@ -1,0 +1,423 @@
+"""An RCI session: the A.3 primitives open / control / release / close, in Python.
+
+``Session`` owns the robot link, the ``how`` and ``chg`` records, the control task and the
+error delivery to the planning level. Thesis -> Python:
+
+* ``RCIopen()``            -> ``s = Session(url, robot); s.open()``  (or ``with rci.open(...) as s``)
+* ``RCIcontrol(f1, f2)``   -> ``s.control(f1, f2)``
+* ``RCIrelease(power_off)`` -> ``s.release(power_off)``
+* ``RCIclose(power_off)``  -> ``s.close(power_off)``
+* ``RCIterminate``         -> ``s.terminate`` (code) and ``s.termination`` (code + detail)
+* ``user_hangup``          -> ``s.on_error`` (callable, ``"raise"``, or None = print and exit)
+* ``user_interrupt``       -> ``s.on_interrupt``
+
+When the control ends on an error, the control task has already released the arm; the
+planning level is then told at once, even when blocked in ``s.wait()``, ``time.sleep``
+or ``input()``: the control thread sends SIGUSR1 to the main thread, whose handler runs
+``on_error``. The default prints ``TERMINATE/ <message> / <reason>`` and exits with
+status 1. ``on_error="raise"`` raises ``ControlTerminated`` in the main thread wherever it
+is (the Python form of A.5.5's longjmp). Without signals (a session opened outside the
+main thread) the error is delivered by the next ``wait()`` or primitive call.
+"""
+from __future__ import annotations
+
+import atexit
+import signal
+import sys
+import threading
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+from . import codes, protocol
+from .checks import Checker, Limits
+from .chg import Chg, MAX_RATE_HZ
+from .control import ControlTask
+from .exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTerminated, DeviceError,
+                         LinkClosed, NoControl, NotOpen, ProtocolError, RobotRefused, Timeout)
+from .how import How
+from .link import Link, open_link
+from .realtime import RealtimeStatus, lock_memory
+from .timing import CycleTiming
+
+TERM_SIGNAL = signal.SIGUSR1   # the thesis used SIGHUP; SIGUSR1 does not collide with terminal hangups
+
+
+class Session:
+    """One RCI session with one robot (or simula) over one link.
+
+    Parameters (SI units): ``rate_hz`` sample rate (4..1000 Hz; the thesis's 9/18/36/72 are
+    all valid); ``limits`` for the A.5.1 checks: ``"model"`` (from ``rci.robot_model`` and
+    ``rci.conversions``), a ``Limits``, or None (range checks off); ``timeout`` s without a
+    HOW before R_TIMEOUT (default two periods, at least ``min_timeout``); ``overrun``
+    ``"error"`` (R_OVERRUN) or ``"count"``; ``realtime`` try SCHED_FIFO at ``priority`` for
+    the control thread; ``gc`` ``"freeze"``/``"off"``/``"leave"``; ``lock_memory`` mlockall;
+    ``signals`` deliver errors and Ctrl-C through signals when opened in the main thread.
+    """
+
+    def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
+                 limits: str | Limits | None = "model", timeout: float | None = None,
+                 min_timeout: float = 0.02, start_timeout: float = 2.0, overrun: str = "error",
+                 realtime: bool = True, priority: int = 80, gc: str = "freeze",
+                 lock_memory: bool = True, switch_interval: float | None = 2e-4,
+                 signals: bool = True, watchdog: bool = True, max_commands: int = 16,
+                 on_error: Callable[[codes.Termination], Any] | str | None = None,
+                 on_interrupt: Callable[[], Any] | None = None, client: str = "rci") -> None:
+        if not (4 <= int(rate_hz) <= MAX_RATE_HZ):
+            raise ValueError(f"rate_hz must be 4..{MAX_RATE_HZ}, not {rate_hz}")
+        if overrun not in ("error", "count"):
+            raise ValueError(f"overrun must be 'error' or 'count', not {overrun!r}")
+        self.url = url
+        self.robot = robot
+        self.rate_hz = int(rate_hz)
+        self.limits_spec = limits
+        self.timeout = timeout
+        self.min_timeout = min_timeout
+        self.start_timeout = start_timeout
+        self.overrun = overrun
+        self.realtime = realtime
+        self.priority = priority
+        self.gc_mode = gc
+        self.lock_memory = lock_memory
+        self.switch_interval = switch_interval
+        self.use_signals = signals
+        self.watchdog = watchdog
+        self.max_commands = max_commands
+        self.on_error = on_error
+        self.on_interrupt = on_interrupt
+        self.client = client
+        # state
+        self.link: Link | None = None
+        self.welcome: protocol.Welcome | None = None
+        self.nj = 6
+        self.nadc = 16
+        self.how = How()
+        self.chg = Chg()
+        self.q: np.ndarray | None = None          # joint angles of the latest how (rad), when limits are known
+        self.checker: Checker | None = None
+        self.timing = CycleTiming()
+        self.rt_status = RealtimeStatus()
+        self.recorder = None
+        self.terminate = 0                        # RCIterminate: 0, or the code of the last termination
+        self.termination: codes.Termination | None = None
+        self._task: ControlTask | None = None
+        self._delivered: codes.Termination | None = None
+        self._busy = 0
+        self._pending_interrupt = False
+        self._msg_seq = 0
+        self._old_handlers: dict[int, Any] = {}
+        self._main_ident: int | None = None
+        self._lock = threading.RLock()
+
+    # --- small helpers --------------------------------------------------------------
+    def _next_msg_seq(self) -> int:
+        self._msg_seq = (self._msg_seq + 1) & 0xFFFFFFFF
+        return self._msg_seq
+
+    def timeout_for(self, period: float) -> float:
+        """Seconds without a HOW before R_TIMEOUT, for a sample period in s."""
+        return self.timeout if self.timeout is not None else max(2.0 * period, self.min_timeout)
+
+    @property
+    def is_open(self) -> bool:
+        return self.link is not None
+
+    @property
+    def in_control(self) -> bool:
+        """True while a control is in progress (not released, not terminated)."""
+        t = self._task
+        return t is not None and not t.ended
+
+    @property
+    def period(self) -> float:
+        return 1.0 / self.rate_hz
+
+    def record(self, recorder) -> None:
+        """Log every control cycle into ``recorder`` (an ``rci.recorder.Recorder``); None stops."""
+        self.recorder = recorder
+
+    # --- A.3 primitives -------------------------------------------------------------
+    def open(self) -> "Session":
+        """RCIopen: open the link, greet the robot, prepare the control task."""
+        with self._primitive():
+            if self.link is not None:
+                raise AlreadyOpen(f"session with {self.url} is already open")
+            link = open_link(self.url)
+            try:
+                link.drain()
+                link.send(protocol.HELLO, self._next_msg_seq(),
+                          protocol.Hello(self.robot, self.rate_hz, self.client).encode())
+                welcome = self._await_welcome(link)
+            except BaseException:
+                link.close()
+                raise
+            if welcome.robot != self.robot:
+                link.close()
+                raise RobotRefused(0, f"asked for robot {self.robot!r}, {self.url} is {welcome.robot!r}")
+            self.welcome = welcome
+            self.nj, self.nadc = welcome.nj, welcome.nadc
+            self.how = How(pos=np.zeros(self.nj, dtype=np.int64), adcr=np.zeros(self.nadc, dtype=np.int64))
+            self.how.state = welcome.state
+            self.how.rate_hz = welcome.rate_hz
+            self.chg = Chg(nj=self.nj)
+            limits = self.limits_spec
+            if limits == "model":
+                try:
+                    limits = Limits.for_robot(self.robot)
+                except BaseException:
+                    link.close()
+                    raise
+            self.checker = Checker(self.nj, self.nadc, limits if isinstance(limits, Limits) else None,
+                                   max_commands=self.max_commands)
+            self.link = link
+            if self.lock_memory:
+                lock_memory(self.rt_status)
+            self._install_signals()
+            atexit.register(self._atexit)
+            return self
+
+    def _await_welcome(self, link: Link) -> protocol.Welcome:
+        deadline = time.monotonic() + self.start_timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise Timeout(f"{self.url}: no answer to HELLO within {self.start_timeout} s (is the robot/simula running?)")
+            try:
+                frame = link.recv(left)
+            except LinkClosed as e:
+                raise DeviceError(f"{self.url}: link closed during HELLO: {e}") from None
+            except ProtocolError:
+                continue        # garbage before the answer: keep looking until the deadline
+            if frame is None:
+                continue
+            if frame.type == protocol.WELCOME:
+                return protocol.Welcome.decode(frame.payload)
+            if frame.type == protocol.ERROR:
+                msg = protocol.ErrorMsg.decode(frame.payload)
+                raise RobotRefused(msg.code, msg.text)
+            # HOW frames of an earlier program may still be in flight: ignore them
+
+    def control(self, f1: Callable[[], Any] | None = None, f2: Callable[[], Any] | None = None) -> None:
+        """RCIcontrol: start control cycles calling f1 (before chg is sent) and f2 (after).
+
+        Either may be None (the thesis's ``dummy``). Returns once the first cycle ran.
+        Raises NotOpen, ControlInProgress, BadFunction, Timeout (no HOW from the robot).
+        """
+        with self._primitive():
+            if self.link is None:
+                raise NotOpen("control(): the session is not open")
+            if self.in_control:
+                raise ControlInProgress("control(): a control is already in progress")
+            old = self._task
+            if old is not None and old.is_alive():
+                old.finished.wait(timeout=1.0)
+                if old.is_alive():
+                    raise ControlInProgress("control(): the previous control function has not returned yet")
+            for name, f in (("f1", f1), ("f2", f2)):
+                if f is not None and not callable(f):
+                    raise BadFunction(f"control(): {name} = {f!r} is not callable")
+            self.terminate = 0
+            self.termination = None
+            self._delivered = None
+            try:
+                self.link.drain()
+            except LinkClosed as e:
+                raise DeviceError(f"{self.url}: {e}") from None
+            task = ControlTask(self, f1, f2)
+            self._task = task
+            task.start()
+            task.started.wait(self.start_timeout + 1.0)
+            t = self.termination
+            if t is not None and t.number == codes.R_TIMEOUT and task.seq is None:
+                self._delivered = t
+                raise Timeout(f"control(): {t.detail}")
+
+    def release(self, power_off: bool = False) -> None:
+        """RCIrelease: end the control in progress; arm power off if ``power_off``."""
+        with self._primitive():
+            if self.link is None:
+                raise NotOpen("release(): the session is not open")
+            task = self._task
+            if task is None or task.ended:
+                raise NoControl("release(): no control is in progress")
+            task.request_release(power_off)
+            task.finished.wait(max(1.0, 4 * self.timeout_for(task.period)))
+            if not task.ended:           # thread stuck in a user function: release around it
+                task._send_release()
+
+    def close(self, power_off: bool = False) -> None:
+        """RCIclose: release any control (power off if asked), say BYE, close the link."""
+        with self._primitive():
+            if self.link is None:
+                raise NotOpen("close(): the session is not open")
+            was_controlling = self.in_control
+            if was_controlling:
+                self.release(power_off)
+            link = self.link
+            try:
+                link.send(protocol.BYE, self._next_msg_seq(), protocol.Bye(power_off and was_controlling).encode())
+                deadline = time.monotonic() + 0.5
+                while time.monotonic() < deadline:
+                    try:
+                        frame = link.recv(deadline - time.monotonic())
+                    except ProtocolError:
+                        continue
+                    if frame is None or frame.type == protocol.BYE:
+                        break
+            except (LinkClosed, OSError):
+                pass
+            self.link = None
+            link.close()
+            self._restore_signals()
+            atexit.unregister(self._atexit)
+
+    # --- context manager ------------------------------------------------------------
+    def __enter__(self) -> "Session":
+        if self.link is None:
+            self.open()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self._close_quietly(power_off=exc_type is not None and exc_type is not SystemExit)
+
+    def _close_quietly(self, power_off: bool) -> None:
+        """Release and close whatever state we are in; never raises."""
+        try:
+            if self.in_control:
+                self.release(power_off)
+        except Exception:
+            pass
+        try:
+            if self.link is not None:
+                self.close(power_off)
+        except Exception:
+            link, self.link = self.link, None
+            if link is not None:
+                link.close()
+            self._restore_signals()
+
+    def _atexit(self) -> None:
+        self._close_quietly(power_off=False)
+
+    # --- waiting at the planning level --------------------------------------------
+    def wait(self, seconds: float | None = None, until: Callable[[], bool] | None = None,
+             poll: float = 0.005) -> bool:
+        """Block the planning level for ``seconds`` or until ``until()`` is true.
+
+        Returns True if ``until`` became true, False on timeout. A termination of the
+        control is delivered (``on_error``) as soon as it happens.
+        """
+        deadline = None if seconds is None else time.monotonic() + seconds
+        while True:
+            self._deliver()
+            if until is not None and until():
+                return True
+            now = time.monotonic()
+            if deadline is not None and now >= deadline:
+                return False
+            if until is None and deadline is None and not self.in_control:
+                return False
+            step = poll if deadline is None else min(poll, deadline - now)
+            time.sleep(max(step, 0.0))
+
+    # --- termination delivery -----------------------------------------------------
+    def _control_terminated(self, term: codes.Termination, task: ControlTask) -> None:
+        """Called by the control task (its thread or its watchdog) after the implicit release."""
+        self.terminate = term.code
+        self.termination = term
+        if self._signals_active() and self._main_ident is not None:
+            try:
+                signal.pthread_kill(self._main_ident, TERM_SIGNAL)
+            except (ProcessLookupError, OSError):
+                pass
+
+    def _control_thread_done(self, task: ControlTask) -> None:
+        pass
+
+    def _deliver(self) -> None:
+        """Run on_error for a termination not yet delivered (main thread, or a wait() caller)."""
+        t = self.termination
+        if t is None or self._delivered is t:
+            return
+        if self._busy:
+            return                        # delivered when the primitive in progress returns
+        self._delivered = t
+        task = self._task
+        if task is not None and task is not threading.current_thread():
+            task.finished.wait(0.5)
+        h = self.on_error
+        if h == "raise":
+            raise ControlTerminated(t)
+        if h is None:
+            codes.print_terminate_code(t.code, self._message(t))
+            self._close_quietly(power_off=t.severe)
+            raise SystemExit(1)
+        h(t)
+
+    @staticmethod
+    def _message(t: codes.Termination) -> str:
+        where = f" (cycle {t.cycle})" if t.cycle >= 0 else ""
+        return f"{t.detail}{where}" if t.detail else f"control ended{where}"
+
+    class _Primitive:
+        def __init__(self, s: "Session") -> None:
+            self.s = s
+
+        def __enter__(self) -> None:
+            self.s._lock.acquire()
+            self.s._busy += 1
+
+        def __exit__(self, exc_type, exc, tb) -> None:
+            s = self.s
+            s._busy -= 1
+            s._lock.release()
+            if s._busy == 0 and exc_type is None and threading.current_thread() is threading.main_thread():
+                if s._pending_interrupt:
+                    s._pending_interrupt = False
+                    s._handle_interrupt()
+                s._deliver()
+
+    def _primitive(self) -> "_Primitive":
+        return Session._Primitive(self)
+
+    # --- signals ------------------------------------------------------------------
+    def _signals_active(self) -> bool:
+        return bool(self._old_handlers)
+
+    def _install_signals(self) -> None:
+        if not self.use_signals or threading.current_thread() is not threading.main_thread():
+            return
+        self._main_ident = threading.main_thread().ident
+        self._old_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, self._on_term_signal)
+        self._old_handlers[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_sigint)
+
+    def _restore_signals(self) -> None:
+        if not self._old_handlers or threading.current_thread() is not threading.main_thread():
+            return
+        for sig, old in self._old_handlers.items():
+            signal.signal(sig, old if old is not None else signal.SIG_DFL)
+        self._old_handlers = {}
+
+    def _on_term_signal(self, signum, frame) -> None:
+        self._deliver()
+
+    def _on_sigint(self, signum, frame) -> None:
+        if self._busy:
+            self._pending_interrupt = True
+            return
+        self._handle_interrupt()
+
+    def _handle_interrupt(self) -> None:
+        """A.5.3 user_interrupt, or the default: release (power off), close, print, exit 130."""
+        if self.on_interrupt is not None:
+            self.on_interrupt()
+            return
+        self._close_quietly(power_off=True)
+        codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), "interrupt")
+        raise SystemExit(130)
+
+
+def open(url: str, robot: str = "puma260", **options: Any) -> Session:  # noqa: A001 (thesis name)
+    """RCIopen as a function: an opened ``Session`` (also usable in a ``with`` block)."""
+    return Session(url, robot, **options).open()
