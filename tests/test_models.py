@@ -92,6 +92,17 @@ def test_puma_chapter4_and_appendix_d_values() -> None:
     assert puma.conversion.kappa.values == pytest.approx([1.333] * 6)
 
 
+def test_puma_ranges_contain_the_table_4_7_sweeps() -> None:
+    """Each Table 4.8 measurement moved one joint from its Table 4.7 value - 90 deg to + 90 deg;
+    the estimated ranges were chosen to contain those sweeps."""
+    puma = load_robot("puma260")
+    for pose, joint in (("j5", 5), ("j4", 4), ("j3A", 3), ("j3B", 3), ("j2", 2)):
+        for delta in (-math.pi / 2, 0.0, math.pi / 2):
+            q = puma.poses[pose].copy()
+            q[joint - 1] += delta
+            assert puma.within_limits(q), (pose, joint, delta)
+
+
 @pytest.mark.parametrize("name", ROBOTS)
 def test_every_value_has_a_source(name: str) -> None:
     model = load_robot(name)
