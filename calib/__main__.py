@@ -5,6 +5,7 @@ import argparse
 import shlex
 import sys
 
+from calib.cli_extra import add_commands
 from calib.errors import CalibError
 from calib.fitting import KINDS, run_fit
 from calib.logs import load_trace
@@ -68,11 +69,7 @@ def main(argv: list[str] | None = None) -> int:
                      help="fit the records before the cut of a log that was not closed")
     fit.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     fit.set_defaults(func=_fit)
-    try:
-        from calib.cli_extra import add_commands
-        add_commands(sub)
-    except ImportError:
-        pass
+    add_commands(sub)
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)

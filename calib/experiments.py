@@ -44,6 +44,17 @@ class Plan:
     path: Path
     meta: dict[str, Any]
     simula_args: list[str] = field(default_factory=list)
+    warmup: Path | None = None
+
+
+WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)
+
+
+def sweep_warmup(q: np.ndarray, joint: int, lo: float, hi: float, speed: float = 30 * DEG) -> Path:
+    """Back-and-forth over the window for about WARMUP_S s, so that the joint is warm
+    ("once a joint had warmed up, successive measurements ... very high repeatability")."""
+    trip = 2 * (hi - lo + 2 * (speed * speed / (2 * ACCEL) + 2 * DEG)) / speed
+    return sweep_path(q, joint, lo, hi, [speed], max(1, int(np.ceil(WARMUP_S / trip))), ACCEL)
 
 
 def _start_move(here: np.ndarray | None, to: np.ndarray) -> list[Segment]:
@@ -65,7 +76,7 @@ def friction_plans(joints=range(1, 7), speeds_deg=FRICTION_SPEEDS_DEG, trips: in
         path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
         meta = {"experiment": "friction", "joint": j, "window": [lo, hi],
                 "pose": list(q), "speeds": [v * DEG for v in speeds_deg], "trips": trips}
-        plans.append(Plan(f"friction-j{j}", path, meta))
+        plans.append(Plan(f"friction-j{j}", path, meta, warmup=sweep_warmup(q, j - 1, lo, hi)))
     return plans
 
 
@@ -87,7 +98,8 @@ def sensitivity_plans(mass_kg: float, radius_m: float, joints=range(1, 7),
                     "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1}}
             tag = "loaded" if mass > 0 else "unloaded"
             args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
-            plans.append(Plan(f"sensitivity-j{j}-{tag}", path, meta, args))
+            plans.append(Plan(f"sensitivity-j{j}-{tag}", path, meta, args,
+                              warmup=sweep_warmup(q, j - 1, lo, hi)))
     return plans
 
 
@@ -104,7 +116,8 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
                               trips, ACCEL)
             meta = {"experiment": "gravity", "joint": sw.joint, "position": name, "role": sw.role,
                     "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how}
-            plans.append(Plan(f"gravity-{name}-{sw.role}", path, meta))
+            plans.append(Plan(f"gravity-{name}-{sw.role}", path, meta,
+                              warmup=sweep_warmup(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi)))
     return plans
 
 
@@ -120,10 +133,17 @@ def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: in
     margin = 0.1 * (upper - lower)
     lo, hi = lower + margin, upper - margin
     here = np.clip(start if start is not None else (lo + hi) / 2, lo, hi)
-    segs = [Segment(here, here, 1.0, ACCEL, halt_s)]
-    for _ in range(halts - 1):
-        q = np.clip(here + rng.uniform(-step_deg, step_deg, 6) * DEG, lo, hi)
-        segs.append(Segment(here, q, speed_deg * DEG, 3 * ACCEL, halt_s))
-        here = q
+
+    def walk(n: int, dwell: float, here: np.ndarray) -> list[Segment]:
+        segs = []
+        for _ in range(n):
+            q = np.clip(here + rng.uniform(-step_deg, step_deg, 6) * DEG, lo, hi)
+            segs.append(Segment(here, q, speed_deg * DEG, 3 * ACCEL, dwell))
+            here = q
+        return segs
+
+    warm = walk(int(WARMUP_S / 1.0), 0.0, here)  # about 1 s per step, no halts
+    here = warm[-1].end
+    segs = [Segment(here, here, 1.0, ACCEL, halt_s)] + walk(halts - 1, halt_s, here)
     meta = {"experiment": "static", "halts": halts, "seed": seed, "halt_s": halt_s}
-    return Plan("static", Path(tuple(segs)), meta)
+    return Plan("static", Path(tuple(segs)), meta, warmup=Path(tuple(warm)))

@@ -19,7 +19,7 @@ from calib.lsq import bounded_lsq
 from calib.trace import Trace
 from calib.work import find_passes, window_time, window_work
 
-N_BINS = 24  # position bins over a window for the Table 4.4 profile
+PROFILE_BIN = 0.01  # rad: position bins of the Table 4.4 profile (finer than gear irregularities)
 
 
 @dataclass(frozen=True)
@@ -57,10 +57,11 @@ class FrictionResult:
 def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np.ndarray | None]:
     """Every pass of a friction log as a point, plus the log's relative friction profile.
 
-    The profile is half the difference of the torque going up and coming down at each
-    position, over its mean: gravity, the same both ways at one position, cancels, so
-    it also holds for joints 2 and 3 whose paths cannot avoid gravity.  None when the
-    log lacks one of the directions.
+    The profile is taken from the log's slowest passes (where the current filter of
+    Appendix C blurs the least distance): half the difference of the torque going up
+    and coming down at each position, over its mean.  Gravity, the same both ways at
+    one position, cancels, so it also holds for joints 2 and 3 whose paths cannot avoid
+    gravity.  None when the slowest speed lacks one of the directions.
     """
     i = trace.joint_index()
     w = trace.need("window", (list, tuple))
@@ -69,26 +70,34 @@ def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np
     lo, hi = float(w[0]), float(w[1])
     th = drive.joint_angles(trace.counts)[:, i]
     tau = drive.joint_torques(trace.adc)[:, i]
-    points = []
-    edges = np.linspace(lo, hi, N_BINS + 1)
-    sums = {1: np.zeros(N_BINS), -1: np.zeros(N_BINS)}
-    counts = {1: np.zeros(N_BINS), -1: np.zeros(N_BINS)}
-    for p in find_passes(th, lo, hi):
+    points, passes = [], find_passes(th, lo, hi)
+    for p in passes:
         work = window_work(th, tau, p, lo, hi)
         dt = window_time(th, trace.t, p, lo, hi)
         points.append(FrictionPoint(i + 1, p.direction, (hi - lo) / dt, work / (hi - lo),
                                     trace.path))
-        seg = slice(p.first, p.last + 1)
-        idx = np.clip(np.digitize(th[seg], edges) - 1, 0, N_BINS - 1)
-        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=N_BINS)
-        counts[p.direction] += np.bincount(idx, minlength=N_BINS)
     if not points:
         raise LogError(trace.path, None, f"no complete pass of joint {i + 1} through "
                        f"the window [{lo:.4f}, {hi:.4f}] rad")
-    if counts[1].min() == 0 or counts[-1].min() == 0:
+    slowest = min(pt.speed for pt in points)
+    n_bins = max(int((hi - lo) / PROFILE_BIN), 4)
+    edges = np.linspace(lo, hi, n_bins + 1)
+    sums = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
+    counts = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
+    for p, pt in zip(passes, points):
+        if pt.speed > 1.5 * slowest:
+            continue
+        seg = slice(p.first, p.last + 1)
+        idx = np.clip(np.digitize(th[seg], edges) - 1, 0, n_bins - 1)
+        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=n_bins)
+        counts[p.direction] += np.bincount(idx, minlength=n_bins)
+    both = (counts[1] > 0) & (counts[-1] > 0)
+    if both.sum() < 4:
         return points, None
-    half = 0.5 * (sums[1] / counts[1] - sums[-1] / counts[-1])
-    return points, half / half.mean() - 1.0
+    half = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
+    prof = np.full(n_bins, np.nan)
+    prof[both] = half / half.mean() - 1.0
+    return points, prof
 
 
 def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
@@ -109,8 +118,9 @@ def profile_variation(profiles: list[np.ndarray]) -> float:
     """
     if not profiles:
         return float("nan")
-    prof = np.mean(np.vstack(profiles), axis=0)
-    return float(np.max(np.abs(prof - prof.mean())))
+    width = min(len(p) for p in profiles)
+    prof = np.nanmean(np.vstack([p[:width] for p in profiles]), axis=0)
+    return float(np.nanmax(np.abs(prof - np.nanmean(prof))))
 
 
 def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult], list[FrictionPoint]]:

@@ -1,0 +1,82 @@
+"""Running a measurement plan as an RCI program: approach, then the path, recorded.
+
+The control function sends a POS command to every joint each cycle (the thesis's way:
+position requests to the joint servos, 4.5.1).  The first part of the control takes the
+arm from wherever it is to the path's start and is not recorded (an approach may cross
+an observation window at a speed that is not constant); the recorder is switched on at
+the first cycle of the path itself, so a log holds exactly the experiment.
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.experiments import ACCEL, Plan
+from calib.paths import Path, Segment
+from rci import codes
+from rci.chg import POS
+from rci.conversions import Conversions
+from rci.recorder import Recorder
+from rci.session import Session
+
+
+@dataclass
+class RunInfo:
+    """What a run did: records logged, cycles in all, the log's path."""
+
+    path: str
+    records: int
+    cycles: int
+
+
+def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
+             realtime: bool = False, extra_meta: dict | None = None) -> RunInfo:
+    """Run ``plan`` on the robot (or simula) at ``url`` and record it into ``log_path``."""
+    conv = Conversions.for_robot(robot)
+    body = plan.path.sample(rate_hz)
+    meta = dict(plan.meta)
+    meta.update(extra_meta or {})
+    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate_hz})
+    state = {"k": -1, "setpoints": None, "recording_from": 0}
+    done = threading.Event()
+    rec = Recorder(log_path, robot=robot, rate_hz=rate_hz, meta=meta, block_records=1024)
+    rec.start_writer(0.5)
+    session = Session(url, robot, rate_hz=rate_hz, realtime=realtime, lock_memory=False,
+                      on_error="raise", gc="leave", overrun="count")
+
+    def f1() -> None:
+        how, chg = session.how, session.chg
+        if state["setpoints"] is None:
+            here = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
+            first = parts[0][0] if parts else body[0]
+            last = parts[0][-1] if parts else first
+            approach = Path((Segment(here, first, 0.6, ACCEL, 0.5),)).sample(rate_hz)
+            settle = Path((Segment(last, body[0], 0.6, ACCEL, 0.5),)).sample(rate_hz)
+            lead = np.vstack([approach, *parts, settle])
+            state["setpoints"] = np.vstack([lead, body])
+            state["recording_from"] = len(lead)
+            if not how.state & codes.POWER_ON:
+                chg.power_on.issue()
+        k = state["k"] = state["k"] + 1
+        sp = state["setpoints"]
+        if k == state["recording_from"]:
+            session.record(rec)
+        if k >= len(sp):
+            done.set()
+            k = len(sp) - 1
+        counts = conv.angles_to_counts_int(sp[k])
+        for j in range(6):
+            chg.motion[j].issue(POS, int(counts[j]))
+
+    try:
+        with session:
+            session.control(f1)
+            session.wait(until=done.is_set)
+            session.record(None)
+            session.release()
+    finally:
+        rec.close()
+    return RunInfo(log_path, rec.written, state["k"] + 1)
