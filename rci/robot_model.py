@@ -92,7 +92,6 @@ _JOINT_DIMS: Mapping[str, tuple[str, str]] = MappingProxyType({
 })
 
 JOINT_KINDS = ("revolute", "prismatic")
-_RECORD_KEYS = {"value", "values", "unit", "units", "source", "why", "uncertainty", "names"}
 _LIMIT_TOL = 1e-6      # URDF vs data file: rad or m (URDFs are written with >= 7 digits)
 _INERTIAL_TOL = 1e-9   # URDF vs data file: kg, m, kg*m^2
 
