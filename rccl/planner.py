@@ -164,8 +164,7 @@ class Planner:
                 raise ConfigurationChange(
                     f"move({req.position.name}): Cartesian mode cannot change the arm configuration; "
                     "use setmod('joint') with setconf()")
-        seg = plan_segment(self.kin, self.limits, self.gen.dt, req, self._pred_t6, self._pred_q, 0.0,
-                           req.params.transition_time / 2.0)
+        seg = plan_segment(self.kin, self.limits, self.gen.dt, req, self._pred_t6, self._pred_q, 0.0, None)
         self._pred_t6 = seg.dest_t6()
         self._pred_q = seg.q_dest.copy()
 

@@ -114,7 +114,7 @@ def resolve_config(kin: Kinematics, current, wanted):
 class Segment:
     """One planned motion: linear in joint space or along a drive transform, lam from 1 to 0 over T seconds."""
 
-    __slots__ = ("req", "mode", "t0", "T", "tau_out", "tool", "tool_inv", "config", "d", "k", "theta",
+    __slots__ = ("req", "mode", "t0", "T", "tau_in", "tau_out", "stationary", "tool", "tool_inv", "config", "d", "k", "theta",
                  "dq", "q_dest", "static", "x_dest", "v_end", "v_cart", "kin", "where")
 
     def __init__(self, req: Request, kin: Kinematics) -> None:
@@ -196,13 +196,16 @@ def _scale_norm(v1: np.ndarray, v2: np.ndarray, c: float) -> float:
 # planning one segment (used by the control level, and by the planning level to check early)
 # --------------------------------------------------------------------------------------
 def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np.ndarray,
-                 q_b: np.ndarray, t0: float, tau_in: float, v1: np.ndarray | None = None,
+                 q_b: np.ndarray, t0: float, tau_in: float | None, v1: np.ndarray | None = None,
                  v1_cart: tuple[np.ndarray, np.ndarray] | None = None) -> Segment:
     """Plan ``req`` from the corner (T6 ``t6_b``, joints ``q_b``); raise an RCCL MotionError if it cannot run.
 
     ``v1`` (rad/s) and ``v1_cart`` ((m/s, rad/s) in the base frame) are the velocities the
     previous segment ends with; the new segment is slowed if needed so the transition of
-    half-width ``tau_in`` stays within the acceleration limits.
+    half-width ``tau_in`` stays within the acceleration limits. ``tau_in=None`` means the
+    arm starts from rest: the transition is then made long enough to reach the new speed
+    within the acceleration limits (read it back from ``seg.tau_in``); ``t0`` is then the
+    transition's start and ``seg.t0`` is set to ``t0 + seg.tau_in``.
     """
     seg = Segment(req, kin)
     params: MotionParams = req.params
@@ -219,8 +222,13 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
     dist = float(np.linalg.norm(seg.d))
     cfg_b = kin.config_of(q_b)
     seg.config = resolve_config(kin, cfg_b, params.config)
-    t_vel = max(dist / params.translational_velocity, seg.theta / params.rotational_velocity,
-                dist / limits.translational_velocity, seg.theta / limits.rotational_velocity)
+    # Cartesian speed limits bind the tool only where its path is the straight line (Cartesian mode);
+    # in joint mode the chord length with the requested speeds sets the pace, the joint limits bound it
+    t_vel = 0.0
+    if seg.mode == "cartesian":
+        t_vel = max(dist / limits.translational_velocity, seg.theta / limits.rotational_velocity)
+    if params.travel_time is None:  # settime's travel time replaces the requested speeds (not the limits)
+        t_vel = max(t_vel, dist / params.translational_velocity, seg.theta / params.rotational_velocity)
     vmax = limits.joint_velocity
     if seg.mode == "joint":
         q_c = getattr(pos, "joints", None)
@@ -272,6 +280,14 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
     travel = params.travel_time
     T = max(t_lim, travel) if travel is not None else t_lim
     tau_req = params.transition_time / 2.0
+    if tau_in is None:  # from rest: a transition long enough to reach the segment's speed
+        T = max(T, 2.0 * tau_req, 2.0 * dt)
+        tau_in = max(tau_req, _tau_for(limits, v_start_dir / T, x_c, seg, T))
+        t0 = t0 + tau_in
+        v1 = v1_cart = None
+        seg.t0 = t0
+    seg.tau_in = tau_in
+    seg.stationary = dist < 1e-12 and seg.theta < 1e-12 and float(np.max(np.abs(seg.dq))) < 1e-12
     T = max(T, tau_in + tau_req, 2.0 * dt)
     # keep the incoming transition within the acceleration limits (peak ACC_PEAK |dv| / tau)
     if v1 is not None and tau_in > 0:
@@ -281,11 +297,7 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
             s = min(s, _scale_norm(v1_cart[0], vt2, limits.translational_acceleration * tau_in / ACC_PEAK),
                     _scale_norm(v1_cart[1], vr2, limits.rotational_acceleration * tau_in / ACC_PEAK))
         T /= s
-    v_end = v_end_dir / T
-    tau_out = max(tau_req, float(np.max(ACC_PEAK * np.abs(v_end) / limits.joint_acceleration)))
-    vt, vr = _cart_velocity(x_c, seg, T)
-    tau_out = max(tau_out, ACC_PEAK * float(np.linalg.norm(vt)) / limits.translational_acceleration,
-                  ACC_PEAK * float(np.linalg.norm(vr)) / limits.rotational_acceleration)
+    tau_out = max(tau_req, _tau_for(limits, v_end_dir / T, x_c, seg, T))
     seg.T = max(T, tau_in + tau_out)
     seg.tau_out = tau_out
     seg.v_end = v_end_dir / seg.T
@@ -293,6 +305,16 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
     if seg.static:
         seg.x_dest = t6_c
     return seg
+
+
+def _tau_for(limits: Limits, v_joint: np.ndarray, x_c: np.ndarray, seg: Segment, T: float) -> float:
+    """Half-width of a transition that brings the segment's velocities to rest within every acceleration limit."""
+    tau = float(np.max(ACC_PEAK * np.abs(v_joint) / limits.joint_acceleration))
+    if seg.mode != "cartesian":
+        return tau
+    vt, vr = _cart_velocity(x_c, seg, T)
+    return max(tau, ACC_PEAK * float(np.linalg.norm(vt)) / limits.translational_acceleration,
+               ACC_PEAK * float(np.linalg.norm(vr)) / limits.rotational_acceleration)
 
 
 def _cart_velocity(x_c: np.ndarray, seg: Segment, T: float) -> tuple[np.ndarray, np.ndarray]:
@@ -393,11 +415,16 @@ class TrajectoryGenerator:
         q_b = prev.dest_q() if prev.mode == "joint" else self.kin.ik(t6_b, prev.config, self.q, prev.where)
         req = self.queue.get()
         seg = None
+        at_rest = prev.req.repeat and prev.stationary
         if req is not None:
             req.status = "running"
             try:
-                seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b, tau,
-                                   prev.v_end, prev.v_cart if prev.mode == "cartesian" else None)
+                if at_rest:  # the arm stands still: start the transition now, as long as the new speed needs
+                    seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b - tau, None)
+                    tau, t_b = seg.tau_in, seg.t0
+                else:
+                    seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b, tau,
+                                       prev.v_end, prev.v_cart if prev.mode == "cartesian" else None)
             except MotionError as exc:
                 req.finish(exc)
                 self.errors.append(exc)

@@ -1,0 +1,357 @@
+"""Hand-written runtime shared by the generated kinematics modules.
+
+The generated modules (``puma260.py``, ``microbo.py``) hold straight-line kernels; this
+module checks their inputs, dispatches one configuration or a batch, turns negative
+guards into ``errors.Unreachable`` / ``errors.Singular`` naming the pose and the reason,
+and implements the parts of the contract that are logic rather than algebra: the
+configuration records, the wrist-singular fallback and 2 pi branch choice of ``ik``,
+``ik_all`` and ``config_of``.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from rccl.kinematics import errors
+
+#: two solutions closer than this (rad or m, per joint) are the same solution
+SAME_SOLUTION_TOL = 1e-9
+#: a pose whose rotation part deviates from orthonormal by more than this is rejected
+RIGID_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """PUMA configuration: arm +1 right / -1 left, elbow +1 up / -1 down,
+    wrist +1 noflip (sin theta5 >= 0) / -1 flip (thesis Figure 3.4)."""
+
+    arm: int = 1
+    elbow: int = 1
+    wrist: int = 1
+
+    def __post_init__(self) -> None:
+        for name in ("arm", "elbow", "wrist"):
+            if getattr(self, name) not in (1, -1):
+                raise errors.InvalidInput(f"ArmConfig.{name} must be +1 or -1, got {getattr(self, name)!r}")
+
+    @property
+    def signs(self) -> tuple[int, ...]:
+        return (self.arm, self.elbow, self.wrist)
+
+    @classmethod
+    def all(cls) -> tuple["ArmConfig", ...]:
+        return tuple(cls(a, e, w) for a, e, w in itertools.product((1, -1), repeat=3))
+
+    def __str__(self) -> str:
+        return "/".join((("right", "left")[self.arm < 0], ("up", "down")[self.elbow < 0],
+                         ("noflip", "flip")[self.wrist < 0]))
+
+
+@dataclass(frozen=True)
+class WristConfig:
+    """Microbo configuration: wrist +1 noflip (sin theta5 >= 0) / -1 flip (thesis 3.51)."""
+
+    wrist: int = 1
+
+    def __post_init__(self) -> None:
+        if self.wrist not in (1, -1):
+            raise errors.InvalidInput(f"WristConfig.wrist must be +1 or -1, got {self.wrist!r}")
+
+    @property
+    def signs(self) -> tuple[int, ...]:
+        return (self.wrist,)
+
+    @classmethod
+    def all(cls) -> tuple["WristConfig", ...]:
+        return (cls(1), cls(-1))
+
+    def __str__(self) -> str:
+        return ("noflip", "flip")[self.wrist < 0]
+
+
+@dataclass(frozen=True)
+class GuardInfo:
+    name: str
+    error: str
+    message: str
+
+
+@dataclass(frozen=True)
+class KernelFn:
+    """One generated kernel: scalar and batched code plus its signature."""
+
+    name: str
+    one: Callable[..., tuple]
+    many: Callable[..., tuple]
+    inputs: tuple[tuple[str, tuple[int, ...]], ...]
+    outputs: tuple[tuple[str, tuple[int, ...]], ...]
+    guards: tuple[GuardInfo, ...] = ()
+
+
+def frame_kernel(base: str, frame: int) -> str:
+    if frame not in (4, 6):
+        raise errors.InvalidInput(f"{base}: frame must be 4 or 6, got {frame!r}")
+    return f"{base}{frame}"
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    """Angle difference brought into [-pi, pi)."""
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+def _fmt_pose(t: np.ndarray) -> str:
+    return np.array2string(np.asarray(t), precision=6, suppress_small=True, separator=", ").replace("\n", "")
+
+
+class Robot:
+    """The contract's functions for one robot, over its generated kernels."""
+
+    def __init__(self, name: str, kernels: Mapping[str, KernelFn], kinds: Sequence[str],
+                 lower: np.ndarray, upper: np.ndarray, config_type: type, coeff_names: Sequence[str]):
+        self.name = name
+        self.kernels = dict(kernels)
+        self.revolute = np.array([k == "revolute" for k in kinds])
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        self.config_type = config_type
+        self.coeff_names = tuple(coeff_names)
+
+    # -- dispatch ----------------------------------------------------------------------
+
+    def _arrays(self, k: KernelFn, args: Sequence[Any]) -> tuple[list[np.ndarray], bool]:
+        if len(args) != len(k.inputs):
+            raise errors.InvalidInput(f"{self.name}.{k.name}: expected {len(k.inputs)} arguments, got {len(args)}")
+        arrays, batch = [], None
+        for (name, shape), a in zip(k.inputs, args):
+            try:
+                x = np.asarray(a, dtype=float)
+            except (TypeError, ValueError) as exc:
+                raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not numeric: {exc}") from None
+            if x.shape == shape:
+                is_batch = False
+            elif x.ndim == len(shape) + 1 and x.shape[1:] == shape:
+                is_batch = True
+            else:
+                raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} has shape {x.shape}, "
+                                          f"expected {shape} or (N,) + {shape}")
+            if batch is None:
+                batch = is_batch
+            elif batch != is_batch:
+                raise errors.InvalidInput(f"{self.name}.{k.name}: mix of batched and single arguments")
+            bad = ~np.isfinite(x)
+            if bad.any():
+                where = np.argwhere(bad)[0]
+                raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not finite "
+                                          f"(NaN or inf at index {tuple(int(i) for i in where)})")
+            arrays.append(x)
+        if batch:
+            n = {a.shape[0] for a in arrays}
+            if len(n) != 1:
+                raise errors.InvalidInput(f"{self.name}.{k.name}: batch sizes differ: {sorted(n)}")
+        return arrays, bool(batch)
+
+    def raw(self, name: str, *args: Any) -> tuple[tuple, tuple, bool]:
+        """(outputs, guard values, batched) without raising on guards."""
+        k = self.kernels[name]
+        arrays, batch = self._arrays(k, args)
+        if batch:
+            with np.errstate(all="ignore"):
+                res = k.many(*arrays)
+        else:
+            try:
+                res = k.one(*arrays)
+            except (ZeroDivisionError, ValueError, OverflowError):
+                # at an exactly singular input plain floats raise where numpy gives
+                # inf/nan; rerun as a batch of one and let the guards name the problem
+                with np.errstate(all="ignore"):
+                    res = tuple(np.asarray(r)[0] for r in k.many(*(a[None] for a in arrays)))
+        n_out = len(k.outputs)
+        return res[:n_out], res[n_out:], batch
+
+    def call(self, name: str, *args: Any, context: Callable[[int | None], str] | None = None) -> tuple:
+        """Run a kernel; a negative guard raises its error naming the input."""
+        outs, guards, batch = self.raw(name, *args)
+        self._check(name, guards, batch, args, context)
+        self._finite(name, outs, batch, args, context)
+        return outs
+
+    def _finite(self, name, outs, batch, args, context) -> None:
+        """Last line of defence: never hand back a silent NaN or inf."""
+        for o in outs:
+            o = np.asarray(o)
+            if not np.isfinite(o).all():
+                i = int(np.argmax(~np.isfinite(o).reshape(o.shape[0], -1).all(axis=1))) if batch else None
+                where = context(i) if context else self._describe(args, i)
+                raise errors.KinematicsError(f"{self.name}.{name}: non-finite result; {where}")
+
+    def _check(self, name, guards, batch, args, context, skip=()) -> None:
+        k = self.kernels[name]
+        for info, value in zip(k.guards, guards):
+            if info.name in skip:
+                continue
+            v = np.asarray(value)
+            bad = ~(v >= 0)
+            if bad.any():
+                i = int(np.argmax(bad)) if batch else None
+                where = context(i) if context else self._describe(args, i)
+                raise getattr(errors, info.error)(
+                    f"{self.name}.{name}: {info.message} ({info.name} = {float(v.flat[i or 0]):.3g}); {where}")
+
+    @staticmethod
+    def _describe(args, i) -> str:
+        first = np.asarray(args[0], dtype=float)
+        row = first if i is None else first[i]
+        label = "at " if i is None else f"at batch row {i}: "
+        return label + np.array2string(row, precision=6, separator=", ").replace("\n", "")
+
+    # -- contract ----------------------------------------------------------------------
+
+    def fk(self, q):
+        return self.call("fk", q)[0]
+
+    def _pose(self, T) -> np.ndarray:
+        t = np.asarray(T, dtype=float)
+        if t.shape[-2:] != (4, 4) or t.ndim not in (2, 3):
+            raise errors.InvalidInput(f"{self.name}.ik: pose has shape {t.shape}, expected (4, 4) or (N, 4, 4)")
+        if not np.isfinite(t).all():
+            raise errors.InvalidInput(f"{self.name}.ik: pose is not finite: {_fmt_pose(t)}")
+        r = t[..., :3, :3]
+        dev = np.abs(np.swapaxes(r, -1, -2) @ r - np.eye(3)).max(axis=(-1, -2))
+        bottom = np.abs(t[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=-1)
+        bad = (dev > RIGID_TOL) | (bottom > 0) | (np.linalg.det(r) < 0)
+        if np.any(bad):
+            i = int(np.argmax(np.atleast_1d(bad)))
+            row = t if t.ndim == 2 else t[i]
+            raise errors.InvalidInput(f"{self.name}.ik: not a rigid homogeneous transform "
+                                      f"(rotation off orthonormal by {float(np.atleast_1d(dev)[i]):.2g}): {_fmt_pose(row)}")
+        return t
+
+    def coerce_config(self, config) -> Any:
+        if isinstance(config, self.config_type):
+            return config
+        try:
+            return self.config_type(*[int(s) for s in np.atleast_1d(config)])
+        except (TypeError, ValueError) as exc:
+            raise errors.InvalidInput(f"{self.name}.ik: bad configuration {config!r}: {exc}") from None
+
+    def ik(self, T, config, q_ref=None):
+        t = self._pose(T)
+        cfg = self.coerce_config(config)
+        batch = t.ndim == 3
+        signs = np.array(cfg.signs, dtype=float).reshape(self.kernels["ik"].inputs[1][1])
+        if batch:
+            signs = np.broadcast_to(signs, (t.shape[0],) + signs.shape)
+        ref = None
+        if q_ref is not None:
+            ref = np.asarray(q_ref, dtype=float)
+            if ref.shape != t.shape[:-2] + (6,) or not np.isfinite(ref).all():
+                raise errors.InvalidInput(f"{self.name}.ik: q_ref must be finite with shape {t.shape[:-2] + (6,)}, got {ref.shape}")
+
+        def context(i):
+            pose = t if i is None else t[i]
+            return f"pose T = {_fmt_pose(pose)}, configuration {cfg}"
+
+        (q,), guards, _ = self.raw("ik", t, signs)
+        q = np.array(q)
+        names = [g.name for g in self.kernels["ik"].guards]
+        self._check("ik", guards, batch, (t,), context, skip={"guard_wrist"})
+        wrist_bad = ~(np.asarray(guards[names.index("guard_wrist")]) >= 0)
+        if np.any(wrist_bad):
+            if ref is None:
+                self._check("ik", guards, batch, (t,), context)
+            # keep theta4 of q_ref and solve theta5, theta6 for it
+            rows = np.nonzero(np.atleast_1d(wrist_bad))[0]
+            if batch:
+                q[rows, 3] = ref[rows, 3]
+                (q56,) = self.call("ik_wrist", t[rows], q[rows])
+                q[rows, 4:6] = q56
+            else:
+                q[3] = ref[3]
+                (q56,) = self.call("ik_wrist", t, q)
+                q[4:6] = q56
+        if ref is not None:
+            rev = self.revolute
+            q[..., rev] = ref[..., rev] + _wrap(q[..., rev] - ref[..., rev])
+        self._finite("ik", (q,), batch, (t,), context)
+        self._check_prismatic(q, batch, context)
+        return q
+
+    def _check_prismatic(self, q, batch, context) -> None:
+        pri = ~self.revolute
+        if not pri.any():
+            return
+        qp = q[..., pri]
+        lo, hi = self.lower[pri], self.upper[pri]
+        bad = (qp < lo - 1e-12) | (qp > hi + 1e-12)
+        if bad.any():
+            if batch:
+                i = int(np.argmax(bad.any(axis=-1)))
+                row = qp[i]
+            else:
+                i, row = None, qp
+            j = int(np.argmax(bad[i] if batch else bad))
+            joint = int(np.nonzero(pri)[0][j]) + 1
+            raise errors.Unreachable(
+                f"{self.name}.ik: prismatic joint {joint} would need {row[j]:.6g} m, outside its range "
+                f"[{lo[j]:.6g}, {hi[j]:.6g}] m; {context(i)}")
+
+    def ik_all(self, T, q_ref=None):
+        t = self._pose(T)
+        if t.ndim != 2:
+            raise errors.InvalidInput(f"{self.name}.ik_all: takes one pose (4, 4), got {t.shape}")
+        found: list[tuple[Any, np.ndarray]] = []
+        for cfg in self.config_type.all():
+            try:
+                q = self.ik(t, cfg, q_ref)
+            except errors.Unreachable:
+                continue
+            if not any(self._same(q, other) for _, other in found):
+                found.append((cfg, q))
+        return found
+
+    def _same(self, a: np.ndarray, b: np.ndarray) -> bool:
+        d = a - b
+        d[self.revolute] = _wrap(d[self.revolute])
+        return bool(np.all(np.abs(d) < SAME_SOLUTION_TOL))
+
+    def config_of(self, q):
+        (ind,) = self.call("config_indicators", q)
+        signs = np.where(np.asarray(ind) >= 0, 1, -1)
+        if signs.ndim == 1:
+            return self.config_type(*(int(s) for s in signs))
+        return [self.config_type(*(int(s) for s in row)) for row in signs]
+
+    def coeff_vector(self, coeffs) -> np.ndarray:
+        """Gravity coefficients as a vector in GRAVITY_COEFFS order."""
+        if hasattr(coeffs, "gravity_coeffs"):  # a RobotModel
+            coeffs = coeffs.gravity_coeffs
+        if isinstance(coeffs, Mapping):
+            missing = [n for n in self.coeff_names if n not in coeffs]
+            if missing:
+                raise errors.InvalidInput(f"{self.name}.gravity: coefficients {missing} missing "
+                                          f"(need {list(self.coeff_names)})")
+            vals = [getattr(coeffs[n], "value", coeffs[n]) for n in self.coeff_names]
+            return np.array(vals, dtype=float)
+        c = np.asarray(coeffs, dtype=float)
+        if c.shape[-1:] != (len(self.coeff_names),):
+            raise errors.InvalidInput(f"{self.name}.gravity: expected {len(self.coeff_names)} coefficients "
+                                      f"{list(self.coeff_names)}, got shape {c.shape}")
+        return c
+
+    def tool_load(self, coeffs, mass, com) -> dict[str, float]:
+        c = self.coeff_vector(coeffs)
+        com = np.atleast_1d(np.asarray(com, dtype=float))
+        if com.shape == (3,):
+            if abs(com[0]) > 1e-12 or abs(com[1]) > 1e-12:
+                raise errors.InvalidInput(f"{self.name}.tool_load: the grouped gravity model (4.26) "
+                                          f"takes the load on the z6 axis; com = {com} is off it")
+            dist = com[2]
+        elif com.shape == (1,):
+            dist = com[0]
+        else:
+            raise errors.InvalidInput(f"{self.name}.tool_load: com must be d_t or (0, 0, d_t), got {com}")
+        (out,) = self.call("tool_load", c, [float(mass), float(dist)])
+        return dict(zip(self.coeff_names, (float(x) for x in out)))
