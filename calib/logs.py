@@ -39,7 +39,7 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
                        f"is not one of {', '.join(EXPERIMENTS)}")
     rec = log.records
     names = rec.dtype.names or ()
-    for col in ("robot_time_ns", "how_pos", "how_adcr"):
+    for col in ("cycle", "rate_hz", "how_pos", "how_adcr"):
         if col not in names:
             raise LogError(path, None, f"records lack the column '{col}'")
     if len(rec) == 0:
@@ -51,10 +51,29 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
                        f"{adc.shape[1:]} ADC channels; a 6-joint robot is needed")
     trace = Trace(path=str(path), robot=str(header.get("robot", "")),
                   rate_hz=float(header.get("rate_hz", 0) or 0), meta=meta,
-                  t=np.asarray(rec["robot_time_ns"], dtype=np.int64) * 1e-9,
+                  t=_cycle_times(path, rec),
                   counts=counts[:, :6], adc=adc[:, :6])
     check_samples(trace)
     return trace
+
+
+def _cycle_times(path: str, rec: np.ndarray) -> np.ndarray:
+    """Robot time (s) of each record from its cycle number and the sample rate.
+
+    The robot's cycles are its clock (one HOW per sample period, A.4), so this is the
+    time the joint moved in, for a real arm and for simula in lockstep alike (where the
+    host's clock says nothing about the simulated motion).
+    """
+    cycle = np.asarray(rec["cycle"], dtype=np.int64)
+    rate = np.asarray(rec["rate_hz"], dtype=float)
+    if (rate <= 0).any():
+        k = int(np.argmax(rate <= 0))
+        raise LogError(path, k, f"sample rate {rate[k]:g} Hz is not positive")
+    step = np.diff(cycle) % (1 << 32)   # the u4 counter may wrap
+    if len(step) and (step == 0).any():
+        k = int(np.argmax(step == 0)) + 1
+        raise LogError(path, k, f"cycle {cycle[k]} repeats the previous record's")
+    return np.concatenate([[0.0], np.cumsum(step / rate[:-1])])
 
 
 def _read(path: str):

@@ -65,3 +65,45 @@ def test_static_plan_has_275_halts():
     plan = static_plan(INFO.lower, INFO.upper)
     dwells = [s for s in plan.path.segments if s.dwell > 0]
     assert len(dwells) == 275
+
+
+def test_program_records_exactly_the_path_over_a_real_link(tmp_path):
+    """run_plan against the reference robot-side monitor (lockstep, TCP): the log holds
+    the path (not the approach), in order, with the plan's metadata."""
+    import threading
+    import time
+
+    from calib.logs import load_trace
+    from calib.program import run_plan
+    from rci.conversions import Conversions
+    from rci.monitor import EchoArm, Monitor
+
+    conv = Conversions.for_robot("puma260")
+    (plan,) = friction_plans([1], speeds_deg=(30, 60))
+    plan.warmup = None
+    mon = Monitor(EchoArm(pos0=conv.angles_to_counts(np.full(6, 0.3))), lockstep=True)
+    port: list[int] = []
+
+    def serve() -> None:
+        try:
+            mon.serve_tcp(ready=port.append)
+        except BrokenPipeError:  # the monitor answers BYE after the client has gone
+            pass
+
+    threading.Thread(target=serve, daemon=True).start()
+    deadline = time.monotonic() + 5
+    while not port and time.monotonic() < deadline:
+        time.sleep(0.01)
+    try:
+        run = run_plan(f"socket://127.0.0.1:{port[0]}", plan, str(tmp_path / "f.rcilog"))
+    finally:
+        mon.stop_event.set()
+    tr = load_trace(run.path)
+    assert tr.meta["experiment"] == "friction" and tr.meta["joint"] == 1
+    q = conv.counts_to_angles(tr.counts)
+    setpoints = plan.path.sample(36.0)
+    # EchoArm reaches each POS target in the cycle after it was sent
+    n = min(len(q), len(setpoints)) - 1
+    assert np.abs(q[1:n, 0] - setpoints[:n - 1, 0]).max() < 1e-3
+    assert len(find_passes(q[:, 0], *plan.meta["window"])) == 4
+    assert tr.t[1] - tr.t[0] == pytest.approx(1 / 36.0)
