@@ -6,14 +6,9 @@ Cartesian limits; the defaults below are ``estimate``s, with their reasoning bes
 """
 from __future__ import annotations
 
-import math
-import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-
-MODELS = Path(__file__).resolve().parent.parent / "models"
 
 # estimate: a joint reaches its top speed in about a quarter of a second (small PM DC
 # servos through 30-70:1 gearing, light links); so a_max = v_max / 0.25 s.
@@ -26,18 +21,6 @@ MAX_ROTATIONAL_VELOCITY = 3.0
 # most of the workspace (the wrist joints are the fastest, the tool is 0.4 m from the shoulder).
 MAX_TRANSLATIONAL_ACCELERATION = 2.0
 MAX_ROTATIONAL_ACCELERATION = 10.0
-
-
-def _si(entry: dict, where: str) -> float:
-    value = float(entry["value"])
-    unit = entry.get("unit", "")
-    if unit == "deg":
-        return math.radians(value)
-    if unit in ("rad", "rad/s", "m", ""):
-        return value
-    if unit == "mm":
-        return value / 1000.0
-    raise ValueError(f"{where}: unit {unit!r} not understood")
 
 
 @dataclass(frozen=True)
@@ -60,13 +43,11 @@ class Limits:
         return int(bad[0]) if bad.size else None
 
 
-def load_limits(robot: str, path: Path | None = None) -> Limits:
-    """Limits of ``robot`` from its data file (joint ranges and velocities) plus the estimates above."""
-    path = path or MODELS / f"{robot}.toml"
-    with open(path, "rb") as fh:
-        data = tomllib.load(fh)
-    joints = data["joints"]
-    lower = np.array([_si(j["lower"], f"{path}: joint {j['index']} lower") for j in joints])
-    upper = np.array([_si(j["upper"], f"{path}: joint {j['index']} upper") for j in joints])
-    vel = np.array([_si(j["max_velocity"], f"{path}: joint {j['index']} max_velocity") for j in joints])
-    return Limits(lower, upper, vel, vel / ACCEL_RAMP_S, source=str(path))
+def load_limits(robot: str) -> Limits:
+    """Limits of ``robot`` from its data file (joint ranges and velocities, via rci.robot_model) plus the estimates above."""
+    from rci.robot_model import load_robot
+
+    model = load_robot(robot)
+    vel = np.array(model.max_velocity, dtype=float)
+    return Limits(np.array(model.lower, dtype=float), np.array(model.upper, dtype=float), vel,
+                  vel / ACCEL_RAMP_S, source=str(model.path))

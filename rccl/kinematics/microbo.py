@@ -113,7 +113,7 @@ def _ik_one(T, config):
     px = T[0, 3]
     py = T[1, 3]
     pz = T[2, 3]
-    wrist = config[]
+    wrist = config
     x0 = math.sqrt(px**2 + py**2)
     x1 = az*wrist
     x2 = 1/x0
@@ -149,7 +149,7 @@ def _ik_many(T, config):
     px = T[:, 0, 3]
     py = T[:, 1, 3]
     pz = T[:, 2, 3]
-    wrist = config[:, ]
+    wrist = config
     x0 = numpy.sqrt(px**2 + py**2)
     x1 = az*wrist
     x2 = 1/x0
