@@ -182,8 +182,12 @@ class ControlTask(threading.Thread):
                 self._send_release()
                 return
             timeout = first_timeout if not self.started.is_set() else s.timeout_for(self.period)
+            t_wait = time.monotonic()
             try:
                 frame = link.recv(timeout)
+                while frame is None and not self.release_requested and not self.ended \
+                        and time.monotonic() - t_wait < timeout:   # a stray wake-up: keep waiting
+                    frame = link.recv(timeout - (time.monotonic() - t_wait))
             except ChecksumError as e:
                 self.terminate(codes.make_code(codes.R_CHKSUM, codes.F_COMM | codes.F_SEVERE), str(e))
                 return

@@ -125,9 +125,10 @@ class Link:
         return bool(self.port.in_waiting)
 
     def drain(self) -> int:
-        """Discard all input now waiting; returns the number of bytes dropped."""
+        """Discard all input now waiting (and any pending wake-up); returns the bytes dropped."""
         n = len(self.decoder.buf)
         self.decoder.reset()
+        self._consume_wake()
         while True:
             try:
                 data = self._read_available(0.0)
@@ -138,10 +139,25 @@ class Link:
             n += len(data)
 
     def close(self) -> None:
+        sock = getattr(self.port, "_socket", None)
+        if sock is not None:
+            # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a controller
+            # closing its link has no use for that, so shut the socket down directly.
+            try:
+                sock.shutdown(2)
+            except OSError:
+                pass
+            sock.close()
+            self.port._socket = None
+            self.port.is_open = False
+            return self._close_wake()
         try:
             self.port.close()
         except (serial.SerialException, OSError):
             pass
+        self._close_wake()
+
+    def _close_wake(self) -> None:
         for fd in (self._wake_r, self._wake_w):
             try:
                 os.close(fd)

@@ -156,6 +156,8 @@ class Monitor:
         stream = _Stream(fd, closer or (lambda: os.close(fd)))
         try:
             self._session(stream)
+        except OSError:
+            pass            # the controller went away mid-write: wait for the next one
         finally:
             stream.close()
 

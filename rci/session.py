@@ -345,7 +345,9 @@ class Session:
         self._delivered = t
         task = self._task
         if task is not None and task is not threading.current_thread():
-            task.finished.wait(0.5)
+            # the arm is already released; give the control thread a moment to finish, but
+            # do not wait for a user function that may never return
+            task.finished.wait(min(0.1, 2 * task.period))
         h = self.on_error
         if h == "raise":
             raise ControlTerminated(t)
