@@ -126,9 +126,11 @@ def microbo_gravity() -> GravityModel:
     com = [(x1, y1, z1), (x2, y2, z2), (x3, y3, z3), (0, y4, 0), (0, 0, z5), (0, 0, z6)]
     general = gravity_general(MICROBO, com)
     m1, m2, m3, m4, m5, m6 = MASSES
+    # named as models/microbo.toml names them: c12 the lift force of the vertical axis
+    # (N), c15 with the PUMA's definition (N m)
     meanings = {
-        "c22": g0 * (m2 + m3 + m4 + m5 + m6),
-        "c25": g0 * (m5 * z5 + m6 * z6),
+        "c12": g0 * (m2 + m3 + m4 + m5 + m6),
+        "c15": -g0 * (m5 * z5 + m6 * z6),
     }
     tool = {m6: m6 + m_t, z6: (m6 * z6 + m_t * d_t) / (m6 + m_t)}
     return _group(MICROBO, general, meanings, com, tool)

@@ -75,7 +75,8 @@ def solve_sin_cos(a: sp.Expr, b: sp.Expr, c: sp.Expr, sign: sp.Expr) -> sp.Expr:
     at zero so that boundary poses within the reach tolerance stay finite (the guard
     on the radicand rejects the others).
     """
-    root = sp.sqrt(sp.Max(0, a**2 + b**2 - c**2))
+    radicand = a**2 + b**2 - c**2
+    root = sp.sqrt((radicand + sp.Abs(radicand)) / 2)  # sqrt(max(0, radicand))
     return -sp.atan2(b, a) + sp.atan2(c, sign * root)
 
 
@@ -172,6 +173,7 @@ def puma_ik() -> IKSolution:
 
     sub123 = {q1: theta1, q2: theta2, q3: theta3}
     theta4 = theta4_of_q123.subs(sub123, simultaneous=True)
+    wrist_norm = wrist_norm.subs(sub123, simultaneous=True)
     theta5 = theta5_of_q1234.subs({**sub123, q4: theta4}, simultaneous=True)
     theta6 = theta6_of_q12345.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
     theta6_given_q4 = theta6_of_q12345.subs({q5: theta5_of_q1234})
@@ -241,6 +243,7 @@ def microbo_ik() -> IKSolution:
     theta6_of_q145 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
 
     theta4 = theta4_of_q1.subs(q1, theta1)
+    wrist_norm = wrist_norm.subs(q1, theta1)
     theta5 = theta5_of_q14.subs({q1: theta1, q4: theta4}, simultaneous=True)
     theta6 = theta6_of_q145.subs({q1: theta1, q4: theta4, q5: theta5}, simultaneous=True)
     theta6_given_q4 = theta6_of_q145.subs(q5, theta5_of_q14)

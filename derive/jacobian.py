@@ -90,7 +90,12 @@ def block_inverse(j: sp.Matrix) -> sp.Matrix:
     out[:3, :3] = i11
     out[3:, 3:] = i22
     out[3:, :3] = (-i22 * j21 * i11).applyfunc(lambda e: sp.factor(tidy(e)))
-    return out
+    return out.applyfunc(_no_tan)
+
+
+def _no_tan(e: sp.Expr) -> sp.Expr:
+    """Write tan as sin/cos: trigsimp likes tan, but tan(q5) is infinite at q5 = pi/2."""
+    return sp.factor(e.replace(sp.tan, lambda x: sp.sin(x) / sp.cos(x)))
 
 
 def _inv3(m: sp.Matrix) -> sp.Matrix:

@@ -123,18 +123,19 @@ def _ik_one(T, config):
     x6 = wrist*x5
     x7 = az**2
     x8 = wrist**2
-    x9 = 1/math.sqrt(x5**2*x8 + x7*x8)
-    x10 = px*x2
-    x11 = x6*x9
-    x12 = ay*x10*x11 + wrist*x7*x9 - x11*x4
-    x13 = -ax*x10 - ay*x3
-    x14 = x1*x9
-    x15 = 1/math.sqrt(x12**2 + x13**2)
-    x16 = x13*x15
-    x17 = x12*x15
-    q_ = numpy.array([math.atan2(py, px), pz, x0, math.atan2(x1, x6), math.atan2(x12, x13), math.atan2(ox*py*wrist*x13*x15*x2*x5*x9 - ox*x10*x17 - oy*x10*x11*x16 - oy*x17*x3 - oz*x14*x16, az*oy*px*wrist*x2*x9 - ox*x14*x3 - oz*x11)], dtype=float)
+    x9 = x5**2
+    x10 = 1/math.sqrt(x7*x8 + x8*x9)
+    x11 = px*x2
+    x12 = x10*x6
+    x13 = ay*x11*x12 + wrist*x10*x7 - x12*x4
+    x14 = -ax*x11 - ay*x3
+    x15 = x1*x10
+    x16 = 1/math.sqrt(x13**2 + x14**2)
+    x17 = x14*x16
+    x18 = x13*x16
+    q_ = numpy.array([math.atan2(py, px), pz, x0, math.atan2(x1, x6), math.atan2(x13, x14), math.atan2(ox*py*wrist*x10*x14*x16*x2*x5 - ox*x11*x18 - oy*x11*x12*x17 - oy*x18*x3 - oz*x15*x17, az*oy*px*wrist*x10*x2 - ox*x15*x3 - oz*x12)], dtype=float)
     guard_axis = float(x0 - 1.0e-9)
-    guard_wrist = float(math.sqrt(x7 + (-ax*math.sin(q1) + ay*math.cos(q1))**2) - 1.0e-9)
+    guard_wrist = float(math.sqrt(x7 + x9) - 1.0e-9)
     return (q_, guard_axis, guard_wrist,)
 
 
@@ -159,24 +160,25 @@ def _ik_many(T, config):
     x6 = wrist*x5
     x7 = az**2
     x8 = wrist**2
-    x9 = 1/numpy.sqrt(x5**2*x8 + x7*x8)
-    x10 = px*x2
-    x11 = x6*x9
-    x12 = ay*x10*x11 + wrist*x7*x9 - x11*x4
-    x13 = -ax*x10 - ay*x3
-    x14 = x1*x9
-    x15 = 1/numpy.sqrt(x12**2 + x13**2)
-    x16 = x13*x15
-    x17 = x12*x15
+    x9 = x5**2
+    x10 = 1/numpy.sqrt(x7*x8 + x8*x9)
+    x11 = px*x2
+    x12 = x10*x6
+    x13 = ay*x11*x12 + wrist*x10*x7 - x12*x4
+    x14 = -ax*x11 - ay*x3
+    x15 = x1*x10
+    x16 = 1/numpy.sqrt(x13**2 + x14**2)
+    x17 = x14*x16
+    x18 = x13*x16
     q_ = numpy.empty((T.shape[0],) + (6,))
     q_[:, 0] = numpy.arctan2(py, px)
     q_[:, 1] = pz
     q_[:, 2] = x0
     q_[:, 3] = numpy.arctan2(x1, x6)
-    q_[:, 4] = numpy.arctan2(x12, x13)
-    q_[:, 5] = numpy.arctan2(ox*py*wrist*x13*x15*x2*x5*x9 - ox*x10*x17 - oy*x10*x11*x16 - oy*x17*x3 - oz*x14*x16, az*oy*px*wrist*x2*x9 - ox*x14*x3 - oz*x11)
+    q_[:, 4] = numpy.arctan2(x13, x14)
+    q_[:, 5] = numpy.arctan2(ox*py*wrist*x10*x14*x16*x2*x5 - ox*x11*x18 - oy*x11*x12*x17 - oy*x18*x3 - oz*x15*x17, az*oy*px*wrist*x10*x2 - ox*x15*x3 - oz*x12)
     guard_axis = numpy.broadcast_to(numpy.asarray(x0 - 1.0e-9, dtype=float), (T.shape[0],))
-    guard_wrist = numpy.broadcast_to(numpy.asarray(numpy.sqrt(x7 + (-ax*numpy.sin(q1) + ay*numpy.cos(q1))**2) - 1.0e-9, dtype=float), (T.shape[0],))
+    guard_wrist = numpy.broadcast_to(numpy.asarray(numpy.sqrt(x7 + x9) - 1.0e-9, dtype=float), (T.shape[0],))
     return (q_, guard_axis, guard_wrist,)
 
 

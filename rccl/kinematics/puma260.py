@@ -184,34 +184,32 @@ def _ik_one(T, config):
     x34 = x28 + x31 + x33
     x35 = wrist*x34
     x36 = wrist**2
-    x37 = 1/math.sqrt(x25**2*x36 + x34**2*x36)
-    x38 = x26*x37
-    x39 = x35*x37
-    x40 = ay*x38*x7 - x24*x38 + x28*x39 + x31*x39 + x33*x39
-    x41 = x22*x27
-    x42 = az*x23*x27 - x30*x41 - x32*x41
-    x43 = oy*x7
-    x44 = 1/math.sqrt(x40**2 + x42**2)
-    x45 = x42*x44
-    x46 = x38*x45
-    x47 = ox*x9
-    x48 = oz*x41
-    x49 = x39*x45
-    x50 = ox*x7
-    x51 = x29*x49
-    x52 = oy*x9
-    x53 = x40*x44
-    x54 = x41*x53
-    x55 = x29*x38
-    x56 = math.sin(q1)
-    x57 = math.cos(q1)
-    x58 = q2 + q3
-    x59 = math.cos(x58)
-    q_ = numpy.array([x3, -x18 + math.atan2(x22, x23), x18, math.atan2(-x26, -x35), math.atan2(x40, x42), math.atan2(-oz*x29*x53 + x43*x46 - x46*x47 + x48*x49 + x50*x51 + x50*x54 + x51*x52 + x52*x54, x38*x48 - x39*x43 + x39*x47 + x50*x55 + x52*x55)], dtype=float)
+    x37 = x25**2
+    x38 = x34**2
+    x39 = 1/math.sqrt(x36*x37 + x36*x38)
+    x40 = x26*x39
+    x41 = x35*x39
+    x42 = ay*x40*x7 - x24*x40 + x28*x41 + x31*x41 + x33*x41
+    x43 = x22*x27
+    x44 = az*x23*x27 - x30*x43 - x32*x43
+    x45 = oy*x7
+    x46 = 1/math.sqrt(x42**2 + x44**2)
+    x47 = x44*x46
+    x48 = x40*x47
+    x49 = ox*x9
+    x50 = oz*x43
+    x51 = x41*x47
+    x52 = ox*x7
+    x53 = x29*x51
+    x54 = oy*x9
+    x55 = x42*x46
+    x56 = x43*x55
+    x57 = x29*x40
+    q_ = numpy.array([x3, -x18 + math.atan2(x22, x23), x18, math.atan2(-x26, -x35), math.atan2(x42, x44), math.atan2(-oz*x29*x55 + x45*x48 - x48*x49 + x50*x51 + x52*x53 + x52*x56 + x53*x54 + x54*x56, x40*x50 - x41*x45 + x41*x49 + x52*x57 + x54*x57)], dtype=float)
     guard_arm_reach = float(-0.999999999999*x0 + 1.000000000001*x1 + 1.000000000001*x2)
     guard_elbow_reach = float(4.000000000004*x13 + x15)
     guard_folded = float(x11 + x6 - 1.0e-18*(A2 + D3 + D4)**2)
-    guard_wrist = float(math.sqrt((-ax*x56 + ay*x57)**2 + (ax*x57*x59 + ay*x56*x59 + az*math.sin(x58))**2) - 1.0e-9)
+    guard_wrist = float(math.sqrt(x37 + x38) - 1.0e-9)
     return (q_, guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist,)
 
 
@@ -266,40 +264,38 @@ def _ik_many(T, config):
     x34 = x28 + x31 + x33
     x35 = wrist*x34
     x36 = wrist**2
-    x37 = 1/numpy.sqrt(x25**2*x36 + x34**2*x36)
-    x38 = x26*x37
-    x39 = x35*x37
-    x40 = ay*x38*x7 - x24*x38 + x28*x39 + x31*x39 + x33*x39
-    x41 = x22*x27
-    x42 = az*x23*x27 - x30*x41 - x32*x41
-    x43 = oy*x7
-    x44 = 1/numpy.sqrt(x40**2 + x42**2)
-    x45 = x42*x44
-    x46 = x38*x45
-    x47 = ox*x9
-    x48 = oz*x41
-    x49 = x39*x45
-    x50 = ox*x7
-    x51 = x29*x49
-    x52 = oy*x9
-    x53 = x40*x44
-    x54 = x41*x53
-    x55 = x29*x38
-    x56 = numpy.sin(q1)
-    x57 = numpy.cos(q1)
-    x58 = q2 + q3
-    x59 = numpy.cos(x58)
+    x37 = x25**2
+    x38 = x34**2
+    x39 = 1/numpy.sqrt(x36*x37 + x36*x38)
+    x40 = x26*x39
+    x41 = x35*x39
+    x42 = ay*x40*x7 - x24*x40 + x28*x41 + x31*x41 + x33*x41
+    x43 = x22*x27
+    x44 = az*x23*x27 - x30*x43 - x32*x43
+    x45 = oy*x7
+    x46 = 1/numpy.sqrt(x42**2 + x44**2)
+    x47 = x44*x46
+    x48 = x40*x47
+    x49 = ox*x9
+    x50 = oz*x43
+    x51 = x41*x47
+    x52 = ox*x7
+    x53 = x29*x51
+    x54 = oy*x9
+    x55 = x42*x46
+    x56 = x43*x55
+    x57 = x29*x40
     q_ = numpy.empty((T.shape[0],) + (6,))
     q_[:, 0] = x3
     q_[:, 1] = -x18 + numpy.arctan2(x22, x23)
     q_[:, 2] = x18
     q_[:, 3] = numpy.arctan2(-x26, -x35)
-    q_[:, 4] = numpy.arctan2(x40, x42)
-    q_[:, 5] = numpy.arctan2(-oz*x29*x53 + x43*x46 - x46*x47 + x48*x49 + x50*x51 + x50*x54 + x51*x52 + x52*x54, x38*x48 - x39*x43 + x39*x47 + x50*x55 + x52*x55)
+    q_[:, 4] = numpy.arctan2(x42, x44)
+    q_[:, 5] = numpy.arctan2(-oz*x29*x55 + x45*x48 - x48*x49 + x50*x51 + x52*x53 + x52*x56 + x53*x54 + x54*x56, x40*x50 - x41*x45 + x41*x49 + x52*x57 + x54*x57)
     guard_arm_reach = numpy.broadcast_to(numpy.asarray(-0.999999999999*x0 + 1.000000000001*x1 + 1.000000000001*x2, dtype=float), (T.shape[0],))
     guard_elbow_reach = numpy.broadcast_to(numpy.asarray(4.000000000004*x13 + x15, dtype=float), (T.shape[0],))
     guard_folded = numpy.broadcast_to(numpy.asarray(x11 + x6 - 1.0e-18*(A2 + D3 + D4)**2, dtype=float), (T.shape[0],))
-    guard_wrist = numpy.broadcast_to(numpy.asarray(numpy.sqrt((-ax*x56 + ay*x57)**2 + (ax*x57*x59 + ay*x56*x59 + az*numpy.sin(x58))**2) - 1.0e-9, dtype=float), (T.shape[0],))
+    guard_wrist = numpy.broadcast_to(numpy.asarray(numpy.sqrt(x37 + x38) - 1.0e-9, dtype=float), (T.shape[0],))
     return (q_, guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist,)
 
 

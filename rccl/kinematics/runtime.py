@@ -124,34 +124,34 @@ class Robot:
     def _arrays(self, k: KernelFn, args: Sequence[Any]) -> tuple[list[np.ndarray], bool]:
         if len(args) != len(k.inputs):
             raise errors.InvalidInput(f"{self.name}.{k.name}: expected {len(k.inputs)} arguments, got {len(args)}")
-        arrays, batch = [], None
+        arrays, flags = [], []
         for (name, shape), a in zip(k.inputs, args):
             try:
                 x = np.asarray(a, dtype=float)
             except (TypeError, ValueError) as exc:
                 raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not numeric: {exc}") from None
             if x.shape == shape:
-                is_batch = False
+                flags.append(False)
             elif x.ndim == len(shape) + 1 and x.shape[1:] == shape:
-                is_batch = True
+                flags.append(True)
             else:
                 raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} has shape {x.shape}, "
                                           f"expected {shape} or (N,) + {shape}")
-            if batch is None:
-                batch = is_batch
-            elif batch != is_batch:
-                raise errors.InvalidInput(f"{self.name}.{k.name}: mix of batched and single arguments")
             bad = ~np.isfinite(x)
             if bad.any():
                 where = np.argwhere(bad)[0]
                 raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not finite "
                                           f"(NaN or inf at index {tuple(int(i) for i in where)})")
             arrays.append(x)
+        batch = any(flags)
         if batch:
-            n = {a.shape[0] for a in arrays}
-            if len(n) != 1:
-                raise errors.InvalidInput(f"{self.name}.{k.name}: batch sizes differ: {sorted(n)}")
-        return arrays, bool(batch)
+            sizes = {a.shape[0] for a, f in zip(arrays, flags) if f}
+            if len(sizes) != 1:
+                raise errors.InvalidInput(f"{self.name}.{k.name}: batch sizes differ: {sorted(sizes)}")
+            n = sizes.pop()
+            # a single argument next to batched ones is shared by every row
+            arrays = [a if f else np.broadcast_to(a, (n,) + a.shape) for a, f in zip(arrays, flags)]
+        return arrays, batch
 
     def raw(self, name: str, *args: Any) -> tuple[tuple, tuple, bool]:
         """(outputs, guard values, batched) without raising on guards."""
@@ -319,7 +319,11 @@ class Robot:
 
     def config_of(self, q):
         (ind,) = self.call("config_indicators", q)
+        batch = np.asarray(q).ndim == 2
         signs = np.where(np.asarray(ind) >= 0, 1, -1)
+        signs = signs.reshape(-1, len(self.config_type.__dataclass_fields__))
+        if not batch:
+            signs = signs[0]
         if signs.ndim == 1:
             return self.config_type(*(int(s) for s in signs))
         return [self.config_type(*(int(s) for s in row)) for row in signs]

@@ -1,0 +1,308 @@
+"""Python back end: writes ``rccl/kinematics/<robot>.py`` from a robot's kernels.
+
+Each kernel becomes two plain straight-line functions over common-subexpression-
+eliminated expressions: ``_<name>_one`` (one configuration, ``math`` on floats) and
+``_<name>_many`` (the same code on numpy columns, vectorised over a leading axis).
+sin/cos of every joint angle (and of theta2 + theta3) are computed once at the top.
+Robot constants are module-level names (``A2``, ``D3``, ``D4``, ``G``), written with
+``repr`` so the file is exact and byte-for-byte reproducible. Guards are returned after
+the outputs; the hand-written ``rccl.kinematics.runtime`` turns a negative guard into
+the named exception. The public API of the kinematics contract is generated at the end
+of the file as thin wrappers around the runtime.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
+from sympy.printing.pycode import PythonCodePrinter
+
+from derive.kernel import Kernel
+from derive.robots import RobotSpec, load_spec
+
+COMMAND = "make derive  (python -m derive)"
+
+
+class _OnePrinter(PythonCodePrinter):
+    """Scalar code: math module on floats."""
+
+    def __init__(self) -> None:
+        super().__init__({"fully_qualified_modules": True})
+
+
+class _ManyPrinter(NumPyPrinter):
+    """Batched code: numpy ufuncs on columns; 1/x rather than x**(-1.0)."""
+
+    def _print_Pow(self, expr, rational=False):
+        return self._hprint_Pow(expr, rational=rational, sqrt="numpy.sqrt")
+
+
+def _param_names(kernel: Kernel) -> dict[sp.Symbol, sp.Symbol]:
+    return {s: sp.Symbol(s.name.upper()) for s in kernel.params}
+
+
+def _elements(value: sp.Matrix) -> list[sp.Expr]:
+    return [value[i, j] for i in range(value.rows) for j in range(value.cols)]
+
+
+def _index(arg_shape: tuple[int, ...], flat: int) -> tuple[int, ...]:
+    if len(arg_shape) == 0:
+        return ()
+    if len(arg_shape) == 1:
+        return (flat,)
+    return divmod(flat, arg_shape[1])
+
+
+def _trig_locals(exprs: list[sp.Expr], inputs: set[sp.Symbol], taken: set[str]):
+    """Replace sin/cos of joint angles (or sums of them) by locals computed once."""
+    calls = set()
+    for e in exprs:
+        for f in e.atoms(sp.sin, sp.cos):
+            arg = f.args[0]
+            if arg.free_symbols <= inputs and (arg.is_Symbol or (arg.is_Add and all(a.is_Symbol for a in arg.args))):
+                calls.add(f)
+    assigns = []
+    subs = {}
+    for f in sorted(calls, key=sp.default_sort_key):
+        arg = f.args[0]
+        syms = sorted(arg.free_symbols, key=sp.default_sort_key)
+        digits = "".join(s.name[1:] if s.name.startswith("q") and s.name[1:].isdigit() else s.name for s in syms)
+        base = ("s" if isinstance(f, sp.sin) else "c") + digits
+        name = base
+        while name in taken:
+            name = "_" + name
+        taken.add(name)
+        sym = sp.Symbol(name)
+        subs[f] = sym
+        assigns.append((sym, f))
+    return [e.xreplace(subs) for e in exprs], assigns
+
+
+def _lower(kernel: Kernel):
+    """(input unpacking, trig locals, cse temps, output exprs) of one kernel."""
+    pmap = _param_names(kernel)
+    outs = []
+    for a in kernel.outputs:
+        outs += _elements(a.value)
+    outs += [g.expr for g in kernel.guards]
+    outs = [sp.sympify(e).xreplace(pmap) for e in outs]
+    inputs: dict[sp.Symbol, tuple[str, tuple[int, ...]]] = {}
+    for a in kernel.inputs:
+        for k, el in enumerate(_elements(a.value)):
+            if isinstance(el, sp.Symbol):
+                inputs[el] = (a.name, _index(a.shape, k))
+    used = set().union(*(e.free_symbols for e in outs)) if outs else set()
+    taken = {s.name for s in inputs} | {a.name for a in kernel.inputs} | {p.name for p in pmap.values()}
+    outs, trig = _trig_locals(outs, set(inputs), taken)
+    temps, reduced = sp.cse(outs, symbols=sp.numbered_symbols("x"), order="canonical")
+    unpack = [(s, inputs[s]) for s in sorted(used & set(inputs), key=sp.default_sort_key)]
+    return unpack, trig, temps, reduced
+
+
+def _function(kernel: Kernel, lowered, many: bool) -> str:
+    unpack, trig, temps, reduced = lowered
+    printer = _ManyPrinter() if many else _OnePrinter()
+    args = ", ".join(a.name for a in kernel.inputs)
+    suffix = "many" if many else "one"
+    lines = [f"def _{kernel.name}_{suffix}({args}):"]
+    first = kernel.inputs[0].name
+    doc = kernel.doc.splitlines()[0] if kernel.doc else kernel.name
+    lines.append(f'    """{doc} (thesis {kernel.source or "-"}); {"batched" if many else "one configuration"}."""')
+    for sym, (arg, idx) in unpack:
+        where = ", ".join(str(i) for i in idx)
+        if not idx:  # a scalar input
+            lines.append(f"    {sym.name} = {arg}")
+        elif many:
+            lines.append(f"    {sym.name} = {arg}[:, {where}]")
+        else:
+            lines.append(f"    {sym.name} = {arg}[{where}]")
+    for sym, f in trig:
+        lines.append(f"    {sym.name} = {printer.doprint(f)}")
+    for sym, e in temps:
+        lines.append(f"    {sym.name} = {printer.doprint(e)}")
+    pos = 0
+    results = []
+    for a in kernel.outputs:
+        n = len(_elements(a.value))
+        vals = reduced[pos:pos + n]
+        pos += n
+        shape = a.shape
+        if many:
+            lines.append(f"    {a.name}_ = numpy.empty(({first}.shape[0],) + {shape!r})")
+            for k, v in enumerate(vals):
+                idx = ", ".join(str(i) for i in _index(shape, k))
+                lines.append(f"    {a.name}_[:{', ' + idx if idx else ''}] = {printer.doprint(v)}")
+        else:
+            texts = [printer.doprint(v) for v in vals]
+            if shape == ():
+                lines.append(f"    {a.name}_ = float({texts[0]})")
+            elif len(shape) == 1:
+                lines.append(f"    {a.name}_ = numpy.array([{', '.join(texts)}], dtype=float)")
+            else:
+                rows = []
+                for r in range(shape[0]):
+                    rows.append("[" + ", ".join(texts[r * shape[1]:(r + 1) * shape[1]]) + "]")
+                body = ",\n        ".join(rows)
+                lines.append(f"    {a.name}_ = numpy.array([\n        {body}], dtype=float)")
+        results.append(f"{a.name}_")
+    for g in kernel.guards:
+        v = reduced[pos]
+        pos += 1
+        text = printer.doprint(v)
+        if many:
+            lines.append(f"    {g.name} = numpy.broadcast_to(numpy.asarray({text}, dtype=float), ({first}.shape[0],))")
+        else:
+            lines.append(f"    {g.name} = float({text})")
+        results.append(g.name)
+    lines.append(f"    return ({', '.join(results)},)")
+    return "\n".join(lines)
+
+
+def _kernel_table(kernels: list[Kernel]) -> str:
+    lines = ["_KERNELS = {"]
+    for k in kernels:
+        ins = ", ".join(f"({a.name!r}, {a.shape!r})" for a in k.inputs)
+        outs = ", ".join(f"({a.name!r}, {a.shape!r})" for a in k.outputs)
+        guards = ", ".join(f"_rt.GuardInfo({g.name!r}, {g.error!r}, {g.message!r})" for g in k.guards)
+        lines.append(
+            f"    {k.name!r}: _rt.KernelFn({k.name!r}, _{k.name}_one, _{k.name}_many,\n"
+            f"        inputs=({ins}{',' if len(k.inputs) == 1 else ''}),\n"
+            f"        outputs=({outs}{',' if len(k.outputs) == 1 else ''}),\n"
+            f"        guards=({guards}{',' if len(k.guards) == 1 else ''})),"
+        )
+    lines.append("}")
+    return "\n".join(lines)
+
+
+def module_source(kernels: list[Kernel], spec: RobotSpec) -> str:
+    params = {}
+    for k in kernels:
+        for s, v in k.params.items():
+            params[s.name.upper()] = float(v)
+    consts = "\n".join(f"{n} = {v!r}" for n, v in sorted(params.items()))
+    kinds = tuple(spec.kinds)
+    config = "ArmConfig" if spec.config_fields == ("arm", "elbow", "wrist") else "WristConfig"
+    head = f'''"""Kinematics of the {spec.name}: GENERATED by `{COMMAND}` from derive/; do not edit.
+
+Forward and inverse kinematics, the link-4 and frame-6 Jacobians with their four
+computations, and the gravity vector, derived with SymPy from the DH table of
+{spec.model_path.split("/")[-1]} (J. Lloyd 1985, chapters 3 and 4). SI units, radians; every
+function accepts one configuration or a batch along a leading axis. Contract:
+notes/kin_contract.md; runtime helpers: rccl.kinematics.runtime.
+"""
+# fmt: off
+# ruff: noqa
+from __future__ import annotations
+
+import math
+
+import numpy
+
+from rccl.kinematics import runtime as _rt
+
+ROBOT = {spec.name!r}
+#: model constants used (m, m/s^2), from {spec.model_path.split("/")[-1]}
+{consts}
+JOINT_KINDS = {kinds!r}
+#: joint ranges (rad; m for prismatic joints), from the model file
+LOWER = numpy.array({list(spec.lower)!r})
+UPPER = numpy.array({list(spec.upper)!r})
+GRAVITY_COEFFS = {tuple(spec.gravity_coeffs)!r}
+Config = _rt.{config}
+CONFIGS = Config.all()
+'''
+    funcs = []
+    for k in kernels:
+        lowered = _lower(k)
+        funcs.append(_function(k, lowered, many=False))
+        funcs.append(_function(k, lowered, many=True))
+    api = f'''
+_ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
+
+
+def fk(q):
+    """T6 (4, 4), link 6 in the base frame (thesis 3.16-3.18); q (6,) or (N, 6) -> (N, 4, 4)."""
+    return _ROBOT.fk(q)
+
+
+def ik(T, config, q_ref=None):
+    """Joint variables for pose T in configuration `config` (thesis 3.19-3.53).
+
+    q_ref (optional current joints) keeps theta4 at a wrist singularity and picks the
+    2 pi branch of each revolute joint nearest to it. Raises errors.Unreachable or
+    errors.Singular with the pose and the reason.
+    """
+    return _ROBOT.ik(T, config, q_ref)
+
+
+def ik_all(T, q_ref=None):
+    """Every distinct solution for one pose T, as a list of (Config, q)."""
+    return _ROBOT.ik_all(T, q_ref)
+
+
+def config_of(q):
+    """The Config of q (a list of Configs for a batch)."""
+    return _ROBOT.config_of(q)
+
+
+def jacobian4(q):
+    """4J (6, 6): link 6's motion observed in frame 4 (thesis 3.54-3.61)."""
+    return _ROBOT.call("jacobian4", q)[0]
+
+
+def jacobian6(q):
+    """6J (6, 6): link 6's motion observed in frame 6 (Pinocchio LOCAL frame Jacobian)."""
+    return _ROBOT.call("jacobian6", q)[0]
+
+
+def cartesian_from_joint(q, dq, frame=6):
+    """dc = J dq observed in frame 4 or 6 (thesis 3.71, 3.75, 3.79)."""
+    return _ROBOT.call(_rt.frame_kernel("cartesian_from_joint", frame), q, dq)[0]
+
+
+def torque_from_force(q, f, frame=6):
+    """tau = J^T f with f observed in frame 4 or 6 (thesis 3.72, 3.76, 3.79)."""
+    return _ROBOT.call(_rt.frame_kernel("torque_from_force", frame), q, f)[0]
+
+
+def joint_from_cartesian(q, dc, frame=6):
+    """dq = J^-1 dc with dc observed in frame 4 or 6 (thesis 3.73, 3.77, 3.79); raises Singular."""
+    return _ROBOT.call(_rt.frame_kernel("joint_from_cartesian", frame), q, dc)[0]
+
+
+def force_from_torque(q, tau, frame=6):
+    """f = J^-T tau observed in frame 4 or 6 (thesis 3.74, 3.78, 3.79); raises Singular."""
+    return _ROBOT.call(_rt.frame_kernel("force_from_torque", frame), q, tau)[0]
+
+
+def gravity(q, coeffs):
+    """Joint torques holding the arm against gravity (thesis 4.24); coeffs by name or record."""
+    return _ROBOT.call("gravity", q, _ROBOT.coeff_vector(coeffs))[0]
+
+
+def gravity_regressor(q):
+    """(6, k) matrix Y with gravity(q, c) = Y c, columns in GRAVITY_COEFFS order."""
+    return _ROBOT.call("gravity_regressor", q)[0]
+
+
+def gravity_links(q, masses, coms):
+    """Thesis 4.20 from link masses (6,) kg and centres of mass (6, 3) m in frames 1..6."""
+    return _ROBOT.call("gravity_links", q, masses, coms)[0]
+
+
+def tool_load(coeffs, mass, com):
+    """Coefficients with a tool of `mass` kg at `com` on the z6 axis (thesis 4.26)."""
+    return _ROBOT.tool_load(coeffs, mass, com)
+'''
+    return head + "\n\n" + "\n\n\n".join(funcs) + "\n\n\n" + _kernel_table(kernels) + "\n" + api
+
+
+def emit(kernels: list[Kernel], robot: str, out_dir: Path) -> list[Path]:
+    """Write ``out_dir/<robot>.py``; returns the files written."""
+    spec = load_spec(robot)
+    path = Path(out_dir) / f"{robot}.py"
+    text = module_source(kernels, spec)
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+    return [path]

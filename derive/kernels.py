@@ -1,0 +1,178 @@
+"""Turn the derivation's results into ``Kernel``s, the functions the emitters write out.
+
+One list per robot; the names are the generated module's private kernel names
+(``rccl/kinematics/<robot>.py`` wraps them into the public API of the contract).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from derive.dh import Q, a2, d4
+from derive.forward import t6, tidy
+from derive.gravity import COM, MASSES, GravityModel, d_t, g0, m_t, gravity_general
+from derive.inverse import POSE_INPUT, IKSolution, SINGULAR_TOL
+from derive.jacobian import Differential
+from derive.kernel import Arg, Guard, Kernel
+from derive.robots import RobotSpec
+
+
+def _vec(prefix: str, n: int) -> sp.Matrix:
+    return sp.Matrix(sp.symbols(f"{prefix}1:{n + 1}", real=True))
+
+
+@dataclass(frozen=True)
+class Derivation:
+    """All symbolic results for one robot (the report reads these too)."""
+
+    spec: RobotSpec
+    t6: sp.Matrix
+    ik: IKSolution
+    diff: Differential
+    gravity: GravityModel
+
+
+def _guard(name: str, expr: sp.Expr, error: str, message: str) -> Guard:
+    return Guard(name, expr, error, message)
+
+
+def build_kernels(d: Derivation) -> list[Kernel]:
+    spec, robot = d.spec, d.spec.name
+    params = dict(spec.params)
+    q = sp.Matrix(Q)
+    qarg = Arg("q", q, "joint variables (rad; m for Microbo joints 2, 3)")
+    ks: list[Kernel] = []
+
+    def kernel(name, doc, inputs, outputs, guards=(), source=""):
+        used = set()
+        for o in outputs:
+            used |= o.value.free_symbols
+        for g in guards:
+            used |= g.expr.free_symbols
+        given = set().union(*(a.value.free_symbols for a in inputs)) | set(params)
+        if used - given:
+            raise ValueError(f"{robot}.{name}: outputs depend on {sorted(map(str, used - given))}, "
+                             "which are neither inputs nor robot constants")
+        kp = {s: v for s, v in params.items() if s in used}
+        ks.append(Kernel(robot, name, doc, tuple(inputs), tuple(outputs), tuple(guards), kp, source))
+
+    # -- forward kinematics ------------------------------------------------------------
+    kernel("fk", "T6: link 6 in the base frame (4x4 homogeneous transform, m)",
+           [qarg], [Arg("T", d.t6, "base_to_link6")], source="3.16-3.18")
+
+    # -- inverse kinematics ------------------------------------------------------------
+    cfg = sp.Matrix(d.ik.config)
+    guards = [_guard(*g) for g in d.ik.guards]
+    kernel("ik", "joint variables for pose T in one configuration (signs +-1: "
+           + ", ".join(spec.config_fields) + ")",
+           [Arg("T", POSE_INPUT, "base_to_link6"), Arg("config", cfg, "configuration signs")],
+           [Arg("q", sp.Matrix(d.ik.joints), "joint variables")], guards, source="3.19-3.53")
+    q5w, q6w = d.ik.wrist_given_q4
+    kernel("ik_wrist", "theta5, theta6 for pose T when q1..q4 are given (wrist singularity: "
+           "theta4 kept from a reference)",
+           [Arg("T", POSE_INPUT, "base_to_link6"), qarg],
+           [Arg("q56", sp.Matrix([q5w, q6w]), "theta5, theta6")], source="3.33, 3.35, 3.46, 3.47")
+
+    # configuration indicators: sign of each is the configuration of q
+    s5 = sp.sin(Q[4])
+    if robot == "puma260":
+        h = a2 * sp.cos(Q[1]) - d4 * sp.sin(Q[1] + Q[2])
+        ind = sp.Matrix([h, -h * sp.cos(Q[2]), s5])
+    else:
+        ind = sp.Matrix([s5])
+    kernel("config_indicators", "values whose signs are the configuration of q "
+           "(" + ", ".join(spec.config_fields) + ")", [qarg],
+           [Arg("indicator", ind, "sign = configuration")], source="3.24, 3.27, 3.39, 3.51")
+
+    # -- Jacobians -----------------------------------------------------------------------
+    j4, j6 = d.diff.j4, d.diff.j6
+    kernel("jacobian4", "4J: motion of link 6 observed in frame 4 per unit joint rate",
+           [qarg], [Arg("J", j4, "(dx, dy, dz, dx_rot, dy_rot, dz_rot) in frame 4")],
+           source="3.54-3.61, 3.67, 3.69")
+    kernel("jacobian6", "6J: motion of link 6 observed in frame 6 per unit joint rate",
+           [qarg], [Arg("J", j6, "(dx, dy, dz, dx_rot, dy_rot, dz_rot) in frame 6")],
+           source="3.54-3.61")
+
+    dq, dc, f, tau = _vec("dq", 6), _vec("dc", 6), _vec("f", 6), _vec("tau", 6)
+    b = d.diff.b
+    bb = sp.diag(b, b)  # D_{4,6} = F_{4,6} (3.80 corrected)
+    bbt = sp.diag(b.T, b.T)  # D_{6,4} = F_{6,4}
+    jr, jr_inv, y = d.diff.j4_reduced, d.diff.j4_reduced_inv, d.diff.y
+    y_inv = y.inv()
+    dc4 = j4 * dq
+    inv_guards = _jacobian_guards(robot)
+    for frame in (4, 6):
+        if frame == 4:
+            fwd = (jr * (y * dq)).applyfunc(sp.expand)
+            torque = (y.T * (jr.T * f)).applyfunc(sp.expand)
+            joint = (y_inv * (jr_inv * dc)).applyfunc(sp.expand)
+            force = (jr_inv.T * (y_inv.T * tau)).applyfunc(sp.expand)
+            src = ("3.71, 3.75", "3.72, 3.76", "3.73, 3.77", "3.74, 3.78")
+        else:
+            fwd = bb * (jr * (y * dq)).applyfunc(sp.expand)
+            torque = (y.T * (jr.T * (bbt * f))).applyfunc(sp.expand)
+            joint = (y_inv * (jr_inv * (bbt * dc))).applyfunc(sp.expand)
+            force = bb * (jr_inv.T * (y_inv.T * tau)).applyfunc(sp.expand)
+            src = ("3.79",) * 4
+        kernel(f"cartesian_from_joint{frame}", f"dc = J dq observed in frame {frame}",
+               [qarg, Arg("dq", dq, "joint rates or differentials")],
+               [Arg("dc", fwd, f"Cartesian differential in frame {frame}")], source=src[0])
+        kernel(f"torque_from_force{frame}", f"tau = J^T f with f observed in frame {frame}",
+               [qarg, Arg("f", f, f"force/moment in frame {frame}")],
+               [Arg("tau", torque, "joint torques (N m; N on prismatic joints)")], source=src[1])
+        kernel(f"joint_from_cartesian{frame}", f"dq = J^-1 dc with dc observed in frame {frame}",
+               [qarg, Arg("dc", dc, f"Cartesian differential in frame {frame}")],
+               [Arg("dq", joint, "joint differentials")], inv_guards, source=src[2])
+        kernel(f"force_from_torque{frame}", f"f = J^-T tau, observed in frame {frame}",
+               [qarg, Arg("tau", tau, "joint torques")],
+               [Arg("f", force, f"force/moment in frame {frame}")], inv_guards, source=src[3])
+
+    # -- gravity -----------------------------------------------------------------------
+    gm = d.gravity
+    if tuple(gm.coeff_names) != tuple(spec.gravity_coeffs):
+        raise ValueError(f"{spec.model_path}: gravity_coeffs: data file has "
+                         f"{list(spec.gravity_coeffs)}, the derivation groups 4.20 into "
+                         f"{list(gm.coeff_names)}")
+    c = sp.Matrix(gm.coeff_symbols)
+    kernel("gravity", "tau_g = regressor(q) c: torques holding the arm against gravity",
+           [qarg, Arg("c", c, "gravity loading coefficients " + ", ".join(gm.coeff_names))],
+           [Arg("tau", gm.regressor * c, "N m (N on prismatic joints)")], source="4.24, 4.25")
+    kernel("gravity_regressor", "d tau_g / d c (tau_g is linear in the coefficients)",
+           [qarg], [Arg("Y", gm.regressor, "6 x k")], source="4.24")
+    masses = sp.Matrix(MASSES)
+    com = sp.Matrix([list(r) for r in COM])
+    general = gravity_general(spec.dh, [tuple(r) for r in COM])
+    kernel("gravity_links", "tau_g from link masses and centres of mass (eq. 4.20, no "
+           "centre-of-mass assumption)",
+           [qarg, Arg("m", masses, "link masses, kg"),
+            Arg("com", com, "centre of mass of link k in frame k, m (row k-1)")],
+           [Arg("tau", general, "N m (N on prismatic joints)")], source="4.8-4.20")
+    load = sp.Matrix([m_t, d_t])
+    kernel("tool_load", "coefficients with a tool of mass m_t at d_t along z6 (4.26)",
+           [Arg("c", c, "coefficients without the tool"),
+            Arg("load", load, "(m_t kg, d_t m)")],
+           [Arg("c_loaded", c + sp.Matrix(gm.tool_update), "coefficients with the tool")],
+           source="4.26")
+    return ks
+
+
+def _jacobian_guards(robot: str) -> list[Guard]:
+    s5 = sp.sin(Q[4])
+    wrist = _guard("guard_wrist", sp.Abs(s5) - SINGULAR_TOL, "Singular",
+                   "sin(theta5) = 0: wrist singularity, joints 4 and 6 aligned")
+    if robot == "puma260":
+        h = a2 * sp.cos(Q[1]) - d4 * sp.sin(Q[1] + Q[2])
+        return [
+            _guard("guard_shoulder", sp.Abs(h) - SINGULAR_TOL * (a2 + d4), "Singular",
+                   "h = a2 C2 - d4 S23 = 0: the wrist centre is on the d3-cylinder about "
+                   "the joint-1 axis (shoulder singularity)"),
+            _guard("guard_elbow", sp.Abs(sp.cos(Q[2])) - SINGULAR_TOL, "Singular",
+                   "cos(theta3) = 0: the elbow is stretched or fully folded"),
+            wrist,
+        ]
+    return [
+        _guard("guard_axis", sp.Abs(Q[2]) - SINGULAR_TOL, "Singular",
+               "d3 = 0: the wrist centre is on the joint-1 axis"),
+        wrist,
+    ]
