@@ -19,7 +19,8 @@ from .exceptions import (BadRequest, ConfigurationChange, ConstTransformError, M
                          PositionError, RCCLError, SingularPath, TrajectoryFault, TransformError, Unreachable)
 from .position import EQ, TL, Position, joint_position, makeposition
 from .sync import Event
-from .transform import T6, Trsf, t6, xunit, yunit, zunit
+from .transform import (T6, Trsf, gentr_eul, gentr_noap, gentr_rot, gentr_rpy, gentr_trsl, t6, xunit, yunit,
+                        zunit)
 
 
 def open(url: str, robot: str = "puma260", **options):  # noqa: A001 - thesis name rccl_open
@@ -30,7 +31,7 @@ def open(url: str, robot: str = "puma260", **options):  # noqa: A001 - thesis na
 
 __all__ = [
     "open", "makeposition", "joint_position", "Position", "EQ", "TL", "T6", "t6", "Trsf", "Event",
-    "xunit", "yunit", "zunit", "RCCLError", "TransformError", "ConstTransformError", "PositionError",
+    "xunit", "yunit", "zunit", "gentr_trsl", "gentr_rot", "gentr_rpy", "gentr_eul", "gentr_noap", "RCCLError", "TransformError", "ConstTransformError", "PositionError",
     "MotionError", "BadRequest", "Unreachable", "SingularPath", "ConfigurationChange", "TrajectoryFault",
     "NotRunning",
 ]

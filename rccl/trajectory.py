@@ -235,7 +235,7 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
         if q_c is not None and seg.static and params.config is None:
             seg.config = kin.config_of(q_c)      # a joint-defined position (park): go to its joints
         else:
-            q_c = kin.ik(t6_c, seg.config, q_b, where)
+            q_c = _fit_range(limits, kin.ik(t6_c, seg.config, q_b, where))
         _check_range(limits, q_c, where, "destination")
         seg.dq = q_b - q_c
         seg.q_dest = q_c
@@ -321,6 +321,20 @@ def _cart_velocity(x_c: np.ndarray, seg: Segment, T: float) -> tuple[np.ndarray,
     """Tool velocity (m/s) and angular velocity (rad/s) in the base frame along a Cartesian segment."""
     r = x_c[:3, :3]
     return -(r @ seg.d) / T, -(r @ seg.k) * seg.theta / T
+
+
+def _fit_range(limits: Limits, q: np.ndarray) -> np.ndarray:
+    """Joint-mode destinations: move a revolute joint outside its range by +-2 pi when that brings it inside.
+
+    Inverse kinematics picks the 2 pi branch nearest the start; a joint whose range spans
+    more than one side of +-pi (the PUMA waist) may need the other branch.
+    """
+    q = q.copy()
+    for i in range(q.size):
+        for shift in (2 * math.pi, -2 * math.pi):
+            if not (limits.lower[i] <= q[i] <= limits.upper[i]) and limits.lower[i] <= q[i] + shift <= limits.upper[i]:
+                q[i] += shift
+    return q
 
 
 def _check_range(limits: Limits, q: np.ndarray, where: str, what: str) -> None:

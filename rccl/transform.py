@@ -369,3 +369,33 @@ def product(items: Iterable[np.ndarray]) -> np.ndarray:
     for m in items:
         out = out @ m
     return out
+
+
+# --------------------------------------------------------------------------------------
+# the thesis's allocation primitives (5.3.4), SI units
+# --------------------------------------------------------------------------------------
+def gentr_trsl(name: str, x: float, y: float, z: float, kind: str = "const") -> Trsf:
+    """``gentr_trsl("T", x, y, z)``: a named translation (metres)."""
+    return Trsf.trsl(name, x, y, z, kind)
+
+
+def gentr_rot(name: str, x: float, y: float, z: float, axis, angle: float, kind: str = "const") -> Trsf:
+    """``gentr_rot("B", x, y, z, axis, angle)``: translation (m) and rotation of ``angle`` rad about ``axis``."""
+    return Trsf.rot(name, axis, angle, kind, at=(x, y, z))
+
+
+def gentr_rpy(name: str, x: float, y: float, z: float, yaw: float, pitch: float, roll: float,
+              kind: str = "const") -> Trsf:
+    """``gentr_rpy``: translation (m) and yaw-pitch-roll (rad)."""
+    return Trsf.rpy(name, x, y, z, yaw, pitch, roll, kind)
+
+
+def gentr_eul(name: str, x: float, y: float, z: float, phi: float, theta: float, psi: float,
+              kind: str = "const") -> Trsf:
+    """``gentr_eul``: translation (m) and Euler angles (rad)."""
+    return Trsf.euler(name, x, y, z, phi, theta, psi, kind)
+
+
+def gentr_noap(name: str, n, o, a, p, kind: str = "const") -> Trsf:
+    """``gentr_noap``: from the n, o, a, p column vectors."""
+    return Trsf.noap(name, n, o, a, p, kind)
