@@ -1,0 +1,104 @@
+"""The ``simula`` console script: start the simulated robot as a separate process (thesis A.7).
+
+Usage (see docs/simula.md)::
+
+    simula -p &                       # ready position, calibrated, real time, port 7600
+    simula -c -v --lockstep --port 0  # nest, calibrated, lockstep, any free port, verbose
+    simula --pty                      # serve a pseudo-terminal instead of TCP
+
+stdout line 1 is the link address for ``rci.link.open_link`` (``socket://host:port`` or
+the pty device path); line 2 is ``control socket://host:port`` (the test control channel)
+unless ``--no-control``. With ``-v`` the joint angles follow, once per simulated second.
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from dataclasses import replace
+
+from ..exceptions import ModelError
+from ..robot_model import load_robot
+from .arm import Arm
+from .control import ControlChannel
+from .exceptions import SimulaError
+from .params import load_params, parse_load, truth_from_model
+from .server import WATCHDOG_CYCLES, Server
+
+DEFAULT_PORT = 7600
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="simula", description="RCI robot simulator (thesis A.7).")
+    start = p.add_mutually_exclusive_group()
+    start.add_argument("-p", dest="start", action="store_const", const="ready",
+                       help="start in the ready position, calibrated")
+    start.add_argument("-c", dest="start", action="store_const", const="nest",
+                       help="start in the nest position, calibrated")
+    p.add_argument("-v", "--verbose", action="store_true", help="print joint angles once per simulated second")
+    p.add_argument("--robot", default="puma260", help="robot model: puma260 (default) or microbo")
+    p.add_argument("--lockstep", action="store_true",
+                   help="advance one period per CHG received (deterministic, as fast as possible)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback only)")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT,
+                   help=f"TCP port (default {DEFAULT_PORT}; 0 picks a free one, printed on line 1)")
+    p.add_argument("--pty", action="store_true", help="serve a pseudo-terminal instead of TCP (path on line 1)")
+    p.add_argument("--control-port", type=int, default=0, help="control-channel port on loopback (0: any free)")
+    p.add_argument("--no-control", action="store_true", help="no control channel")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random disturbance (reproducible runs)")
+    p.add_argument("--load", default="none", help="pulley load: pulley:joint=J,mass=KG,radius=M[,sign=+-1]")
+    p.add_argument("--params", help="parameter file fitted by calib (schema rcci-calib-params/1)")
+    p.add_argument("--dynamic", action="store_true",
+                   help="couple current-mode joints through the full mass matrix and Coriolis terms")
+    p.add_argument("--rate", type=int, default=36, help="sample rate announced before START (Hz)")
+    p.add_argument("--watchdog", type=int, default=WATCHDOG_CYCLES,
+                   help="real-time mode: missing CHGs in a row before the arm is stopped")
+    p.add_argument("--warm", action="store_true", help="start with warmed-up joints (no cold friction excess)")
+    p.add_argument("--power-on", action="store_true", help="start with arm power on")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        model = load_robot(args.robot)
+        truth = truth_from_model(model)
+        if args.params:
+            truth = load_params(args.params, model.name, truth)
+        if args.warm:
+            truth = replace(truth, disturbances=replace(truth.disturbances, start_warm=True))
+        load = parse_load(args.load, model.n_joints)
+        arm = Arm(model, truth, seed=args.seed, start=args.start or "uncalibrated",
+                  dynamic=args.dynamic, load=load)
+        arm.power = bool(args.power_on)
+        if not 4 <= args.rate <= 1000:
+            raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")
+        server = Server(arm, model.name, lockstep=args.lockstep, verbose=args.verbose, rate_hz=args.rate,
+                        watchdog=max(1, args.watchdog))
+        url = server.open_pty() if args.pty else server.listen_tcp(args.host, args.port)
+        control = None if args.no_control else ControlChannel("127.0.0.1", args.control_port)
+    except (ModelError, SimulaError, ValueError, OSError) as exc:
+        print(f"simula: {exc}", file=sys.stderr)
+        return 2
+    print(url, flush=True)
+    if control is not None:
+        print(f"control {control.url}", flush=True)
+    mode = "lockstep" if args.lockstep else "real time"
+    server.log(f"{model.name} {args.start or 'uncalibrated'}, {mode}, seed {args.seed}, truth from {truth.source}")
+
+    def _stop(signum, frame):  # noqa: ARG001 - signal handler signature
+        raise SystemExit(0)
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    try:
+        server.serve_forever(control)
+    except SystemExit:
+        pass
+    finally:
+        server.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

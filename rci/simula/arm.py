@@ -1,0 +1,486 @@
+"""The simulated arm of simula: joint state, calibration, servo and current modes, sensors (no I/O).
+
+Physics (thesis 2.2.3 and A.7: a simulator of the gravity loading and friction of
+chapter 4, eq. 4.7, which is what matters at the speeds RCI programs use):
+
+* gravity loading from Pinocchio's ``computeGeneralizedGravity`` on the robot's URDF
+  (the world model, independent of the generated kinematics the controller uses);
+* friction from :mod:`rci.simula.friction` (eq. 4.27 with Tables 4.2-4.6, Table 4.4
+  variation, cold joints, stiction);
+* a joint under POS (or holding after STOP) is servoed by its microcontroller along a
+  straight line to the requested encoder count, reached at the end of the cycle, within
+  the joint's velocity limit and motor current limit (a saturated servo lets the joint
+  move under the saturated torque instead);
+* a joint under CUR gets the motor current its DAC value commands (clipped at the current
+  limit) and moves under that torque against gravity, friction, the pulley load and any
+  external torque, with the link inertia (Pinocchio ``crba``) plus the motor rotor
+  inertia reflected through G. ``dynamic=True`` couples the current-mode joints through
+  the full mass matrix and adds Coriolis/centrifugal terms (``rnea``); the default, like
+  the thesis's kinematic simulator, uses only each joint's own inertia;
+* encoders count motor revolutions (e = R q + e0, eq. 4.30, R of the data file) plus a
+  calibration offset: an uncalibrated arm's counters read 0 where the arm was at power
+  up. Each motor encoder has an index mark once per motor revolution, where the
+  calibrated count is a multiple of the counts per motor revolution;
+* the ADC channels 0..n-1 carry the motor currents as the current-sense circuit of
+  Appendix C reports them: the 1 kHz servo current (with its ripple) through a 15 ms
+  low-pass filter, sampled, plus noise, quantised to 12 bits (eq. 4.31/4.32 with the true
+  sigma); channels n..2n-1 carry joint potentiometers (coarse absolute position for
+  calibration, 12 bits over each joint's range).
+
+Everything here is deterministic for a given seed and sequence of calls.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .. import codes
+from ..chg import CUR, POS, STOP, STOPCAL, Chg
+from ..conversions import ADC_MAX, ADC_MIN, DAC_MAX, DAC_MIN, Conversions
+from .exceptions import ParamsError, SimulaError
+from .friction import JointFriction
+from .params import PulleyLoad, Truth
+
+HOLD, SERVO, CURRENT = 0, 1, 2          # internal joint modes (HOLD: servo on a fixed count)
+MODE_NAMES = {HOLD: "hold", SERVO: "pos", CURRENT: "cur"}
+N_ADC = 16                               # thesis A.4: 16 ADC channels
+POT_SPAN = 4000                          # potentiometer counts over a joint's range (-2000..2000)
+_EPS_V = 1e-9                            # rad/s below which a servo joint counts as halted
+
+
+@dataclass(frozen=True)
+class Sample:
+    """What the robot's sensors report at one instant (one HOW)."""
+
+    pos: np.ndarray       # encoder counters, int64
+    adcr: np.ndarray      # 16 ADC channels, int64 in -2048..2047
+    state: int
+    status: int
+    outport1: int
+    inport1: int
+
+
+def _tune_gravity(pmodel: pin.Model, model, coeffs: dict[str, float]) -> None:
+    """Move centres of mass so that the URDF's gravity loading has the coefficients ``coeffs``.
+
+    The data file solved x2, z3, z6 (PUMA) from Table 4.9 the same way; a fitted
+    coefficient moves the same first moment: c12 = g[m2 x2 + ...], c13 = -g[m3 z3 + ...],
+    c15 = -g(m5 z5 + m6 z6) (eq. 4.24), each in its link's DH frame.
+    """
+    g = model.gravity
+    masses = {li.index: li.mass for li in model.links}
+    if model.name == "puma260":
+        moves = {"c12": (2, np.array([1.0, 0, 0]), 1.0), "c13": (3, np.array([0, 0, 1.0]), -1.0),
+                 "c15": (6, np.array([0, 0, 1.0]), -1.0)}
+    else:
+        moves = {"c15": (6, np.array([0, 0, 1.0]), -1.0)}
+    for name, value in coeffs.items():
+        delta_c = value - model.gravity_coeffs[name].value
+        if abs(delta_c) < 1e-15:
+            continue
+        if name not in moves:
+            raise ParamsError(f"gravity coefficient {name} of robot {model.name} cannot be changed in simula "
+                              f"(it fixes link masses, not a centre of mass)")
+        link, axis, sign = moves[name]
+        shift = sign * delta_c / (g * masses[link]) * axis          # in DH frame `link`
+        fid = pmodel.getFrameId(f"link{link}")
+        frame = pmodel.frames[fid]
+        jid = frame.parentJoint
+        body = pmodel.inertias[jid]
+        lever = body.lever + masses[link] * (frame.placement.rotation @ shift) / body.mass
+        pmodel.inertias[jid] = pin.Inertia(body.mass, lever, body.inertia)
+
+
+class Arm:
+    """The simulated robot arm (n joints) with its controller's joint-level behaviour."""
+
+    def __init__(self, model, truth: Truth, *, seed: int = 0, start: str = "uncalibrated",
+                 dynamic: bool = False, load: PulleyLoad | None = None) -> None:
+        self.model = model
+        self.truth = truth
+        self.n = n = model.n_joints
+        self.dynamic = dynamic
+        self.conv = Conversions.from_model(model, sigma=truth.sigma)   # the arm's true constants
+        R = self.conv.R
+        if np.any(np.abs(np.triu(R, 1)) > 0):
+            raise SimulaError(f"{model.name}: encoder matrix R must be lower triangular for simula")
+        self.pm = pin.buildModelFromUrdf(str(model.urdf_path))
+        if self.pm.nq != n:
+            raise SimulaError(f"{model.urdf_path}: URDF has {self.pm.nq} joints, data file {n}")
+        self.pm.gravity.linear = np.array([0.0, 0.0, -model.gravity])
+        _tune_gravity(self.pm, model, truth.gravity_coeffs)
+        self.pd = self.pm.createData()
+        seq = np.random.SeedSequence(seed)
+        s_fric, s_noise, s_start = seq.spawn(3)
+        self.rng = np.random.default_rng(s_noise)
+        self.friction = JointFriction(truth, np.random.default_rng(s_fric))
+        d = truth.disturbances
+        jr = np.where(np.arange(n) < 3, d.rotor_inertia_arm, d.rotor_inertia_wrist)
+        self.rotor = self.conv.G.T @ np.diag(jr) @ self.conv.G      # reflected rotor inertia (joint level)
+        self.lower, self.upper = np.array(model.lower), np.array(model.upper)
+        self.vmax = np.array(model.max_velocity)
+        self.imax = np.array(model.max_current)
+        self.counts_per_rev = np.array(model.conversion.encoder_counts_per_motor_rev.values, dtype=float)
+        self.load = load
+        self.ext = np.zeros(n)                  # external joint torques applied by a test (N*m / N)
+
+        if start == "ready":
+            q0 = np.array(model.poses["ready"], dtype=float)
+        elif start == "nest":
+            q0 = np.array(model.poses["nest"], dtype=float)
+        elif start == "uncalibrated":
+            # an arm left somewhere near its nest: a few degrees (or mm) off, seeded
+            span = np.where(np.array(model.kinds) == "revolute", np.radians(3.0), 0.003)
+            q0 = np.array(model.poses["nest"], dtype=float) + np.random.default_rng(s_start).uniform(-span, span)
+            q0 = np.clip(q0, self.lower, self.upper)
+        else:
+            raise SimulaError(f"unknown start state {start!r} (ready, nest, uncalibrated)")
+        self.q = q0
+        self.qd = np.zeros(n)
+        self.t = 0.0
+        calibrated = start != "uncalibrated"
+        e = self.conv.angles_to_counts(self.q)
+        self.cal_offset = np.zeros(n) if calibrated else -e        # counters read 0 at power up
+        self.calibrated = np.full(n, calibrated)
+        self.zindex = np.zeros(n, dtype=bool)
+        self.found = np.zeros(n, dtype=bool)                       # index mark found, waiting for STOPCAL
+        self.mode = np.full(n, HOLD)
+        self.target = e.copy()                                     # servo target, true counts (no cal offset)
+        self.deadline = np.zeros(n)
+        self.dac = np.zeros(n, dtype=np.int64)
+        self.power = False
+        self.hold_f = self.friction.sample_hold(np.arange(n))
+        self.moving = np.zeros(n, dtype=bool)
+        self.current = np.zeros(n)          # instantaneous motor current (A)
+        self.filtered = np.zeros(n)         # after the Appendix C filter (A)
+        self.motor_torque = np.zeros(n)     # t_s (N*m)
+        self.status = codes.ST_OK
+        self.status_text = ""
+        self.setparams: dict[tuple[int, int], int] = {}
+        self.hand = 0
+        self.outport1 = 0
+        self.pendant = 0
+        self.limit_hits = 0
+
+    # --- helpers -------------------------------------------------------------------
+    def counters(self) -> np.ndarray:
+        """Encoder counters as the controller reads them (int64)."""
+        return np.rint(self.conv.angles_to_counts(self.q) + self.cal_offset).astype(np.int64)
+
+    def gravity(self, q: np.ndarray | None = None) -> np.ndarray:
+        """Gravity loading t_g(q): torques the joints exert to hold the arm (N*m / N)."""
+        return pin.computeGeneralizedGravity(self.pm, self.pd, self.q if q is None else np.asarray(q, float)).copy()
+
+    def _flag(self, status: int, text: str) -> None:
+        if self.status == codes.ST_OK:
+            self.status, self.status_text = status, text
+
+    def _hold_here(self, joints) -> None:
+        e = self.conv.angles_to_counts(self.q)
+        for i in joints:
+            if not self.found[i]:
+                self.mode[i] = HOLD
+                self.target[i] = e[i]
+            self.qd[i] = 0.0
+
+    @property
+    def state(self) -> int:
+        s = codes.TP_OK
+        if self.calibrated.all():
+            s |= codes.CALIB_OK
+        if self.calibrated.all() or (self.found | self.calibrated).all():
+            s |= codes.ZINDEX_OK
+        if self.power:
+            s |= codes.POWER_ON
+        if self.zindex.any():
+            s |= codes.ZINDEX_ACTIVE
+        return s
+
+    # --- commands --------------------------------------------------------------------
+    def apply(self, chg: Chg, period: float) -> list[str]:
+        """Execute one CHG in the protocol's order (docs/protocol.md); returns the events
+        the server must act on (``"rate:<hz>"``, ``"end"``)."""
+        events: list[str] = []
+        n = self.n
+        if chg.nj != n:
+            self._flag(codes.ST_BAD_COMMAND, f"CHG for {chg.nj} joints, robot has {n}")
+            return events
+        if chg.power_off.com:
+            self.power = False
+            self._hold_here(range(n))
+        if chg.stop.com:
+            self._hold_here(range(n))
+        if chg.power_on.com and not self.power:
+            self.power = True
+            self._hold_here(range(n))
+            self.hold_f = self.friction.sample_hold(np.arange(n))
+        for i, c in enumerate(chg.setparam):
+            if c.com:
+                self.setparams[(i, (int(c.value) >> 24) & 0xFF)] = int(c.value) & 0xFFFFFF
+        if chg.setparamALL.com:
+            for i in range(n):
+                self.setparams[(i, (int(chg.setparamALL.value) >> 24) & 0xFF)] = int(chg.setparamALL.value) & 0xFFFFFF
+        if chg.rate.com:
+            events.append(f"rate:{int(chg.rate.value)}")
+        if chg.zindex.com:
+            bits = int(chg.zindex.value)
+            for i in range(n):
+                if bits >> i & 1:
+                    self.zindex[i] = True
+                    self.found[i] = False
+                    self.calibrated[i] = False
+        for i, c in enumerate(chg.motion):
+            if c.com:
+                self._motion(i, int(c.com), int(c.value), period)
+        if chg.hand.com:
+            if int(chg.hand.value) not in (1, 2):
+                self._flag(codes.ST_BAD_COMMAND, f"hand value {chg.hand.value} is neither OPEN (1) nor CLOSE (2)")
+            else:
+                self.hand = int(chg.hand.value)
+        if chg.outport1.com:
+            self.outport1 = int(chg.outport1.value) & 0xFFFF
+        if chg.pendant.com:
+            self.pendant = int(chg.pendant.value)
+        if chg.adco.com and not 0 <= int(chg.adco.value) < N_ADC:
+            self._flag(codes.ST_BAD_COMMAND, f"adco channel {chg.adco.value} is not 0..{N_ADC - 1}")
+        if chg.end.com:
+            events.append("end")
+        return events
+
+    def _motion(self, i: int, com: int, value: int, period: float) -> None:
+        if com == STOP:
+            self._hold_here([i])
+            return
+        if com == STOPCAL:
+            e = self.conv.angles_to_counts(self.q)[i]
+            self.cal_offset[i] = value - e
+            if self.found[i]:
+                self.calibrated[i] = True
+                self.zindex[i] = False
+                self.found[i] = False
+            self._hold_here([i])
+            return
+        if com not in (POS, CUR):
+            self._flag(codes.ST_BAD_COMMAND, f"joint {i + 1}: unknown motion command {com}")
+            return
+        if self.found[i]:
+            return      # frozen on its index mark until STOPCAL (A.4 zindex)
+        if not (self.calibrated[i] or self.zindex[i]):
+            self._flag(codes.ST_NOT_CALIBRATED, f"joint {i + 1} is not calibrated: motion refused (run zindex/STOPCAL)")
+            return
+        if com == POS:
+            self.mode[i] = SERVO
+            self.target[i] = value - self.cal_offset[i]
+            self.deadline[i] = self.t + period
+        else:
+            if not DAC_MIN <= value <= DAC_MAX:
+                self._flag(codes.ST_BAD_COMMAND, f"joint {i + 1}: CUR value {value} outside {DAC_MIN}..{DAC_MAX}")
+                return
+            self.mode[i] = CURRENT
+            self.dac[i] = value
+
+    def set_external_torque(self, joint: int, torque: float) -> None:
+        """External torque on joint ``joint`` (0-based), positive in the joint's positive sense."""
+        if not 0 <= joint < self.n or not np.isfinite(torque):
+            raise ValueError(f"external torque: joint {joint + 1} / value {torque!r} invalid")
+        self.ext[joint] = float(torque)
+
+    def hold_all(self) -> None:
+        """Stop every joint where it is (END of a control, watchdog, session lost)."""
+        self._hold_here(range(self.n))
+
+    # --- physics ---------------------------------------------------------------------
+    def step(self, dt: float) -> None:
+        """Advance the arm by ``dt`` seconds in servo-rate substeps (about 1 ms)."""
+        nsub = max(1, int(round(dt * self.truth.disturbances.servo_rate_hz)))
+        h = dt / nsub
+        for _ in range(nsub):
+            self._substep(h)
+
+    def _load_torque(self) -> tuple[np.ndarray, np.ndarray]:
+        """(external load torque, extra Coulomb friction) from the pulley, joint level."""
+        tau = np.zeros(self.n)
+        fc = np.zeros(self.n)
+        if self.load is not None and self.load.mass > 0:
+            j = self.load.joint - 1
+            tau[j] = -self.load.sign * self.load.mass * self.model.gravity * self.load.radius
+            fc[j] = self.truth.disturbances.pulley_friction
+        return tau, fc
+
+    def _friction_at(self, q: np.ndarray, vel: np.ndarray, pulley_fc: np.ndarray) -> np.ndarray:
+        return self.friction.kinetic(q, vel) + pulley_fc * np.sign(vel)
+
+    def _substep(self, h: float) -> None:
+        n, conv, d = self.n, self.conv, self.truth.disturbances
+        q, qd = self.q, self.qd
+        if not self.power:
+            qd[:] = 0.0
+            self.moving[:] = False
+            self.current[:] = 0.0
+            self.motor_torque[:] = 0.0
+            self._filter(h)
+            self.friction.warm(self.moving, h)
+            self.t += h
+            return
+        servo = self.mode != CURRENT
+        # joint-space servo targets: forward substitution through the lower-triangular R,
+        # so a wrist servo holds its motor count while the joints before it move
+        R, e0 = conv.R, conv.encoder_offset
+        if servo.all():
+            qt = conv.R_inv @ (self.target - e0)
+        else:
+            qt = q.copy()
+            for i in range(n):
+                if servo[i]:
+                    qt[i] = (self.target[i] - e0[i] - R[i, :i] @ qt[:i]) / R[i, i]
+        t_left = np.maximum(self.deadline - self.t, h)
+        v = np.where(servo, np.clip((qt - q) / t_left, -self.vmax, self.vmax), 0.0)
+        v[np.abs(v) < _EPS_V] = 0.0
+        halted = servo & (v == 0.0) & self.moving
+        if halted.any():
+            self.hold_f[halted] = self.friction.sample_hold(np.flatnonzero(halted))
+        tg = self.gravity(q)
+        load_tau, pulley_fc = self._load_torque()
+        f_servo = np.where(v != 0.0, self._friction_at(q, v, pulley_fc), self.hold_f)
+        need = tg + f_servo - self.ext - load_tau                  # joint torque a servo must supply
+        # motor torques: CUR joints from their DAC, servo joints solved from t_j = G^T t_s
+        GT = conv.G.T
+        lim = self.imax * self.truth.sigma
+        ts = np.zeros(n)
+        driven = ~servo
+        ts[driven] = np.clip(conv.dac_to_motor_torques(self.dac.astype(float))[driven], -lim[driven], lim[driven])
+        if not driven.any():
+            ts = conv.G_inv.T @ need                               # all servo: t_s = G^-T t_j
+            sat = np.abs(ts) > lim
+            if sat.any():
+                driven = sat
+                ts = np.clip(ts, -lim, lim)
+        for _ in range(2 if driven.any() else 0):
+            s = np.flatnonzero(~driven)
+            c = np.flatnonzero(driven)
+            if len(s):
+                ts[s] = np.linalg.solve(GT[np.ix_(s, s)], need[s] - GT[np.ix_(s, c)] @ ts[c])
+            sat = (~driven) & (np.abs(ts) > lim)
+            if not sat.any():
+                break
+            ts[sat] = np.clip(ts[sat], -lim[sat], lim[sat])
+            driven = driven | sat
+        tj = GT @ ts
+        # torque-driven joints (current mode, or a saturated servo): stick-slip dynamics
+        new_qd = np.where(driven, qd, v)
+        if driven.any():
+            u = tj - tg + self.ext + load_tau                      # net torque before friction
+            fsp, fsn = self.friction.breakaway()
+            fsp, fsn = fsp + pulley_fc, fsn + pulley_fc
+            direction = np.sign(qd)
+            stuck = driven & (qd == 0.0)
+            direction = np.where(stuck & (u > fsp), 1.0, np.where(stuck & (u < -fsn), -1.0, direction))
+            go = driven & (direction != 0.0)
+            if go.any():
+                f = self._friction_at(q, np.where(qd != 0.0, qd, direction * 1e-12), pulley_fc)
+                M = self._inertia(q)
+                idx = np.flatnonzero(go)
+                rhs = (u - f)[idx]
+                if self.dynamic:
+                    nle = pin.rnea(self.pm, self.pd, q, qd, np.zeros(n)) - tg
+                    rhs = rhs - nle[idx]
+                    acc = np.linalg.solve(M[np.ix_(idx, idx)], rhs)
+                else:
+                    acc = rhs / np.diag(M)[idx]
+                trial = qd[idx] + acc * h
+                # friction cannot reverse the motion: crossing zero means the joint sticks
+                trial = np.where(np.sign(trial) == direction[idx], trial, 0.0)
+                new_qd[idx] = trial
+            new_qd[driven & ~go] = 0.0
+        e_before = conv.R @ q + e0
+        self.qd = qd = new_qd
+        self.q = q = q + qd * h
+        # mechanical stops
+        out = (q < self.lower) | (q > self.upper)
+        if out.any():
+            self.q = q = np.clip(q, self.lower, self.upper)
+            self.limit_hits += 1
+            for i in np.flatnonzero(out):
+                self._flag(codes.ST_JOINT_LIMIT, f"joint {i + 1} hit its mechanical stop")
+            self._hold_here(np.flatnonzero(out))
+            qd = self.qd
+        self._zindex(e_before)
+        self.motor_torque = ts
+        self.current = ts / self.truth.sigma
+        self.moving = np.abs(self.qd) > 0.0
+        self._filter(h, ripple=np.where(servo & ~driven, d.ripple_pos, d.ripple_cur))
+        self.friction.warm(np.abs(self.qd) > 1e-4, h)
+        self.t += h
+
+    def _inertia(self, q: np.ndarray) -> np.ndarray:
+        M = pin.crba(self.pm, self.pd, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        return M + self.rotor
+
+    def _zindex(self, e_before: np.ndarray) -> None:
+        """Freeze zindex joints whose encoder passed an index mark (a multiple of counts/rev)."""
+        if not self.zindex.any():
+            return
+        e_after = self.conv.angles_to_counts(self.q)
+        N = self.counts_per_rev
+        for i in np.flatnonzero(self.zindex & ~self.found):
+            a, b = np.floor(e_before[i] / N[i]), np.floor(e_after[i] / N[i])
+            if a == b:
+                continue
+            mark = max(a, b) * N[i]
+            R, e0 = self.conv.R, self.conv.encoder_offset
+            q = self.q.copy()
+            q[i] = (mark - e0[i] - R[i, :i] @ q[:i]) / R[i, i]
+            self.q = q
+            self.qd[i] = 0.0
+            self.found[i] = True
+            self.mode[i] = HOLD
+            self.target[i] = mark
+
+    def _filter(self, h: float, ripple: np.ndarray | None = None) -> None:
+        """The current-sense low-pass of Appendix C, fed with the 1 kHz servo current."""
+        d = self.truth.disturbances
+        x = self.current
+        if ripple is not None and self.power:
+            amp = ripple * np.abs(x) + d.ripple_floor
+            x = x + amp * self.rng.uniform(-1.0, 1.0, self.n)
+        alpha = 1.0 - np.exp(-h / d.filter_tau) if d.filter_tau > 0 else 1.0
+        self.filtered = self.filtered + alpha * (x - self.filtered)
+
+    # --- sensors -----------------------------------------------------------------------
+    def sample(self) -> Sample:
+        """Read the sensors (encoders, ADC) and take the pending status (cleared after)."""
+        d = self.truth.disturbances
+        adc = np.zeros(N_ADC, dtype=np.int64)
+        n = self.n
+        cur = self.conv.currents_to_adc(self.filtered) + d.adc_noise * self.rng.standard_normal(n)
+        adc[:n] = np.clip(np.rint(cur), ADC_MIN, ADC_MAX)
+        if 2 * n <= N_ADC:
+            frac = (self.q - self.lower) / (self.upper - self.lower)
+            pot = frac * POT_SPAN - POT_SPAN / 2 + d.pot_noise * self.rng.standard_normal(n)
+            adc[n:2 * n] = np.clip(np.rint(pot), ADC_MIN, ADC_MAX)
+        status = self.status
+        self.status, self.status_text = codes.ST_OK, ""
+        return Sample(pos=self.counters(), adcr=adc, state=self.state, status=status,
+                      outport1=self.outport1, inport1=1 if self.hand == 2 else 0)
+
+    def snapshot(self) -> dict:
+        """A JSON-friendly description of the state (for the control channel and -v)."""
+        return {
+            "t": round(self.t, 6),
+            "q_deg": [round(float(x), 4) for x in np.degrees(self.q)],
+            "q": [float(x) for x in self.q],
+            "qd": [float(x) for x in self.qd],
+            "mode": [MODE_NAMES[int(m)] for m in self.mode],
+            "calibrated": [bool(x) for x in self.calibrated],
+            "zindex": [bool(x) for x in self.zindex],
+            "index_found": [bool(x) for x in self.found],
+            "power": self.power,
+            "counters": [int(x) for x in self.counters()],
+            "current_A": [float(x) for x in self.filtered],
+            "external_torque": [float(x) for x in self.ext],
+            "warmth": [float(x) for x in self.friction.warmth],
+            "load": None if self.load is None else vars(self.load),
+        }

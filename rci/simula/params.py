@@ -1,0 +1,225 @@
+"""Ground truth of the simulated arm: thesis constants, fitted overrides, and disturbance settings.
+
+The simulator's truth is the robot data file (thesis values, ``rci.robot_model``). A
+parameter file written by ``calib`` (``--params``, schema ``rcci-calib-params/1``, see
+docs/simula.md) replaces any of: the torque sensitivities (``[motors]``), the friction
+coefficients of eq. 4.27 and the variation of Table 4.4 (``[friction]``), the gravity
+loading coefficients of eq. 4.24 (``[gravity_coeffs]``), the typical static friction of
+Table 4.6 (``[static_friction]``), and simula's own disturbance settings (``[simula]``).
+A NaN entry (a joint calib did not fit) keeps the data-file value.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .exceptions import ParamsError
+
+PARAMS_SCHEMA = "rcci-calib-params/1"
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """Realistic imperfections of the measured signals and of the friction (all ``estimate``
+    unless noted; each value's reasoning is in docs/simula.md)."""
+
+    filter_tau: float = 0.015          # s, current-sense low-pass time constant (thesis Appendix C)
+    servo_rate_hz: float = 1000.0      # joint microcontroller rate (thesis Appendix C: 1000 Hz)
+    ripple_pos: float = 1.0            # PID current fluctuation, relative to the mean current (thesis 4.5.1: "as high as the average")
+    ripple_cur: float = 0.05           # current-mode fluctuation, relative
+    ripple_floor: float = 0.05         # A, fluctuation present even at zero mean current
+    adc_noise: float = 1.0             # ADC counts (1 sigma), sensor noise after the filter
+    pot_noise: float = 1.0             # ADC counts (1 sigma) on the potentiometer channels
+    cold_excess: float = 0.20          # friction excess of a cold joint (thesis 4.5.3: "as much as 20%")
+    warmup_time: float = 20.0          # s of motion to warm a joint (e-folding)
+    cooldown_time: float = 600.0       # s of rest to cool it again (e-folding)
+    pulley_friction: float = 0.01      # N*m, Coulomb friction of the measurement pulley (same both ways, 4.5.2)
+    rotor_inertia_arm: float = 2.0e-5  # kg*m^2 per motor of joints 1-3 (reflected by G^T J G)
+    rotor_inertia_wrist: float = 5.0e-6  # kg*m^2 per motor of joints 4-6
+    start_warm: bool = False           # start with warmed-up joints (no cold excess)
+
+
+@dataclass(frozen=True)
+class Truth:
+    """Per-joint ground-truth constants the simulated arm uses (SI, joint level)."""
+
+    sigma: np.ndarray                  # N*m/A, motor torque sensitivities (Table 4.1)
+    coulomb_pos: np.ndarray            # N*m or N (Table 4.2)
+    coulomb_neg: np.ndarray
+    viscous_pos: np.ndarray            # N*m*s/rad or N*s/m (Table 4.3)
+    viscous_neg: np.ndarray
+    static_pos: np.ndarray             # Table 4.5
+    static_neg: np.ndarray
+    variation: np.ndarray              # relative (Table 4.4)
+    hold_mean: np.ndarray              # typical static friction at a halt (Table 4.6 mean)
+    hold_std: np.ndarray               # (Table 4.6 standard deviation)
+    gravity_coeffs: dict[str, float]   # eq. 4.24 coefficients (N*m / N) the URDF is tuned to
+    disturbances: Disturbances = field(default_factory=Disturbances)
+    source: str = "data file"
+
+
+def truth_from_model(model) -> Truth:
+    """The data file's values (thesis tables for the PUMA, estimates for the Microbo)."""
+    fr = model.friction
+    n = model.n_joints
+    if fr.static_typical_mean is not None and fr.static_typical_std is not None:
+        hold_mean = np.array(fr.static_typical_mean.values, dtype=float)
+        hold_std = np.array(fr.static_typical_std.values, dtype=float)
+    else:
+        # estimate: Table 4.6 is PUMA-only; there the std is 0.13-0.47 of Fs (Table 4.5)
+        hold_mean = np.zeros(n)
+        hold_std = 0.3 * 0.5 * (np.asarray(fr.static_pos.values) + np.asarray(fr.static_neg.values))
+    variation = np.array(fr.variation.values, dtype=float) if fr.variation is not None else np.zeros(n)
+    return Truth(
+        sigma=np.array(model.motors.torque_sensitivity.values, dtype=float),
+        coulomb_pos=np.array(fr.coulomb_pos.values, dtype=float),
+        coulomb_neg=np.array(fr.coulomb_neg.values, dtype=float),
+        viscous_pos=np.array(fr.viscous_pos.values, dtype=float),
+        viscous_neg=np.array(fr.viscous_neg.values, dtype=float),
+        static_pos=np.array(fr.static_pos.values, dtype=float),
+        static_neg=np.array(fr.static_neg.values, dtype=float),
+        variation=variation,
+        hold_mean=hold_mean,
+        hold_std=hold_std,
+        gravity_coeffs={k: float(v.value) for k, v in model.gravity_coeffs.items()},
+    )
+
+
+def _vector(path: str, section: str, key: str, raw: Any, base: np.ndarray, *, nonneg: bool) -> np.ndarray:
+    """A per-joint vector from a parameter file; NaN entries keep ``base``."""
+    where = f"{path}: [{section}] {key}"
+    if not isinstance(raw, list) or len(raw) != len(base):
+        raise ParamsError(f"{where}: expected a list of {len(base)} numbers, got {raw!r}")
+    out = base.copy()
+    for i, x in enumerate(raw):
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise ParamsError(f"{where}[{i}]: {x!r} is not a number")
+        if math.isnan(x):
+            continue
+        if math.isinf(x) or (nonneg and x < 0):
+            raise ParamsError(f"{where}[{i}]: {x!r} is not a valid value (finite{', >= 0' if nonneg else ''})")
+        out[i] = float(x)
+    return out
+
+
+def load_params(path: str | Path, robot: str, truth: Truth) -> Truth:
+    """``truth`` with the values of a calib parameter file applied; ParamsError names file and field."""
+    path = str(path)
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except OSError as exc:
+        raise ParamsError(f"{path}: cannot read parameter file: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParamsError(f"{path}: not valid TOML: {exc}") from None
+    head = data.get("calib")
+    if not isinstance(head, dict) or head.get("schema") != PARAMS_SCHEMA:
+        raise ParamsError(f"{path}: [calib] schema must be {PARAMS_SCHEMA!r}, got "
+                          f"{(head or {}).get('schema') if isinstance(head, dict) else head!r}")
+    if head.get("robot") != robot:
+        raise ParamsError(f"{path}: parameters are for robot {head.get('robot')!r}, simula runs {robot!r}")
+    known = {"calib", "motors", "friction", "gravity_coeffs", "static_friction", "simula"}
+    unknown = set(data) - known
+    if unknown:
+        raise ParamsError(f"{path}: unknown section(s) {sorted(unknown)} (known: {sorted(known)})")
+    kw: dict[str, Any] = {}
+    motors = data.get("motors", {})
+    if "torque_sensitivity" in motors:
+        sigma = _vector(path, "motors", "torque_sensitivity", motors["torque_sensitivity"], truth.sigma, nonneg=True)
+        if np.any(sigma <= 0):
+            raise ParamsError(f"{path}: [motors] torque_sensitivity must be positive")
+        kw["sigma"] = sigma
+    fr = data.get("friction", {})
+    for key in ("coulomb_pos", "coulomb_neg", "viscous_pos", "viscous_neg", "static_pos", "static_neg", "variation"):
+        if key in fr:
+            kw[key] = _vector(path, "friction", key, fr[key], getattr(truth, key), nonneg=True)
+    st = data.get("static_friction", {})
+    if "mean" in st:
+        kw["hold_mean"] = _vector(path, "static_friction", "mean", st["mean"], truth.hold_mean, nonneg=False)
+    if "std" in st:
+        kw["hold_std"] = _vector(path, "static_friction", "std", st["std"], truth.hold_std, nonneg=True)
+    gc = data.get("gravity_coeffs", {})
+    coeffs = dict(truth.gravity_coeffs)
+    for name in truth.gravity_coeffs:
+        if name in gc:
+            x = gc[name]
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+                raise ParamsError(f"{path}: [gravity_coeffs] {name} = {x!r} is not a finite number")
+            coeffs[name] = float(x)
+    extra = [k for k in gc if k.startswith("c") and "_" not in k and k not in truth.gravity_coeffs]
+    if extra:
+        raise ParamsError(f"{path}: [gravity_coeffs] {extra} are not coefficients of robot {robot!r}")
+    kw["gravity_coeffs"] = coeffs
+    sim = data.get("simula", {})
+    if sim:
+        names = {f.name: f for f in fields(Disturbances)}
+        dk: dict[str, Any] = {}
+        for key, x in sim.items():
+            if key not in names:
+                raise ParamsError(f"{path}: [simula] unknown setting {key!r} (known: {sorted(names)})")
+            if key == "start_warm":
+                if not isinstance(x, bool):
+                    raise ParamsError(f"{path}: [simula] start_warm must be true or false")
+                dk[key] = x
+                continue
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or x < 0:
+                raise ParamsError(f"{path}: [simula] {key} = {x!r} must be a finite number >= 0")
+            dk[key] = float(x)
+        kw["disturbances"] = replace(truth.disturbances, **dk)
+    return replace(truth, source=path, **kw)
+
+
+@dataclass(frozen=True)
+class PulleyLoad:
+    """A mass on a string wound on a drum of ``radius`` on joint ``joint`` (1-based), thesis Figure 4.2.
+
+    The mass rises when the joint angle increases (``sign`` +1) or decreases (-1); its
+    weight loads the joint with a constant torque -sign m g r (the drum keeps the lever
+    arm constant), plus the pulley's own Coulomb friction.
+    """
+
+    joint: int
+    mass: float
+    radius: float
+    sign: int = 1
+
+
+def parse_load(spec: str, n_joints: int) -> PulleyLoad | None:
+    """``pulley:joint=3,mass=2.0,radius=0.05[,sign=-1]`` or ``none``; ValueError says what is wrong."""
+    spec = spec.strip()
+    if spec in ("", "none"):
+        return None
+    kind, _, rest = spec.partition(":")
+    if kind != "pulley":
+        raise ValueError(f"load {spec!r}: unknown load kind {kind!r} (known: pulley, none)")
+    values: dict[str, str] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, val = item.partition("=")
+        if not eq:
+            raise ValueError(f"load {spec!r}: {item!r} is not key=value")
+        values[key.strip()] = val.strip()
+    missing = {"joint", "mass", "radius"} - set(values)
+    if missing:
+        raise ValueError(f"load {spec!r}: missing {sorted(missing)}")
+    unknown = set(values) - {"joint", "mass", "radius", "sign"}
+    if unknown:
+        raise ValueError(f"load {spec!r}: unknown key(s) {sorted(unknown)}")
+    try:
+        joint = int(values["joint"])
+        mass = float(values["mass"])
+        radius = float(values["radius"])
+        sign = int(values.get("sign", "1"))
+    except ValueError as exc:
+        raise ValueError(f"load {spec!r}: {exc}") from None
+    if not 1 <= joint <= n_joints:
+        raise ValueError(f"load {spec!r}: joint must be 1..{n_joints}")
+    if not (math.isfinite(mass) and mass >= 0 and math.isfinite(radius) and radius > 0):
+        raise ValueError(f"load {spec!r}: need mass >= 0 kg and radius > 0 m")
+    if sign not in (1, -1):
+        raise ValueError(f"load {spec!r}: sign must be 1 or -1")
+    return PulleyLoad(joint, mass, radius, sign)
