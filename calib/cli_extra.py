@@ -98,7 +98,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     rec.add_argument("--robot", default="puma260")
     rec.add_argument("--rate", type=int, default=36, help="sample rate (Hz)")
     rec.add_argument("--joints", help="comma-separated joints (default all)")
-    rec.add_argument("--mass", type=float, default=2.0, help="pulley mass (kg), sensitivity")
+    rec.add_argument("--mass", type=float, default=None,
+                     help="pulley mass (kg), sensitivity (default 4 kg on joints 1-3, 1 kg on 4-6)")
     rec.add_argument("--radius", type=float, default=0.05, help="pulley drum radius (m), sensitivity")
     rec.add_argument("--loaded", action="store_true",
                      help="sensitivity: the mass hangs on the pulley (else the unloaded runs)")

@@ -21,6 +21,8 @@ class Drive:
     G: motor shaft angle per joint angle (6,6), theta_s = G theta.
     amps_per_adc: V_g / R_i per channel (A per ADC count).
     sigma: torque sensitivity per motor (N m / A), Table 4.1.
+    current_lag: delay (s) of the ADC readings behind the motor current: the time
+      constant of the Appendix C filter.
     """
 
     R: np.ndarray
@@ -28,6 +30,24 @@ class Drive:
     amps_per_adc: np.ndarray
     sigma: np.ndarray
     encoder_offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    current_lag: float = 0.015
+
+    def current_angles(self, t: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """Joint angles (rad), (N,6), where the joints were when the ADC readings of the
+        same records were formed: ``current_lag`` s earlier.
+
+        The current-sense filter of Appendix C is a first-order low-pass of 15 ms; for a
+        slowly varying current its output lags the input by the time constant.  Pairing
+        each reading with the angle at the time it describes keeps the lag from turning a
+        position-dependent torque (gravity on joints 2 and 3) into a speed-dependent one,
+        which the friction fit would read as viscous friction.
+        """
+        theta = self.joint_angles(counts)
+        if self.current_lag == 0.0:
+            return theta
+        t = np.asarray(t, dtype=float)
+        back = t - self.current_lag
+        return np.column_stack([np.interp(back, t, theta[:, j]) for j in range(theta.shape[1])])
 
     def joint_angles(self, counts: np.ndarray) -> np.ndarray:
         """Joint angles (rad), (N,6), from encoder counts (N,6) (4.30)."""

@@ -33,7 +33,11 @@ FRICTION_POSES: dict[int, tuple[tuple[float, ...], float]] = {
     5: ((90, 90, 0, 90, 0, 0), 60),       # forearm horizontal, theta4 = 90: axis 5 vertical
     6: ((90, 90, -90, 0, 0, 0), 60),      # theta5 = 0 under a vertical forearm: axis 6 vertical
 }
-FRICTION_SPEEDS_DEG = (5, 10, 20, 35, 50, 70)
+FRICTION_SPEEDS_DEG = (5, 10, 20, 40, 70, 110, 160)
+# Round trips per speed: a pass's mean friction is as good as the time it averages over,
+# so the fast speeds, which carry the viscous term, get more passes.
+FRICTION_TRIPS = (1, 1, 1, 2, 4, 6, 8)
+SWEEP_ACCEL = 6.0  # rad/s^2 at the turns of friction sweeps: short ramps beyond the window
 
 
 @dataclass
@@ -66,33 +70,47 @@ def _prepend(here: np.ndarray | None, path: Path) -> Path:
     return Path(tuple(_start_move(here, first)) + path.segments)
 
 
-def friction_plans(joints=range(1, 7), speeds_deg=FRICTION_SPEEDS_DEG, trips: int = 1) -> list[Plan]:
+def friction_plans(joints=range(1, 7), speeds_deg=FRICTION_SPEEDS_DEG,
+                   trips: tuple[int, ...] | int = FRICTION_TRIPS) -> list[Plan]:
     """4.5.4: passes in both directions at several constant speeds, no potential-energy change."""
     plans = []
     for j in joints:
         qdeg, half = FRICTION_POSES[j]
         q = np.array(qdeg, float) * DEG
         lo, hi = q[j - 1] - half * DEG, q[j - 1] + half * DEG
-        path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
-        meta = {"experiment": "friction", "joint": j, "window": [lo, hi],
-                "pose": list(q), "speeds": [v * DEG for v in speeds_deg], "trips": trips}
+        n_trips = [trips] * len(speeds_deg) if isinstance(trips, int) else list(trips)
+        segs = []
+        for v, n in zip(speeds_deg, n_trips):
+            segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
+                               start=segs[-1].end if segs else None).segments
+        path = Path(tuple(segs))
+        meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
+                "speeds": [v * DEG for v in speeds_deg], "trips": n_trips}
         plans.append(Plan(f"friction-j{j}", path, meta, warmup=sweep_warmup(q, j - 1, lo, hi)))
     return plans
 
 
-def sensitivity_plans(mass_kg: float, radius_m: float, joints=range(1, 7),
+# Pulley masses (kg) per joint: the load torque m g r should be of the order of the
+# joint's friction (so the mass's work stands out of the friction's scatter) and leave
+# room under the motor's current limit (the wrist motors give under 2 N m).
+SENSITIVITY_MASS = {1: 4.0, 2: 4.0, 3: 4.0, 4: 1.0, 5: 1.0, 6: 1.0}
+
+
+def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7),
                       speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0) -> list[Plan]:
     """4.5.2: the same arc with the pulley's mass and without it (two simula runs).
 
     The pulley is a simula load option (``--load pulley:...``); its string winds on a
     drum on the joint axis, and the mass rises as the joint angle increases (sign +1).
+    ``mass_kg`` None takes SENSITIVITY_MASS.
     """
     plans = []
     for j in joints:
+        mass_j = SENSITIVITY_MASS[j] if mass_kg is None else mass_kg
         qdeg, _ = FRICTION_POSES[j]
         q = np.array(qdeg, float) * DEG
         lo, hi = q[j - 1] - arc_deg / 2 * DEG, q[j - 1] + arc_deg / 2 * DEG
-        for mass in (mass_kg, 0.0):
+        for mass in (mass_j, 0.0):
             path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
             meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
                     "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1}}

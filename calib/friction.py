@@ -17,7 +17,7 @@ from calib.drive import Drive
 from calib.errors import FitError, LogError
 from calib.lsq import bounded_lsq
 from calib.trace import Trace
-from calib.work import find_passes, window_time, window_work
+from calib.work import Pass, find_passes, window_time, window_work
 
 PROFILE_BIN = 0.01  # rad: position bins of the Table 4.4 profile (finer than gear irregularities)
 
@@ -57,18 +57,18 @@ class FrictionResult:
 def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np.ndarray | None]:
     """Every pass of a friction log as a point, plus the log's relative friction profile.
 
-    The profile is taken from the log's slowest passes (where the current filter of
-    Appendix C blurs the least distance): half the difference of the torque going up
-    and coming down at each position, over its mean.  Gravity, the same both ways at
-    one position, cancels, so it also holds for joints 2 and 3 whose paths cannot avoid
-    gravity.  None when the slowest speed lacks one of the directions.
+    The profiles (2, bins) come from the log's two slowest speeds (where the current
+    filter of Appendix C blurs the least distance): half the difference of the torque
+    going up and coming down at each position, over its mean.  Gravity, the same both
+    ways at one position, cancels, so this also holds for joints 2 and 3 whose paths
+    cannot avoid gravity.  None when a speed lacks one of the directions.
     """
     i = trace.joint_index()
     w = trace.need("window", (list, tuple))
     if len(w) != 2 or not float(w[0]) < float(w[1]):
         raise LogError(trace.path, None, f"metadata 'window' = {w!r} is not [lo, hi] rad")
     lo, hi = float(w[0]), float(w[1])
-    th = drive.joint_angles(trace.counts)[:, i]
+    th = drive.current_angles(trace.t, trace.counts)[:, i]
     tau = drive.joint_torques(trace.adc)[:, i]
     points, passes = [], find_passes(th, lo, hi)
     for p in passes:
@@ -79,48 +79,78 @@ def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np
     if not points:
         raise LogError(trace.path, None, f"no complete pass of joint {i + 1} through "
                        f"the window [{lo:.4f}, {hi:.4f}] rad")
-    slowest = min(pt.speed for pt in points)
+    speeds = sorted({round(pt.speed, 3) for pt in points})
+    profiles = []
+    for v in speeds[:2]:  # the two slowest speeds: two independent looks at one pattern
+        sel = [(p, pt) for p, pt in zip(passes, points) if abs(pt.speed - v) < 0.2 * v]
+        prof = _half_difference_profile(th, tau, [p for p, _ in sel], lo, hi)
+        if prof is not None:
+            profiles.append(prof)
+    return points, (np.vstack(profiles) if len(profiles) == 2 else None)
+
+
+def _half_difference_profile(th: np.ndarray, tau: np.ndarray, passes: list[Pass],
+                             lo: float, hi: float) -> np.ndarray | None:
+    """(tau going up - tau coming down) / 2 per position bin, over its mean, minus 1."""
     n_bins = max(int((hi - lo) / PROFILE_BIN), 4)
     edges = np.linspace(lo, hi, n_bins + 1)
     sums = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
     counts = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
-    for p, pt in zip(passes, points):
-        if pt.speed > 1.5 * slowest:
-            continue
+    for p in passes:
         seg = slice(p.first, p.last + 1)
         idx = np.clip(np.digitize(th[seg], edges) - 1, 0, n_bins - 1)
         sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=n_bins)
         counts[p.direction] += np.bincount(idx, minlength=n_bins)
     both = (counts[1] > 0) & (counts[-1] > 0)
     if both.sum() < 4:
-        return points, None
+        return None
     half = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
     prof = np.full(n_bins, np.nan)
     prof[both] = half / half.mean() - 1.0
-    return points, prof
+    return prof
 
 
 def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
-    """Least squares of |f| = F_c + F_v |omega| with both coefficients non-negative."""
+    """Weighted least squares of |f| = F_c + F_v |omega|, both coefficients >= 0.
+
+    A pass's mean friction averages the current noise over the time it takes, so that
+    part of its variance goes as 1 / duration, i.e. as the speed; what does not average
+    away (the position-dependent friction the window does not cancel, a joint still
+    warming up) is the same at any speed.  The variance is modelled as proportional to
+    speed + median speed, and each point weighted by its inverse.
+    """
     speed = np.array([p.speed for p in points])
     f = np.array([p.friction for p in points])
-    fit = bounded_lsq(np.c_[np.ones_like(speed), speed], f, lower=np.zeros(2), what=what)
+    w = 1.0 / np.sqrt(speed + np.median(speed))
+    fit = bounded_lsq(np.c_[np.ones_like(speed), speed] * w[:, None], f * w,
+                      lower=np.zeros(2), what=what)
     return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=2 * float(fit.std[0]),
                         viscous=float(fit.x[1]), viscous_err=2 * float(fit.std[1]),
                         points=len(points))
 
 
 def profile_variation(profiles: list[np.ndarray]) -> float:
-    """Peak deviation of the averaged friction profile from its mean (fraction).
+    """Table 4.4's variation (fraction) from pairs of position profiles of one joint.
 
-    Averaging the logs' profiles at each position keeps the repeatable,
-    position-dependent part (gearing irregularities, 4.5.3) and averages away noise.
+    Each element of ``profiles`` is (2, bins): the relative friction along the path seen
+    at the two slowest speeds.  Their mean S carries the repeatable, position-dependent
+    part (gearing irregularities, 4.5.3) plus noise whose variance is var(A - B) / 4;
+    the variation is reported as sqrt(2) times the noise-corrected RMS of S, i.e. the
+    amplitude of a sinusoid of the same RMS (the peak of a noisy profile would grow with
+    the noise and the number of bins).
     """
-    if not profiles:
+    est = []
+    for pair in profiles:
+        a, b = pair
+        ok = np.isfinite(a) & np.isfinite(b)
+        if ok.sum() < 8:
+            continue
+        signal = 0.5 * (a[ok] + b[ok])
+        noise_var = np.var(a[ok] - b[ok]) / 4.0
+        est.append(max(np.var(signal) - noise_var, 0.0))
+    if not est:
         return float("nan")
-    width = min(len(p) for p in profiles)
-    prof = np.nanmean(np.vstack([p[:width] for p in profiles]), axis=0)
-    return float(np.nanmax(np.abs(prof - np.nanmean(prof))))
+    return float(np.sqrt(2.0 * np.mean(est)))
 
 
 def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult], list[FrictionPoint]]:

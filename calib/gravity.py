@@ -87,7 +87,7 @@ def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
     role = str(trace.meta.get("role", "main"))
     if role not in ("main", "repeat"):
         raise LogError(trace.path, None, f"metadata 'role' = {role!r} is not main or repeat")
-    theta = drive.joint_angles(trace.counts)
+    theta = drive.current_angles(trace.t, trace.counts)
     th, tau = theta[:, i], drive.joint_torques(trace.adc)[:, i]
     mid = lo + np.pi / 2
     out = []

@@ -51,7 +51,7 @@ class _PassWork:
 def _ampere_radians(trace: Trace, drive: Drive) -> tuple[int, tuple[float, float], _PassWork]:
     i = trace.joint_index()
     lo, hi = _window(trace)
-    theta = drive.joint_angles(trace.counts)[:, i]
+    theta = drive.current_angles(trace.t, trace.counts)[:, i]
     current = drive.motor_currents(trace.adc)[:, i] * drive.G[i, i]
     plus, minus = [], []
     for p in find_passes(theta, lo, hi):

@@ -19,8 +19,10 @@ AMPS = 0.00111 / np.array([0.301, 0.300, 0.302, 0.821, 0.821, 0.816])
 SIGMA = np.array([0.0732, 0.0751, 0.0786, 0.0358, 0.0349, 0.0305])
 
 
-def drive(sigma: np.ndarray = SIGMA) -> Drive:
-    return Drive(R=R, G=G, amps_per_adc=AMPS, sigma=np.asarray(sigma, float))
+def drive(sigma: np.ndarray = SIGMA, lag: float = 0.0) -> Drive:
+    """The synthetic drive; the synthetic currents are unfiltered unless a test filters
+    them, hence no current lag by default."""
+    return Drive(R=R, G=G, amps_per_adc=AMPS, sigma=np.asarray(sigma, float), current_lag=lag)
 
 
 def regressor(q: np.ndarray) -> np.ndarray:

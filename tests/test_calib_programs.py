@@ -35,8 +35,9 @@ def test_friction_path_cruises_through_the_window_at_each_speed():
     s = plan.path.sample(36.0)
     assert INFO.lower[1] <= s[:, 1].min() and s[:, 1].max() <= INFO.upper[1]
     passes = find_passes(s[:, 1], lo, hi)
-    assert len(passes) == 2 * len(plan.meta["speeds"])
-    for p, v in zip(passes[::2], plan.meta["speeds"]):
+    expected = [v for v, n in zip(plan.meta["speeds"], plan.meta["trips"]) for _ in range(2 * n)]
+    assert len(passes) == len(expected)
+    for p, v in zip(passes, expected):
         speed = np.abs(np.diff(s[p.first:p.last + 1, 1])) * 36.0
         assert speed == pytest.approx(v, rel=1e-6)
 
@@ -79,7 +80,7 @@ def test_program_records_exactly_the_path_over_a_real_link(tmp_path):
     from rci.monitor import EchoArm, Monitor
 
     conv = Conversions.for_robot("puma260")
-    (plan,) = friction_plans([1], speeds_deg=(30, 60))
+    (plan,) = friction_plans([1], speeds_deg=(30, 60), trips=1)
     plan.warmup = None
     mon = Monitor(EchoArm(pos0=conv.angles_to_counts(np.full(6, 0.3))), lockstep=True)
     port: list[int] = []
