@@ -70,6 +70,7 @@ class Request:
     hooks: dict = field(default_factory=dict)   # 5.4/5.6 features: limit, evalfn, comply, cond
     status: str = "queued"        # queued -> running -> done | failed
     error: BaseException | None = None
+    profile: Any = None           # the planning level's path check (corner, results), reused if still valid
     _done: threading.Event = field(default_factory=threading.Event, repr=False)
 
     @property

@@ -52,7 +52,8 @@ from .transform import axis_angle, inverse
 ACC_PEAK = 0.75          # peak of the quartic's acceleration: ACC_PEAK * |v2 - v1| / tau
 STEP_MARGIN = 1.25       # a commanded step may exceed v_max * dt by this factor before it is a fault
 SINGULAR_SLOWDOWN = 10.0  # a Cartesian path needing > 10x its requested time for joint speed is singular
-MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked before its motion starts
+MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked by move() before its motion starts
+CONTROL_CHECK_POINTS = 12  # the control level's re-check when the planning level's no longer applies
 
 
 # --------------------------------------------------------------------------------------
@@ -197,7 +198,8 @@ def _scale_norm(v1: np.ndarray, v2: np.ndarray, c: float) -> float:
 # --------------------------------------------------------------------------------------
 def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np.ndarray,
                  q_b: np.ndarray, t0: float, tau_in: float | None, v1: np.ndarray | None = None,
-                 v1_cart: tuple[np.ndarray, np.ndarray] | None = None) -> Segment:
+                 v1_cart: tuple[np.ndarray, np.ndarray] | None = None,
+                 check_points: int = MAX_CHECK_POINTS) -> Segment:
     """Plan ``req`` from the corner (T6 ``t6_b``, joints ``q_b``); raise an RCCL MotionError if it cannot run.
 
     ``v1`` (rad/s) and ``v1_cart`` ((m/s, rad/s) in the base frame) are the velocities the
@@ -253,8 +255,13 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
             seg.q_dest = q_c
             t_lim = 0.0
             v_start_dir = v_end_dir = np.zeros(6)
+        elif (seg.static and req.profile is not None and np.array_equal(req.profile[0], t6_b)
+              and np.allclose(req.profile[1], q_b, rtol=0.0, atol=1e-12)):
+            # move() already checked this path from this very corner: reuse its results
+            t_joint, v_start_dir, v_end_dir, seg.q_dest = req.profile[2]
+            t_lim = max(t_vel, t_joint)
         else:
-            n = int(min(MAX_CHECK_POINTS, max(8, math.ceil(t_vel / dt))))
+            n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
             q_prev = q_b
             path = [q_b]
             for j in range(1, n + 1):
@@ -277,6 +284,8 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
             t_lim = max(t_vel, t_joint)
             v_start_dir = (path[1] - path[0]) * n
             v_end_dir = (path[-1] - path[-2]) * n
+            if seg.static:
+                req.profile = (t6_b.copy(), q_b.copy(), (t_joint, v_start_dir, v_end_dir, seg.q_dest))
     travel = params.travel_time
     T = max(t_lim, travel) if travel is not None else t_lim
     tau_req = params.transition_time / 2.0
@@ -434,11 +443,13 @@ class TrajectoryGenerator:
             req.status = "running"
             try:
                 if at_rest:  # the arm stands still: start the transition now, as long as the new speed needs
-                    seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b - tau, None)
+                    seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b - tau, None,
+                                       check_points=CONTROL_CHECK_POINTS)
                     tau, t_b = seg.tau_in, seg.t0
                 else:
                     seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b, tau,
-                                       prev.v_end, prev.v_cart if prev.mode == "cartesian" else None)
+                                       prev.v_end, prev.v_cart if prev.mode == "cartesian" else None,
+                                       check_points=CONTROL_CHECK_POINTS)
             except MotionError as exc:
                 req.finish(exc)
                 self.errors.append(exc)
