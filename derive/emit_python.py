@@ -291,6 +291,13 @@ def gravity_links(q, masses, coms):
     return _ROBOT.call("gravity_links", q, masses, coms)[0]
 
 
+def coefficients_from_links(masses, coms):
+    """Gravity coefficients (dict, GRAVITY_COEFFS) of link masses (6,) kg and centres of
+    mass (6, 3) m in frames 1..6; components 4.24 neglects (4.21) are ignored."""
+    (c,) = _ROBOT.call("coefficients_from_links", masses, coms)
+    return dict(zip(GRAVITY_COEFFS, (float(x) for x in c))) if c.ndim == 1 else c
+
+
 def tool_load(coeffs, mass, com):
     """Coefficients with a tool of `mass` kg at `com` on the z6 axis (thesis 4.26)."""
     return _ROBOT.tool_load(coeffs, mass, com)

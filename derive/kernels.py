@@ -148,6 +148,12 @@ def build_kernels(d: Derivation) -> list[Kernel]:
            [qarg, Arg("m", masses, "link masses, kg"),
             Arg("com", com, "centre of mass of link k in frame k, m (row k-1)")],
            [Arg("tau", general, "N m (N on prismatic joints)")], source="4.8-4.20")
+    meaning = sp.Matrix(gm.coeff_meaning)
+    kernel("coefficients_from_links", "gravity loading coefficients of given link masses and "
+           "centres of mass (those 4.24 assumes: 4.21 for the PUMA)",
+           [Arg("m", masses, "link masses, kg"),
+            Arg("com", com, "centre of mass of link k in frame k, m (row k-1)")],
+           [Arg("c", meaning, ", ".join(gm.coeff_names))], source="4.24")
     load = sp.Matrix([m_t, d_t])
     kernel("tool_load", "coefficients with a tool of mass m_t at d_t along z6 (4.26)",
            [Arg("c", c, "coefficients without the tool"),

@@ -1117,6 +1117,34 @@ def _gravity_links_many(q, m, com):
     return (tau_,)
 
 
+def _coefficients_from_links_one(m, com):
+    """gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) (thesis 4.24); one configuration."""
+    m2 = m[1]
+    m3 = m[2]
+    m4 = m[3]
+    m5 = m[4]
+    m6 = m[5]
+    z5 = com[4, 2]
+    z6 = com[5, 2]
+    c_ = numpy.array([G*(m2 + m3 + m4 + m5 + m6), -G*(m5*z5 + m6*z6)], dtype=float)
+    return (c_,)
+
+
+def _coefficients_from_links_many(m, com):
+    """gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) (thesis 4.24); batched."""
+    m2 = m[:, 1]
+    m3 = m[:, 2]
+    m4 = m[:, 3]
+    m5 = m[:, 4]
+    m6 = m[:, 5]
+    z5 = com[:, 4, 2]
+    z6 = com[:, 5, 2]
+    c_ = numpy.empty((m.shape[0],) + (2,))
+    c_[:, 0] = G*(m2 + m3 + m4 + m5 + m6)
+    c_[:, 1] = -G*(m5*z5 + m6*z6)
+    return (c_,)
+
+
 def _tool_load_one(c, load):
     """coefficients with a tool of mass m_t at d_t along z6 (4.26) (thesis 4.26); one configuration."""
     c12 = c[0]
@@ -1210,6 +1238,10 @@ _KERNELS = {
         inputs=(('q', (6,)), ('m', (6,)), ('com', (6, 3))),
         outputs=(('tau', (6,)),),
         guards=()),
+    'coefficients_from_links': _rt.KernelFn('coefficients_from_links', _coefficients_from_links_one, _coefficients_from_links_many,
+        inputs=(('m', (6,)), ('com', (6, 3))),
+        outputs=(('c', (2,)),),
+        guards=()),
     'tool_load': _rt.KernelFn('tool_load', _tool_load_one, _tool_load_many,
         inputs=(('c', (2,)), ('load', (2,))),
         outputs=(('c_loaded', (2,)),),
@@ -1287,6 +1319,13 @@ def gravity_regressor(q):
 def gravity_links(q, masses, coms):
     """Thesis 4.20 from link masses (6,) kg and centres of mass (6, 3) m in frames 1..6."""
     return _ROBOT.call("gravity_links", q, masses, coms)[0]
+
+
+def coefficients_from_links(masses, coms):
+    """Gravity coefficients (dict, GRAVITY_COEFFS) of link masses (6,) kg and centres of
+    mass (6, 3) m in frames 1..6; components 4.24 neglects (4.21) are ignored."""
+    (c,) = _ROBOT.call("coefficients_from_links", masses, coms)
+    return dict(zip(GRAVITY_COEFFS, (float(x) for x in c))) if c.ndim == 1 else c
 
 
 def tool_load(coeffs, mass, com):

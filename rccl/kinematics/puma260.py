@@ -1874,6 +1874,43 @@ def _gravity_links_many(q, m, com):
     return (tau_,)
 
 
+def _coefficients_from_links_one(m, com):
+    """gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) (thesis 4.24); one configuration."""
+    m2 = m[1]
+    m3 = m[2]
+    m4 = m[3]
+    m5 = m[4]
+    m6 = m[5]
+    x2 = com[1, 0]
+    y4 = com[3, 1]
+    z3 = com[2, 2]
+    z5 = com[4, 2]
+    z6 = com[5, 2]
+    x0 = m4 + m5 + m6
+    c_ = numpy.array([G*(A2*(m2 + m3 + x0) + m2*x2), -G*(D4*x0 + m3*z3 + m4*y4), -G*(m5*z5 + m6*z6)], dtype=float)
+    return (c_,)
+
+
+def _coefficients_from_links_many(m, com):
+    """gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) (thesis 4.24); batched."""
+    m2 = m[:, 1]
+    m3 = m[:, 2]
+    m4 = m[:, 3]
+    m5 = m[:, 4]
+    m6 = m[:, 5]
+    x2 = com[:, 1, 0]
+    y4 = com[:, 3, 1]
+    z3 = com[:, 2, 2]
+    z5 = com[:, 4, 2]
+    z6 = com[:, 5, 2]
+    x0 = m4 + m5 + m6
+    c_ = numpy.empty((m.shape[0],) + (3,))
+    c_[:, 0] = G*(A2*(m2 + m3 + x0) + m2*x2)
+    c_[:, 1] = -G*(D4*x0 + m3*z3 + m4*y4)
+    c_[:, 2] = -G*(m5*z5 + m6*z6)
+    return (c_,)
+
+
 def _tool_load_one(c, load):
     """coefficients with a tool of mass m_t at d_t along z6 (4.26) (thesis 4.26); one configuration."""
     c12 = c[0]
@@ -1970,6 +2007,10 @@ _KERNELS = {
         inputs=(('q', (6,)), ('m', (6,)), ('com', (6, 3))),
         outputs=(('tau', (6,)),),
         guards=()),
+    'coefficients_from_links': _rt.KernelFn('coefficients_from_links', _coefficients_from_links_one, _coefficients_from_links_many,
+        inputs=(('m', (6,)), ('com', (6, 3))),
+        outputs=(('c', (3,)),),
+        guards=()),
     'tool_load': _rt.KernelFn('tool_load', _tool_load_one, _tool_load_many,
         inputs=(('c', (3,)), ('load', (2,))),
         outputs=(('c_loaded', (3,)),),
@@ -2047,6 +2088,13 @@ def gravity_regressor(q):
 def gravity_links(q, masses, coms):
     """Thesis 4.20 from link masses (6,) kg and centres of mass (6, 3) m in frames 1..6."""
     return _ROBOT.call("gravity_links", q, masses, coms)[0]
+
+
+def coefficients_from_links(masses, coms):
+    """Gravity coefficients (dict, GRAVITY_COEFFS) of link masses (6,) kg and centres of
+    mass (6, 3) m in frames 1..6; components 4.24 neglects (4.21) are ignored."""
+    (c,) = _ROBOT.call("coefficients_from_links", masses, coms)
+    return dict(zip(GRAVITY_COEFFS, (float(x) for x in c))) if c.ndim == 1 else c
 
 
 def tool_load(coeffs, mass, com):
