@@ -30,7 +30,7 @@ class Disturbances:
 
     filter_tau: float = 0.015          # s, current-sense low-pass time constant (thesis Appendix C)
     servo_rate_hz: float = 1000.0      # joint microcontroller rate (thesis Appendix C: 1000 Hz)
-    ripple_pos: float = 1.0            # PID current fluctuation, relative to the mean current (thesis 4.5.1: "as high as the average")
+    ripple_pos: float = 0.5            # PID current fluctuation (uniform, +- this x mean current; thesis 4.5.1 says "as high as the average", i.e. peaks near 1x)
     ripple_cur: float = 0.05           # current-mode fluctuation, relative
     ripple_floor: float = 0.05         # A, fluctuation present even at zero mean current
     adc_noise: float = 1.0             # ADC counts (1 sigma), sensor noise after the filter

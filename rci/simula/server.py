@@ -344,6 +344,7 @@ class Server:
                 self.arm.hold_all()
                 self.arm._flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped")
                 self.log(self.arm.status_text)
+                self.arm.step(1.0 / self.rate)
                 self.seq = (self.seq + 1) & 0xFFFFFFFF
                 self._send_how()
                 s.running = False
