@@ -49,7 +49,7 @@ class Arm(Planner):
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
                  kinematics: Kinematics | None = None, limits: Limits | None = None,
-                 **rci_options: Any) -> None:
+                 record: bool = False, **rci_options: Any) -> None:
         self.url = url
         self.robot = robot
         self.rate_hz = int(rate_hz)
@@ -61,6 +61,8 @@ class Arm(Planner):
         self.park: Position | None = None
         self._pos_cmd = [chgmod.POS] * 6
         self.control_error: BaseException | None = None
+        # with record=True: one (t s, commanded q rad, measured q rad) per control cycle
+        self.trace: list[tuple[float, np.ndarray, np.ndarray]] | None = [] if record else None
 
     # -- rccl_open / rccl_control / rccl_close --------------------------------------------
     def open(self) -> "Arm":
@@ -103,6 +105,8 @@ class Arm(Planner):
         motion = chg.motion
         for i in range(6):
             motion[i].issue(chgmod.POS, int(counts[i]))
+        if self.trace is not None:
+            self.trace.append((gen.t, q, self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))))
 
     def close(self, power_off: bool = False, wait: bool = True) -> None:
         """rccl_close: wait for queued motions to end (``wait``), release the control and close the link."""

@@ -485,4 +485,5 @@ class TrajectoryGenerator:
     @property
     def busy(self) -> bool:
         """True while a non-repeated request is running or queued."""
-        return bool(len(self.queue)) or not self.seg.req.repeat or self.trans is not None
+        return (bool(len(self.queue)) or not self.seg.req.repeat
+                or (self.trans is not None and not self.trans.prev.req.repeat))

@@ -17,8 +17,10 @@ import numpy as np
 
 from rccl.kinematics import errors
 
-#: two solutions closer than this (rad or m, per joint) are the same solution
-SAME_SOLUTION_TOL = 1e-9
+#: two solutions closer than this (rad or m, per joint) are the same solution: at a
+#: boundary (stretched elbow, arm on the d3 cylinder) the two branches meet through a
+#: square root of a rounding-level radicand, so they differ by ~sqrt(eps) ~ 1e-8
+SAME_SOLUTION_TOL = 1e-6
 #: a pose whose rotation part deviates from orthonormal by more than this is rejected
 RIGID_TOL = 1e-6
 
@@ -264,12 +266,15 @@ class Robot:
                 self._check("ik", guards, batch, (t,), context)
             # keep theta4 of q_ref and solve theta5, theta6 for it
             rows = np.nonzero(np.atleast_1d(wrist_bad))[0]
+            # (theta5, theta6 from the singular solve may be nan; ik_wrist ignores them)
             if batch:
                 q[rows, 3] = ref[rows, 3]
+                q[rows, 4:6] = 0.0
                 (q56,) = self.call("ik_wrist", t[rows], q[rows])
                 q[rows, 4:6] = q56
             else:
                 q[3] = ref[3]
+                q[4:6] = 0.0
                 (q56,) = self.call("ik_wrist", t, q)
                 q[4:6] = q56
         if ref is not None:

@@ -1,0 +1,121 @@
+"""Compliant motion by the Paul-Shimano method (thesis 5.4.3, E.6): ``comply(spec, values)`` / ``lock(spec)``.
+
+Chosen tool-frame directions are *compliant*: along/about each, one joint is force
+servoed instead of position servoed, and the path is allowed to move freely:
+
+* the drive equation grows a comply transform, T6 = D_a C_drive C_comply (E.6); each
+  sample the observed deviation along the compliant directions (E.2) is absorbed into it,
+  so the position-servoed joints follow the path *as displaced by the force*;
+* for each compliant direction i the joint j best placed to act along it is chosen: the
+  one contributing most to a pure motion along i, the largest |J_T[i, j] (J_T^-1)[j, i]|
+  (J_T the tool-frame Jacobian; these shares sum to 1 over the joints), each joint used
+  once. This is our reading of Paul and Shimano's rule; the thesis gives no formula;
+* that joint is run in current mode with the net torque t_a = (J_T^T q)_j (4.52) of the
+  requested force q, converted by 4.38 with the gravity loading and the friction of
+  4.27 (in the direction the joint moves, or, at rest, the direction it is asked to push).
+
+The force held is then the requested one within the friction uncertainty of the chosen
+joint (Table 4.4), divided by its lever |J_T[i, j]|.
+
+Compliance stays on for every later motion until ``lock`` takes the direction out; a
+locked direction keeps the comply offset it had (no jump in the path).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import spec as specmod
+from .exceptions import SpecError
+from .force import JointModel
+
+
+def select_joints(jac_tool: np.ndarray, axes: list[int]) -> dict[int, int]:
+    """The joint (0-based) best placed for each compliant tool axis (0-5), each joint used at most once.
+
+    Score of joint j for axis i: |J_T[i, j] (J_T^-1)[j, i]|, the share of a unit motion
+    along axis i that joint j provides. Raises SpecError if the Jacobian is singular.
+    """
+    try:
+        jinv = np.linalg.inv(jac_tool)
+    except np.linalg.LinAlgError:
+        raise SpecError("comply: the Jacobian is singular here; no joint can be chosen for compliance") from None
+    taken: set[int] = set()
+    out: dict[int, int] = {}
+    for i in axes:
+        score = np.abs(jac_tool[i, :] * jinv[:, i])
+        for j in np.argsort(-score):
+            if int(j) not in taken:
+                out[i] = int(j)
+                taken.add(int(j))
+                break
+    return out
+
+
+@dataclass
+class Compliance:
+    """Compliant axes (tool frame) with their forces, and the comply transform as a tool-frame differential."""
+
+    forces: dict[int, float] = field(default_factory=dict)   # axis 0-5 -> N or N*m exerted by the tool
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(6))   # C_comply (m, rad), tool frame
+    joints: dict[int, int] = field(default_factory=dict)     # axis -> force-servoed joint (last choice)
+
+    @property
+    def active(self) -> bool:
+        return bool(self.forces)
+
+    def comply(self, spec: str, *values: float) -> None:
+        """Make the named force/torque components compliant with these values (N, N*m; signed)."""
+        items = specmod.parse(spec, values, f"comply({spec!r})", allow_dev=False, positive=False)
+        for (_, i), v in items.items():
+            self.forces[i] = v
+
+    def lock(self, spec: str) -> None:
+        """Take the named components out of compliance (``lock("fz")``); the comply offset stays."""
+        where = f"lock({spec!r})"
+        for tok in specmod.tokens(spec, where):
+            _, i = specmod.component(tok, where, allow_dev=False)
+            self.forces.pop(i, None)
+            self.joints.pop(i, None)
+
+    def absorb(self, dev_tool: np.ndarray) -> None:
+        """Take the observed tool-frame deviation along the compliant axes into the comply transform (E.6)."""
+        for i in self.forces:
+            self.offset[i] = dev_tool[i]
+
+    def joint_offsets(self, jac6: np.ndarray, tool_to_6: np.ndarray) -> np.ndarray:
+        """Joint displacement (rad) realising the comply offset: J6^-1 D^-1 offset (E.8 for small changes)."""
+        if not np.any(self.offset):
+            return np.zeros(jac6.shape[0])
+        return np.linalg.solve(jac6, tool_to_6 @ self.offset)
+
+    def select(self, jac_tool: np.ndarray) -> dict[int, int]:
+        self.joints = select_joints(jac_tool, sorted(self.forces))
+        return self.joints
+
+    def net_torques(self, jac_tool: np.ndarray) -> np.ndarray:
+        """t_a = J_T^T q (4.52) of the requested compliant forces (N*m per joint)."""
+        q = np.zeros(6)
+        for i, v in self.forces.items():
+            q[i] = v
+        return jac_tool.T @ q
+
+
+def servo_dac(model: JointModel, joints: list[int], t_a: np.ndarray, t_g: np.ndarray, qd: np.ndarray,
+              rest_speed: float = 1e-3) -> np.ndarray:
+    """DAC values (float) of 4.38 for the force-servoed ``joints``: K_dac G^-T (t_a + t_g) + f_dac.
+
+    Only the entries of ``joints`` are meaningful; t_a elsewhere is taken as 0 (those joints
+    are position servoed, their torque is the servo's business). Friction is compensated in
+    the direction of motion, or at rest in the direction of the requested torque.
+    """
+    ta = np.zeros_like(t_g)
+    ta[joints] = t_a[joints]
+    direction = np.where(np.abs(qd) > rest_speed, np.sign(qd), np.sign(ta))
+    fric = np.where(direction > 0, model.coulomb_pos + model.viscous_pos * np.abs(qd) * (np.abs(qd) > rest_speed),
+                    np.where(direction < 0, -model.coulomb_neg - model.viscous_neg * np.abs(qd) * (np.abs(qd) > rest_speed),
+                             0.0))
+    sel = np.zeros_like(t_g)
+    sel[joints] = fric[joints]
+    return model.conv.dac_for_net_torques(ta, t_g, model.conv.friction_to_dac(sel))

@@ -1,0 +1,126 @@
+"""Functionally defined transforms (thesis 5.4.4, E.7-E.8): called once per sample, change per sample limited.
+
+``FunctionalUpdater.update(positions, jac6)`` calls every functional transform found in
+``positions`` exactly once (a transform in several equations, or in both segments of a
+transition, is still called once), then limits the change of the first position's T6
+over the sample: the change dC (frame 6) maps to joint motion through E.8,
+dtheta = J^-1 dC, and every joint's share of that is kept under ``share`` x its velocity
+limit x dt. If some joint would move more, every transform changed this sample is moved
+only part of the way from its old value to its new one (translation and rotation angle
+scaled alike); the function catches up over the next samples. Near a singularity
+(cond(J) above ``max_condition``) a change is refused altogether, so a wild function
+cannot produce wild joint motion.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..transform import axis_angle, inverse, rot_matrix
+from .exceptions import FunctionalError
+
+# estimate: half of each joint's speed for the functional part leaves the other half to the planned motion
+DEFAULT_SHARE = 0.5
+# estimate: above this condition number E.8's linear relation gives no useful bound (see force.MAX_CONDITION)
+DEFAULT_MAX_CONDITION = 1.0e3
+
+
+def differential(t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
+    """dC seen in the frame of ``t_from``: (dx, dy, dz, rx, ry, rz) with t_to ~ t_from (I + Delta) (1.7)."""
+    d = inverse(t_from) @ t_to
+    return np.array([d[0, 3], d[1, 3], d[2, 3], 0.5 * (d[2, 1] - d[1, 2]), 0.5 * (d[0, 2] - d[2, 0]),
+                     0.5 * (d[1, 0] - d[0, 1])])
+
+
+def interpolate(m0: np.ndarray, m1: np.ndarray, s: float) -> np.ndarray:
+    """The transform a fraction ``s`` of the way from m0 to m1 (relative motion m0^-1 m1 scaled)."""
+    rel = inverse(m0) @ m1
+    k, theta = axis_angle(rel)
+    part = np.eye(4)
+    part[:3, :3] = rot_matrix(k, s * theta) if theta > 1e-15 else np.eye(3)
+    part[:3, 3] = s * rel[:3, 3]
+    return m0 @ part
+
+
+def step_scale(jac6: np.ndarray, dc6: np.ndarray, max_step: np.ndarray) -> tuple[float, np.ndarray]:
+    """Largest s in [0, 1] with |s (J^-1 dc6)_i| <= max_step_i (E.8); also returns dtheta = J^-1 dc6."""
+    dtheta = np.linalg.solve(jac6, dc6)
+    worst = float(np.max(np.abs(dtheta) / max_step))
+    return (1.0 if worst <= 1.0 else 1.0 / worst), dtheta
+
+
+@dataclass
+class UpdateInfo:
+    """What one sample's update did: transforms called, the scale applied (1 = unlimited), the condition."""
+
+    called: int = 0
+    scale: float = 1.0
+    condition: float = 0.0
+
+
+class FunctionalUpdater:
+    """Calls functional transforms once per sample and limits their effect (E.8).
+
+    ``qd_max`` joint velocity limits (rad/s), ``dt`` sample period (s).
+    """
+
+    def __init__(self, qd_max: np.ndarray, dt: float, share: float = DEFAULT_SHARE,
+                 max_condition: float = DEFAULT_MAX_CONDITION) -> None:
+        self.max_step = np.asarray(qd_max, dtype=float) * float(dt) * float(share)
+        self.max_condition = float(max_condition)
+        self.last = UpdateInfo()
+        self.limited = 0           # samples in which a change was scaled down
+
+    @staticmethod
+    def functional_transforms(positions) -> list:
+        seen: dict[int, object] = {}
+        for p in positions:
+            for t in p.transforms():
+                if t.kind == "functional" and t.fn is not None:
+                    seen.setdefault(id(t), t)
+        return list(seen.values())
+
+    def update(self, positions, jac6: np.ndarray | None, snap=None) -> UpdateInfo:
+        """Call each functional transform of ``positions`` once; limit the change of positions[0]'s T6.
+
+        ``jac6`` is the frame-6 Jacobian where the arm is (None: no limiting). Raises
+        FunctionalError if a function leaves a non-rigid or non-finite transform.
+        """
+        trs = self.functional_transforms(positions)
+        info = UpdateInfo(called=len(trs))
+        self.last = info
+        if not trs:
+            return info
+        before = [t._m for t in trs]
+        t6_0 = positions[0].solve(snap) if jac6 is not None else None
+        for t in trs:
+            try:
+                t.fn(t)
+            except FunctionalError:
+                raise
+            except Exception as exc:  # the user's function: stop, saying which transform
+                raise FunctionalError(f"functional transform {t.name!r}: its function raised "
+                                      f"{type(exc).__name__}: {exc}") from exc
+            if not np.all(np.isfinite(t._m)):
+                raise FunctionalError(f"functional transform {t.name!r}: its function left a non-finite value")
+        if jac6 is None:
+            return info
+        t6_1 = positions[0].solve(snap)
+        dc = differential(t6_0, t6_1)
+        if not np.any(np.abs(dc) > 1e-15):
+            return info
+        sv = np.linalg.svd(jac6, compute_uv=False)
+        info.condition = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+        if info.condition > self.max_condition:
+            s = 0.0
+        else:
+            s, _ = step_scale(jac6, dc, self.max_step)
+        if s < 1.0:
+            self.limited += 1
+            info.scale = s
+            for t, m0 in zip(trs, before):
+                if t._m is not m0:
+                    t.set(interpolate(m0, t._m, s))
+        return info

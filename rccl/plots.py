@@ -1,0 +1,190 @@
+"""Plots of RCCL trajectories: `python -m rccl.plots` writes reports/rccl-path.png and reports/rccl-transition.png.
+
+Both come from real runs: a simula process in lockstep is started, RCCL programs run on it,
+and the plots show what was commanded and what simula reported back (``how``), with the
+tool path computed on the world side by Pinocchio on the URDF.
+
+* ``rccl-path.png``: the program of thesis 5.3.4 (move(p0); move(park)) and a Cartesian
+  square with one stop, as XY / XZ projections of the tool path;
+* ``rccl-transition.png``: tool speed, joint velocities and joint accelerations across the
+  transitions of a Cartesian tour, with each transition window shaded and the acceleration
+  limits drawn.
+
+    .venv/bin/python -m rccl.plots [--out reports]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _world_fk():
+    import pinocchio as pin
+    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / "puma260.urdf"))
+    data = model.createData()
+    fid = model.getFrameId("link6")
+
+    def fk(q):
+        pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
+        return data.oMf[fid].homogeneous.copy()
+    return fk
+
+
+def path_plot(arm, marks, title: str, out: Path | None = None, extra=None) -> Path:
+    """XY and XZ projections of the tool (T6) path of ``arm.trace`` (commanded and measured)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out or ROOT / "reports" / "rccl-path.png")
+    fk = _world_fk()
+    runs = [(title, arm, marks)] + (extra or [])
+    fig, axes = plt.subplots(len(runs), 2, figsize=(11, 4.8 * len(runs)), squeeze=False)
+    for row, (name, a, mk) in enumerate(runs):
+        qc = np.array([x[1] for x in a.trace])
+        qm = np.array([x[2] for x in a.trace])
+        pc = np.array([fk(q)[:3, 3] for q in qc]) * 1e3
+        pm = np.array([fk(q)[:3, 3] for q in qm]) * 1e3
+        for col, (i, j, lab) in enumerate(((0, 1, "y"), (0, 2, "z"))):
+            ax = axes[row, col]
+            ax.plot(pc[:, i], pc[:, j], "-", lw=2.5, color="tab:blue", alpha=0.45, label="commanded")
+            ax.plot(pm[:, i], pm[:, j], ".", ms=3, color="tab:red", label="measured (simula how)")
+            for label, t in mk:
+                ax.plot(t[0, 3] * 1e3, t[j, 3] * 1e3 if j < 3 else 0, "k+", ms=12, mew=2)
+                ax.annotate(label, (t[0, 3] * 1e3, t[j, 3] * 1e3), textcoords="offset points", xytext=(6, 6))
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel(f"{lab} (mm)")
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.grid(alpha=0.3)
+            ax.set_title(f"{name}: {'XY' if j == 1 else 'XZ'} projection", fontsize=9)
+            ax.legend(fontsize=8, loc="best")
+    fig.suptitle("RCCL tool paths (T6 origin, base frame), from `python -m rccl.plots`", fontsize=10)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def transition_plot(arm, windows, out: Path | None = None) -> Path:
+    """Tool speed, joint velocities and accelerations (finite differences of the commands) across transitions."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out or ROOT / "reports" / "rccl-transition.png")
+    fk = _world_fk()
+    t = np.array([x[0] for x in arm.trace])
+    qc = np.array([x[1] for x in arm.trace])
+    qm = np.array([x[2] for x in arm.trace])
+    dt = float(np.median(np.diff(t)))
+    v = np.diff(qc, axis=0) / dt
+    a = np.diff(v, axis=0) / dt
+    pc = np.array([fk(q)[:3, 3] for q in qc])
+    pm = np.array([fk(q)[:3, 3] for q in qm])
+    speed_c = np.linalg.norm(np.diff(pc, axis=0), axis=1) / dt
+    speed_m = np.linalg.norm(np.diff(pm, axis=0), axis=1) / dt
+    t0 = t[0]
+    tv, ta = t[1:] - t0 - dt / 2, t[1:-1] - t0
+    fig, axes = plt.subplots(3, 1, figsize=(11, 10), sharex=True)
+    axes[0].plot(tv, speed_c * 1e3, "-", color="tab:blue", label="commanded")
+    axes[0].plot(tv - dt, speed_m * 1e3, ".", color="tab:red", ms=3, label="measured (one cycle later)")
+    axes[0].set_ylabel("tool speed (mm/s)")
+    for i in range(6):
+        axes[1].plot(tv, v[:, i], label=f"joint {i + 1}")
+        axes[2].plot(ta, a[:, i], label=f"joint {i + 1}")
+    lim = arm._limits.joint_acceleration
+    axes[2].axhline(float(lim.min()), color="k", ls="--", lw=0.8, label=f"smallest limit {lim.min():.1f} rad/s^2")
+    axes[2].axhline(-float(lim.min()), color="k", ls="--", lw=0.8)
+    axes[1].set_ylabel("joint velocity (rad/s)")
+    axes[2].set_ylabel("joint acceleration (rad/s^2)")
+    axes[2].set_xlabel("time (s)")
+    for ax in axes:
+        for (s, e) in windows:
+            ax.axvspan(s - t0, e - t0, color="0.85", zorder=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=4, loc="upper right")
+    axes[0].set_title("Cartesian tour at 36 Hz on simula: Paul's quartic transitions (shaded); finite differences "
+                      "of the commanded joint angles", fontsize=9)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+class _WindowLog:
+    """Wraps the generator's transition start to log each transition window (t_start, t_end)."""
+
+    def __init__(self, gen) -> None:
+        self.windows: list[tuple[float, float]] = []
+        self.gen = gen
+        orig = gen._begin_transition
+
+        def logged() -> None:
+            orig()
+            tr = gen.trans
+            if not (tr.prev.req.repeat and gen.seg.req.repeat):  # skip hold-to-hold (nothing moves)
+                self.windows.append((tr.t_start, tr.t_end))
+        gen._begin_transition = logged
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description="RCCL trajectory plots from simula runs")
+    ap.add_argument("--out", default=str(ROOT / "reports"), help="output directory")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    import importlib.util
+
+    import rccl
+    from rccl import EQ, T6, TL, Trsf, makeposition
+    from rccl.transform import rot, trsl
+    from rci.simula.process import SimulaProcess
+
+    spec = importlib.util.spec_from_file_location("rccl_program_534", ROOT / "examples" / "rccl_program_534.py")
+    prog = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(prog)
+    start_q = np.radians([0.0, 80.0, -170.0, 10.0, -60.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
+            arm534 = prog.main(sim.url, record=True)
+            with rccl.open(sim.url, robot="puma260", record=True, timeout=2.0) as arm:
+                arm.setmod("joint")
+                arm.setvel(0.2, 2.0)
+                s = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(start_q)), TL, T6)
+                arm.move(s)
+                arm.waitfor(s.end)
+                base = arm.t6
+                arm.trace.clear()
+                log = _WindowLog(arm.gen)
+                arm.setmod("cartesian")
+                arm.setvel(0.1, 1.0)
+                corners = [trsl(-0.06, 0.0, 0.0), trsl(-0.06, 0.06, 0.0), trsl(0.0, 0.06, 0.02) @ rot("z", 0.3),
+                           trsl(0.0, 0.0, 0.0)]
+                ps = [makeposition(f"c{i}", T6, EQ, Trsf(f"C{i}", c @ base), TL, T6) for i, c in enumerate(corners)]
+                arm.move(ps[0])
+                arm.move(ps[1])
+                arm.move(ps[1])          # stop at c1: move to the same point twice
+                arm.move(ps[2])
+                arm.move(ps[3])
+                arm.waitfor(ps[3].end)
+                arm.rci.wait(0.3)
+    marks534 = [("p0", prog.P0_T6), ("park", arm534.park.solve())]
+    marks_sq = [(f"c{i}", p.solve()) for i, p in enumerate(ps)]
+    p1 = path_plot(arm534, marks534, "thesis 5.3.4: move(p0); move(park) (joint mode)", out / "rccl-path.png",
+                   extra=[("Cartesian tour, stop at c1", arm, marks_sq)])
+    p2 = transition_plot(arm, [w for w in log.windows if w[0] < arm.trace[-1][0]], out / "rccl-transition.png")
+    print("wrote", p1)
+    print("wrote", p2)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
