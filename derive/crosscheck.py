@@ -259,11 +259,11 @@ def check_inverse(mod, qs: np.ndarray, res: Result) -> None:
             q2 = mod.ik(t, mod.config_of(q))
             e_q = max(e_q, joint_error(mod, q2, q))
             n_q += 1
-            if not any(joint_error(mod, s, q) < 1e-8 for _, s in sols):
+            if not any(joint_error(mod, s, q) < 1e-10 for _, s in sols):
                 raise AssertionError(f"{mod.ROBOT}: ik_all misses q = {q}")
             for i in range(len(sols)):
                 for j in range(i):
-                    if joint_error(mod, sols[i][1], sols[j][1]) < 1e-9:
+                    if joint_error(mod, sols[i][1], sols[j][1]) < 1e-6:
                         raise AssertionError(f"{mod.ROBOT}: ik_all repeats a solution at q = {q}")
             n_all += 1
     res.record("fk(ik(T, c)) - T, every reachable configuration", e_fk, n_fk)

@@ -1,0 +1,104 @@
+"""Generated kinematics vs Pinocchio on the URDFs (hypothesis + the derive.crosscheck sweep)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from derive import crosscheck as cc
+from rccl.kinematics import errors
+
+ROBOTS = ["puma260", "microbo"]
+ARMS = {name: cc.PinArm.load(name) for name in ROBOTS}
+TOL = 1e-13  # entries are O(1) (m, rad, N m): a few hundred ulps
+
+
+def joints(name: str):
+    mod = cc.MODULES[name]
+    edges = cc.edge_values(mod)
+    per_joint = [
+        st.one_of(st.floats(float(lo), float(hi), allow_nan=False), st.sampled_from(e))
+        for lo, hi, e in zip(mod.LOWER, mod.UPPER, edges)
+    ]
+    return st.tuples(*per_joint).map(np.array)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_fk_and_jacobians_match_pinocchio(name):
+    mod, arm = cc.MODULES[name], ARMS[name]
+
+    @settings(max_examples=150, deadline=None)
+    @given(joints(name))
+    def check(q):
+        assert np.abs(mod.fk(q) - arm.pose(q)).max() < TOL
+        j4, j6 = arm.jacobians(q)
+        assert np.abs(mod.jacobian6(q) - j6).max() < TOL
+        assert np.abs(mod.jacobian4(q) - j4).max() < TOL
+
+    check()
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_gravity_matches_pinocchio(name):
+    mod, arm = cc.MODULES[name], ARMS[name]
+    from rci.robot_model import load_robot
+
+    model = load_robot(name)
+    masses = np.array([link.mass for link in model.links])
+    coms = np.array([link.com for link in model.links])
+    coeffs = mod.coefficients_from_links(masses, coms)
+
+    @settings(max_examples=150, deadline=None)
+    @given(joints(name))
+    def check(q):
+        g = arm.gravity(q)
+        assert np.abs(mod.gravity(q, coeffs) - g).max() < 1e-12
+        assert np.abs(mod.gravity_links(q, masses, coms) - g).max() < 1e-12
+        # the model file's coefficients (Table 4.9 for the PUMA) within their 11-digit rounding
+        assert np.abs(mod.gravity(q, model) - g).max() < 1e-9
+
+    check()
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_ik_round_trip(name):
+    mod = cc.MODULES[name]
+
+    @settings(max_examples=150, deadline=None)
+    @given(joints(name))
+    def check(q):
+        t = mod.fk(q)
+        well = cc.conditioning(mod, q)[0] > cc.WELL_CONDITIONED
+        ref = None if well else q
+        try:
+            sols = mod.ik_all(t, q_ref=ref)
+        except errors.Singular:
+            sols = mod.ik_all(t, q_ref=q)
+        assert sols, "fk(q) must be reachable"
+        for cfg, qs in sols:
+            assert np.abs(mod.fk(qs) - t).max() < 1e-13
+        # near a singularity the closed form loses half the digits (sqrt of eps)
+        assert any(cc.joint_error(mod, qs, q) < (1e-10 if well else 1e-6) for _, qs in sols)
+        if well:
+            assert cc.joint_error(mod, mod.ik(t, mod.config_of(q)), q) < 1e-10
+
+    check()
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_crosscheck_sweep(name):
+    """The report's sweep on a small sample: every quantity near machine precision."""
+    mod, arm = cc.MODULES[name], cc.PinArm.load(name)
+    qs = cc.samples(mod, 60, seed=3)
+    res = cc.Result(name)
+    cc.check_forward(mod, arm, qs, res)
+    cc.check_jacobians(mod, arm, qs, res)
+    cc.check_jacobian_computations(mod, arm, qs, res)
+    cc.check_gravity(mod, arm, qs, res)
+    cc.check_inverse(mod, qs, res)
+    limits = {"model-file coefficients": 1e-9, "relative": 1e-11, "ik(fk(q)": 1e-10}
+    for key, err in res.errors.items():
+        tol = next((v for k, v in limits.items() if k in key), 1e-12)
+        assert err < tol, f"{name}: {key}: {err:.3g} >= {tol:g}"
+        assert res.counts[key] > 0, key
