@@ -50,15 +50,18 @@ class Session:
     Parameters (SI units): ``rate_hz`` sample rate (4..1000 Hz; the thesis's 9/18/36/72 are
     all valid); ``limits`` for the A.5.1 checks: ``"model"`` (from ``rci.robot_model`` and
     ``rci.conversions``), a ``Limits``, or None (range checks off); ``timeout`` s without a
-    HOW before R_TIMEOUT (default two periods, at least ``min_timeout``); ``overrun``
-    ``"error"`` (R_OVERRUN) or ``"count"``; ``realtime`` try SCHED_FIFO at ``priority`` for
+    HOW before R_TIMEOUT (default two periods, at least ``min_timeout``; against a lockstep
+    simulator at least ``lockstep_timeout``, since its cycles are not wall-clock time);
+    ``overrun`` ``"error"`` (R_OVERRUN), ``"count"``, or ``"auto"`` (error against a real-time
+    robot, count against a lockstep simulator, where a slow cycle harms nothing); ``realtime`` try SCHED_FIFO at ``priority`` for
     the control thread; ``gc`` ``"freeze"``/``"off"``/``"leave"``; ``lock_memory`` mlockall;
     ``signals`` deliver errors and Ctrl-C through signals when opened in the main thread.
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
                  limits: str | Limits | None = "model", timeout: float | None = None,
-                 min_timeout: float = 0.02, start_timeout: float = 2.0, overrun: str = "error",
+                 min_timeout: float = 0.02, start_timeout: float = 2.0, overrun: str = "auto",
+                 lockstep_timeout: float = 0.25,
                  realtime: bool = True, priority: int = 80, gc: str = "freeze",
                  lock_memory: bool = True, switch_interval: float | None = 2e-4,
                  signals: bool = True, watchdog: bool = True, max_commands: int = 16,
@@ -66,8 +69,8 @@ class Session:
                  on_interrupt: Callable[[], Any] | None = None, client: str = "rci") -> None:
         if not (4 <= int(rate_hz) <= MAX_RATE_HZ):
             raise ValueError(f"rate_hz must be 4..{MAX_RATE_HZ}, not {rate_hz}")
-        if overrun not in ("error", "count"):
-            raise ValueError(f"overrun must be 'error' or 'count', not {overrun!r}")
+        if overrun not in ("error", "count", "auto"):
+            raise ValueError(f"overrun must be 'error', 'count' or 'auto', not {overrun!r}")
         self.url = url
         self.robot = robot
         self.rate_hz = int(rate_hz)
@@ -75,7 +78,10 @@ class Session:
         self.timeout = timeout
         self.min_timeout = min_timeout
         self.start_timeout = start_timeout
-        self.overrun = overrun
+        self.overrun_mode = overrun
+        self.overrun = "error" if overrun == "auto" else overrun   # resolved at open()
+        self.lockstep_timeout = lockstep_timeout
+        self.lockstep = False
         self.realtime = realtime
         self.priority = priority
         self.gc_mode = gc
@@ -117,7 +123,10 @@ class Session:
 
     def timeout_for(self, period: float) -> float:
         """Seconds without a HOW before R_TIMEOUT, for a sample period in s."""
-        return self.timeout if self.timeout is not None else max(2.0 * period, self.min_timeout)
+        if self.timeout is not None:
+            return self.timeout
+        floor = max(self.min_timeout, self.lockstep_timeout if self.lockstep else 0.0)
+        return max(2.0 * period, floor)
 
     @property
     def is_open(self) -> bool:
@@ -156,6 +165,9 @@ class Session:
                 link.close()
                 raise RobotRefused(0, f"asked for robot {self.robot!r}, {self.url} is {welcome.robot!r}")
             self.welcome = welcome
+            self.lockstep = welcome.mode == protocol.MODE_LOCKSTEP
+            if self.overrun_mode == "auto":
+                self.overrun = "count" if self.lockstep else "error"
             self.nj, self.nadc = welcome.nj, welcome.nadc
             self.how = How(pos=np.zeros(self.nj, dtype=np.int64), adcr=np.zeros(self.nadc, dtype=np.int64))
             self.how.state = welcome.state

@@ -73,14 +73,23 @@ def rt_robot():
 
 
 def session(url: str, **kw) -> Session:
-    opts = dict(rate_hz=100, limits=LIMITS, on_error="raise", signals=False, lock_memory=False, realtime=False)
+    # The monitor runs in this process (same GIL) on a shared machine: it is a jittery
+    # "real-time" robot. Tests that are not about timing therefore count overruns and allow
+    # a generous timeout; the timing faults have their own tests with tight settings.
+    opts = dict(rate_hz=100, limits=LIMITS, on_error="raise", signals=False, lock_memory=False, realtime=False,
+                overrun="count", timeout=0.3)
     opts.update(kw)
     return Session(url, "puma260", **opts)
 
 
-def run_until_terminated(s: Session, limit: float = 2.0) -> codes.Termination:
-    """Wait (bounded) until the control ends on an error; returns the termination."""
+def run_until_terminated(s: Session, start=None, limit: float = 2.0) -> codes.Termination:
+    """Start (optional) and wait, bounded, until the control ends on an error; returns the termination.
+
+    An error in the very first cycle is delivered by control() itself, hence ``start``.
+    """
     with pytest.raises(ControlTerminated) as e:
+        if start is not None:
+            start()
         s.wait(limit)
         pytest.fail(f"no termination within {limit} s")
     return e.value.termination
@@ -155,8 +164,7 @@ def test_exception_in_f1_ends_control_in_that_cycle(robot):
                 state["cycle"] = s.how.cycle
                 raise RuntimeError("boom")
 
-        s.control(f1)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(f1))
     assert t.number == codes.R_USERFUNC and t.cycle == state["cycle"]
     assert "RuntimeError: boom" in t.detail and "test_rci_control.py" in t.detail
     assert robot.released() and not t.severe
@@ -167,15 +175,14 @@ def test_nan_command_is_refused_before_sending(robot):
     with s:
         def f1():
             s.chg.motion[0].issue(CUR, float("nan"))
-        s.control(f1)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(f1))
     assert t.number == codes.R_NANCMD and "motion[0]" in t.detail
     assert not any(c.motion[0].com == CUR for c in robot.arm.applied)
     assert robot.released()
 
 
 def test_overrunning_user_function(rt_robot):
-    s = session(rt_robot.url, rate_hz=50)
+    s = session(rt_robot.url, rate_hz=50, overrun="error")
     with s:
         state = {"n": 0}
 
@@ -183,14 +190,13 @@ def test_overrunning_user_function(rt_robot):
             state["n"] += 1
             if state["n"] == 5:
                 time.sleep(0.05)          # 2.5 periods
-        s.control(None, f2)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(None, f2))
     assert t.number == codes.R_OVERRUN
     assert rt_robot.released()
 
 
 def test_hung_user_function_is_released_by_the_watchdog(robot):
-    s = session(robot.url, rate_hz=50)
+    s = session(robot.url, rate_hz=50, overrun="error")
     go = threading.Event()
     with s:
         state = {"n": 0}
@@ -215,8 +221,7 @@ def test_user_generated_termination_a52(robot):
         def f1():
             if s.how.cycle > 3:
                 s.terminate = codes.R_USER_BASE + 7
-        s.control(f1)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(f1))
     assert t.code == codes.R_USER_BASE + 7 and "user-generated" in codes.reason(t.code)
 
 
@@ -231,13 +236,12 @@ def test_stalled_link_is_a_timeout_within_two_periods(rt_robot):
             return None
         return data
     rt_robot.mon.fault = fault
-    s = session(rt_robot.url, rate_hz=50)
+    s = session(rt_robot.url, rate_hz=50, timeout=None)
     with s:
-        s.control(None, None)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(None, None))
         late = time.monotonic() - s.how.received
     assert t.number == codes.R_TIMEOUT and t.severe
-    assert late < 2 * 0.02 + 0.05          # two periods after the last HOW, plus scheduling slack
+    assert late < 2 * 0.02 + 0.06          # two periods after the last HOW, plus scheduling slack
     assert rt_robot.released() and rt_robot.powered_off()
 
 
@@ -251,8 +255,7 @@ def test_corrupted_frame_is_r_chksum(robot):
     robot.mon.fault = fault
     s = session(robot.url)
     with s:
-        s.control(None, None)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(None, None))
     assert t.number == codes.R_CHKSUM and t.cycle == 14    # the last good HOW was 14
     assert robot.released()
 
@@ -261,8 +264,7 @@ def test_lost_frame_is_a_sequence_gap(rt_robot):
     rt_robot.mon.fault = lambda seq, data: None if seq == 12 else data
     s = session(rt_robot.url, rate_hz=50, timeout=0.1)
     with s:
-        s.control(None, None)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(None, None))
     assert t.number == codes.R_SEQGAP and t.cycle == 13
 
 
@@ -277,8 +279,7 @@ def test_robot_vanishing_mid_motion_is_detected(robot):
     with s:
         def f1():
             s.chg.motion[0].issue(POS, int(s.how.pos[0]) + 5)
-        s.control(f1)
-        t = run_until_terminated(s)
+        t = run_until_terminated(s, lambda: s.control(f1))
     assert t.number == codes.R_BTEST and "link lost" in t.detail and t.severe
 
 
@@ -303,8 +304,8 @@ def _one_command(robot, issue, checking=None, rate=100):
                 s.chg.checking.issue(1, checking)
             if state["n"] == 3:
                 issue(s)
-        s.control(f1)
         try:
+            s.control(f1)
             s.wait(0.3)
         except ControlTerminated as e:
             return e.termination
@@ -358,8 +359,8 @@ def test_error_reaches_a_main_thread_blocked_in_sleep(rt_robot):
 def test_default_handler_prints_terminate_and_exits(rt_robot, capsys):
     s = session(rt_robot.url, rate_hz=50, signals=True, on_error=None)
     s.open()
-    s.control(lambda: 1 / 0)
     with pytest.raises(SystemExit) as e:
+        s.control(lambda: 1 / 0)      # the error of the first cycle is delivered before control() returns
         time.sleep(5.0)
     assert e.value.code == 1
     err = capsys.readouterr().err
