@@ -254,7 +254,8 @@ class Robot:
 
         def context(i):
             pose = t if i is None else t[i]
-            return f"pose T = {_fmt_pose(pose)}, configuration {cfg}"
+            row = "" if i is None else f"batch row {i}: "
+            return f"{row}pose T = {_fmt_pose(pose)}, configuration {cfg}"
 
         (q,), guards, _ = self.raw("ik", t, signs)
         q = np.array(q)
