@@ -32,9 +32,10 @@ test: $(STAMP)
 
 demo: $(STAMP) $(DERIVED)
 	$(PY) -m derive.crosscheck --samples 2000
+	$(PY) -m rccl.plots
 
 bench: $(STAMP)
-	@echo "bench: no benchmarks yet"
+	$(PY) bench/rccl_cycle.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
