@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
 import rccl                                                   # 1  #include <robot/rccl.h>
 from rccl import EQ, T6, TL, gentr_rot, gentr_trsl, makeposition, yunit
@@ -60,8 +61,9 @@ def _cli(argv: list[str]) -> int:
     print("final joint angles (deg):", [round(math.degrees(float(x)), 3) for x in q])
     if plot:
         from rccl.plots import path_plot
-        out = path_plot(arm, [("p0", P0_T6), ("park", arm.park.solve())],
-                        title="thesis 5.3.4: move(p0); move(park)  (simula, 36 Hz)")
+        out = path_plot(arm, [("p0", P0_T6), ("park", arm.park.solve())], title="thesis 5.3.4: move(p0); "
+                        "move(park) (simula, 36 Hz)", out=Path(__file__).resolve().parent.parent / "reports"
+                        / "rccl-program-534.png")
         print("wrote", out)
     return 0
 
