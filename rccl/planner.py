@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from .exceptions import BadRequest, MotionError, NotRunning, TrajectoryFault
+from .exceptions import BadRequest, ConfigurationChange, TrajectoryFault
 from .limits import Limits
 from .motion import MotionParams, Request
 from .position import Position
@@ -88,6 +88,15 @@ class Planner:
             if isinstance(err, TrajectoryFault):
                 raise err
             raise TrajectoryFault(f"a queued request was refused by the trajectory generator: {err}", err)
+        if self.gen.faulted is not None:
+            raise TrajectoryFault(f"the arm is stopped after a fault ({self.gen.faulted}); call recover() to "
+                                  "hold it where it is and go on", self.gen.faulted)
+
+    def recover(self) -> None:
+        """After a TrajectoryFault: drop queued requests and hold the arm where it stopped; moves work again."""
+        self._reported = len(self.gen.errors)
+        self.gen.restart()
+        self._pred_t6 = self._pred_q = None
 
     # -- parameters (5.3.2) ------------------------------------------------------------
     def setvel(self, translational: float, rotational: float) -> None:
@@ -160,7 +169,6 @@ class Planner:
         if req.params.mode == "cartesian" and req.params.config is not None:
             cfg_b = self.kin.config_of(self._pred_q)
             if resolve_config(self.kin, cfg_b, req.params.config) != cfg_b:
-                from .exceptions import ConfigurationChange
                 raise ConfigurationChange(
                     f"move({req.position.name}): Cartesian mode cannot change the arm configuration; "
                     "use setmod('joint') with setconf()")
@@ -172,5 +180,3 @@ class Planner:
     def running(self) -> bool:
         return self.gen.faulted is None
 
-
-__all__ = ["Planner", "parse_config", "MotionError", "NotRunning"]

@@ -375,10 +375,22 @@ class TrajectoryGenerator:
         self.errors: list[MotionError] = []
         self.faulted: TrajectoryFault | None = None
         self.trans: Transition | None = None
-        here = joint_position("here", kin, self.q)
-        start = Request(here, here.snapshot(), MotionParams(mode="joint"), repeat=True, status="running")
-        self.seg = plan_segment(kin, limits, self.dt, start, kin.fk(self.q), self.q, 0.0, 0.0)
         self.samples = 0
+        self._hold_here(0.0)
+
+    def _hold_here(self, t: float) -> None:
+        """Make the arm hold at the last commanded joint angles from time ``t`` on."""
+        here = joint_position("here", self.kin, self.q)
+        start = Request(here, here.snapshot(), MotionParams(mode="joint"), repeat=True, status="running")
+        self.seg = plan_segment(self.kin, self.limits, self.dt, start, self.kin.fk(self.q), self.q, t, 0.0)
+        self.trans = None
+
+    def restart(self) -> None:
+        """Clear a fault (planning level): the arm holds where it was frozen and accepts new requests."""
+        self.queue.clear()
+        self.faulted = None
+        self.q_prev = self.q.copy()
+        self._hold_here(self.t)
 
     # -- the per-sample entry point ---------------------------------------------------
     def step(self) -> np.ndarray:

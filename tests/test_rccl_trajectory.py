@@ -340,3 +340,43 @@ def test_target_moving_out_of_reach_stops_the_arm_without_a_jump():
     assert r.status == "failed"
     with pytest.raises(TrajectoryFault, match="stopped the arm"):
         arm.waitfor(p.end, timeout=1.0)
+
+
+def test_request_refused_at_the_control_level_holds_the_arm_and_is_reported():
+    gen, arm = make(36.0)
+    arm.setmod("c")
+    pa, _ = at(trsl(0.03, 0.0, 0.0), "pa")
+    pb, tb = at(trsl(0.0, 0.03, 0.0), "pb", kind="variable")
+    ra, rb = arm.move(pa), arm.move(pb)        # both fine when queued
+    tb.p = tb.p + np.array([0.5, 0.0, 0.0])   # pb moves out of reach before its motion starts
+    q = run_until(gen, lambda: rb.status != "queued" and rb.status != "running")
+    q = np.concatenate([q, run(gen, 1.0)])
+    assert ra.status == "done" and rb.status == "failed" and isinstance(rb.error, Unreachable)
+    assert gen.faulted is None                         # not a freeze: the arm decelerated and holds at pa
+    assert np.allclose(K.fk(q[-1]), pa.solve(), atol=1e-9)
+    assert np.all(np.abs(np.diff(np.diff(q, axis=0), axis=0)) <= LIM.joint_acceleration * gen.dt ** 2 * 1.05)
+    with pytest.raises(TrajectoryFault, match="refused.*pb"):
+        arm.move(pa)
+    arm.move(pa)                                       # reported once; the session goes on
+
+
+def test_recover_after_a_fault():
+    gen, arm = make(36.0)
+    arm.setmod("c")
+    p, t = at(trsl(0.05, 0.0, 0.0), "p", kind="variable")
+    arm.move(p)
+    run(gen, 0.5)
+    t.p = t.p + np.array([0.6, 0.0, 0.0])
+    run(gen, 0.2)
+    with pytest.raises(TrajectoryFault):
+        arm.move(p)
+    with pytest.raises(TrajectoryFault, match="recover"):
+        arm.move(p)
+    q_frozen = gen.q.copy()
+    arm.recover()
+    t.p = t.p - np.array([0.6, 0.0, 0.0])
+    r = arm.move(p)
+    q = run_until(gen, lambda: r.status == "done")
+    assert np.all(np.abs(np.diff(q, axis=0)) <= LIM.joint_velocity * gen.dt * 1.001)
+    assert np.allclose(q[0], q_frozen, atol=LIM.joint_velocity.max() * gen.dt)
+    assert np.allclose(K.fk(q[-1]), p.solve(), atol=1e-9)
