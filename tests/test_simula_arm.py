@@ -204,10 +204,11 @@ def test_pulley_mass_adds_m_g_r_to_the_joint_torque():
 
 
 def test_cold_joint_has_more_friction_than_warm():
-    cold = powered(Arm(PUMA, truth_from_model(PUMA), seed=7, start="ready"))
+    t = truth_from_model(PUMA)
+    cold = powered(Arm(PUMA, replace(t, disturbances=replace(t.disturbances, warmup_time=4.0)), seed=7, start="ready"))
     assert np.all(cold.friction.cold_factor() == pytest.approx(1.2))
     e = cold.counters()
-    for k in range(1, 36 * 30):
+    for k in range(1, 36 * 10):
         cycle(cold, **{"0": (POS, int(e[0] - k * 20))})          # +0.1 rad/s (R11 < 0)
     assert cold.friction.cold_factor()[0] < 1.05 and cold.friction.cold_factor()[1] == pytest.approx(1.2)
 
@@ -295,3 +296,25 @@ def test_microbo_prismatic_axis_follows_pos():
     assert arm.q[1] - mb.poses["ready"][1] == pytest.approx(0.005, abs=1e-6)
     lift = arm.conv.adc_to_joint_torques(arm.sample().adcr[:6])[1]
     assert lift > 0.8 * mb.gravity_coeffs["c12"].value                   # the lift carries the arm's weight
+
+
+def test_dynamic_mode_conserves_energy_without_friction():
+    """--dynamic: with no friction and no motor current the arm swings as a free multibody
+    (Pinocchio crba/rnea plus reflected rotor inertia): kinetic + potential energy is kept."""
+    import pinocchio as pin
+    zero = np.zeros(6)
+    truth = replace(quiet_truth(), coulomb_pos=zero, coulomb_neg=zero, viscous_pos=zero, viscous_neg=zero,
+                    static_pos=zero, static_neg=zero, hold_std=zero, hold_mean=zero)
+    arm = powered(Arm(PUMA, truth, seed=1, start="ready", dynamic=True))
+    arm.q = np.radians([0.0, 60.0, -120.0, 30.0, -60.0, 0.0])
+
+    def energy():
+        kin = 0.5 * arm.qd @ arm._inertia(arm.q) @ arm.qd
+        return kin + pin.computePotentialEnergy(arm.pm, arm.pd, arm.q)
+
+    e0 = energy()
+    for _ in range(9):
+        cycle(arm, **{str(j): (CUR, 0) for j in range(6)})
+    assert np.max(np.abs(arm.qd)) > 0.5                  # it really moved
+    kinetic = 0.5 * arm.qd @ arm._inertia(arm.q) @ arm.qd
+    assert abs(energy() - e0) < 0.02 * kinetic

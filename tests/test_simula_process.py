@@ -240,7 +240,7 @@ def test_lockstep_is_deterministic():
 
 
 def test_realtime_mode_keeps_its_clock_and_watchdog_stops_the_arm():
-    with SimulaProcess("-p", "--watchdog", "4", lockstep=False) as sim:
+    with SimulaProcess("-p", "--watchdog", "4", "--watchdog-time", "0", lockstep=False) as sim:
         ctl = Controller(sim.url, rate=100)
         assert ctl.hello().mode == protocol.MODE_REALTIME
         h = ctl.start()

@@ -53,9 +53,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=int, default=36, help="sample rate announced before START (Hz)")
     p.add_argument("--watchdog", type=int, default=WATCHDOG_CYCLES,
                    help="real-time mode: missing CHGs in a row before the arm is stopped")
+    p.add_argument("--watchdog-time", type=float, default=0.1,
+                   help="real time: and at least this many seconds without a CHG (default 0.1 s)")
+    p.add_argument("--priority", type=int, default=70,
+                   help="real time: SCHED_FIFO priority (0: leave the scheduler alone); falls back quietly")
     p.add_argument("--warm", action="store_true", help="start with warmed-up joints (no cold friction excess)")
     p.add_argument("--power-on", action="store_true", help="start with arm power on")
     return p
+
+
+def _realtime_setup(server: Server, priority: int) -> None:
+    """SCHED_FIFO, locked memory and a frozen GC for the real-time loop, where the OS allows."""
+    import gc
+
+    from ..realtime import RealtimeStatus, lock_memory, set_fifo
+    status = RealtimeStatus()
+    set_fifo(priority, status)
+    lock_memory(status)
+    gc.collect()
+    gc.freeze()
+    server.log(f"real-time set-up: SCHED_FIFO {status.sched_fifo}, mlockall {status.mlockall}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         if not 4 <= args.rate <= 1000:
             raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")
         server = Server(arm, model.name, lockstep=args.lockstep, verbose=args.verbose, rate_hz=args.rate,
-                        watchdog=max(1, args.watchdog))
+                        watchdog=max(1, args.watchdog), watchdog_time=max(0.0, args.watchdog_time))
         url = server.open_pty() if args.pty else server.listen_tcp(args.host, args.port)
         control = None if args.no_control else ControlChannel("127.0.0.1", args.control_port)
     except (ModelError, SimulaError, ValueError, OSError) as exc:
@@ -89,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     def _stop(signum, frame):  # noqa: ARG001 - signal handler signature
         raise SystemExit(0)
 
+    if not args.lockstep and args.priority > 0:
+        _realtime_setup(server, args.priority)
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     try:

@@ -129,13 +129,15 @@ class Server:
     """Serves one arm to successive clients; call :meth:`serve_forever`."""
 
     def __init__(self, arm: Arm, robot: str, *, lockstep: bool = False, verbose: bool = False,
-                 rate_hz: int = 36, watchdog: int = WATCHDOG_CYCLES, out=None, err=None) -> None:
+                 rate_hz: int = 36, watchdog: int = WATCHDOG_CYCLES, watchdog_time: float = 0.1,
+                 out=None, err=None) -> None:
         self.arm = arm
         self.robot = robot
         self.lockstep = lockstep
         self.verbose = verbose
         self.rate = rate_hz
         self.watchdog = watchdog
+        self.watchdog_time = watchdog_time
         self.out = out or sys.stdout
         self.err = err or sys.stderr
         self.listener: socket.socket | None = None
@@ -340,7 +342,7 @@ class Server:
         if not self.got_chg:
             self.overruns += 1
             self.missed += 1
-            if self.missed >= self.watchdog:
+            if self.missed >= self.watchdog and self.missed / self.rate >= self.watchdog_time:
                 self.arm.hold_all()
                 self.arm._flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped")
                 self.log(self.arm.status_text)
