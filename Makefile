@@ -33,9 +33,11 @@ test: $(STAMP)
 demo: $(STAMP) $(DERIVED)
 	$(PY) -m derive.crosscheck --samples 2000
 	$(PY) -m rccl.plots
+	$(VENV)/bin/calib report
 
 bench: $(STAMP)
 	$(PY) bench/rccl_cycle.py
+	$(PY) bench/calib_fit.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

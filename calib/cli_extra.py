@@ -33,7 +33,7 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True) -> dict:
         out = run_fit(kind, sel, info, params)
         update_params(params_path, info.name, out.sections, f"calib fit {kind} ({len(sel)} logs)")
         outcomes[kind] = out
-    return {"info": info, "outcomes": outcomes}
+    return {"info": info, "outcomes": outcomes, "traces": traces}
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -53,9 +53,16 @@ def _report(args: argparse.Namespace) -> int:
     if "friction" in outcomes:
         plots = friction_plots(outcomes["friction"].results, outcomes["friction"].extra["points"],
                                out_dir, prefix="calib-friction-j")
-    rel = [os.path.relpath(p, os.path.dirname(LOG_DIR) + "/..") for p in paths]
+    from calib.truth import simula_variation
+    vt = {}
+    for tr in res["traces"]:
+        if tr.experiment == "friction" and "simula_seed" in tr.meta:
+            vt[tr.meta["joint"]] = simula_variation(info.name, int(tr.meta["simula_seed"]),
+                                                    tr.meta["joint"], tuple(tr.meta["window"]))
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    rel = [os.path.relpath(os.path.abspath(p), root) for p in paths]
     text = render(info, simulator_truth(info), outcomes, "calib report",
-                  "calib regen-logs", rel, [os.path.relpath(p, out_dir) for p in plots])
+                  "calib regen-logs", rel, [os.path.relpath(p, out_dir) for p in plots], vt)
     _atomic_write(args.out, text)
     for kind, out in outcomes.items():
         print(out.table + "\n")
@@ -111,8 +118,5 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     rep.add_argument("--params", help="also keep the fitted parameter file here")
     rep.add_argument("-q", "--quiet", action="store_true")
     rep.set_defaults(func=_report)
-    try:
-        from calib.regen import add_regen
-        add_regen(sub)
-    except ImportError:
-        pass
+    from calib.regen import add_regen
+    add_regen(sub)

@@ -52,7 +52,9 @@ def bounded_lsq(A: np.ndarray, y: np.ndarray, lower: np.ndarray | None = None,
                           {"print_iter": False, "print_header": False, "print_info": False,
                            "error_on_fail": True})
         sol = solver(h=ca.DM(H), g=ca.DM(g), lbx=ca.DM(lb), ubx=ca.DM(np.full(p, np.inf)))
-        x = np.array(sol["x"]).ravel()
+        # the active-set solver may land a hair outside a bound (-1e-19): put it on it,
+        # since a consumer checks "friction >= 0" literally
+        x = np.maximum(np.array(sol["x"]).ravel(), lb)
     active = np.isclose(x, lb) & (x_free < lb)
     resid = A @ x - y
     dof = max(n - p, 1)

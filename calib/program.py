@@ -32,8 +32,14 @@ class RunInfo:
 
 
 def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
-             realtime: bool = False, extra_meta: dict | None = None) -> RunInfo:
-    """Run ``plan`` on the robot (or simula) at ``url`` and record it into ``log_path``."""
+             realtime: bool = False, extra_meta: dict | None = None,
+             timeout: float | None = 5.0) -> RunInfo:
+    """Run ``plan`` on the robot (or simula) at ``url`` and record it into ``log_path``.
+
+    ``timeout`` (s without a HOW before R_TIMEOUT) is generous by default because a
+    lockstep simula on a busy machine may take much longer than a period per cycle;
+    pass None for the session's default of two periods when driving a real arm.
+    """
     conv = Conversions.for_robot(robot)
     body = plan.path.sample(rate_hz)
     meta = dict(plan.meta)
@@ -44,7 +50,7 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
     rec = Recorder(log_path, robot=robot, rate_hz=rate_hz, meta=meta, block_records=1024)
     rec.start_writer(0.5)
     session = Session(url, robot, rate_hz=rate_hz, realtime=realtime, lock_memory=False,
-                      on_error="raise", gc="leave", overrun="count")
+                      on_error="raise", gc="leave", overrun="count", timeout=timeout)
 
     def f1() -> None:
         how, chg = session.how, session.chg

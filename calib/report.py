@@ -27,7 +27,8 @@ def _vec(info: RobotInfo, *keys: str) -> np.ndarray:
 
 
 def render(info: RobotInfo, truth: Truth, outcomes: dict[str, FitOutcome], command: str,
-           regen: str, logs: list[str], plots: list[str]) -> str:
+           regen: str, logs: list[str], plots: list[str],
+           variation_truth: dict[int, tuple[float, float]] | None = None) -> str:
     """The Markdown report."""
     L: list[str] = [
         "# Calibration of the PUMA 260 from recorded logs (thesis chapter 4)", "",
@@ -78,13 +79,21 @@ def render(info: RobotInfo, truth: Truth, outcomes: dict[str, FitOutcome], comma
                 L.append(f"| {r.joint} | {name} | {1e3 * th:.2f} +- {1e3 * te:.2f} | {1e3 * tr[j]:.2f} | "
                          f"{1e3 * fit.viscous:.2f} +- {1e3 * fit.viscous_err:.2f} | {1e3 * d:.2f} | {_ok(d <= te)} |")
         L += ["", "## Table 4.4: variation of the friction along the path", "",
-              "Fit: peak deviation of the position profile of the friction (average of both "
-              "directions, all speeds) from its mean.", "",
-              "| joint | thesis | truth (simula) | fit |", "|---|---|---|---|"]
+              "simula multiplies the Coulomb friction by 1 + v p(q), with v the Table 4.4 value "
+              "and p a seeded pattern of spatial harmonics, |p| <= 1. The fit estimates the "
+              "variation as sqrt(2) x the noise-corrected RMS of the friction's position profile "
+              "(docs/calib.md); its truth is the same statistic of simula's pattern over the "
+              "same window (read from simula with the logs' seed), shown with the pattern's "
+              "peak over the window.", "",
+              "| joint | thesis | simula bound v | simula peak in window | truth sqrt(2) RMS | fit |",
+              "|---|---|---|---|---|---|"]
+        vt = variation_truth or {}
         for r in res:
             j = r.joint - 1
+            peak, rms = vt.get(r.joint, (float("nan"), float("nan")))
             L.append(f"| {r.joint} | {100 * fr['variation']['values'][j]:.0f} % | "
-                     f"{100 * truth.variation[j]:.0f} % | {100 * r.variation:.0f} % |")
+                     f"{100 * truth.variation[j]:.0f} % | {100 * peak:.1f} % | {100 * rms:.1f} % | "
+                     f"{100 * r.variation:.1f} % |")
         L += ["", "Appendix B: friction against speed (o + direction, filled - direction; lines: the fit)", ""]
         L += [f"![{p}]({p.split('/')[-1]})" for p in plots]
         L.append("")

@@ -52,3 +52,25 @@ def simulator_truth(info: RobotInfo, samples: int = 300, seed: int = 0) -> Truth
                  viscous_pos=v("viscous_pos"), viscous_neg=v("viscous_neg"),
                  variation=v("variation"), gravity=c,
                  gravity_fit_residual=float(np.abs(A @ c - y).max()))
+
+
+def simula_variation(robot: str, seed: int, joint: int, window: tuple[float, float]) -> tuple[float, float]:
+    """(peak, sqrt(2) x RMS) of the relative Coulomb variation simula applies to
+    ``joint`` (1-based) over ``window`` (rad), for a simula started with ``seed``.
+
+    This reads the simulator's own friction pattern (rci.simula), so that the fitted
+    Table 4.4 value can be compared with what the logs really contain, not only with
+    the bound the simulator was given.
+    """
+    from rci.robot_model import load_robot
+    from rci.simula.arm import Arm
+    from rci.simula.params import truth_from_model
+
+    model = load_robot(robot)
+    truth = truth_from_model(model)
+    arm = Arm(model, truth, seed=seed, start="ready")
+    th = np.linspace(window[0], window[1], 4000)
+    q = np.zeros((len(th), model.n_joints))
+    q[:, joint - 1] = th
+    pattern = np.array([arm.friction.pattern(x)[joint - 1] for x in q]) * truth.variation[joint - 1]
+    return float(np.abs(pattern).max()), float(np.sqrt(2.0) * pattern.std())
