@@ -307,3 +307,17 @@ def test_bad_command_line_exits_with_a_message(tmp_path):
         r = subprocess.run([sys.executable, "-m", "rci.simula", "--port", "0", *args],
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and text in r.stderr
+
+
+def test_environment_option_presses_the_tool_on_a_plane():
+    with SimulaProcess("-p", "--warm", "--env", "plane:z=0.1542", "--env", "tool:z=0.05") as sim:
+        ctl = Controller(sim.url)
+        ctl.hello()
+        h = power_on(ctl, ctl.start())
+        hold = h.pos.copy()
+        for _ in range(20):
+            h = ctl.cycle(h, pos({j: hold[j] for j in range(6)}))
+        force = sim.command("state")["state"]["contact_force"]
+        assert force[2] == pytest.approx(2e4 * (0.1542 - 0.1532), rel=0.05)
+        ctl.end(h)
+        ctl.bye()

@@ -47,6 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-control", action="store_true", help="no control channel")
     p.add_argument("--seed", type=int, default=0, help="seed of every random disturbance (reproducible runs)")
     p.add_argument("--load", default="none", help="pulley load: pulley:joint=J,mass=KG,radius=M[,sign=+-1]")
+    p.add_argument("--env", action="append", default=[], metavar="SPEC",
+                   help="environment (repeatable): plane:z=..., box:..., conveyor:..., tool:z=... "
+                        "(rci/simula/environment.py)")
     p.add_argument("--params", help="parameter file fitted by calib (schema rcci-calib-params/1)")
     p.add_argument("--dynamic", action="store_true",
                    help="couple current-mode joints through the full mass matrix and Coriolis terms")
@@ -85,8 +88,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.warm:
             truth = replace(truth, disturbances=replace(truth.disturbances, start_warm=True))
         load = parse_load(args.load, model.n_joints)
-        arm = Arm(model, truth, seed=args.seed, start=args.start or "uncalibrated",
-                  dynamic=args.dynamic, load=load)
+        kw = dict(seed=args.seed, start=args.start or "uncalibrated", dynamic=args.dynamic, load=load)
+        if args.env:
+            from .environment import EnvironmentArm, parse_environment
+            arm: Arm = EnvironmentArm(model, truth, environment=parse_environment(args.env), **kw)
+        else:
+            arm = Arm(model, truth, **kw)
         arm.power = bool(args.power_on)
         if not 4 <= args.rate <= 1000:
             raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")
