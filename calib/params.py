@@ -13,7 +13,10 @@ import os
 import tempfile
 import tomllib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from calib.errors import CalibError
 
@@ -104,3 +107,55 @@ def _value(v: Any) -> str:
     if hasattr(v, "tolist"):
         return _value(v.tolist())
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """The values a runtime program needs (zero gravity, compliance, 4.37/4.38), SI units:
+    fitted where the parameter file has them, the robot data file's elsewhere."""
+
+    robot: str
+    sigma: np.ndarray
+    coulomb_pos: np.ndarray
+    coulomb_neg: np.ndarray
+    viscous_pos: np.ndarray
+    viscous_neg: np.ndarray
+    static_pos: np.ndarray
+    static_neg: np.ndarray
+    gravity_coeffs: dict[str, float]
+    source: str
+
+
+def load_fitted(path: str | None, robot: str) -> Fitted:
+    """Fitted parameters of ``robot`` from the file at ``path`` (None: the data file's).
+
+    Usage in a control program: ``p = load_fitted(args.params, "puma260")`` then
+    ``Conversions.from_model(model, sigma=p.sigma)`` and ``gravity(q, p.gravity_coeffs)``.
+    """
+    from calib.robot import robot_info
+
+    nominal = robot_info(robot).nominal
+    data = read_params(path) if path else {"calib": {"robot": robot}}
+    if data["calib"].get("robot") != robot:
+        raise CalibError(f"{path}: parameters are for robot {data['calib'].get('robot')!r}, not {robot!r}")
+
+    def vec(section: str, key: str, nom: list[float]) -> np.ndarray:
+        out = np.array(nom, dtype=float)
+        got = data.get(section, {}).get(key)
+        if got is not None:
+            got = np.asarray(got, dtype=float)
+            if got.shape != out.shape:
+                raise CalibError(f"{path}: [{section}] {key} has {got.size} values, expected {out.size}")
+            out = np.where(np.isfinite(got), got, out)
+        return out
+
+    fr = nominal["friction"]
+    grav = {k: float(v["value"]) for k, v in nominal["gravity_coeffs"].items()}
+    for k in grav:
+        if k in data.get("gravity_coeffs", {}):
+            grav[k] = float(data["gravity_coeffs"][k])
+    return Fitted(robot=robot,
+                  sigma=vec("motors", "torque_sensitivity", nominal["motors"]["torque_sensitivity"]["values"]),
+                  **{k: vec("friction", k, fr[k]["values"]) for k in
+                     ("coulomb_pos", "coulomb_neg", "viscous_pos", "viscous_neg", "static_pos", "static_neg")},
+                  gravity_coeffs=grav, source=path or "robot data file")

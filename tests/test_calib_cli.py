@@ -104,3 +104,19 @@ def test_gzipped_log_fits_like_the_plain_one(tmp_path, capsys):
     open(gz, "wb").write(open(gz, "rb").read()[:-50])
     assert main(["fit", "friction", gz, "-q"]) == 2
     assert gz in capsys.readouterr().err
+
+
+def test_runtime_loads_fitted_values_and_keeps_the_rest_nominal(tmp_path, capsys):
+    from calib.errors import CalibError
+    from calib.params import load_fitted
+
+    params = str(tmp_path / "fitted.toml")
+    assert main(["fit", "friction", _friction_log(tmp_path, 3), "--params", params, "-q"]) == 0
+    fitted = load_fitted(params, "puma260")
+    nominal = load_fitted(None, "puma260")
+    assert fitted.coulomb_pos[2] == pytest.approx(FC_P[2], abs=0.03)
+    assert fitted.coulomb_pos[2] != nominal.coulomb_pos[2]
+    np.testing.assert_array_equal(fitted.coulomb_pos[[0, 1, 3, 4, 5]], nominal.coulomb_pos[[0, 1, 3, 4, 5]])
+    np.testing.assert_array_equal(fitted.sigma, nominal.sigma)
+    with pytest.raises(CalibError, match="not 'microbo'"):
+        load_fitted(params, "microbo")
