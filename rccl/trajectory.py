@@ -255,9 +255,10 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
             seg.q_dest = q_c
             t_lim = 0.0
             v_start_dir = v_end_dir = np.zeros(6)
-        elif (seg.static and req.profile is not None and np.array_equal(req.profile[0], t6_b)
+        elif (req.profile is not None and np.array_equal(req.profile[0], t6_b)
+              and np.array_equal(req.profile[3], t6_c)
               and np.allclose(req.profile[1], q_b, rtol=0.0, atol=1e-12)):
-            # move() already checked this path from this very corner: reuse its results
+            # move() already checked this very path (same corner, same destination): reuse its results
             t_joint, v_start_dir, v_end_dir, seg.q_dest = req.profile[2]
             t_lim = max(t_vel, t_joint)
         else:
@@ -284,8 +285,7 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
             t_lim = max(t_vel, t_joint)
             v_start_dir = (path[1] - path[0]) * n
             v_end_dir = (path[-1] - path[-2]) * n
-            if seg.static:
-                req.profile = (t6_b.copy(), q_b.copy(), (t_joint, v_start_dir, v_end_dir, seg.q_dest))
+            req.profile = (t6_b.copy(), q_b.copy(), (t_joint, v_start_dir, v_end_dir, seg.q_dest), t6_c.copy())
     travel = params.travel_time
     T = max(t_lim, travel) if travel is not None else t_lim
     tau_req = params.transition_time / 2.0
