@@ -125,6 +125,8 @@ class Arm:
         self.counts_per_rev = np.array(model.conversion.encoder_counts_per_motor_rev.values, dtype=float)
         self.load = load
         self.ext = np.zeros(n)                  # external joint torques applied by a test (N*m / N)
+        self._zeros = np.zeros(n)
+        self._zeros.flags.writeable = False
 
         if start == "ready":
             q0 = np.array(model.poses["ready"], dtype=float)
@@ -163,6 +165,7 @@ class Arm:
         self.outport1 = 0
         self.pendant = 0
         self.limit_hits = 0
+        self._alpha_h, self._alpha = -1.0, 1.0
 
     # --- helpers -------------------------------------------------------------------
     def counters(self) -> np.ndarray:
@@ -301,6 +304,8 @@ class Arm:
 
     def _load_torque(self) -> tuple[np.ndarray, np.ndarray]:
         """(external load torque, extra Coulomb friction) from the pulley, joint level."""
+        if self.load is None:
+            return self._zeros, self._zeros
         tau = np.zeros(self.n)
         fc = np.zeros(self.n)
         if self.load is not None and self.load.mass > 0:
@@ -350,7 +355,7 @@ class Arm:
         lim = self.imax * self.truth.sigma
         ts = np.zeros(n)
         driven = ~servo
-        ts[driven] = np.clip(conv.dac_to_motor_torques(self.dac.astype(float))[driven], -lim[driven], lim[driven])
+        ts[driven] = np.clip((self.dac / conv.k_dac)[driven], -lim[driven], lim[driven])
         if not driven.any():
             ts = conv.G_inv.T @ need                               # all servo: t_s = G^-T t_j
             sat = np.abs(ts) > lim
@@ -394,7 +399,7 @@ class Arm:
                 trial = np.where(np.sign(trial) == direction[idx], trial, 0.0)
                 new_qd[idx] = trial
             new_qd[driven & ~go] = 0.0
-        e_before = conv.R @ q + e0
+        e_before = conv.R @ q + e0 if self.zindex.any() else None
         self.qd = qd = new_qd
         self.q = q = q + qd * h
         # mechanical stops
@@ -419,9 +424,9 @@ class Arm:
         M = np.triu(M) + np.triu(M, 1).T
         return M + self.rotor
 
-    def _zindex(self, e_before: np.ndarray) -> None:
+    def _zindex(self, e_before: np.ndarray | None) -> None:
         """Freeze zindex joints whose encoder passed an index mark (a multiple of counts/rev)."""
-        if not self.zindex.any():
+        if e_before is None or not self.zindex.any():
             return
         e_after = self.conv.angles_to_counts(self.q)
         N = self.counts_per_rev
@@ -446,7 +451,10 @@ class Arm:
         if ripple is not None and self.power:
             amp = ripple * np.abs(x) + d.ripple_floor
             x = x + amp * self.rng.uniform(-1.0, 1.0, self.n)
-        alpha = 1.0 - np.exp(-h / d.filter_tau) if d.filter_tau > 0 else 1.0
+        if h != self._alpha_h:
+            self._alpha = 1.0 - np.exp(-h / d.filter_tau) if d.filter_tau > 0 else 1.0
+            self._alpha_h = h
+        alpha = self._alpha
         self.filtered = self.filtered + alpha * (x - self.filtered)
 
     # --- sensors -----------------------------------------------------------------------

@@ -33,10 +33,11 @@ class JointFriction:
         w = rng.uniform(0.5, 1.0, size=(n, len(_HARMONICS)))
         self.weight = w / w.sum(axis=1, keepdims=True)      # |pattern| <= 1
         self.warmth = np.ones(n) if self.dist.start_warm else np.zeros(n)
+        self._h, self._up, self._down = -1.0, 0.0, 0.0
 
     def pattern(self, q: np.ndarray) -> np.ndarray:
         """Position-dependent relative deviation of the Coulomb friction, in [-1, 1] per joint."""
-        return np.sum(self.weight * np.sin(np.outer(q, np.ones(len(_HARMONICS))) * _HARMONICS + self.phase), axis=1)
+        return np.einsum("ij,ij->i", self.weight, np.sin(q[:, None] * _HARMONICS + self.phase))
 
     def cold_factor(self) -> np.ndarray:
         """Multiplier of all friction terms: 1 + cold_excess (1 - warmth)."""
@@ -63,7 +64,10 @@ class JointFriction:
 
     def warm(self, moving: np.ndarray, h: float) -> None:
         """Advance the temperature state by h seconds (moving joints warm up, idle ones cool)."""
-        d = self.dist
-        up = 1.0 - np.exp(-h / d.warmup_time) if d.warmup_time > 0 else 1.0
-        down = 1.0 - np.exp(-h / d.cooldown_time) if d.cooldown_time > 0 else 1.0
+        if h != self._h:
+            d = self.dist
+            self._up = 1.0 - np.exp(-h / d.warmup_time) if d.warmup_time > 0 else 1.0
+            self._down = 1.0 - np.exp(-h / d.cooldown_time) if d.cooldown_time > 0 else 1.0
+            self._h = h
+        up, down = self._up, self._down
         self.warmth = np.where(moving, self.warmth + up * (1.0 - self.warmth), self.warmth * (1.0 - down))
