@@ -68,14 +68,18 @@ def pick(robot: DHRobot, thesis: str, i: int, row: int, col: int) -> PickedEquat
     return PickedEquation(thesis, i, row, col, left[row - 1, col - 1], right[row - 1, col - 1])
 
 
-def solve_sin_cos(a: sp.Expr, b: sp.Expr, c: sp.Expr, sign: sp.Expr) -> sp.Expr:
+def solve_sin_cos(a: sp.Expr, b: sp.Expr, c: sp.Expr, sign: sp.Expr,
+                  radicand: sp.Expr | None = None) -> sp.Expr:
     """Thesis 3.21: theta with a sin(theta) + b cos(theta) = c.
 
     theta = -atan2(b, a) + atan2(c, sign*sqrt(a^2 + b^2 - c^2)); the radicand is clamped
     at zero so that boundary poses within the reach tolerance stay finite (the guard
     on the radicand rejects the others).
     """
-    radicand = a**2 + b**2 - c**2
+    if radicand is None:
+        radicand = a**2 + b**2 - c**2
+    else:
+        assert sp.expand(radicand - (a**2 + b**2 - c**2)) == 0, "radicand must equal a^2 + b^2 - c^2"
     root = sp.sqrt((radicand + sp.Abs(radicand)) / 2)  # sqrt(max(0, radicand))
     return -sp.atan2(b, a) + sp.atan2(c, sign * root)
 
@@ -115,9 +119,13 @@ def puma_ik() -> IKSolution:
     f = 2 * a2 * d4
     d = a2**2 + d4**2 - fp**2 - pz**2
     # elbow up <=> elbow above the shoulder-wrist line <=> arm*C3 < 0 (see report)
-    theta3_of_q1 = solve_sin_cos(f, 0, d, -arm * elbow)
+    # f^2 - d^2 factored as (f - d)(f + d): near the stretched elbow the difference of
+    # squares would cancel catastrophically, the factors do not (a2 = d4 makes f - d exact)
+    reach2 = fp**2 + pz**2
+    radicand3_q1 = (reach2 - (a2 - d4) ** 2) * ((a2 + d4) ** 2 - reach2)
+    theta3_of_q1 = solve_sin_cos(f, 0, d, -arm * elbow, radicand3_q1)
     theta3 = theta3_of_q1.subs(q1, theta1)
-    radicand3 = (f**2 - d**2).subs(q1, theta1)
+    radicand3 = radicand3_q1.subs(q1, theta1)
 
     # theta2 + theta3: rows 1 and 3 of the 4th column of A3^-1 A2^-1 A1^-1 T6 = U4 (3.29)
     e_23a = pick(r, "3.29", 3, 1, 4)

