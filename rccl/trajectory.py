@@ -162,6 +162,8 @@ class Transition:
     prev: Segment
     t_start: float
     tau: float
+    q_b: np.ndarray | None = None     # joints at the corner (Cartesian -> joint transitions)
+    q_ref: np.ndarray | None = None   # last joint solution of the old segment's remainder
 
     @property
     def t_end(self) -> float:
@@ -438,8 +440,13 @@ class TrajectoryGenerator:
         mu = alpha * tr.tau / prev.T
         if prev.mode == "joint":
             return seg.q_at(lam2, self.q) + mu * prev.dq
-        t6_2 = seg.t6_at(lam2) if seg.mode == "cartesian" else self.kin.fk(seg.q_at(lam2, self.q))
-        t6 = prev.residual(mu) @ t6_2
+        if seg.mode == "joint":
+            # Cartesian into joint mode: the old segment's remainder as a joint-space offset, so the
+            # new segment may change the configuration (continuous: d mu/dt matches d lam/dt at h = 0)
+            q_rest = self.kin.ik(prev.t6_at(mu), prev.config, tr.q_ref, prev.where)
+            tr.q_ref = q_rest
+            return seg.q_at(lam2, self.q) + (q_rest - tr.q_b)
+        t6 = prev.residual(mu) @ seg.t6_at(lam2)
         return self.kin.ik(t6, seg.config, self.q, f"transition {prev.where} -> {seg.where}")
 
     def _begin_transition(self) -> None:
@@ -471,7 +478,7 @@ class TrajectoryGenerator:
             hold = prev.req if prev.req.repeat else prev.req.repeated()
             seg = plan_segment(self.kin, self.limits, self.dt, hold, t6_b, q_b, t_b, tau, prev.v_end,
                                prev.v_cart if prev.mode == "cartesian" else None)
-        self.trans = Transition(prev, t_b - tau, tau)
+        self.trans = Transition(prev, t_b - tau, tau, q_b, self.q.copy())
         self.seg = seg
 
     def _check_step(self, q: np.ndarray) -> None:

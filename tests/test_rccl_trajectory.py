@@ -380,3 +380,22 @@ def test_recover_after_a_fault():
     assert np.all(np.abs(np.diff(q, axis=0)) <= LIM.joint_velocity * gen.dt * 1.001)
     assert np.allclose(q[0], q_frozen, atol=LIM.joint_velocity.max() * gen.dt)
     assert np.allclose(K.fk(q[-1]), p.solve(), atol=1e-9)
+
+
+def test_cartesian_into_joint_mode_with_a_configuration_change_is_continuous():
+    gen, arm = make(100.0)
+    start = K.config_of(Q0)
+    arm.setmod("c")
+    arm.setvel(0.1, 1.0)
+    pa, _ = at(trsl(0.04, 0.0, 0.0), "pa")
+    pb, _ = at(trsl(0.04, 0.04, 0.0), "pb")
+    arm.move(pa)
+    arm.setmod("j")
+    arm.setconf("n" if start.wrist < 0 else "f")
+    r = arm.move(pb)
+    q = run_until(gen, lambda: r.status == "done")
+    v, a = _fd(q, gen.dt)
+    assert np.all(np.abs(np.diff(v, axis=0)) <= LIM.joint_acceleration * gen.dt * 1.05)
+    assert np.all(np.abs(v) <= LIM.joint_velocity * 1.001)
+    assert K.config_of(q[-1]).wrist == -start.wrist
+    assert np.allclose(K.fk(q[-1]), pb.solve(), atol=1e-9)
