@@ -318,3 +318,38 @@ def test_dynamic_mode_conserves_energy_without_friction():
     assert np.max(np.abs(arm.qd)) > 0.5                  # it really moved
     kinetic = 0.5 * arm.qd @ arm._inertia(arm.q) @ arm.qd
     assert abs(energy() - e0) < 0.02 * kinetic
+
+
+def test_current_mode_adc_reads_dac_over_kappa_and_clips_at_max_current():
+    """For one motor current the DAC value is kappa times the ADC value (4.34 as read); the
+    amplifier limits the current to max_current."""
+    truth = quiet_truth(adc_noise=0.0, ripple_cur=0.0, ripple_floor=0.0, filter_tau=1e-5)
+    arm = powered(Arm(PUMA, truth, seed=3, start="ready"))
+    for _ in range(9):                                     # joint 1 stuck by stiction at 60 DAC counts
+        cycle(arm, **{"0": (CUR, 60)})
+    assert arm.qd[0] == 0.0
+    assert arm.sample().adcr[0] == round(60 / 1.333)
+    cycle(arm, **{"0": (CUR, 2047)})                       # asks for 5.7 A
+    limit = PUMA.max_current[0] * 0.301 / 0.00111         # 3 A through R_1 = 0.301 ohm, V_g = 1.11 mV/count
+    assert arm.qd[0] < 0 and arm.sample().adcr[0] == round(limit)
+
+
+def test_halts_in_position_mode_leave_table_4_6_static_friction():
+    """4.5.5, second method: at each halt, G^T K_adc v_adc - t_g (eq. 4.37, t_a = 0) is the
+    static friction; over many halts its mean and spread are those of Table 4.6."""
+    arm = powered(Arm(PUMA, quiet_truth(), seed=21, start="ready"))
+    rng = np.random.default_rng(0)
+    e = arm.counters()
+    samples = []
+    for _ in range(120):
+        e = e + np.r_[0, rng.integers(-400, 400), 0, 0, 0, 0]
+        cycle(arm, **{"1": (POS, int(e[1]))})
+        for _ in range(3):                                   # 83 ms at rest: the 15 ms filter settles
+            arm.step(DT)
+        tj = arm.conv.adc_to_joint_torques(arm.sample().adcr[:6])
+        samples.append(tj[1] - arm.gravity()[1])
+    samples = np.array(samples)
+    fr = PUMA.friction
+    assert np.mean(samples) == pytest.approx(fr.static_typical_mean.values[1], abs=0.1)
+    assert np.std(samples) == pytest.approx(fr.static_typical_std.values[1], rel=0.2)
+    assert samples.max() <= fr.static_pos.values[1] + 0.05 and samples.min() >= -fr.static_neg.values[1] - 0.05
