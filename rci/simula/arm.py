@@ -295,6 +295,21 @@ class Arm:
         self._hold_here(range(self.n))
 
     # --- physics ---------------------------------------------------------------------
+    def quiescent(self) -> bool:
+        """True when nothing can move: power off, or every joint held still on its target
+        with no external torque (the arm between two programs)."""
+        if not self.power:
+            return True
+        if np.any(self.mode == CURRENT) or np.any(self.qd != 0.0) or np.any(self.ext != 0.0):
+            return False
+        return bool(np.all(np.abs(self.conv.angles_to_counts(self.q) - self.target) < 1e-6))
+
+    def coast(self, dt: float) -> None:
+        """Advance a quiescent arm by ``dt`` s: time passes and the joints cool; the held
+        currents and the filter keep their last values."""
+        self.friction.warm(np.zeros(self.n, dtype=bool), dt)
+        self.t += dt
+
     def step(self, dt: float) -> None:
         """Advance the arm by ``dt`` seconds in servo-rate substeps (about 1 ms)."""
         nsub = max(1, int(round(dt * self.truth.disturbances.servo_rate_hz)))

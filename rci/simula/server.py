@@ -336,8 +336,8 @@ class Server:
     def _tick(self) -> None:
         """Real-time mode, one period elapsed: advance the arm and send the next HOW."""
         s = self.session
-        self.next_tick += 1.0 / self.rate
         if s is None or not s.running:
+            self.next_tick += 1.0 / self.rate
             return
         if not self.got_chg:
             self.overruns += 1
@@ -347,12 +347,14 @@ class Server:
                 self.arm._flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped")
                 self.log(self.arm.status_text)
                 self.arm.step(1.0 / self.rate)
+                self.next_tick += 1.0 / self.rate
                 self.seq = (self.seq + 1) & 0xFFFFFFFF
                 self._send_how()
                 s.running = False
                 return
         self.arm.step(1.0 / self.rate)
         self.rate = self._pending_rate
+        self.next_tick += 1.0 / self.rate          # the new rate's period from here on
         self._report()
         self.seq = (self.seq + 1) & 0xFFFFFFFF
         self.got_chg = False
@@ -369,7 +371,10 @@ class Server:
         running = self.session is not None and self.session.running
         if self.lockstep or running or dt <= 0:
             return
-        self.arm.step(min(dt, 0.5))
+        if self.arm.quiescent():
+            self.arm.coast(dt)                     # nothing moves: skip the 1 kHz physics
+        else:
+            self.arm.step(min(dt, 0.5))
         self._report()
 
     # --- main loop -----------------------------------------------------------------------------
