@@ -122,6 +122,12 @@ class Arm(Planner):
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close(power_off=False, wait=exc_type is None)
 
+    def check(self) -> None:
+        """Deliver RCI terminations and trajectory faults; refuse primitives once the control has ended."""
+        Planner.check(self)
+        if not self.rci.in_control:
+            raise NotRunning(f"{self.url}: RCCL's control is not running (closed or released)")
+
     # -- read-out ---------------------------------------------------------------------
     @property
     def q(self) -> np.ndarray:

@@ -185,3 +185,11 @@ def test_program_534_runs(sim):
     fk = arm._kin.fk
     assert min(np.linalg.norm(fk(q)[:3, 3] - p0[:3, 3]) for q in qm) < 0.02
     assert np.allclose(fk(qm[-1])[:3, 3], arm.park.solve()[:3, 3], atol=2e-4)
+
+
+def test_primitives_after_close_are_refused(sim):
+    arm = open_arm(sim, 36)
+    p = arm.park
+    arm.close()
+    with pytest.raises(rccl.NotRunning, match="not running"):
+        arm.move(p)
