@@ -18,7 +18,9 @@ aluminium fixture through a light wrist, compliant at about 2e4 N/m.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import pinocchio as pin
@@ -229,3 +231,35 @@ class EnvironmentArm(Arm):
         if self.environment.conveyor is not None:
             d["conveyor"] = [float(x) for x in self.environment.conveyor.position(self.t)]
         return d
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m rci.simula.environment --env WORD [--env WORD ...] [simula options]``: simula in an environment.
+
+    Every ``--env`` word is parsed by ``parse_environment``; the rest goes to simula's own
+    command line unchanged (``-p``, ``--lockstep``, ``--port``, ...).
+    """
+    from . import __main__ as simula_main
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    words: list[str] = []
+    rest: list[str] = []
+    it = iter(argv)
+    for a in it:
+        if a == "--env":
+            words.append(next(it, ""))
+        elif a.startswith("--env="):
+            words.append(a.split("=", 1)[1])
+        else:
+            rest.append(a)
+    try:
+        env = parse_environment(words)
+    except ValueError as exc:
+        print(f"simula: {exc}", file=sys.stderr)
+        return 2
+    simula_main.Arm = partial(EnvironmentArm, environment=env)   # simula builds its arm through this name
+    return simula_main.main(rest)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,40 @@
+"""Helper of the adaptive examples: a simula process inside an environment (plane, box, conveyor).
+
+``environment_simula("plane:z=0.12", "tool:z=0.05")`` is ``SimulaProcess`` started as
+``python -m rci.simula.environment --env plane:z=0.12 --env tool:z=0.05 -p --power-on
+--lockstep --port 0``: simula's own command line plus the environment words.
+"""
+from __future__ import annotations
+
+import sys
+import warnings
+
+from rci.simula.process import SimulaProcess
+
+
+class EnvironmentSimula(SimulaProcess):
+    """SimulaProcess running ``rci.simula.environment`` with ``--env`` words."""
+
+    def __init__(self, *env: str, args: tuple[str, ...] = ("-p", "--power-on", "--warm"), **kw) -> None:
+        super().__init__(*args, **kw)
+        i = self.argv.index("rci.simula")
+        self.argv[i] = "rci.simula.environment"
+        for word in env:
+            self.argv += ["--env", word]
+
+
+def environment_simula(*env: str, **kw) -> EnvironmentSimula:
+    warnings.filterwarnings("ignore", category=RuntimeWarning)   # Python kinematics without the C kernels
+    return EnvironmentSimula(*env, **kw)
+
+
+def url_from_argv(argv: list[str]) -> str | None:
+    """A ``socket://`` or device argument, if the user gave one."""
+    rest = [a for a in argv if not a.startswith("--")]
+    return rest[0] if rest else None
+
+
+if __name__ == "__main__":  # pragma: no cover - a quick check that the environment simula starts
+    with environment_simula("plane:z=0.12", "tool:z=0.05") as sim:
+        print(sim.url, sim.command("state")["state"]["contact_force"])
+    sys.exit(0)

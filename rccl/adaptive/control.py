@@ -1,0 +1,121 @@
+"""The per-sample adaptive work of RCCL (thesis 5.4, E.2, E.6), between ``how`` and ``chg``: no I/O.
+
+``AdaptiveControl.before(gen, q, qd, v_adc)`` runs before the generator's step: it
+estimates what the running motion needs (Jacobian at the measured joints, net joint
+torques 4.37, tool-frame force 4.56, tool-frame deviation E.2), checks the motion's limit
+and monitor and asks the generator to end the motion if one fires, and lets the comply
+transform absorb the deviation along the compliant axes. ``after(q_nominal)`` turns the
+generator's joint angles into the command: the comply transform added (E.6) and, for the
+joints chosen to force-servo the compliant directions, a DAC value (4.38) in current mode.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rci.conversions import DAC_MAX, DAC_MIN
+
+from ..transform import diff_map
+from .comply import Compliance, select_joints, servo_dac
+from .deviation import tool_to_frame6
+from .force import ForceEstimator, JointModel
+from .generator import AdaptiveGenerator
+from .limit import Limit
+from .monitor import Monitor, Sample
+
+# estimate: keep the force-servoed joint unless another does 1.5x better, so a joint does not
+# flip between current and position mode from one sample to the next near a tie
+SWITCH_RATIO = 1.5
+
+
+@dataclass
+class Command:
+    """One sample's command: joint angles (rad) for position-servoed joints, DAC values for the others."""
+
+    q: np.ndarray
+    current: dict[int, int] = field(default_factory=dict)    # joint -> DAC value
+
+
+class AdaptiveControl:
+    """Limits, monitors and compliance for one arm (``kin`` the generated kinematics module)."""
+
+    def __init__(self, kin, model: JointModel) -> None:
+        self.kin = kin
+        self.model = model
+        self.estimator = ForceEstimator(kin, model)
+        self.compliance = Compliance()
+        self.last: Sample | None = None          # what the monitor saw last (read-out for programs)
+        self._jac6: np.ndarray | None = None
+        self._q = None
+        self._qd = None
+        self._tool = np.eye(4)
+
+    def before(self, gen: AdaptiveGenerator, q: np.ndarray, qd: np.ndarray, v_adc: np.ndarray, how=None) -> None:
+        """Measure and check, before ``gen.step()``; may call ``gen.abort``."""
+        self._q, self._qd = q, qd
+        seg = gen.seg
+        req = seg.req
+        hooks = req.hooks
+        lim: Limit | None = hooks.get("limit")
+        mon: Monitor | None = hooks.get("evalfn")
+        comply = self.compliance.active
+        functional = any(t.kind == "functional" for t in req.position.transforms())
+        running = req.status == "running" and not req.repeat
+        if not (comply or functional or (running and (lim is not None or mon is not None))):
+            gen.jac6 = self._jac6 = None
+            return
+        jac6 = self.kin.jacobian6(q)
+        gen.jac6 = self._jac6 = jac6
+        self._tool = seg.tool
+        want_force = (running and ((lim is not None and lim.needs_force) or (mon is not None and "force" in mon.needs)))
+        want_dev = comply or (running and ((lim is not None and lim.needs_deviation) or (mon is not None and "deviation" in mon.needs)))
+        t_a = force = dev = None
+        if want_force or mon is not None:
+            t_a = self.estimator.net_torques(q, qd, v_adc)
+        if want_force:
+            force = self.estimator.tool_force(q, t_a, seg.tool, jac6, check=True)
+        if want_dev:
+            dev = diff_map(seg.tool) @ (jac6 @ (q - gen.q))
+        if comply:
+            self.compliance.absorb(dev)
+        if not running:
+            return
+        end = lim.check(force, dev, gen.t, gen.samples) if lim is not None else None
+        if end is None and mon is not None:
+            s = Sample(gen.t, gen.samples, q, qd, gen.q.copy(), t_a, force, dev, how)
+            self.last = s
+            end = mon(s)
+        if end is not None:
+            gen.abort(end)
+
+    def hold(self, q: np.ndarray) -> Command:
+        """After a fault: every joint position servoed where it is (compliance off)."""
+        self.compliance.forces.clear()
+        self.compliance.joints.clear()
+        return Command(self._q.copy() if self._q is not None else q)
+
+    def after(self, q_nominal: np.ndarray) -> Command:
+        """The command for this sample from the generator's joint angles."""
+        c = self.compliance
+        if not c.active or self._jac6 is None:
+            return Command(q_nominal)
+        jac6 = self._jac6
+        q_cmd = q_nominal + c.joint_offsets(jac6, tool_to_frame6(self._tool))
+        jt = diff_map(self._tool) @ jac6
+        forces = dict(c.forces)
+        chosen = select_joints(jt, sorted(forces))
+        if c.joints:   # hysteresis: keep the previous joint unless clearly beaten
+            jinv = np.linalg.inv(jt)
+            for i, j in list(chosen.items()):
+                old = c.joints.get(i)
+                if old is not None and old != j and old not in chosen.values():
+                    if abs(jt[i, j] * jinv[j, i]) < SWITCH_RATIO * abs(jt[i, old] * jinv[old, i]):
+                        chosen[i] = old
+        c.joints = chosen
+        t_a = c.net_torques(jt)
+        t_g = self.kin.gravity(self._q, self.model.gravity_coeffs)
+        joints = sorted(chosen.values())
+        dac = servo_dac(self.model, joints, t_a, t_g, self._qd)
+        current = {j: int(np.clip(np.rint(dac[j]), DAC_MIN, DAC_MAX)) for j in joints}
+        return Command(q_cmd, current)

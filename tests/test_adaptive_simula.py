@@ -1,0 +1,53 @@
+"""rccl.adaptive against simula in an environment (separate process, lockstep): the examples are the tests.
+
+The world truth (contact force, tool point) is computed on the test side from the joint
+angles simula reports, with Pinocchio on the URDF and the same environment model.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pin = pytest.importorskip("pinocchio")
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+sys.path.insert(0, str(EXAMPLES))
+
+from adaptive_sim import environment_simula          # noqa: E402
+from rci.robot_model import load_robot               # noqa: E402
+from rci.simula.environment import parse_environment  # noqa: E402
+
+PUMA = load_robot("puma260")
+PM = pin.buildModelFromUrdf(str(PUMA.urdf_path))
+PD = PM.createData()
+
+
+def tool_points(env_words, qs):
+    env = parse_environment(list(env_words))
+    return env, np.array([env.tool_point(PM, PD, q)[0] for q in qs])
+
+
+def test_guarded_move_stops_within_two_samples_of_contact_force_passing_the_limit():
+    import adaptive_guarded_move as g
+
+    with environment_simula(*g.ENV) as sim:
+        arm, r_down, r_up = g.main(sim.url)
+    end = r_down.hooks.get("ended")
+    assert end is not None and end.reason == "limit" and end.what == "fz"
+    assert end.value > g.LIMIT_N
+    assert r_down.status == "done" and r_up.status == "done" and r_up.hooks.get("ended") is None
+    tr = arm.adaptive_trace
+    q_meas = np.array([x[3] for x in tr])
+    q_cmd = np.array([x[2] for x in tr])
+    env, p_meas = tool_points(g.ENV, q_meas)
+    _, p_cmd = tool_points(g.ENV, q_cmd)
+    force = env.boxes[0].stiffness * np.maximum(0.0, g.TABLE_Z - p_meas[:, 2])   # true normal force
+    k_cross = int(np.argmax(force > g.LIMIT_N))
+    assert force[k_cross] > g.LIMIT_N and k_cross > 0
+    going_down = np.diff(p_cmd[:, 2]) < -1e-7          # command k+1 still lower than command k
+    k_stop = k_cross + int(np.argmin(going_down[k_cross:])) + 1
+    assert k_stop - k_cross <= 2, (k_cross, k_stop, force[k_cross - 2:k_stop + 2])
+    # and it went back up to where it started
+    assert p_meas[-1, 2] == pytest.approx(p_meas[0, 2], abs=2e-4)
