@@ -321,3 +321,19 @@ def test_environment_option_presses_the_tool_on_a_plane():
         assert force[2] == pytest.approx(2e4 * (0.1542 - 0.1532), rel=0.05)
         ctl.end(h)
         ctl.bye()
+
+
+def test_control_channel_reports_bad_commands():
+    with SimulaProcess("-p", "--no-control") as quiet:
+        assert quiet.control_url == "" and quiet.url.startswith("socket://")
+    with SimulaProcess("-p") as sim:
+        assert sim.command("ping")["ok"]
+        for line, text in (("torque 9 1.0", "joint 9"), ("torque 1 nan", "not finite"), ("torque 1", "usage"),
+                           ("load pulley:joint=1", "missing"), ("fly", "unknown command"), ("", "empty")):
+            reply = sim.command(line) if line else sim.command(" ")
+            assert not reply["ok"] and text in reply["error"], (line, reply)
+        assert sim.command("load pulley:joint=3,mass=1.5,radius=0.05")["load"] == {
+            "joint": 3, "mass": 1.5, "radius": 0.05, "sign": 1}
+        assert sim.command("torque 2 -0.5")["external_torque"][1] == -0.5
+        st = sim.command("state")["state"]
+        assert st["external_torque"][1] == -0.5 and st["calibrated"] == [True] * 6 and not st["power"]
