@@ -14,7 +14,27 @@ from calib.progress import progress
 from calib.robot import robot_info
 
 
+def _fit_kinematics(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from calib.kinematics import fit_kinematics, read_poses, table
+    from rci.robot_model import load_robot
+
+    if args.params:
+        raise CalibError("kinematic error parameters are not part of the runtime parameter "
+                         "file (simula and RCCL use the DH table); drop --params")
+    Q, T = zip(*(read_poses(p) for p in args.logs))
+    model = load_robot("puma260")
+    dh = np.array([[j.theta, j.d, j.a, j.alpha] for j in model.joints])
+    fit = fit_kinematics(dh, np.vstack(Q), np.concatenate(T))
+    print(f"calib fit kinematics: {sum(len(q) for q in Q)} poses of robot puma260\n")
+    print(table(fit))
+    return 0
+
+
 def _fit(args: argparse.Namespace) -> int:
+    if args.kind == "kinematics":
+        return _fit_kinematics(args)
     paths = list(args.logs)
     traces = [load_trace(p, args.allow_truncated)
               for p in progress(paths, len(paths), f"reading {args.kind} logs",
@@ -59,8 +79,9 @@ def main(argv: list[str] | None = None) -> int:
         "recorded logs (thesis chapter 4). See docs/calib.md."))
     sub = parser.add_subparsers(dest="command", required=True)
     fit = sub.add_parser("fit", help="fit one kind of parameter from logs and print the thesis table")
-    fit.add_argument("kind", choices=KINDS)
-    fit.add_argument("logs", nargs="+", metavar="LOG")
+    fit.add_argument("kind", choices=KINDS + ("kinematics",))
+    fit.add_argument("logs", nargs="+", metavar="LOG",
+                     help="recorder logs (.rcilog[.gz]); for kinematics, CSV files of measured poses")
     fit.add_argument("-p", "--params", metavar="FILE",
                      help="parameter file (TOML): fitted inputs are read from it and the "
                           "results merged into it, atomically")

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from calib.paths import Path, Segment, sweep_path
-from calib.poses import TABLE_4_7, main_sweep, repeat_sweep
+from calib.poses import TABLE_4_7, TABLE_4_8_SWEEPS, main_sweep, repeat_sweep
 
 DEG = np.pi / 180
 ACCEL = 1.5  # rad/s^2 at the turns: gentle, so the servo keeps the setpoint
@@ -125,8 +125,8 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
                   upper: np.ndarray, speed_deg: float = 20.0, trips: int = 1) -> list[Plan]:
     """4.5.6: each Table 4.7 sweep and its friction-cancelling repeat (4.49-4.51)."""
     plans = []
-    for name in TABLE_4_7:
-        main = main_sweep(name)
+    for name, joint in TABLE_4_8_SWEEPS:
+        main = main_sweep(name, joint)
         repeat = repeat_sweep(main, regressor, lower, upper)
         for sw in (main, repeat) if repeat is not None else (main,):
             j = sw.joint - 1
@@ -134,7 +134,8 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
                               trips, ACCEL)
             meta = {"experiment": "gravity", "joint": sw.joint, "position": name, "role": sw.role,
                     "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how}
-            plans.append(Plan(f"gravity-{name}-{sw.role}", path, meta,
+            tag = name if joint == TABLE_4_7[name][1] else f"{name}-j{joint}"
+            plans.append(Plan(f"gravity-{tag}-{sw.role}", path, meta,
                               warmup=sweep_warmup(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi)))
     return plans
 

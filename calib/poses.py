@@ -18,7 +18,7 @@ import numpy as np
 
 DEG = np.pi / 180
 
-# Table 4.7 (degrees): position name -> (joint angles, the joint that sweeps (1-based)).
+# Table 4.7 (degrees): position name -> (joint angles, the joint named after it (1-based)).
 TABLE_4_7: dict[str, tuple[tuple[float, ...], int]] = {
     "j5": ((90, 0, 0, 90, 0, 45), 5),
     "j4": ((180, 90, -180, 0, 90, 45), 4),
@@ -26,6 +26,12 @@ TABLE_4_7: dict[str, tuple[tuple[float, ...], int]] = {
     "j3B": ((270, 90, -90, 90, 90, 45), 3),
     "j2": ((270, 90, 0, 90, 90, 135), 2),
 }
+
+# Table 4.8's sweeps, (position, joint): j3B is also swept with joint 2 (the row
+# "j3B, c12 - c13, 7.288", whose joint column the OCR lost; c12 - c13 is what 4.24
+# gives for joint 2 at j3B with theta2 moved back to 0).
+TABLE_4_8_SWEEPS: tuple[tuple[str, int], ...] = (
+    ("j5", 5), ("j4", 4), ("j3B", 3), ("j2", 2), ("j3B", 2), ("j3A", 3))
 
 
 @dataclass(frozen=True)
@@ -40,9 +46,11 @@ class Sweep:
     how: str  # for the repeat: "vertical axis", "zero start torque", "moved range"
 
 
-def main_sweep(name: str) -> Sweep:
-    """The Table 4.7 sweep: the joint moved back 90 deg from the start position."""
-    qdeg, joint = TABLE_4_7[name]
+def main_sweep(name: str, joint: int | None = None) -> Sweep:
+    """The Table 4.7 sweep: ``joint`` (default: the one the position is named after)
+    moved back 90 deg from the start position, then through 180 deg."""
+    qdeg, named = TABLE_4_7[name]
+    joint = named if joint is None else joint
     q = np.array(qdeg, float) * DEG
     return Sweep(name, "main", joint, q, q[joint - 1] - np.pi / 2, "Table 4.7")
 
@@ -51,26 +59,30 @@ def _row(regressor: Callable[[np.ndarray], np.ndarray], q: np.ndarray, i: int) -
     return np.asarray(regressor(q))[i]
 
 
-def _within(q: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None) -> bool:
+def _within(q: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None,
+            margin: float = 0.0) -> bool:
     if lower is None or upper is None:
         return True
-    return bool(np.all(q >= lower - 1e-9) and np.all(q <= upper + 1e-9))
+    return bool(np.all(q >= lower + margin) and np.all(q <= upper - margin))
 
 
 def repeat_sweep(main: Sweep, regressor: Callable[[np.ndarray], np.ndarray],
                  lower: np.ndarray | None = None, upper: np.ndarray | None = None,
-                 step_deg: float = 15.0, tol: float = 1e-9) -> Sweep | None:
+                 step_deg: float = 15.0, tol: float = 1e-9, margin_deg: float = 8.0) -> Sweep | None:
     """The friction-cancelling repeat of ``main`` (see the module docstring), or None
     when none fits in the joint ranges (the PUMA's joint 2: a zero start torque needs
-    theta2 = +-90 deg at one end of a 180-degree sweep, beyond its estimated range)."""
+    theta2 = +-90 deg at one end of a 180-degree sweep, beyond its estimated range).
+    Every joint stays ``margin_deg`` inside its range."""
     i = main.joint - 1
     grid = np.arange(-180.0, 180.0 + 1e-9, step_deg) * DEG
     us = np.linspace(0.0, np.pi, 7)
 
+    margin = margin_deg * DEG  # room for the sweep's ramps and the servo's rounding
+
     def fits(q: np.ndarray, lo: float) -> bool:
         ends = q.copy(), q.copy()
         ends[0][i], ends[1][i] = lo, lo + np.pi
-        return _within(ends[0], lower, upper) and _within(ends[1], lower, upper)
+        return _within(ends[0], lower, upper, margin) and _within(ends[1], lower, upper, margin)
 
     def candidates(free: list[int], base: np.ndarray):
         for vals in itertools.product(grid, repeat=len(free)):

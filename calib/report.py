@@ -8,9 +8,9 @@ from calib.gravity import row_result
 from calib.robot import RobotInfo
 from calib.truth import Truth
 
-THESIS_4_8 = {  # Table 4.8 as printed: position -> (joint, tau0 in c, (W_g2 - W_g1)/2)
-    "j5": (5, "c15", -1.191), "j4": (4, "c15", -1.193), "j3B": (3, "c13", -1.744),
-    "j2": (2, "c12", 5.509), "j3A": (3, "c13 + c15", -1.938),
+THESIS_4_8 = {  # Table 4.8 as printed: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2)
+    ("j5", 5): ("c15", -1.191), ("j4", 4): ("c15", -1.193), ("j3B", 3): ("c13", -1.744),
+    ("j2", 2): ("c12", 5.509), ("j3B", 2): ("c12 - c13", 7.288), ("j3A", 3): ("c13 + c15", -1.938),
 }
 THESIS_4_9 = {"c12": (5.509, 0.15, 0.080), "c13": (-1.762, 0.04, 0.010), "c15": (-1.192, 0.005, 0.010)}
 
@@ -123,8 +123,8 @@ def render(info: RobotInfo, truth: Truth, outcomes: dict[str, FitOutcome], comma
         from calib.tables import _combo
         for r in g.rows:
             name, val = row_result(r, g)
-            th = THESIS_4_8.get(r.position)
-            ths = f"{th[2]:.3f} ({th[1]})" if th and th[0] == r.joint else "-"
+            th = THESIS_4_8.get((r.position, r.joint))
+            ths = f"{th[1]:.3f} ({th[0]})" if th else "-"
             L.append(f"| {r.position} | {r.joint} | {'+' if r.direction > 0 else '-'} | "
                      f"{_combo(r.row, g.names)} | {ths} | {r.tau0:.3f} | {r.raw_tau0:.3f} | {name} = {val:.3f} |")
         L += ["", "## Table 4.9: gravity loading coefficients (N m)", "",

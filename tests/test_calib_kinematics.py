@@ -1,0 +1,59 @@
+"""The kinematic error fit of 3.83-3.84 on synthetic measured poses with known errors."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.__main__ import main
+from calib.kinematics import fit_kinematics, fk_function
+from rci.robot_model import load_robot
+
+MODEL = load_robot("puma260")
+DH = np.array([[j.theta, j.d, j.a, j.alpha] for j in MODEL.joints])
+SCALE = np.tile([np.radians(0.1), 0.0005, 0.0005, np.radians(0.1)], 6)
+
+
+def _poses(n: int, noise: bool, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    e_true = rng.normal(0, 1, 24) * SCALE
+    T6 = fk_function(DH)
+    Q = rng.uniform(MODEL.lower, MODEL.upper, size=(n, 6))
+    poses = np.array([np.array(T6(q, e_true)) for q in Q])
+    if noise:
+        for P in poses:
+            P[:3, 3] += rng.normal(0, 5e-5, 3)
+            w = rng.normal(0, np.radians(0.005), 3)
+            K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+            P[:3, :3] = P[:3, :3] @ (np.eye(3) + K)  # first order is enough at 1e-4 rad
+    return Q, poses, e_true
+
+
+def test_recovers_identifiable_errors_and_names_the_parallel_axis_pair():
+    Q, poses, e_true = _poses(40, noise=True)
+    fit = fit_kinematics(DH, Q, poses)
+    assert fit.rank == 23
+    # d d2 and d d3 move the arm along the same direction (axes 2 and 3 are parallel)
+    assert set(np.flatnonzero(~fit.identifiable)) == {5, 9}
+    err = np.abs(fit.e - e_true)[fit.identifiable]
+    assert (err <= 4 * fit.std[fit.identifiable] + 1e-9).all()
+    assert abs((fit.e[5] + fit.e[9]) - (e_true[5] + e_true[9])) < 5e-5
+    assert fit.rms_position_after < 1e-4 < fit.rms_position_before
+
+
+def test_command_reads_poses_and_reports_bad_lines(tmp_path, capsys):
+    Q, poses, _ = _poses(30, noise=False, seed=3)
+    lines = []
+    for q, P in zip(Q, poses):
+        R = P[:3, :3]
+        angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+        w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) * angle / (2 * np.sin(angle))
+        lines.append(",".join(f"{x:.12g}" for x in (*q, *P[:3, 3], *w)))
+    good = tmp_path / "poses.csv"
+    good.write_text("# q1..q6, x, y, z, rx, ry, rz\n" + "\n".join(lines) + "\n")
+    assert main(["fit", "kinematics", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "rank 23 of 24" in out and "not separable" in out
+    bad = tmp_path / "bad.csv"
+    bad.write_text(lines[0] + "\n1,2,3\n")
+    assert main(["fit", "kinematics", str(bad)]) == 2
+    assert f"{bad}: record 2" in capsys.readouterr().err
