@@ -353,3 +353,25 @@ def test_halts_in_position_mode_leave_table_4_6_static_friction():
     assert np.mean(samples) == pytest.approx(fr.static_typical_mean.values[1], abs=0.1)
     assert np.std(samples) == pytest.approx(fr.static_typical_std.values[1], rel=0.2)
     assert samples.max() <= fr.static_pos.values[1] + 0.05 and samples.min() >= -fr.static_neg.values[1] - 0.05
+
+
+def test_dynamic_mode_without_friction_is_pinocchio_aba():
+    """Every joint in current mode, no friction, no rotor inertia: one substep from rest
+    gives the accelerations of Pinocchio's forward dynamics (aba) under the motor torques."""
+    import pinocchio as pin
+    zero = np.zeros(6)
+    truth = replace(quiet_truth(rotor_inertia_arm=0.0, rotor_inertia_wrist=0.0), coulomb_pos=zero,
+                    coulomb_neg=zero, viscous_pos=zero, viscous_neg=zero, static_pos=zero, static_neg=zero)
+    arm = powered(Arm(PUMA, truth, seed=1, start="ready", dynamic=True))
+    arm.q = np.radians([10.0, 60.0, -120.0, 30.0, -60.0, 20.0])
+    dac = np.array([120, -300, 200, 40, -60, 25])
+    c = Chg()
+    for j in range(6):
+        c.motion[j].issue(CUR, int(dac[j]))
+    arm.apply(c, DT)
+    q0 = arm.q.copy()
+    h = DT / int(round(DT * 1000))
+    arm._substep(h)
+    tj = arm.conv.dac_to_joint_torques(dac.astype(float))
+    expected = pin.aba(arm.pm, arm.pm.createData(), q0, np.zeros(6), tj)
+    np.testing.assert_allclose(arm.qd / h, expected, rtol=1e-9, atol=1e-9)

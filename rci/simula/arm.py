@@ -391,29 +391,7 @@ class Arm:
         # torque-driven joints (current mode, or a saturated servo): stick-slip dynamics
         new_qd = np.where(driven, qd, v)
         if driven.any():
-            u = tj - tg + self.ext + load_tau                      # net torque before friction
-            fsp, fsn = self.friction.breakaway()
-            fsp, fsn = fsp + pulley_fc, fsn + pulley_fc
-            direction = np.sign(qd)
-            stuck = driven & (qd == 0.0)
-            direction = np.where(stuck & (u > fsp), 1.0, np.where(stuck & (u < -fsn), -1.0, direction))
-            go = driven & (direction != 0.0)
-            if go.any():
-                f = self._friction_at(q, np.where(qd != 0.0, qd, direction * 1e-12), pulley_fc)
-                M = self._inertia(q)
-                idx = np.flatnonzero(go)
-                rhs = (u - f)[idx]
-                if self.dynamic:
-                    nle = pin.rnea(self.pm, self.pd, q, qd, np.zeros(n)) - tg
-                    rhs = rhs - nle[idx]
-                    acc = np.linalg.solve(M[np.ix_(idx, idx)], rhs)
-                else:
-                    acc = rhs / np.diag(M)[idx]
-                trial = qd[idx] + acc * h
-                # friction cannot reverse the motion: crossing zero means the joint sticks
-                trial = np.where(np.sign(trial) == direction[idx], trial, 0.0)
-                new_qd[idx] = trial
-            new_qd[driven & ~go] = 0.0
+            new_qd[driven] = self._stick_slip(q, qd, tj - tg + self.ext + load_tau, tg, driven, pulley_fc, h)
         e_before = conv.R @ q + e0 if self.zindex.any() else None
         self.qd = qd = new_qd
         self.q = q = q + qd * h
@@ -433,6 +411,52 @@ class Arm:
         self._filter(h, ripple=np.where(servo & ~driven, d.ripple_pos, d.ripple_cur))
         self.friction.warm(np.abs(self.qd) > 1e-4, h)
         self.t += h
+
+    def _stick_slip(self, q: np.ndarray, qd: np.ndarray, u: np.ndarray, tg: np.ndarray,
+                    driven: np.ndarray, pulley_fc: np.ndarray, h: float) -> np.ndarray:
+        """New velocities of the torque-driven joints (``driven``) after h seconds.
+
+        ``u`` is the net joint torque before friction (motor - gravity + external + load).
+        The joints that move obey M qdd = u - f(qd) - c(q, qd), with servo-held joints and
+        stuck joints fixed (qdd = 0); a stuck joint breaks away when the friction needed to
+        keep it still exceeds its static friction, and then moves the way that friction
+        would have had to resist (Karnopp's model). A moving joint whose velocity would
+        change sign under friction stops and sticks instead. Kinematic mode uses only each
+        joint's own inertia and no Coriolis/centrifugal terms; ``dynamic`` the full mass
+        matrix and ``rnea`` (with every joint driven and no friction: Pinocchio's ``aba``).
+        """
+        n = self.n
+        fsp, fsn = self.friction.breakaway()
+        fsp, fsn = fsp + pulley_fc, fsn + pulley_fc
+        M = self._inertia(q)
+        if self.dynamic:
+            c = pin.rnea(self.pm, self.pd, q, qd, np.zeros(n)) - tg       # Coriolis and centrifugal
+        else:
+            M = np.diag(np.diag(M))
+            c = np.zeros(n)
+        direction = np.where(driven, np.sign(qd), 0.0)
+        stuck = driven & (qd == 0.0)
+        acc = np.zeros(n)
+        for _ in range(n + 1):
+            go = driven & (direction != 0.0)
+            acc[:] = 0.0
+            if go.any():
+                idx = np.flatnonzero(go)
+                f = self._friction_at(q, np.where(qd != 0.0, qd, direction * 1e-12), pulley_fc)
+                acc[idx] = np.linalg.solve(M[np.ix_(idx, idx)], (u - f - c)[idx])
+            # friction a still joint must supply to stay still: f = u - c - (M acc)
+            hold = u - c - M @ acc
+            release = stuck & (direction == 0.0) & ((hold > fsp) | (hold < -fsn))
+            if not release.any():
+                break
+            direction[release] = np.sign(hold[release])
+        trial = qd + acc * h
+        # friction cannot reverse a motion: crossing zero (or starting against the breakaway
+        # direction) means the joint sticks; frictionless joints move freely
+        has_friction = (fsp > 0) | (fsn > 0) | (self.truth.coulomb_pos > 0) | (self.truth.coulomb_neg > 0)
+        reversed_ = has_friction & (direction != 0.0) & (np.sign(trial) != direction)
+        trial = np.where(reversed_ | (direction == 0.0), 0.0, trial)
+        return trial[driven]
 
     def _inertia(self, q: np.ndarray) -> np.ndarray:
         M = pin.crba(self.pm, self.pd, q)
