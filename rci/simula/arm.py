@@ -176,7 +176,8 @@ class Arm:
         """Gravity loading t_g(q): torques the joints exert to hold the arm (N*m / N)."""
         return pin.computeGeneralizedGravity(self.pm, self.pd, self.q if q is None else np.asarray(q, float)).copy()
 
-    def _flag(self, status: int, text: str) -> None:
+    def flag(self, status: int, text: str) -> None:
+        """Report ``status`` (a how.status value) in the next HOW; the first flag of a cycle wins."""
         if self.status == codes.ST_OK:
             self.status, self.status_text = status, text
 
@@ -208,7 +209,7 @@ class Arm:
         events: list[str] = []
         n = self.n
         if chg.nj != n:
-            self._flag(codes.ST_BAD_COMMAND, f"CHG for {chg.nj} joints, robot has {n}")
+            self.flag(codes.ST_BAD_COMMAND, f"CHG for {chg.nj} joints, robot has {n}")
             return events
         if chg.power_off.com:
             self.power = False
@@ -239,7 +240,7 @@ class Arm:
                 self._motion(i, int(c.com), int(c.value), period)
         if chg.hand.com:
             if int(chg.hand.value) not in (1, 2):
-                self._flag(codes.ST_BAD_COMMAND, f"hand value {chg.hand.value} is neither OPEN (1) nor CLOSE (2)")
+                self.flag(codes.ST_BAD_COMMAND, f"hand value {chg.hand.value} is neither OPEN (1) nor CLOSE (2)")
             else:
                 self.hand = int(chg.hand.value)
         if chg.outport1.com:
@@ -247,7 +248,7 @@ class Arm:
         if chg.pendant.com:
             self.pendant = int(chg.pendant.value)
         if chg.adco.com and not 0 <= int(chg.adco.value) < N_ADC:
-            self._flag(codes.ST_BAD_COMMAND, f"adco channel {chg.adco.value} is not 0..{N_ADC - 1}")
+            self.flag(codes.ST_BAD_COMMAND, f"adco channel {chg.adco.value} is not 0..{N_ADC - 1}")
         if chg.end.com:
             events.append("end")
         return events
@@ -266,12 +267,12 @@ class Arm:
             self._hold_here([i])
             return
         if com not in (POS, CUR):
-            self._flag(codes.ST_BAD_COMMAND, f"joint {i + 1}: unknown motion command {com}")
+            self.flag(codes.ST_BAD_COMMAND, f"joint {i + 1}: unknown motion command {com}")
             return
         if self.found[i]:
             return      # frozen on its index mark until STOPCAL (A.4 zindex)
         if not (self.calibrated[i] or self.zindex[i]):
-            self._flag(codes.ST_NOT_CALIBRATED, f"joint {i + 1} is not calibrated: motion refused (run zindex/STOPCAL)")
+            self.flag(codes.ST_NOT_CALIBRATED, f"joint {i + 1} is not calibrated: motion refused (run zindex/STOPCAL)")
             return
         if com == POS:
             self.mode[i] = SERVO
@@ -279,7 +280,7 @@ class Arm:
             self.deadline[i] = self.t + period
         else:
             if not DAC_MIN <= value <= DAC_MAX:
-                self._flag(codes.ST_BAD_COMMAND, f"joint {i + 1}: CUR value {value} outside {DAC_MIN}..{DAC_MAX}")
+                self.flag(codes.ST_BAD_COMMAND, f"joint {i + 1}: CUR value {value} outside {DAC_MIN}..{DAC_MAX}")
                 return
             self.mode[i] = CURRENT
             self.dac[i] = value
@@ -401,7 +402,7 @@ class Arm:
             self.q = q = np.clip(q, self.lower, self.upper)
             self.limit_hits += 1
             for i in np.flatnonzero(out):
-                self._flag(codes.ST_JOINT_LIMIT, f"joint {i + 1} hit its mechanical stop")
+                self.flag(codes.ST_JOINT_LIMIT, f"joint {i + 1} hit its mechanical stop")
             self._hold_here(np.flatnonzero(out))
             qd = self.qd
         self._zindex(e_before)

@@ -114,8 +114,8 @@ class PtyTransport(Transport):
 
 
 @dataclass
-class Session:
-    """Per-client protocol state."""
+class Client:
+    """Protocol state of the connected controller."""
 
     transport: Transport
     decoder: protocol.FrameDecoder = field(default_factory=protocol.FrameDecoder)
@@ -142,7 +142,7 @@ class Server:
         self.err = err or sys.stderr
         self.listener: socket.socket | None = None
         self.pty: PtyTransport | None = None
-        self.session: Session | None = None
+        self.session: Client | None = None
         self.control: ControlChannel | None = None
         self.seq = 0                  # HOW cycle counter, never restarts (docs/protocol.md)
         self.overruns = 0
@@ -167,7 +167,7 @@ class Server:
     def open_pty(self) -> str:
         """Serve a pseudo-terminal; returns the device path a controller opens."""
         self.pty = PtyTransport()
-        self.session = Session(self.pty)
+        self.session = Client(self.pty)
         return self.pty.path
 
     # --- output --------------------------------------------------------------------------
@@ -218,7 +218,7 @@ class Server:
         if self.verbose or s.running:
             self.log(f"session ended: {why}")
         if isinstance(s.transport, PtyTransport):
-            self.session = Session(s.transport)
+            self.session = Client(s.transport)
         else:
             s.transport.close()
             self.session = None
@@ -282,7 +282,7 @@ class Server:
                     try:
                         new_rate = chg_rate_hz(int(ev[5:]))
                     except ValueError as exc:
-                        self.arm._flag(codes.ST_BAD_COMMAND, str(exc))
+                        self.arm.flag(codes.ST_BAD_COMMAND, str(exc))
             if "end" in events:
                 s.running = False
                 self.arm.hold_all()
@@ -344,7 +344,7 @@ class Server:
             self.missed += 1
             if self.missed >= self.watchdog and self.missed / self.rate >= self.watchdog_time:
                 self.arm.hold_all()
-                self.arm._flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped")
+                self.arm.flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped")
                 self.log(self.arm.status_text)
                 self.arm.step(1.0 / self.rate)
                 self.next_tick += 1.0 / self.rate
@@ -403,7 +403,7 @@ class Server:
                     conn, _ = self.listener.accept()
                     if self.session is not None:
                         self._drop("a new controller connected")
-                    self.session = Session(SocketTransport(conn))
+                    self.session = Client(SocketTransport(conn))
                 elif self.session is not None and r is self.session.transport:
                     self._on_readable()
                 elif control is not None:
