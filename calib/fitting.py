@@ -83,7 +83,11 @@ def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None
             sec[key] = list(old[key]) if old and key in old else [float(x) for x in nom[key]["values"]]
         return FitOutcome(kind, table_4_2_4_3(res), {"friction": sec}, res, {"points": points})
     if kind == "gravity":
-        res = fit_gravity(traces, drive, info.regressor, GRAVITY_NAMES)
+        fr = params.get("friction") or {}
+        nom = info.nominal["friction"]
+        coulomb = 0.5 * (np.asarray(fr.get("coulomb_pos", nom["coulomb_pos"]["values"]), float)
+                         + np.asarray(fr.get("coulomb_neg", nom["coulomb_neg"]["values"]), float))
+        res = fit_gravity(traces, drive, info.regressor, GRAVITY_NAMES, noise=coulomb)
         sec = {n: float(v) for n, v in zip(res.names, res.value)}
         sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
         sec.update({f"{n}_friction_error": float(e) for n, e in zip(res.names, res.friction_error)})

@@ -124,31 +124,37 @@ def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[Grav
     return rows
 
 
-def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str,
+           noise: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     A = np.array([r.row if compensated else r.raw_row for r in rows]).reshape(-1, k)
     y = np.array([r.tau0 if compensated else r.raw_tau0 for r in rows])
-    fit = bounded_lsq(A, y, what=what)
+    w = np.ones(len(rows)) if noise is None else 1.0 / np.array([noise[r.joint - 1] for r in rows])
+    fit = bounded_lsq(A * w[:, None], y * w, what=what)
     return fit.x, fit.std
 
 
 def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
-                names: tuple[str, ...]) -> GravityResult:
+                names: tuple[str, ...], noise: np.ndarray | None = None) -> GravityResult:
     """Table 4.9 from gravity logs.
 
-    error = sqrt((2 std of the fit)^2 + (half the difference between the fits of the
-    two directions)^2), the thesis's combination of measurement uncertainty and
-    direction; friction_error = how much the result moves without the repeat (4.49).
+    ``noise`` (6,) is the expected scatter of a joint's tau0 in relative terms: what
+    remains of friction in W1 - W2 grows with the joint's friction, so rows are weighted
+    by 1 / noise[joint]^2 (the caller passes each joint's Coulomb friction); without
+    it all rows weigh the same.  error = sqrt((2 std of the fit)^2 + (half the
+    difference between the fits of the two directions)^2), the thesis's combination of
+    measurement uncertainty and direction; friction_error = how much the result moves
+    without the repeat (4.49).
     """
     passes = [p for tr in traces for p in sweep_passes(tr, drive)]
     rows = gravity_rows(passes, regressor)
     k = len(names)
-    value, std = _solve(rows, True, k, "gravity loading")
-    raw, _ = _solve(rows, False, k, "gravity loading without the friction repeat")
+    value, std = _solve(rows, True, k, "gravity loading", noise)
+    raw, _ = _solve(rows, False, k, "gravity loading without the friction repeat", noise)
     by_dir = []
     for d in (1, -1):
         sel = [r for r in rows if r.direction == d]
         try:
-            by_dir.append(_solve(sel, True, k, "gravity loading, one direction")[0])
+            by_dir.append(_solve(sel, True, k, "gravity loading, one direction", noise)[0])
         except FitError:
             by_dir.append(None)
     if by_dir[0] is not None and by_dir[1] is not None:
