@@ -124,3 +124,17 @@ def test_friction_torque_eq_4_27():
     assert f[0] == pytest.approx(0.760 + 0.01203)
     assert f[1] == pytest.approx(-1.620 - 0.00761)
     assert np.all(f[2:] == 0)
+
+
+def test_printed_and_consistent_encoder_matrices():
+    """By default R is the data file's consistent R (r65 = 127.32 g65); the printed one is available."""
+    printed = Conversions.from_model(MODEL["puma260"], consistent_encoders=False)
+    c = CONV["puma260"]
+    diff = np.argwhere(printed.R != c.R)
+    assert diff.tolist() == [[5, 4]] and printed.R[5, 4] == -713.01 and c.R[5, 4] == pytest.approx(127.32 * -6.9424, abs=0.01)
+    q = np.array([0.1, -0.2, 0.3, 0.4, -0.5, 0.6])
+    np.testing.assert_allclose(printed.counts_to_angles(printed.angles_to_counts(q)), q, atol=1e-12)
+    # every row of the consistent R is (counts per motor radian) x the row of G
+    ratio = c.R / np.where(c.G != 0, c.G, np.nan)
+    per_row = np.nanmax(np.abs(ratio), axis=1)
+    np.testing.assert_allclose(per_row, [1000 / (2 * np.pi)] * 3 + [800 / (2 * np.pi)] * 3, rtol=2e-4)
