@@ -42,7 +42,7 @@ class Recover(Exception):
 
 def error_handler(t: codes.Termination) -> None:
     """user_hangup: examine the termination code and decide what to do."""
-    codes.print_terminate_code(t.code, "error handler", file=sys.stdout)
+    codes.print_terminate_code(t.code, f"error handler: {t.detail}", file=sys.stdout)
     if t.number == codes.R_REQVEL:
         raise Recover("slower", t)
     if t.number in (codes.R_REQPOS, codes.R_MAXPOS):
@@ -93,8 +93,9 @@ def move_with_recovery(session: Session, angle_deg: float, speed_factor: float, 
     speed = speed_factor * vmax
     actions: list[str] = []
     session.on_error = error_handler
-    session.chg.power_on.com = 1
     for _ in range(max_attempts):
+        # a chg refused by the checks is discarded whole, so power_on goes with every attempt
+        session.chg.power_on.com = 1
         mover = Mover(session, conv, joint, goal, float(np.radians(angle_deg)), speed)
         try:                                             # setjmp()
             session.control(mover)

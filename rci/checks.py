@@ -91,11 +91,16 @@ class Checker:
         self.checking = checking
         self._q_prev: np.ndarray | None = None
         self._skip_velocity = True
+        # last POS target per joint (counts) while the joint stays in position mode: a
+        # servo lags its command by up to a cycle, so a requested velocity is measured from
+        # the previous request, not from the (lagging) measured position
+        self._last_pos: dict[int, int] = {}
 
     def reset(self) -> None:
         """Forget the previous position (new control, or encoder counts were reset)."""
         self._q_prev = None
         self._skip_velocity = True
+        self._last_pos = {}
 
     # --- observed ---------------------------------------------------------------------
     def check_how(self, how: How, period: float) -> np.ndarray | None:
@@ -140,6 +145,7 @@ class Checker:
         range checks. Nothing is modified.
         """
         n = 0
+        self._pending_clear: set[int] = set()
         motion_target: dict[int, int] = {}
         stopcal = False
         for i, c in enumerate(chg.motion):
@@ -148,6 +154,8 @@ class Checker:
             n += 1
             if c.com not in MOTION_NAMES or c.com == NONE:
                 raise Fault(codes.make_code(codes.R_BADCMD, 0, i), f"chg.motion[{i}].com = {c.com!r} is not POS/CUR/STOP/STOPCAL")
+            if c.com != POS:
+                self._pending_clear.add(i)
             if c.com in (STOP,):
                 continue
             v = _value(c, f"motion[{i}]")
@@ -196,7 +204,10 @@ class Checker:
             raise Fault(codes.make_code(codes.R_TOOMANY), f"{n} commands in one cycle, at most {self.max_commands}")
         if motion_target and self.limits is not None:
             self._check_targets(motion_target, how, q_now, period, new_checking)
-        if stopcal:
+        for i in self._pending_clear:
+            self._last_pos.pop(i, None)
+        self._last_pos.update(motion_target)
+        if stopcal or chg.stop.com:
             self.reset()   # encoder counts jump on STOPCAL: no velocity check next cycle
         return new_checking
 
@@ -204,7 +215,10 @@ class Checker:
                        period: float, checking: int) -> None:
         lim = self.limits
         assert lim is not None
-        counts = np.array(how.pos, dtype=float)
+        base = np.array(how.pos, dtype=float)
+        for i, v in self._last_pos.items():
+            base[i] = v
+        counts = base.copy()
         for i, v in target.items():
             counts[i] = v
         q_t = np.asarray(lim.counts_to_rad(counts), dtype=float)
@@ -215,7 +229,7 @@ class Checker:
                 raise Fault(codes.make_code(codes.R_REQPOS, codes.F_RANGE, j),
                             f"joint {j + 1}: requested {q_t[j]:.4f} rad, range [{lim.lower[j]:.4f}, {lim.upper[j]:.4f}]")
         if checking & codes.CHECK_REQVEL:
-            q0 = q_now if q_now is not None else np.asarray(lim.counts_to_rad(how.pos), dtype=float)
+            q0 = np.asarray(lim.counts_to_rad(base), dtype=float)
             v = np.abs(q_t - q0) / period
             bad = v > lim.max_velocity
             if bad.any():
