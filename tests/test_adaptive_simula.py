@@ -51,3 +51,43 @@ def test_guarded_move_stops_within_two_samples_of_contact_force_passing_the_limi
     assert k_stop - k_cross <= 2, (k_cross, k_stop, force[k_cross - 2:k_stop + 2])
     # and it went back up to where it started
     assert p_meas[-1, 2] == pytest.approx(p_meas[0, 2], abs=2e-4)
+
+
+def test_compliant_edge_following_holds_the_force_and_a_deviation_limit_catches_the_slip():
+    import adaptive_edge_follow as g
+    from rccl.adaptive.force import ForceEstimator, JointModel
+    from rccl.kinematics import puma260 as kin
+    from rccl.transform import trsl
+
+    with environment_simula(*g.ENV) as sim:
+        arm, reqs, t_settled = g.main(sim.url)
+    end = reqs["slide"].hooks.get("ended")
+    assert end is not None and (end.reason, end.what) == ("limit", "dz")
+    assert reqs["home"].status == "done" and reqs["home"].hooks.get("ended") is None
+    tr = arm.adaptive_trace
+    t = np.array([x[0] for x in tr])
+    q_meas = np.array([x[3] for x in tr])
+    env, p = tool_points(g.ENV, q_meas)
+    joints = {j for x in tr for j in x[4]}
+    assert len(joints) == 1                                     # one joint force-servoed for fz
+    joint = joints.pop()
+    force = env.boxes[0].stiffness * np.maximum(0.0, g.FACE_Z - p[:, 2])
+    sliding = (t > t_settled + 0.5) & (p[:, 0] < g.EDGE_X - 0.003) & (t < end.t)
+    assert sliding.sum() > 100                                  # > 2.8 s of sliding at 36 Hz
+    # Table 4.4: the Coulomb variation of the force-servoed joint, through its lever (J^-T)
+    model = JointModel.for_robot("puma260")
+    err = np.where(np.arange(6) == joint, model.coulomb_uncertainty(), 0.0)
+    q_mid = q_meas[np.flatnonzero(sliding)[len(np.flatnonzero(sliding)) // 2]]
+    band = ForceEstimator(kin, model).force_bound(kin.jacobian6(q_mid), trsl(0, 0, g.PROBE), err)[2]
+    mean = float(force[sliding].mean())
+    assert abs(mean - g.FORCE_N) <= band, (mean, band)
+    assert float(force[sliding].std()) < band
+    # the non-compliant directions follow the path: y stays put, x advances along the face
+    assert np.ptp(p[sliding, 1]) < 2e-4
+    assert p[sliding, 0][-1] - p[sliding, 0][0] > 0.025
+    # the slip: the probe went over the edge and fell before the limit ended the motion
+    k_end = int(np.argmin(np.abs(t - end.t)))
+    assert p[k_end, 0] > g.EDGE_X and p[k_end, 2] < g.FACE_Z - 0.005
+    # back home, every joint position servoed again
+    assert not tr[-1][4]
+    assert p[-1, 2] == pytest.approx(p[0, 2], abs=3e-4)

@@ -103,19 +103,22 @@ class Compliance:
 
 
 def servo_dac(model: JointModel, joints: list[int], t_a: np.ndarray, t_g: np.ndarray, qd: np.ndarray,
-              rest_speed: float = 1e-3) -> np.ndarray:
+              qd_path: np.ndarray | None = None, rest_speed: float = 1e-3) -> np.ndarray:
     """DAC values (float) of 4.38 for the force-servoed ``joints``: K_dac G^-T (t_a + t_g) + f_dac.
 
     Only the entries of ``joints`` are meaningful; t_a elsewhere is taken as 0 (those joints
-    are position servoed, their torque is the servo's business). Friction is compensated in
-    the direction of motion, or at rest in the direction of the requested torque.
+    are position servoed, their torque is the servo's business). Friction (4.27) is
+    compensated in the direction the joint moves; at rest, in the direction the path asks it
+    to move (``qd_path``), or, if the path stands still too, the direction of the torque.
     """
     ta = np.zeros_like(t_g)
     ta[joints] = t_a[joints]
-    direction = np.where(np.abs(qd) > rest_speed, np.sign(qd), np.sign(ta))
-    fric = np.where(direction > 0, model.coulomb_pos + model.viscous_pos * np.abs(qd) * (np.abs(qd) > rest_speed),
-                    np.where(direction < 0, -model.coulomb_neg - model.viscous_neg * np.abs(qd) * (np.abs(qd) > rest_speed),
-                             0.0))
+    moving = np.abs(qd) > rest_speed
+    path = np.zeros_like(qd) if qd_path is None else np.where(np.abs(qd_path) > rest_speed, np.sign(qd_path), 0.0)
+    direction = np.where(moving, np.sign(qd), np.where(path != 0, path, np.sign(ta)))
+    speed = np.where(moving, np.abs(qd), 0.0)
+    fric = np.where(direction > 0, model.coulomb_pos + model.viscous_pos * speed,
+                    np.where(direction < 0, -model.coulomb_neg - model.viscous_neg * speed, 0.0))
     sel = np.zeros_like(t_g)
     sel[joints] = fric[joints]
     return model.conv.dac_for_net_torques(ta, t_g, model.conv.friction_to_dac(sel))

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rci.conversions import DAC_MAX, DAC_MIN
+from rci.conversions import DAC_MAX
 
 from ..transform import diff_map
 from .comply import Compliance, select_joints, servo_dac
@@ -27,6 +27,10 @@ from .monitor import Monitor, Sample
 # estimate: keep the force-servoed joint unless another does 1.5x better, so a joint does not
 # flip between current and position mode from one sample to the next near a tie
 SWITCH_RATIO = 1.5
+# estimate: damping of the force-servoed direction, N*s/m in the tool frame (N*m*s/rad for torques);
+# it turns the contact (tool + fixture at ~2e4 N/m through a joint's inertia) from a ringing spring
+# that sticks wherever static friction catches it into an approach that settles at the force asked
+COMPLY_DAMPING = 100.0
 
 
 @dataclass
@@ -50,10 +54,12 @@ class AdaptiveControl:
         self._q = None
         self._qd = None
         self._tool = np.eye(4)
+        self._q_nom_prev: np.ndarray | None = None
+        self.damping = COMPLY_DAMPING
 
     def before(self, gen: AdaptiveGenerator, q: np.ndarray, qd: np.ndarray, v_adc: np.ndarray, how=None) -> None:
         """Measure and check, before ``gen.step()``; may call ``gen.abort``."""
-        self._q, self._qd = q, qd
+        self._q, self._qd, self.dt = q, qd, gen.dt
         seg = gen.seg
         req = seg.req
         hooks = req.hooks
@@ -98,6 +104,7 @@ class AdaptiveControl:
     def after(self, q_nominal: np.ndarray) -> Command:
         """The command for this sample from the generator's joint angles."""
         c = self.compliance
+        q_nom_prev, self._q_nom_prev = self._q_nom_prev, q_nominal.copy()
         if not c.active or self._jac6 is None:
             return Command(q_nominal)
         jac6 = self._jac6
@@ -114,8 +121,12 @@ class AdaptiveControl:
                         chosen[i] = old
         c.joints = chosen
         t_a = c.net_torques(jt)
+        qd_path = np.zeros_like(q_nominal) if q_nom_prev is None else (q_nominal - q_nom_prev) / self.dt
+        for i, j in chosen.items():      # damping relative to the path's own motion of that joint
+            t_a[j] -= self.damping * jt[i, j] ** 2 * (self._qd[j] - qd_path[j])
         t_g = self.kin.gravity(self._q, self.model.gravity_coeffs)
         joints = sorted(chosen.values())
-        dac = servo_dac(self.model, joints, t_a, t_g, self._qd)
-        current = {j: int(np.clip(np.rint(dac[j]), DAC_MIN, DAC_MAX)) for j in joints}
+        dac = servo_dac(self.model, joints, t_a, t_g, self._qd, qd_path)
+        lim = np.minimum(self.model.max_dac, DAC_MAX)    # the motor current limit (A.5.1 would refuse more)
+        current = {j: int(np.clip(np.rint(dac[j]), -lim[j], lim[j])) for j in joints}
         return Command(q_cmd, current)

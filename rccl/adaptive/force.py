@@ -44,6 +44,7 @@ class JointModel:
     static_pos: np.ndarray
     static_neg: np.ndarray
     variation: np.ndarray
+    max_dac: np.ndarray        # DAC counts of the motor current limit (as rci.checks computes it, A.5.1)
 
     @classmethod
     def for_robot(cls, robot: str = "puma260", conv: Conversions | None = None) -> "JointModel":
@@ -54,11 +55,14 @@ class JointModel:
         fr = m.friction
         n = m.n_joints
         var = fr.variation.values if fr.variation is not None else np.zeros(n)
-        return cls(conv or Conversions.from_model(m), {k: v.value for k, v in m.gravity_coeffs.items()},
+        conv = conv or Conversions.from_model(m)
+        adc = np.abs(conv.currents_to_adc(np.asarray(m.max_current, float)))
+        max_dac = np.minimum(adc * conv.kappa, 2047.0)
+        return cls(conv, {k: v.value for k, v in m.gravity_coeffs.items()},
                    np.array(fr.coulomb_pos.values, float), np.array(fr.coulomb_neg.values, float),
                    np.array(fr.viscous_pos.values, float), np.array(fr.viscous_neg.values, float),
                    np.array(fr.static_pos.values, float), np.array(fr.static_neg.values, float),
-                   np.array(var, float))
+                   np.array(var, float), np.floor(max_dac))
 
     def friction(self, qd: np.ndarray) -> np.ndarray:
         """Kinetic friction torque of eq. 4.27 at joint velocities qd (rad/s), 0 at rest."""
