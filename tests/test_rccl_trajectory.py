@@ -399,3 +399,30 @@ def test_cartesian_into_joint_mode_with_a_configuration_change_is_continuous():
     assert np.all(np.abs(v) <= LIM.joint_velocity * 1.001)
     assert K.config_of(q[-1]).wrist == -start.wrist
     assert np.allclose(K.fk(q[-1]), pb.solve(), atol=1e-9)
+
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+offset = st.tuples(st.floats(-0.04, 0.04), st.floats(-0.04, 0.04), st.floats(-0.03, 0.03), st.floats(-0.3, 0.3))
+move = st.tuples(offset, st.sampled_from(["joint", "cartesian"]), st.floats(0.02, 0.3), st.booleans())
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(move, min_size=1, max_size=4), st.sampled_from([36.0, 100.0]))
+def test_random_programs_stay_within_limits_and_end_on_target(moves, rate):
+    gen, arm = make(rate)
+    last = None
+    for (dx, dy, dz, ang), mode, speed, stop in moves:
+        p, _ = at(trsl(dx, dy, dz) @ rot("z", ang), f"p{len(moves)}")
+        arm.setmod(mode)
+        arm.setvel(speed, 10 * speed)
+        last = arm.move(p)
+        if stop:
+            last = arm.stop(0.1)
+    q = run_until(gen, lambda: last.status == "done", limit_s=60.0)
+    q = np.concatenate([q, run(gen, 0.3)])
+    v = np.diff(q, axis=0) / gen.dt
+    assert np.all(np.abs(v) <= LIM.joint_velocity * 1.001)
+    assert np.all(np.abs(np.diff(v, axis=0)) <= LIM.joint_acceleration * gen.dt * 1.05)
+    assert np.allclose(K.fk(q[-1]), last.position.solve(), atol=1e-9)
+    assert not gen.errors
