@@ -24,6 +24,11 @@ class MotionQueue(Generic[T]):
         with self._lock:
             self._items.append(item)
 
+    def push_front(self, item: T) -> None:
+        """Put a request back at the head (the generator defers one it will start from rest)."""
+        with self._lock:
+            self._items.appendleft(item)
+
     def get(self) -> T | None:
         """The oldest request, or None if the queue is empty (never blocks: it runs at the control level)."""
         with self._lock:

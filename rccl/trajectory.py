@@ -52,6 +52,7 @@ from .transform import axis_angle, inverse
 ACC_PEAK = 0.75          # peak of the quartic's acceleration: ACC_PEAK * |v2 - v1| / tau
 STEP_MARGIN = 1.25       # a commanded step may exceed v_max * dt by this factor before it is a fault
 SINGULAR_SLOWDOWN = 10.0  # a Cartesian path needing > 10x its requested time for joint speed is singular
+MIN_BLEND_SCALE = 0.5    # below this speed factor a corner is taken by stopping at it instead (see plan_segment)
 MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked by move() before its motion starts
 CONTROL_CHECK_POINTS = 12  # the control level's re-check when the planning level's no longer applies
 
@@ -115,7 +116,7 @@ def resolve_config(kin: Kinematics, current, wanted):
 class Segment:
     """One planned motion: linear in joint space or along a drive transform, lam from 1 to 0 over T seconds."""
 
-    __slots__ = ("req", "mode", "t0", "T", "tau_in", "tau_out", "stationary", "tool", "tool_inv", "config", "d", "k", "theta",
+    __slots__ = ("req", "mode", "t0", "T", "tau_in", "tau_out", "stationary", "scale", "tool", "tool_inv", "config", "d", "k", "theta",
                  "dq", "q_dest", "static", "x_dest", "v_end", "v_cart", "kin", "where")
 
     def __init__(self, req: Request, kin: Kinematics) -> None:
@@ -300,7 +301,10 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
     seg.tau_in = tau_in
     seg.stationary = dist < 1e-12 and seg.theta < 1e-12 and float(np.max(np.abs(seg.dq))) < 1e-12
     T = max(T, tau_in + tau_req, 2.0 * dt)
-    # keep the incoming transition within the acceleration limits (peak ACC_PEAK |dv| / tau)
+    # keep the incoming transition within the acceleration limits (peak ACC_PEAK |dv| / tau);
+    # seg.scale < 1 is how much the new segment had to be slowed for it (the generator stops at
+    # the corner instead when that is below MIN_BLEND_SCALE, e.g. for a sharp reversal)
+    seg.scale = 1.0
     if v1 is not None and tau_in > 0:
         s = _scale_for(v1, v_start_dir / T, limits.joint_acceleration * tau_in / ACC_PEAK)
         if v1_cart is not None and seg.mode == "cartesian":
@@ -308,6 +312,7 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
             s = min(s, _scale_norm(v1_cart[0], vt2, limits.translational_acceleration * tau_in / ACC_PEAK),
                     _scale_norm(v1_cart[1], vr2, limits.rotational_acceleration * tau_in / ACC_PEAK))
         T /= s
+        seg.scale = s
     tau_out = max(tau_req, _tau_for(limits, v_end_dir / T, x_c, seg, T))
     seg.T = max(T, tau_in + tau_out)
     seg.tau_out = tau_out
@@ -469,6 +474,12 @@ class TrajectoryGenerator:
                     seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b, tau,
                                        prev.v_end, prev.v_cart if prev.mode == "cartesian" else None,
                                        check_points=CONTROL_CHECK_POINTS)
+                    if seg.scale < MIN_BLEND_SCALE:
+                        # the turn is too sharp to blend at speed within this transition time and the
+                        # acceleration limits: stop at the corner and start the request from rest
+                        req.status = "queued"
+                        self.queue.push_front(req)
+                        seg = None
             except MotionError as exc:
                 req.finish(exc)
                 self.errors.append(exc)

@@ -426,3 +426,19 @@ def test_random_programs_stay_within_limits_and_end_on_target(moves, rate):
     assert np.all(np.abs(np.diff(v, axis=0)) <= LIM.joint_acceleration * gen.dt * 1.05)
     assert np.allclose(K.fk(q[-1]), last.position.solve(), atol=1e-9)
     assert not gen.errors
+
+
+def test_sharp_reversal_stops_at_the_corner_instead_of_crawling():
+    gen, arm = make(36.0)
+    arm.setmod("c")
+    arm.setvel(0.3, 3.0)
+    pa, ta = at(trsl(0.06, 0.0, 0.0), "pa")
+    home, th = at(np.eye(4), "home")
+    arm.move(pa)
+    r = arm.move(home)     # straight back: too sharp to blend at 0.3 m/s in a 0.2 s transition
+    q = run_until(gen, lambda: r.status == "done", limit_s=5.0)
+    pts = positions(q)
+    assert np.min(np.linalg.norm(pts - ta.p, axis=1)) < 1e-5     # it stopped at pa (between two samples)
+    assert len(q) * gen.dt < 2.5                                  # and went back at speed
+    v = np.diff(q, axis=0) / gen.dt
+    assert np.all(np.abs(np.diff(v, axis=0)) <= LIM.joint_acceleration * gen.dt * 1.05)

@@ -60,7 +60,11 @@ class AdaptiveGenerator(TrajectoryGenerator):
         if self._abort is not None and self.faulted is None:
             end, self._abort = self._abort, None
             self._end_now(end)
-        return super().step()
+        tr = self.trans
+        q = super().step()
+        if tr is not None and self.trans is not tr and tr.prev.req.status in ("done", "failed"):
+            tr.prev.req.hooks.setdefault("finished_t", self.t)    # when its transition ended (s)
+        return q
 
     def _velocity(self) -> np.ndarray:
         return (self.q - self.q_prev) / self.dt
@@ -78,6 +82,7 @@ class AdaptiveGenerator(TrajectoryGenerator):
         self.seg = self._continuation(stop_req, v, tau, seg)
         if not req.repeat and req.status == "running":
             req.hooks["ended"] = end
+            req.hooks["finished_t"] = self.t
             self.ended.append((req, end))
             req.finish()
 
