@@ -25,6 +25,15 @@ class Link:
         self.url = url or getattr(port, "portstr", "") or ""
         self.decoder = FrameDecoder()
         self.port.timeout = 0            # non-blocking reads: we wait in select()
+        sock = getattr(port, "_socket", None)
+        if sock is not None:
+            # one small frame per cycle each way: Nagle's algorithm would hold a CHG back
+            # until the previous one is acknowledged, costing a cycle at high rates
+            import socket as _socket
+            try:
+                sock.setsockopt(_socket.IPPROTO_TCP, _socket.TCP_NODELAY, 1)
+            except OSError:
+                pass
         try:
             self._fd: int | None = port.fileno()
         except (AttributeError, NotImplementedError, OSError, serial.SerialException):

@@ -108,6 +108,7 @@ class Session:
         self.terminate = 0                        # RCIterminate: 0, or the code of the last termination
         self.termination: codes.Termination | None = None
         self._task: ControlTask | None = None
+        self._term_event = threading.Event()     # set when a termination is waiting for delivery
         self._delivered: codes.Termination | None = None
         self._busy = 0
         self._pending_interrupt = False
@@ -232,6 +233,7 @@ class Session:
             self.terminate = 0
             self.termination = None
             self._delivered = None
+            self._term_event.clear()
             try:
                 self.link.drain()
             except LinkClosed as e:
@@ -330,6 +332,14 @@ class Session:
                 return False
             if until is None and deadline is None and not self.in_control:
                 return False
+            if self.termination is not None and self._delivered is self.termination and until is None:
+                # delivered to a handler that returned: keep waiting out the time, quietly
+                self._term_event.clear()
+            if until is None and self.termination is None:
+                # nothing to poll: sleep in one block until a termination or the deadline,
+                # so the planning thread does not keep taking the GIL from the control thread
+                self._term_event.wait(None if deadline is None else max(deadline - now, 0.0))
+                continue
             step = poll if deadline is None else min(poll, deadline - now)
             time.sleep(max(step, 0.0))
 
@@ -338,6 +348,7 @@ class Session:
         """Called by the control task (its thread or its watchdog) after the implicit release."""
         self.terminate = term.code
         self.termination = term
+        self._term_event.set()
         if self._signals_active() and self._main_ident is not None:
             try:
                 signal.pthread_kill(self._main_ident, TERM_SIGNAL)
