@@ -91,3 +91,28 @@ def test_compliant_edge_following_holds_the_force_and_a_deviation_limit_catches_
     # back home, every joint position servoed again
     assert not tr[-1][4]
     assert p[-1, 2] == pytest.approx(p[0, 2], abs=3e-4)
+
+
+def test_circle_tracing_reproduces_figure_5_3(tmp_path):
+    import adaptive_circle as g
+
+    with environment_simula() as sim:
+        arm, fn, r_p0, r_stop, r_park = g.main(sim.url)
+    assert all(r.status == "done" for r in (r_p0, r_stop, r_park))
+    t_a_end = r_p0.hooks["finished_t"]
+    t_b_end = r_stop.hooks["finished_t"]
+    # called once per sample while p0's motions ran (twice as often if called per equation/segment)
+    span = (t_b_end - (t_a_end - g.APPROACH_M / g.APPROACH_SPEED)) * 36
+    assert span - 60 <= fn.calls <= span + 60, (fn.calls, span)
+    ts, xy = g.world_xy(arm)
+    centre = np.array([0.20, -0.12])
+    stopped = (ts > t_a_end + 1.0) & (ts < t_b_end - 0.5)
+    r = np.linalg.norm(xy[stopped] - centre, axis=1)
+    assert np.all(np.abs(r - g.RADIUS) < 1.5e-3), (r.min(), r.max())          # (b): the circle itself
+    ang = np.unwrap(np.arctan2(*(xy[stopped] - centre).T[::-1]))
+    assert abs(ang[-1] - ang[0]) > 2 * np.pi * 0.9                              # about a full turn
+    approach = (ts < t_a_end) & (ts > t_a_end - g.APPROACH_M / g.APPROACH_SPEED + 1.0)
+    off_line = np.abs(xy[approach, 1] - centre[1])
+    assert off_line.max() > 0.8 * g.RADIUS                                     # (a): circle on the line
+    out = g.plot(arm, t_a_end, tmp_path / "fig53.png")
+    assert out.stat().st_size > 10_000

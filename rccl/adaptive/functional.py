@@ -82,10 +82,11 @@ class FunctionalUpdater:
                     seen.setdefault(id(t), t)
         return list(seen.values())
 
-    def update(self, positions, jac6: np.ndarray | None, snap=None) -> UpdateInfo:
+    def update(self, positions, jac6, snap=None) -> UpdateInfo:
         """Call each functional transform of ``positions`` once; limit the change of positions[0]'s T6.
 
-        ``jac6`` is the frame-6 Jacobian where the arm is (None: no limiting). Raises
+        ``jac6`` is the frame-6 Jacobian where the arm is, or a function returning it (called
+        only if there is a functional transform), or None (no limiting). Raises
         FunctionalError if a function leaves a non-rigid or non-finite transform.
         """
         trs = self.functional_transforms(positions)
@@ -93,6 +94,8 @@ class FunctionalUpdater:
         self.last = info
         if not trs:
             return info
+        if callable(jac6):
+            jac6 = jac6()
         before = [t._m for t in trs]
         t6_0 = positions[0].solve(snap) if jac6 is not None else None
         for t in trs:

@@ -104,7 +104,8 @@ class AdaptiveGenerator(TrajectoryGenerator):
         positions = [self.seg.req.position]
         if self.trans is not None:
             positions.append(self.trans.prev.req.position)
-        self.functional.update(positions, self.jac6, self.seg.req.snap)
+        jac6 = self.jac6 if self.jac6 is not None else (lambda: self.kin.module.jacobian6(self.q))
+        self.functional.update(positions, jac6, self.seg.req.snap)
 
     def _begin_transition(self) -> None:
         seg = self.seg
