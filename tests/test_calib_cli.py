@@ -8,7 +8,7 @@ import pytest
 
 from calib.__main__ import main
 from calib.params import read_params
-from tests.calib_synth import drive, friction_torque, sweep, to_trace, write_rcilog
+from tests.test_calib_synth import drive, friction_torque, sweep, to_trace, write_rcilog
 from tests.test_calib_fits import FC_M, FC_P, FV_M, FV_P, rates
 
 

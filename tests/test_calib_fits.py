@@ -12,7 +12,7 @@ from calib.poses import TABLE_4_7, main_sweep, repeat_sweep
 from calib.sensitivity import GRAVITY, fit_sensitivity
 from calib.static import fit_static
 from calib.work import find_passes, window_work
-from tests.calib_synth import DEG, SIGMA, drive, friction_torque, regressor, sweep, to_trace
+from tests.test_calib_synth import DEG, SIGMA, drive, friction_torque, regressor, sweep, to_trace
 
 FC_P = np.array([0.76, 1.62, 0.85, 0.175, 0.178, 0.140])
 FC_M = np.array([0.64, 1.62, 0.75, 0.194, 0.187, 0.159])
