@@ -116,3 +116,16 @@ def test_circle_tracing_reproduces_figure_5_3(tmp_path):
     assert off_line.max() > 0.8 * g.RADIUS                                     # (a): circle on the line
     out = g.plot(arm, t_a_end, tmp_path / "fig53.png")
     assert out.stat().st_size > 10_000
+
+
+def test_conveyor_tracking_follows_the_belt():
+    import adaptive_conveyor as g
+
+    with environment_simula(*g.ENV) as sim:
+        arm, enc, track = g.main(sim.url)
+    assert track.status == "done"
+    ts, err = g.tracking_error(arm, track)
+    assert len(ts) > 100
+    # one sample of belt motion is 0.28 mm at 1 cm/s and 36 Hz; the encoder counts 0.1 mm
+    assert err.mean() < 1.0e-3 and err.max() < 2.0e-3, (err.mean(), err.max())
+    assert enc.travel() > 0.08                                      # the belt really moved

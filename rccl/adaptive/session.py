@@ -42,6 +42,7 @@ class AdaptiveArm(Arm):
         self._fault_hold = None
         # with record=True: (t, nominal q, commanded q, measured q, {joint: DAC}) per cycle
         self.adaptive_trace: list[tuple] | None = [] if self.trace is not None else None
+        self.adc_trace: list[np.ndarray] | None = [] if self.trace is not None else None   # how.adcr per cycle
 
     # -- 5.4 primitives (planning level) ---------------------------------------------------
     def limit(self, spec: str, *values: float) -> Limit:
@@ -116,6 +117,7 @@ class AdaptiveArm(Arm):
         if self.trace is not None:
             self.trace.append((gen.t, q_nom, q_meas))
             self.adaptive_trace.append((gen.t, q_nom, cmd.q, q_meas, dict(cmd.current)))
+            self.adc_trace.append(np.array(how.adcr, dtype=np.int64))
 
 
 def open(url: str, robot: str = "puma260", **options: Any) -> AdaptiveArm:  # noqa: A001 - thesis name rccl_open
