@@ -17,7 +17,6 @@ tool path computed on the world side by Pinocchio on the URDF.
 from __future__ import annotations
 
 import argparse
-import math
 import warnings
 from pathlib import Path
 

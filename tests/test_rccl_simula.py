@@ -5,7 +5,6 @@ side with Pinocchio on the URDF from the joint angles simula reports in ``how``.
 """
 from __future__ import annotations
 
-import math
 import time
 import warnings
 
