@@ -129,3 +129,55 @@ def test_conveyor_tracking_follows_the_belt():
     # one sample of belt motion is 0.28 mm at 1 cm/s and 36 Hz; the encoder counts 0.1 mm
     assert err.mean() < 1.0e-3 and err.max() < 2.0e-3, (err.mean(), err.max())
     assert enc.travel() > 0.08                                      # the belt really moved
+
+
+def test_evalfn_ends_a_motion_with_its_code_and_limits_hold_for_one_motion_only():
+    import math
+
+    import rccl.adaptive
+    from rccl import EQ, T6, TL, Trsf, makeposition
+    from rccl.adaptive.exceptions import MonitorError
+    from rccl.exceptions import TrajectoryFault
+
+    with environment_simula() as sim:
+        with rccl.adaptive.open(sim.url, robot="puma260", record=True, timeout=2.0) as arm:
+            x0 = arm.t6
+            low, high = x0.copy(), x0.copy()
+            low[2, 3] -= 0.06
+            p_low = makeposition("LOW", T6, EQ, Trsf("LOW", low), TL, T6)
+            p_high = makeposition("HIGH", T6, EQ, Trsf("HIGH", high), TL, T6)
+            arm.setmod("cartesian")
+            arm.setvel(0.03, math.radians(20))
+            seen = []
+
+            def below(s):
+                seen.append(s.sample)
+                z = arm._kin.fk(s.q)[2, 3]
+                return "deep enough" if z < x0[2, 3] - 0.03 else None
+
+            arm.evalfn(below)
+            r1 = arm.move(p_low)
+            r2 = arm.move(p_high)          # no monitor: the evalfn was for the previous motion only
+            r3 = arm.move(p_low)
+            arm.waitfor(r3)
+            z_end_r1 = None
+            for t, _, _, q, _ in arm.adaptive_trace:
+                if abs(t - r1.hooks["finished_t"]) < 1e-9:
+                    z_end_r1 = arm._kin.fk(q)[2, 3]
+            end = r1.hooks["ended"]
+            assert (end.reason, end.what, end.code) == ("monitor", "below", "deep enough")
+            assert "ended" not in r2.hooks and "ended" not in r3.hooks
+            assert np.all(np.diff(seen) == 1)                  # every sample, once
+            assert z_end_r1 is not None and z_end_r1 > low[2, 3] + 0.02   # it did not go all the way
+            assert abs(arm.measured_q() - arm._kin.module.ik(low, arm._kin.config_of(arm.q), arm.q)).max() < 1e-3
+
+            def broken(s):
+                raise RuntimeError("sensor unplugged")
+
+            arm.evalfn(broken)
+            r4 = arm.move(p_high)
+            with pytest.raises(TrajectoryFault, match="broken raised RuntimeError: sensor unplugged"):
+                arm.waitfor(r4, timeout=10)
+            assert r4.status == "failed"
+            with pytest.raises(MonitorError):
+                arm.evalfn(42)
