@@ -66,15 +66,15 @@ class Position:
                     f"position {name!r}: the tool transform {tool.name!r} must follow T6 on T6's side of the equation")
             self._ntool = idx[0] + 1
         self.end = Event(f"{name}.end")
-        self._all = self.left + self.right + self.other
+        seen: dict[int, Trsf] = {}
+        for t in self.left + self.right + self.other:
+            seen.setdefault(id(t), t)
+        self._unique = tuple(seen.values())
 
     # -- evaluation (called at the control level every sample) -------------------------
     def transforms(self) -> tuple[Trsf, ...]:
         """Every transform of the equation except T6 (each once)."""
-        seen: dict[int, Trsf] = {}
-        for t in self._all:
-            seen.setdefault(id(t), t)
-        return tuple(seen.values())
+        return self._unique
 
     def snapshot(self) -> Snapshot:
         """Freeze the current values of the ``hold`` transforms (done when a motion is queued)."""
@@ -82,8 +82,8 @@ class Position:
 
     def update_functional(self) -> None:
         """Call each functional transform's function once (the generator does this every sample)."""
-        for t in self.transforms():
-            if t.kind == "functional" and t.fn is not None:
+        for t in self._unique:
+            if t.fn is not None and t.kind == "functional":
                 t.fn(t)
 
     def _value(self, t: Trsf, snap: Snapshot | None) -> np.ndarray:
