@@ -34,6 +34,7 @@ demo: $(STAMP) $(DERIVED)
 	$(PY) -m derive.crosscheck --samples 2000
 	$(PY) -m rccl.plots
 	$(VENV)/bin/calib report
+	$(PY) examples/zero_gravity.py --simula "-c --warm" --cycles 180
 
 bench: $(STAMP)
 	$(PY) bench/rccl_cycle.py
