@@ -120,3 +120,29 @@ def test_runtime_loads_fitted_values_and_keeps_the_rest_nominal(tmp_path, capsys
     np.testing.assert_array_equal(fitted.sigma, nominal.sigma)
     with pytest.raises(CalibError, match="not 'microbo'"):
         load_fitted(params, "microbo")
+
+
+def test_repeated_cycle_number_names_the_record(tmp_path, capsys):
+    from rci.how import How
+    from rci.recorder import Recorder
+
+    path = str(tmp_path / "dup.rcilog")
+    with Recorder(path, robot="puma260", meta={"experiment": "friction", "joint": 1,
+                                              "window": [-0.5, 0.5]}) as rec:
+        for k, cycle in enumerate([0, 1, 2, 2, 3]):
+            rec.append(How(pos=np.zeros(6, dtype=np.int64), adcr=np.zeros(16, dtype=np.int64),
+                           cycle=cycle, rate_hz=36), None)
+    assert main(["fit", "friction", path, "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: record 3: cycle 2 repeats" in err
+
+
+def test_log_without_run_metadata_is_refused(tmp_path, capsys):
+    from rci.how import How
+    from rci.recorder import Recorder
+
+    path = str(tmp_path / "bare.rcilog")
+    with Recorder(path, robot="puma260") as rec:
+        rec.append(How(cycle=0), None)
+    assert main(["fit", "static", path, "-q"]) == 2
+    assert "metadata 'experiment'" in capsys.readouterr().err

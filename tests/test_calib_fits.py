@@ -158,3 +158,31 @@ def test_missing_metadata_names_the_file_and_key():
                   path="runs/f1.log")
     with pytest.raises(LogError, match=r"runs/f1.log: missing metadata 'window'"):
         fit_friction([tr], drive())
+
+
+def test_current_filter_lag_is_compensated():
+    """Torques through the 15 ms current filter of Appendix C: gravity on a swept joint
+    2 then lags position by the filter's time constant; pairing readings with the angle
+    15 ms earlier keeps it from reading as viscous friction."""
+    from tests.test_calib_synth import drive as make_drive
+
+    rng = np.random.default_rng(6)
+    q0 = np.radians([90, 90, -90, 90, 90, 0])
+    dt_sub = 1e-3
+    # turn 0.5 rad beyond the window: the filter settles (5 tau) before the window
+    t, q = sweep(q0, 1, np.radians(40), np.radians(140), [0.1, 0.5, 1.0, 2.0, 2.5], rate=1000.0,
+                 margin=0.5)
+    tau = np.array([regressor(x) @ C for x in q]) + friction_torque(rates(t, q), FC_P, FC_M, FV_P, FV_M)
+    filt = np.empty_like(tau)
+    filt[0] = tau[0]
+    a = 1 - np.exp(-dt_sub / 0.015)
+    for k in range(1, len(tau)):
+        filt[k] = filt[k - 1] + a * (tau[k] - filt[k - 1])
+    keep = slice(None, None, 28)  # sample the filtered current at about 36 Hz
+    meta = {"experiment": "friction", "joint": 2, "window": [np.radians(40), np.radians(140)]}
+    tr = to_trace(t[keep], q[keep], filt[keep], meta, make_drive(), rng, adc_noise=0.0)
+    # the filter here is discrete (1 ms steps), whose delay is tau - h/2 = 14.5 ms
+    lagged, _ = fit_friction([tr], make_drive(lag=0.0145))
+    naive, _ = fit_friction([tr], make_drive(lag=0.0))
+    assert lagged[0].plus.viscous == pytest.approx(FV_P[1], abs=5e-4)
+    assert abs(naive[0].plus.viscous - FV_P[1]) > 0.02  # gravity read as viscous friction

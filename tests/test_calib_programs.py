@@ -109,3 +109,23 @@ def test_program_records_exactly_the_path_over_a_real_link(tmp_path):
     assert np.abs(q[1:n, 0] - setpoints[:n - 1, 0]).max() < 1e-3
     assert len(find_passes(q[:, 0], *plan.meta["window"])) == 4
     assert tr.t[1] - tr.t[0] == pytest.approx(1 / 36.0)
+
+
+def test_friction_program_on_simula_fits_the_simulated_joint(tmp_path):
+    """A short friction program on a real simula process (lockstep, warm joints): the
+    recorded log fits to the simulator's Coulomb friction within Table 4.2's bounds."""
+    from calib.fitting import run_fit
+    from calib.logs import load_trace
+    from calib.program import run_plan
+    from rci.simula.process import SimulaProcess
+
+    (plan,) = friction_plans([6], speeds_deg=(30, 60, 90), trips=1)
+    plan.warmup = None
+    with SimulaProcess("-p", "--warm", lockstep=True, seed=7) as sim:
+        run = run_plan(sim.url, plan, str(tmp_path / "f6.rcilog"))
+    assert run.records > 100
+    out = run_fit("friction", [load_trace(run.path)], INFO, None)
+    (r,) = out.results
+    fr = INFO.nominal["friction"]
+    assert abs(r.plus.coulomb - fr["coulomb_pos"]["values"][5]) <= fr["coulomb_pos"]["uncertainty"][5]
+    assert abs(r.minus.coulomb - fr["coulomb_neg"]["values"][5]) <= fr["coulomb_neg"]["uncertainty"][5]
