@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 
@@ -49,7 +50,7 @@ def _fit(args: argparse.Namespace) -> int:
     robot = traces[0].robot
     info = robot_info(robot)
     params = None
-    if args.params and _exists(args.params):
+    if args.params and os.path.exists(args.params):
         params = read_params(args.params)
         if params["calib"].get("robot") != robot:
             raise CalibError(f"{args.params}: holds parameters of robot "
@@ -66,11 +67,6 @@ def _fit(args: argparse.Namespace) -> int:
         for path in friction_plots(outcome.results, outcome.extra["points"], args.plots):
             print(f"wrote {path}")
     return 0
-
-
-def _exists(path: str) -> bool:
-    import os
-    return os.path.exists(path)
 
 
 def main(argv: list[str] | None = None) -> int:

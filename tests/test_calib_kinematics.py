@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from calib.__main__ import main
 from calib.kinematics import fit_kinematics, fk_function
