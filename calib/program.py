@@ -13,11 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib.errors import CalibError
 from calib.experiments import ACCEL, Plan
 from calib.paths import Path, Segment
 from rci import codes
 from rci.chg import POS
 from rci.conversions import Conversions
+from rci.exceptions import RCIError
 from rci.recorder import Recorder
 from rci.session import Session
 
@@ -83,6 +85,10 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
             session.wait(until=done.is_set)
             session.record(None)
             session.release()
+    except RCIError as exc:
+        # the log keeps what was recorded up to the error (closed cleanly below)
+        raise CalibError(f"measurement program {plan.name} on {url} stopped after "
+                         f"{max(state['k'], 0)} cycles: {exc} (partial log: {log_path})") from None
     finally:
         rec.close()
     return RunInfo(log_path, rec.written, state["k"] + 1)

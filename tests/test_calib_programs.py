@@ -129,3 +129,24 @@ def test_friction_program_on_simula_fits_the_simulated_joint(tmp_path):
     fr = INFO.nominal["friction"]
     assert abs(r.plus.coulomb - fr["coulomb_pos"]["values"][5]) <= fr["coulomb_pos"]["uncertainty"][5]
     assert abs(r.minus.coulomb - fr["coulomb_neg"]["values"][5]) <= fr["coulomb_neg"]["uncertainty"][5]
+
+
+def test_program_error_names_the_program_and_keeps_the_partial_log(tmp_path):
+    """A robot that cannot be reached: the error says which program and where."""
+    from calib.errors import CalibError
+    from calib.program import run_plan
+
+    (plan,) = friction_plans([1], speeds_deg=(30,), trips=1)
+    with pytest.raises(CalibError, match=r"friction-j1 on socket://127.0.0.1:9"):
+        run_plan("socket://127.0.0.1:9", plan, str(tmp_path / "x.rcilog"))
+
+
+@pytest.mark.slow
+def test_regen_logs_records_gravity_logs_that_fit(tmp_path):
+    """`calib regen-logs --kinds gravity` end to end (a few minutes: -m slow)."""
+    from calib.__main__ import main
+
+    assert main(["regen-logs", "--kinds", "gravity", "--out", str(tmp_path)]) == 0
+    logs = sorted(str(p) for p in tmp_path.glob("gravity-*.rcilog.gz"))
+    assert len(logs) == 10
+    assert main(["fit", "gravity", *logs, "-q"]) == 0
