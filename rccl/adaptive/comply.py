@@ -31,7 +31,7 @@ from .exceptions import SpecError
 from .force import JointModel
 
 
-def select_joints(jac_tool: np.ndarray, axes: list[int]) -> dict[int, int]:
+def select_joints(jac_tool: np.ndarray, axes: list[int], jinv: np.ndarray | None = None) -> dict[int, int]:
     """The joint (0-based) best placed for each compliant tool axis (0-5), each joint used at most once.
 
     Score of joint j for axis i: |J_T[i, j] (J_T^-1)[j, i]|, the share of a unit motion
@@ -121,4 +121,5 @@ def servo_dac(model: JointModel, joints: list[int], t_a: np.ndarray, t_g: np.nda
                     np.where(direction < 0, -model.coulomb_neg - model.viscous_neg * speed, 0.0))
     sel = np.zeros_like(t_g)
     sel[joints] = fric[joints]
-    return model.conv.dac_for_net_torques(ta, t_g, model.conv.friction_to_dac(sel))
+    # 4.38 with f_dac = K_dac G^-T f: v_dac = K_dac G^-T (t_a + t_g + f)
+    return model.dac_per_joint_torque @ (ta + t_g + sel)

@@ -16,9 +16,9 @@ import numpy as np
 
 from rci.conversions import DAC_MAX
 
-from ..transform import diff_map
 from .comply import Compliance, select_joints, servo_dac
-from .deviation import tool_to_frame6
+from .deviation import ToolMaps
+from .exceptions import ForceEstimateError
 from .force import ForceEstimator, JointModel
 from .generator import AdaptiveGenerator
 from .limit import Limit
@@ -51,9 +51,11 @@ class AdaptiveControl:
         self.compliance = Compliance()
         self.last: Sample | None = None          # what the monitor saw last (read-out for programs)
         self._jac6: np.ndarray | None = None
+        self._jac6_inv: np.ndarray | None = None
         self._q = None
         self._qd = None
         self._tool = np.eye(4)
+        self._maps = ToolMaps()
         self._q_nom_prev: np.ndarray | None = None
         self.damping = COMPLY_DAMPING
 
@@ -66,13 +68,21 @@ class AdaptiveControl:
         lim: Limit | None = hooks.get("limit")
         mon: Monitor | None = hooks.get("evalfn")
         comply = self.compliance.active
-        functional = any(t.kind == "functional" for t in req.position.transforms())
+        functional = hooks.get("has_functional")
+        if functional is None:      # once per request: whether its position has a functional transform
+            functional = hooks["has_functional"] = any(t.kind == "functional" for t in req.position.transforms())
         running = req.status == "running" and not req.repeat
         if not (comply or functional or (running and (lim is not None or mon is not None))):
-            gen.jac6 = self._jac6 = None
+            gen.jac6 = self._jac6 = gen.jac6_inv = self._jac6_inv = None
             return
         jac6 = self.kin.jacobian6(q)
         gen.jac6 = self._jac6 = jac6
+        gen.jac6_inv = self._jac6_inv = None
+        if comply or functional:      # one inverse per sample, shared by E.8 limiting and the comply law
+            try:
+                gen.jac6_inv = self._jac6_inv = np.linalg.inv(jac6)
+            except np.linalg.LinAlgError:
+                pass
         self._tool = seg.tool
         want_force = (running and ((lim is not None and lim.needs_force) or (mon is not None and "force" in mon.needs)))
         want_dev = comply or (running and ((lim is not None and lim.needs_deviation) or (mon is not None and "deviation" in mon.needs)))
@@ -82,7 +92,7 @@ class AdaptiveControl:
         if want_force:
             force = self.estimator.tool_force(q, t_a, seg.tool, jac6, check=True)
         if want_dev:
-            dev = diff_map(seg.tool) @ (jac6 @ (q - gen.q))
+            dev = self._maps.of(seg.tool).d @ (jac6 @ (q - gen.q))
         if comply:
             self.compliance.absorb(dev)
         if not running:
@@ -108,12 +118,16 @@ class AdaptiveControl:
         if not c.active or self._jac6 is None:
             return Command(q_nominal)
         jac6 = self._jac6
-        q_cmd = q_nominal + c.joint_offsets(jac6, tool_to_frame6(self._tool))
-        jt = diff_map(self._tool) @ jac6
+        maps = self._maps.of(self._tool)
+        j6inv = self._jac6_inv
+        if j6inv is None:
+            raise ForceEstimateError("comply: the Jacobian is singular here; no joint can be chosen")
+        q_cmd = q_nominal + j6inv @ (maps.d_inv @ c.offset) if np.any(c.offset) else q_nominal
+        jt = maps.d @ jac6
+        jinv = j6inv @ maps.d_inv                     # (D J6)^-1
         forces = dict(c.forces)
-        chosen = select_joints(jt, sorted(forces))
+        chosen = select_joints(jt, sorted(forces), jinv)
         if c.joints:   # hysteresis: keep the previous joint unless clearly beaten
-            jinv = np.linalg.inv(jt)
             for i, j in list(chosen.items()):
                 old = c.joints.get(i)
                 if old is not None and old != j and old not in chosen.values():

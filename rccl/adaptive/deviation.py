@@ -10,14 +10,54 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..transform import diff_map
+
+def diff_map_fast(t6_to_tool: np.ndarray) -> np.ndarray:
+    """D of 1.13 (the same matrix as ``rccl.transform.diff_map``), built without np.cross: row block
+    [R^T, (skew(p) R)^T] over [0, R^T]."""
+    r = t6_to_tool[:3, :3]
+    px, py, pz = t6_to_tool[:3, 3]
+    skew = np.array([[0.0, -pz, py], [pz, 0.0, -px], [-py, px, 0.0]])
+    d = np.zeros((6, 6))
+    d[:3, :3] = r.T
+    d[3:, 3:] = r.T
+    d[:3, 3:] = (skew @ r).T
+    return d
+
+
+def diff_map_inverse(t6_to_tool: np.ndarray) -> np.ndarray:
+    """D^-1: the map taking a tool-frame differential to the same change seen in frame 6 (closed form)."""
+    r = t6_to_tool[:3, :3]
+    px, py, pz = t6_to_tool[:3, 3]
+    skew = np.array([[0.0, -pz, py], [pz, 0.0, -px], [-py, px, 0.0]])
+    d = np.zeros((6, 6))
+    d[:3, :3] = r
+    d[3:, 3:] = r
+    d[:3, 3:] = skew @ r
+    return d
+
+
+class ToolMaps:
+    """D and D^-1 of the current tool transform, recomputed only when the tool matrix object changes."""
+
+    __slots__ = ("_key", "d", "d_inv")
+
+    def __init__(self) -> None:
+        self._key = None
+        self.d = self.d_inv = np.eye(6)
+
+    def of(self, t6_to_tool: np.ndarray) -> "ToolMaps":
+        if self._key is not t6_to_tool:
+            self._key = t6_to_tool
+            self.d = diff_map_fast(t6_to_tool)
+            self.d_inv = diff_map_inverse(t6_to_tool)
+        return self
 
 
 def deviation(jac6: np.ndarray, dq: np.ndarray, t6_to_tool: np.ndarray) -> np.ndarray:
     """Tool-frame differential (m, rad) of the joint error ``dq`` (rad) at the configuration of ``jac6``."""
-    return diff_map(t6_to_tool) @ (jac6 @ dq)
+    return diff_map_fast(t6_to_tool) @ (jac6 @ dq)
 
 
 def tool_to_frame6(t6_to_tool: np.ndarray) -> np.ndarray:
     """The 6x6 map taking a tool-frame differential to the same change seen in frame 6 (inverse of D)."""
-    return np.linalg.inv(diff_map(t6_to_tool))
+    return diff_map_inverse(t6_to_tool)

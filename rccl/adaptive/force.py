@@ -45,6 +45,12 @@ class JointModel:
     static_neg: np.ndarray
     variation: np.ndarray
     max_dac: np.ndarray        # DAC counts of the motor current limit (as rci.checks computes it, A.5.1)
+    dac_per_joint_torque: np.ndarray = None   # K_dac G^-T (4.35), 6x6, derived from conv
+
+    def __post_init__(self) -> None:
+        n = self.conv.n
+        m = self.conv.joint_torques_to_dac(np.eye(n)).T        # column k: DAC values of a unit torque on joint k
+        object.__setattr__(self, "dac_per_joint_torque", m)
 
     @classmethod
     def for_robot(cls, robot: str = "puma260", conv: Conversions | None = None) -> "JointModel":

@@ -48,6 +48,7 @@ class AdaptiveGenerator(TrajectoryGenerator):
         super().__init__(kin, limits, dt, q0, queue if queue is not None else HookQueue())
         self.functional = FunctionalUpdater(limits.joint_velocity, dt)
         self.jac6: np.ndarray | None = None     # frame-6 Jacobian where the arm is; set per sample by the caller
+        self.jac6_inv: np.ndarray | None = None  # its inverse, if the caller has it
         self.ended: list[tuple[Request, MotionEnd]] = []
         self._abort: MotionEnd | None = None
 
@@ -105,7 +106,7 @@ class AdaptiveGenerator(TrajectoryGenerator):
         if self.trans is not None:
             positions.append(self.trans.prev.req.position)
         jac6 = self.jac6 if self.jac6 is not None else (lambda: self.kin.module.jacobian6(self.q))
-        self.functional.update(positions, jac6, self.seg.req.snap)
+        self.functional.update(positions, jac6, self.seg.req.snap, self.jac6_inv if self.jac6 is not None else None)
 
     def _begin_transition(self) -> None:
         seg = self.seg
