@@ -277,3 +277,17 @@ def test_interpolate_and_step_scale():
     s, dth = step_scale(j, np.array([0.2, 0, 0, 0, 0, 0.05]), np.full(6, 0.1))
     assert s == pytest.approx(0.5) and dth[0] == pytest.approx(0.2)
     assert inverse(m0) @ m0 == pytest.approx(np.eye(4))
+
+
+def test_conditional_matching():
+    from rccl.adaptive.conditional import Conditional, choose
+    from rccl.adaptive.ending import MotionEnd
+
+    end = MotionEnd("limit", "fz", 12.0, 10.0)
+    branches = [Conditional("dz", "A"), Conditional("fz", "B"), Conditional("limit", "C")]
+    assert choose(branches, end).request == "B"
+    assert choose([Conditional("monitor", "A")], end) is None
+    assert choose([Conditional(lambda e: e.value > 11, "D")], end).request == "D"
+    assert Conditional("7", "E").matches(MotionEnd("monitor", "m", code=7))
+    with pytest.raises(SpecError):
+        Conditional(3, "F")

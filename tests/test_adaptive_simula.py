@@ -181,3 +181,44 @@ def test_evalfn_ends_a_motion_with_its_code_and_limits_hold_for_one_motion_only(
             assert r4.status == "failed"
             with pytest.raises(MonitorError):
                 arm.evalfn(42)
+
+
+def test_conditional_motion_runs_on_contact_and_drops_the_rest_of_the_queue():
+    import math
+
+    import adaptive_guarded_move as g
+    import rccl.adaptive
+    from rccl import EQ, T6, TL, Trsf, makeposition
+    from rccl.adaptive.exceptions import SpecError
+    from rccl.transform import trsl
+
+    with environment_simula(*g.ENV) as sim:
+        with rccl.adaptive.open(sim.url, robot="puma260", record=True, timeout=2.0) as arm:
+            tool = Trsf("PROBE", trsl(0.0, 0.0, g.PROBE))
+            x0 = arm.t6 @ tool.matrix
+            down, aside, back = x0.copy(), x0.copy(), x0.copy()
+            down[2, 3] = g.TABLE_Z - 0.03
+            aside[0, 3] += 0.03
+            back[1, 3] += 0.02
+            back[2, 3] += 0.01
+            pos = {n: makeposition(n, T6, tool, EQ, Trsf(n, m), TL, tool)
+                   for n, m in (("DOWN", down), ("ASIDE", aside), ("BACK", back))}
+            arm.setmod("cartesian")
+            arm.setvel(0.01, math.radians(10))
+            arm.limit("fz", g.LIMIT_N)
+            r_down = arm.move(pos["DOWN"])
+            arm.setvel(0.03, math.radians(20))
+            r_back = arm.cond("fz", pos["BACK"])          # on contact: back off up and sideways
+            r_aside = arm.move(pos["ASIDE"])              # the normal continuation: dropped on contact
+            with pytest.raises(SpecError, match="conditional"):
+                arm.last = r_back
+                arm.cond("fz", pos["ASIDE"])              # the tree stays pruned
+            arm.last = r_aside
+            arm.waitfor(r_down)
+            assert r_down.hooks["ended"].what == "fz" and r_down.hooks["chosen"] is r_back
+            arm.waitfor(r_back, timeout=30)
+            assert r_aside.status == "failed" and "conditional motion to BACK" in str(r_aside.error)
+            assert r_back.status == "done"
+        q = arm.measured_q()
+    p = tool_points(g.ENV, [q])[1][0]
+    np.testing.assert_allclose(p, back[:3, 3], atol=3e-4)

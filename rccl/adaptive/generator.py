@@ -10,6 +10,8 @@
   queued request, or to rest as fast as the acceleration limits allow if none is queued;
 * functional transforms called once per sample across the segments in play, with the
   change per sample limited through the Jacobian (``functional.FunctionalUpdater``);
+* conditional motions (5.6.1): an ended request whose ``hooks["conditional"]`` has a
+  branch matching its end runs that branch next and drops the rest of the queue;
 * Figure 5.4: when a segment whose destination was modified during the motion (a
   functional or variable transform) ends, the transition starts from the arm's actual
   position and velocity instead of the planned corner, fitting the actual path to the
@@ -23,6 +25,8 @@ from ..motion import MotionParams, Request
 from ..position import joint_position
 from ..queue import MotionQueue
 from ..trajectory import ACC_PEAK, Segment, TrajectoryGenerator
+from ..exceptions import MotionError
+from .conditional import choose
 from .ending import MotionEnd
 from .functional import FunctionalUpdater
 
@@ -86,6 +90,14 @@ class AdaptiveGenerator(TrajectoryGenerator):
             req.hooks["finished_t"] = self.t
             self.ended.append((req, end))
             req.finish()
+            branch = choose(req.hooks.get("conditional", []), end)
+            if branch is not None:   # 5.6.1: the pruned tree; everything else queued is dropped
+                for dropped in self.queue.clear():
+                    dropped.hooks["dropped_by"] = req
+                    dropped.finish(MotionError(f"{dropped.position.name}: not run, the conditional motion to "
+                                               f"{branch.request.position.name} was chosen ({end})"))
+                req.hooks["chosen"] = branch.request
+                MotionQueue.put(self.queue, branch.request)
 
     def _continuation(self, req: Request, v: np.ndarray, tau: float, like: Segment) -> Segment:
         """A joint-mode segment through the present command q at velocity v, its corner tau seconds ahead."""

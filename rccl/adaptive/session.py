@@ -7,6 +7,7 @@ primitives of 5.4::
     arm.evalfn(monitor)               # monitor(sample) runs every sample of the next motion
     arm.comply("fz", -8.0)            # from now on push 8 N along -z of the tool, complying
     arm.lock("fz")                    # stop complying along z
+    arm.cond("fz", p_up)              # 5.6.1: if the last move ends on its fz limit, go to p_up instead
     req = arm.move(p); arm.waitfor(req); req.hooks.get("ended")   # why it ended (None: it completed)
 
 Its control function reads ``how`` (encoder counts and motor-current ADC values), runs
@@ -64,6 +65,33 @@ class AdaptiveArm(Arm):
     def lock(self, spec: str) -> None:
         """Take components out of compliance (5.4.3)."""
         self.adaptive.compliance.lock(spec)
+
+    def cond(self, when, position) -> "Request":
+        """A conditional motion (5.6.1): if the last moved request ends by ``when``, go to ``position`` instead.
+
+        ``when`` is "limit", "monitor", a component ("fz", "dz"), a monitor name or code, or a
+        function of the MotionEnd. The branch uses the current motion parameters. Returns the
+        conditional request (``waitfor`` works on it once it runs).
+        """
+        from dataclasses import replace as _replace
+
+        from ..motion import Request
+        from ..position import Position
+        from .conditional import Conditional
+        from .exceptions import SpecError
+
+        if self.last is None:
+            raise SpecError("cond: no motion to attach a conditional motion to (call move first)")
+        if not isinstance(position, Position):
+            raise SpecError(f"cond: {position!r} is not a position")
+        if self.last.hooks.get("is_conditional"):
+            raise SpecError("cond: a conditional motion cannot have conditional motions of its own (5.6.1)")
+        if self.last.status not in ("queued", "running"):
+            raise SpecError(f"cond: the motion to {self.last.position.name} has already ended")
+        req = Request(position, position.snapshot(), _replace(self.params), next(self._serial))
+        req.hooks["is_conditional"] = True
+        self.last.hooks.setdefault("conditional", []).append(Conditional(when, req))
+        return req
 
     def _pending(self) -> dict:
         if self.gen is None:
