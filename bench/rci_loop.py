@@ -51,7 +51,7 @@ def run_rate(rate: int, seconds: float) -> dict:
             summary = s.timing.summary(skip=rate // 2)      # skip the first half second (warm-up)
             rt = s.rt_status.summary()
     d = summary.as_dict()
-    d.update(rate=rate, seconds=seconds, robot_overruns=robot_overruns, realtime=rt)
+    d.update(rate=rate, seconds=seconds, robot_overruns=robot_overruns, realtime=rt, load=os.getloadavg()[0])
     return d
 
 
@@ -69,15 +69,15 @@ def render(results: list[dict], command: str) -> str:
         "joint with POS (a minimal real program). The first half second of each run is left out.",
         "",
         "| rate (Hz) | s | cycles | missed | overruns | jitter p50 (us) | jitter p99 (us) | jitter max (us) "
-        "| RCI work p50 / p99 (us) | period left to user code p50 / p99 |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| RCI work p50 / p99 (us) | period left to user code p50 / p99 | load avg (1 min) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         lines.append(
             f"| {r['rate']} | {r['seconds']:.0f} | {r['cycles']} | {r['missed']} | {r['overruns']} "
             f"| {r['jitter_p50'] * 1e6:.0f} | {r['jitter_p99'] * 1e6:.0f} | {r['jitter_max'] * 1e6:.0f} "
             f"| {r['overhead_p50'] * 1e6:.0f} / {r['overhead_p99'] * 1e6:.0f} "
-            f"| {r['user_share_p50'] * 100:.1f} % / {r['user_share_p99'] * 100:.1f} % |")
+            f"| {r['user_share_p50'] * 100:.1f} % / {r['user_share_p99'] * 100:.1f} % | {r['load']:.1f} |")
     lines += [
         "",
         "- *missed*: cycles the robot saw without a timely CHG (`how.robot_overruns`) plus HOW sequence gaps.",
@@ -87,6 +87,8 @@ def render(results: list[dict], command: str) -> str:
         "- *RCI work*: the control task's own time per cycle (decode, checks, encode, send), user functions excluded;",
         "  *period left to user code* = 1 - RCI work / period.",
         f"- Real-time set-up achieved: {results[0]['realtime'] if results else 'n/a'}.",
+        "- *load avg*: the machine's 1-minute load average at the end of the run (2 cores, shared with other",
+        "  work): a load above 2 means other processes competed for the CPUs during the measurement.",
         "- Target (issue 4): 1 kHz with zero missed cycles and p99 jitter <= 200 us.",
         "",
     ]
