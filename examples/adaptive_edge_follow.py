@@ -77,18 +77,73 @@ def main(url: str):
     return arm, reqs, t_settled
 
 
+def world(arm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times s, probe points m (N, 3), true contact force N) from the measured joint angles (Pinocchio)."""
+    import pinocchio as pin
+    from rci.robot_model import load_robot
+    from rci.simula.environment import parse_environment
+
+    pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))
+    pd = pm.createData()
+    env = parse_environment(list(ENV))
+    t = np.array([x[0] for x in arm.adaptive_trace])
+    q = np.array([x[3] for x in arm.adaptive_trace])
+    p = np.array([env.tool_point(pm, pd, qi)[0] for qi in q])
+    qd = np.vstack([np.zeros((1, 6)), np.diff(q, axis=0) * arm.rate_hz])
+    f = np.array([env.force(pi, env.tool_point(pm, pd, qi)[1] @ qdi) for pi, qi, qdi in zip(p, q, qd)])
+    return t, p, f
+
+
+def plot(arm, reqs, t_settled, out: Path | None = None) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = out or Path(__file__).resolve().parent.parent / "reports" / "adaptive-edge.png"
+    t, p, f = world(arm)
+    end = reqs["slide"].hooks.get("ended")
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    a1.plot(t, 1000 * p[:, 2], label="probe z (mm)")
+    a1.plot(t, 1000 * p[:, 0] - 100, label="probe x - 100 (mm)")
+    a1.axhline(1000 * FACE_Z, color="k", lw=0.6, ls=":", label="face")
+    a1.legend(fontsize=8)
+    a1.set_ylabel("mm")
+    a2.plot(t, f[:, 2], label="true contact force (N, simula's model)")
+    a2.axhline(FORCE_N, color="r", lw=0.8, ls="--", label=f"comply fz {FORCE_N:g} N")
+    for ax in (a1, a2):
+        ax.axvline(t_settled, color="g", lw=0.6)
+        if end is not None:
+            ax.axvline(end.t, color="m", lw=0.6)
+    a2.set_xlabel("t (s)   green: slide starts; magenta: dz limit ends the slide (slip)")
+    a2.set_ylabel("N")
+    a2.legend(fontsize=8)
+    fig.suptitle("Compliant edge-following (5.4.3) in simula\n"
+                 "rebuilt by: .venv/bin/python examples/adaptive_edge_follow.py --plot", fontsize=9)
+    fig.tight_layout()
+    out.parent.mkdir(exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
 def _cli(argv: list[str]) -> int:
     from adaptive_sim import environment_simula, url_from_argv
 
     url = url_from_argv(argv)
     if url:
-        arm, reqs, _ = main(url)
+        arm, reqs, t_settled = main(url)
     else:
         with environment_simula(*ENV) as sim:
-            arm, reqs, _ = main(sim.url)
+            arm, reqs, t_settled = main(sim.url)
     end = reqs["slide"].hooks.get("ended")
     print("slide:", "completed (no slip seen)" if end is None else f"ended by {end}")
     print("force-servoed joint(s) used:", sorted({j + 1 for x in arm.adaptive_trace for j in x[4]}))
+    t, p, f = world(arm)
+    sliding = (t > t_settled + 0.5) & (p[:, 0] < EDGE_X - 0.003) & (t < (end.t if end else t[-1]))
+    print(f"contact force while sliding: mean {f[sliding, 2].mean():.2f} N, sd {f[sliding, 2].std():.2f} N "
+          f"(asked {FORCE_N:g} N); at rest before the slide: {f[(t > t_settled - 0.5) & (t < t_settled), 2].mean():.2f} N")
+    if "--plot" in argv:
+        print("wrote", plot(arm, reqs, t_settled))
     return 0 if end is not None else 1
 
 

@@ -291,3 +291,21 @@ def test_conditional_matching():
     assert Conditional("7", "E").matches(MotionEnd("monitor", "m", code=7))
     with pytest.raises(SpecError):
         Conditional(3, "F")
+
+
+def test_locked_offsets_return_to_the_path_at_bounded_speed():
+    from rccl.adaptive.comply import RETURN_SPEED
+
+    c = Compliance()
+    c.comply("fz fx", 5.0, 1.0)
+    c.absorb(np.array([0.004, 0.0, -0.012, 0.0, 0.0, 0.0]))
+    c.lock("fz")
+    dt = 1 / 36
+    steps = 0
+    while c.offset[2] != 0.0:
+        before = c.offset[2]
+        c.release(dt)
+        assert abs(c.offset[2] - before) <= RETURN_SPEED[2] * dt + 1e-15
+        steps += 1
+    assert steps == int(np.ceil(0.012 / (RETURN_SPEED[2] * dt)))
+    assert c.offset[0] == 0.004                                   # still compliant: untouched

@@ -88,6 +88,8 @@ def test_compliant_edge_following_holds_the_force_and_a_deviation_limit_catches_
     # the slip: the probe went over the edge and fell before the limit ended the motion
     k_end = int(np.argmin(np.abs(t - end.t)))
     assert p[k_end, 0] > g.EDGE_X and p[k_end, 2] < g.FACE_Z - 0.005
+    # never a jump: not at the slip, not at lock (the comply offset returns at a bounded speed)
+    assert np.max(np.linalg.norm(np.diff(p, axis=0), axis=1)) < 3e-3
     # back home, every joint position servoed again
     assert not tr[-1][4]
     assert p[-1, 2] == pytest.approx(p[0, 2], abs=3e-4)

@@ -18,7 +18,8 @@ The force held is then the requested one within the friction uncertainty of the 
 joint (Table 4.4), divided by its lever |J_T[i, j]|.
 
 Compliance stays on for every later motion until ``lock`` takes the direction out; a
-locked direction keeps the comply offset it had (no jump in the path).
+locked direction's comply offset then returns to zero at a bounded speed
+(``RETURN_SPEED``), so the arm rejoins the planned path smoothly instead of jumping.
 """
 from __future__ import annotations
 
@@ -29,6 +30,10 @@ import numpy as np
 from . import spec as specmod
 from .exceptions import SpecError
 from .force import JointModel
+
+# estimate: 2 cm/s and 0.2 rad/s, a gentle return to the planned path after lock (slow next to the
+# 0.5 m/s and 3 rad/s Cartesian limits of rccl.limits)
+RETURN_SPEED = np.array([0.02, 0.02, 0.02, 0.2, 0.2, 0.2])
 
 
 def select_joints(jac_tool: np.ndarray, axes: list[int], jinv: np.ndarray | None = None) -> dict[int, int]:
@@ -72,12 +77,19 @@ class Compliance:
             self.forces[i] = v
 
     def lock(self, spec: str) -> None:
-        """Take the named components out of compliance (``lock("fz")``); the comply offset stays."""
+        """Take the named components out of compliance (``lock("fz")``); the offset then returns to 0 (``release``)."""
         where = f"lock({spec!r})"
         for tok in specmod.tokens(spec, where):
             _, i = specmod.component(tok, where, allow_dev=False)
             self.forces.pop(i, None)
             self.joints.pop(i, None)
+
+    def release(self, dt: float) -> None:
+        """Move the offsets of non-compliant axes towards zero by at most RETURN_SPEED x dt (one sample)."""
+        for i in range(6):
+            if i not in self.forces and self.offset[i] != 0.0:
+                step = RETURN_SPEED[i] * dt
+                self.offset[i] = 0.0 if abs(self.offset[i]) <= step else self.offset[i] - step * np.sign(self.offset[i])
 
     def absorb(self, dev_tool: np.ndarray) -> None:
         """Take the observed tool-frame deviation along the compliant axes into the comply transform (E.6)."""

@@ -67,7 +67,7 @@ class AdaptiveControl:
         hooks = req.hooks
         lim: Limit | None = hooks.get("limit")
         mon: Monitor | None = hooks.get("evalfn")
-        comply = self.compliance.active
+        comply = self.compliance.active or bool(np.any(self.compliance.offset))
         functional = hooks.get("has_functional")
         if functional is None:      # once per request: whether its position has a functional transform
             functional = hooks["has_functional"] = any(t.kind == "functional" for t in req.position.transforms())
@@ -115,14 +115,18 @@ class AdaptiveControl:
         """The command for this sample from the generator's joint angles."""
         c = self.compliance
         q_nom_prev, self._q_nom_prev = self._q_nom_prev, q_nominal.copy()
-        if not c.active or self._jac6 is None:
+        if self._jac6 is None or not (c.active or np.any(c.offset)):
             return Command(q_nominal)
         jac6 = self._jac6
         maps = self._maps.of(self._tool)
         j6inv = self._jac6_inv
         if j6inv is None:
             raise ForceEstimateError("comply: the Jacobian is singular here; no joint can be chosen")
+        c.release(self.dt)
         q_cmd = q_nominal + j6inv @ (maps.d_inv @ c.offset) if np.any(c.offset) else q_nominal
+        if not c.active:
+            c.joints = {}
+            return Command(q_cmd)
         jt = maps.d @ jac6
         jinv = j6inv @ maps.d_inv                     # (D J6)^-1
         forces = dict(c.forces)
