@@ -15,6 +15,7 @@ import os
 import shutil
 import time
 
+from calib.errors import CalibError
 from calib.experiments import (Plan, friction_plans, gravity_plans, sensitivity_plans,
                                static_plan)
 from calib.program import run_plan
@@ -44,34 +45,61 @@ def _run(url: str, plan: Plan, out_dir: str, work: str, seed: int) -> None:
           f"  {time.monotonic() - t0:6.1f} s", flush=True)
 
 
+class _Simula:
+    """A lockstep simula that is started again if it dies (a program on it is then
+    run once more from the arm's ready position; its warm-up makes up for the lost
+    warmth)."""
+
+    def __init__(self, args: tuple[str, ...], seed: int) -> None:
+        from rci.simula.process import SimulaProcess
+
+        self.make = lambda: SimulaProcess("-p", *args, lockstep=True, seed=seed)
+        self.sim = self.make().start()
+
+    def run(self, plan: Plan, out_dir: str, work: str, seed: int) -> None:
+        try:
+            _run(self.sim.url, plan, out_dir, work, seed)
+        except CalibError as exc:
+            if self.sim.proc is None or self.sim.proc.poll() is None:
+                raise                                    # simula is alive: a real error
+            print(f"{plan.name}: simula exited ({exc}); starting it again", flush=True)
+            self.sim.stop()
+            self.sim = self.make().start()
+            _run(self.sim.url, plan, out_dir, work, seed)
+
+    def stop(self) -> None:
+        self.sim.stop()
+
+
 def regen(out_dir: str, seed: int, kinds: tuple[str, ...]) -> None:
     """Record every log of ``kinds`` into ``out_dir``."""
-    from rci.simula.process import SimulaProcess
-
     info = robot_info("puma260")
     os.makedirs(out_dir, exist_ok=True)
     work = os.path.join(out_dir, ".work")
     os.makedirs(work, exist_ok=True)
+    plans: list[tuple[tuple[str, ...], Plan]] = []
+    if "friction" in kinds:
+        plans += [((), p) for p in friction_plans()]
+    if "gravity" in kinds:
+        plans += [((), p) for p in gravity_plans(info.regressor, info.lower, info.upper)]
+    if "static" in kinds:
+        plans.append(((), static_plan(info.lower, info.upper)))
+    if "sensitivity" in kinds:
+        sens = sensitivity_plans(None, RADIUS_M)
+        plans += [((), p) for p in sens if not p.simula_args]        # without the mass
+        plans += [(tuple(p.simula_args), p) for p in sens if p.simula_args]
+    sims: dict[tuple[str, ...], _Simula] = {}
     try:
-        with SimulaProcess("-p", lockstep=True, seed=seed) as sim:
-            if "friction" in kinds:
-                for plan in friction_plans():
-                    _run(sim.url, plan, out_dir, work, seed)
-            if "gravity" in kinds:
-                for plan in gravity_plans(info.regressor, info.lower, info.upper):
-                    _run(sim.url, plan, out_dir, work, seed)
-            if "static" in kinds:
-                _run(sim.url, static_plan(info.lower, info.upper), out_dir, work, seed)
-            if "sensitivity" in kinds:
-                for plan in sensitivity_plans(None, RADIUS_M):
-                    if not plan.simula_args:          # the runs without the mass
-                        _run(sim.url, plan, out_dir, work, seed)
-        if "sensitivity" in kinds:
-            for plan in sensitivity_plans(None, RADIUS_M):
-                if plan.simula_args:                  # with the mass: a simula with the pulley
-                    with SimulaProcess("-p", *plan.simula_args, lockstep=True, seed=seed) as sim:
-                        _run(sim.url, plan, out_dir, work, seed)
+        for args, plan in plans:
+            if args not in sims:
+                if args:           # a pulley simula lives for its one program
+                    for key in [k for k in sims if k]:
+                        sims.pop(key).stop()
+                sims[args] = _Simula(args, seed)
+            sims[args].run(plan, out_dir, work, seed)
     finally:
+        for sim in sims.values():
+            sim.stop()
         shutil.rmtree(work, ignore_errors=True)
 
 
