@@ -309,3 +309,30 @@ def test_locked_offsets_return_to_the_path_at_bounded_speed():
         steps += 1
     assert steps == int(np.ceil(0.012 / (RETURN_SPEED[2] * dt)))
     assert c.offset[0] == 0.004                                   # still compliant: untouched
+
+
+def test_functional_jump_is_spread_with_bounded_acceleration():
+    q = np.array(PUMA.poses["ready"], float) + np.array([0.1, 0.2, -0.3, 0.2, 0.4, 0.1])
+    t6 = kin.fk(q)
+    target = t6 @ trsl(0.03, 0.0, 0.0)                       # the function jumps 3 cm at once and stays
+    t = Trsf("T", t6, kind="variable")
+    t.bind(lambda tr: tr.set(target))
+    pos = makeposition("P", T6, EQ, t, TL, T6)
+    vmax = np.array(PUMA.max_velocity, float)
+    amax = vmax / 0.25
+    dt = 1 / 36
+    up = FunctionalUpdater(vmax, dt, share=0.5, qdd_max=amax)
+    j6 = kin.jacobian6(q)
+    steps = []
+    prev = pos.solve()
+    for _ in range(60):
+        up.update([pos], j6)
+        now = pos.solve()
+        steps.append(np.linalg.solve(j6, differential(prev, now)))
+        prev = now
+    steps = np.array(steps)
+    np.testing.assert_allclose(pos.solve(), target, atol=1e-9)               # it got there
+    assert np.all(np.abs(steps) <= 0.5 * vmax * dt + 1e-9)                    # velocity share
+    dv = np.abs(np.diff(np.vstack([np.zeros(6), steps]), axis=0))
+    ratio = dv / (0.5 * amax * dt ** 2)
+    assert ratio.max() <= 1.1, ratio.max(axis=1)   # share of the acceleration limit (E.8 is first order)

@@ -116,6 +116,14 @@ def test_circle_tracing_reproduces_figure_5_3(tmp_path):
     approach = (ts < t_a_end) & (ts > t_a_end - g.APPROACH_M / g.APPROACH_SPEED + 1.0)
     off_line = np.abs(xy[approach, 1] - centre[1])
     assert off_line.max() > 0.8 * g.RADIUS                                     # (a): circle on the line
+    # E.8 with acceleration: the 2 cm jump of the circle's first call, the moving target and the
+    # exits from the modified segments (Figure 5.4) all keep every commanded joint within its limits
+    from rccl.limits import load_limits
+    lim = load_limits("puma260")
+    q_cmd = np.array([x[1] for x in arm.adaptive_trace])
+    acc = np.abs(np.diff(q_cmd, 2, axis=0)) * 36 ** 2
+    assert np.max(acc / lim.joint_acceleration) <= 1.0
+    assert arm.gen.functional.limited >= 1                # the first call's jump was spread out
     out = g.plot(arm, t_a_end, tmp_path / "fig53.png")
     assert out.stat().st_size > 10_000
 

@@ -5,7 +5,8 @@
 transition, is still called once), then limits the change of the first position's T6
 over the sample: the change dC (frame 6) maps to joint motion through E.8,
 dtheta = J^-1 dC, and every joint's share of that is kept under ``share`` x its velocity
-limit x dt. If some joint would move more, every transform changed this sample is moved
+limit x dt, and (given acceleration limits) may change from one sample to the next by at
+most ``share`` x its acceleration limit x dt^2. If some joint would move more, every transform changed this sample is moved
 only part of the way from its old value to its new one (translation and rotation angle
 scaled alike); the function catches up over the next samples. Near a singularity
 (cond(J) above ``max_condition``) a change is refused altogether, so a wild function
@@ -69,8 +70,13 @@ class FunctionalUpdater:
     """
 
     def __init__(self, qd_max: np.ndarray, dt: float, share: float = DEFAULT_SHARE,
-                 max_condition: float = DEFAULT_MAX_CONDITION) -> None:
+                 max_condition: float = DEFAULT_MAX_CONDITION, qdd_max: np.ndarray | None = None) -> None:
         self.max_step = np.asarray(qd_max, dtype=float) * float(dt) * float(share)
+        # with joint acceleration limits, the functional part of each joint's step may also change by
+        # at most share x qdd_max x dt^2 from one sample to the next (no velocity step either)
+        self.max_step_change = (None if qdd_max is None
+                                else np.asarray(qdd_max, dtype=float) * float(dt) ** 2 * float(share))
+        self.prev_dtheta = np.zeros_like(self.max_step)
         self.max_condition = float(max_condition)
         self.last = UpdateInfo()
         self.limited = 0           # samples in which a change was scaled down
@@ -116,6 +122,7 @@ class FunctionalUpdater:
         t6_1 = positions[0].solve(snap)
         dc = differential(t6_0, t6_1)
         if not dc.any():
+            self.prev_dtheta[:] = 0.0
             return info
         try:
             jinv = np.linalg.inv(jac6) if jac6_inv is None else jac6_inv
@@ -124,10 +131,20 @@ class FunctionalUpdater:
         except np.linalg.LinAlgError:
             info.condition = math.inf
         if not info.condition <= self.max_condition:
-            s = 0.0
+            s, dtheta = 0.0, np.zeros_like(self.max_step)
         else:
-            worst = float(np.max(np.abs(jinv @ dc) / self.max_step))
+            dtheta = jinv @ dc
+            allowed = self.max_step
+            if self.max_step_change is not None:
+                # speed up by at most one acceleration step a, and brake in time: with d still to go,
+                # a step v is allowed if v + (v - a) + (v - 2a) + ... can stop within d, i.e.
+                # v (v + a) / (2a) <= d: v <= (sqrt(a^2 + 8 a d) - a) / 2 (discrete braking)
+                a = self.max_step_change
+                brake = 0.5 * (np.sqrt(a * a + 8.0 * a * np.abs(dtheta)) - a)
+                allowed = np.minimum(allowed, np.minimum(np.abs(self.prev_dtheta) + a, brake) + 1e-300)
+            worst = float(np.max(np.abs(dtheta) / allowed))
             s = 1.0 if worst <= 1.0 else 1.0 / worst
+        self.prev_dtheta = s * dtheta
         if s < 1.0:
             self.limited += 1
             info.scale = s

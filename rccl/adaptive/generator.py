@@ -50,7 +50,7 @@ class AdaptiveGenerator(TrajectoryGenerator):
 
     def __init__(self, kin, limits, dt, q0, queue: MotionQueue | None = None) -> None:
         super().__init__(kin, limits, dt, q0, queue if queue is not None else HookQueue())
-        self.functional = FunctionalUpdater(limits.joint_velocity, dt)
+        self.functional = FunctionalUpdater(limits.joint_velocity, dt, qdd_max=limits.joint_acceleration)
         self.jac6: np.ndarray | None = None     # frame-6 Jacobian where the arm is; set per sample by the caller
         self.jac6_inv: np.ndarray | None = None  # its inverse, if the caller has it
         self.ended: list[tuple[Request, MotionEnd]] = []
