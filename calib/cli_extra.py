@@ -46,8 +46,11 @@ def _report(args: argparse.Namespace) -> int:
     if not paths:
         raise CalibError(f"no logs (*.rcilog, *.rcilog.gz) in {args.logs}; run `calib regen-logs`")
     out_dir = os.path.dirname(os.path.abspath(args.out))
-    params = args.params or os.path.join(tempfile.mkdtemp(prefix="calib-report-"), "fitted.toml")
-    res = fit_all(paths, params, quiet=args.quiet)
+    if args.params:
+        res = fit_all(paths, args.params, quiet=args.quiet)
+    else:
+        with tempfile.TemporaryDirectory(prefix="calib-report-") as tmp:
+            res = fit_all(paths, os.path.join(tmp, "fitted.toml"), quiet=args.quiet)
     info, outcomes = res["info"], res["outcomes"]
     plots = []
     if "friction" in outcomes:
