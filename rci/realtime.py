@@ -57,6 +57,19 @@ def lock_memory(status: RealtimeStatus) -> None:
     status.mlockall = True
 
 
+def unlock_memory() -> None:
+    """munlockall(): undo ``lock_memory`` when the session that asked for it closes."""
+    global _mlocked
+    if not _mlocked:
+        return
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.munlockall()
+    except OSError:
+        pass
+    _mlocked = False
+
+
 def set_fifo(priority: int, status: RealtimeStatus) -> None:
     """Put the *calling thread* under SCHED_FIFO at ``priority`` (Linux: pid 0 = this thread)."""
     if not hasattr(os, "sched_setscheduler"):

@@ -38,7 +38,7 @@ from .exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTer
                          LinkClosed, NoControl, NotOpen, ProtocolError, RobotRefused, Timeout)
 from .how import How
 from .link import Link, open_link
-from .realtime import RealtimeStatus, lock_memory
+from .realtime import RealtimeStatus, lock_memory, unlock_memory
 from .timing import CycleTiming
 
 TERM_SIGNAL = signal.SIGUSR1   # the thesis used SIGHUP; SIGUSR1 does not collide with terminal hangups
@@ -283,6 +283,8 @@ class Session:
                 pass
             self.link = None
             link.close()
+            if self.lock_memory and self.rt_status.mlockall is True:
+                unlock_memory()      # mlockall is process-wide: give it back with the session
             self._restore_signals()
             atexit.unregister(self._atexit)
 

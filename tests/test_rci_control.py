@@ -29,7 +29,9 @@ LIMITS = Limits.linear(lower=[-3.0] * 6, upper=[3.0] * 6, max_velocity=[2.0] * 6
 class Robot:
     def __init__(self, lockstep: bool, **arm_kw) -> None:
         self.arm = EchoArm(**arm_kw)
-        self.mon = Monitor(self.arm, lockstep=lockstep)
+        # the in-process monitor shares this process's GIL: give its watchdog a long fuse so
+        # that a scheduling hiccup on a loaded machine is not taken for a dead controller
+        self.mon = Monitor(self.arm, lockstep=lockstep, watchdog=1000)
         ports: list[int] = []
         self.th = threading.Thread(target=self.mon.serve_tcp, kwargs=dict(ready=ports.append), daemon=True)
         self.th.start()
@@ -67,7 +69,16 @@ def robot(request):
 
 @pytest.fixture
 def rt_robot():
+    """A real-time robot: for the tests about timing (overrun, stall, lost frame)."""
     r = Robot(lockstep=False)
+    yield r
+    r.stop()
+
+
+@pytest.fixture
+def ls_robot():
+    """A lockstep robot: deterministic, for everything that is not about timing."""
+    r = Robot(lockstep=True)
     yield r
     r.stop()
 
@@ -325,25 +336,25 @@ def _one_command(robot, issue, checking=None, rate=100):
      + [s.chg.stop.issue(), s.chg.power_on.issue(), s.chg.outport1.issue(1, 3), s.chg.pendant.issue(1, 1),
         s.chg.adco.issue(1, 7)], None, codes.R_TOOMANY),
 ])
-def test_range_and_command_checks(rt_robot, name, issue, checking, number):
-    t = _one_command(rt_robot, issue, checking)
+def test_range_and_command_checks(ls_robot, name, issue, checking, number):
+    t = _one_command(ls_robot, issue, checking)
     assert t is not None, f"{name}: no termination"
     assert t.number == number, (name, t)
     if number in (codes.R_REQPOS, codes.R_REQVEL, codes.R_REQCUR, codes.R_MAXPOS, codes.R_MAXVEL, codes.R_MAXCUR):
         joint = 4 if "CUR" in name else 1
         assert codes.joint_of(t.code) == joint and f"joint {joint + 1}" in t.detail
         assert bool(t.code & codes.F_RANGE)
-    assert rt_robot.released()
+    assert ls_robot.released()
 
 
-def test_checks_switched_off_by_the_checking_bits(rt_robot):
-    t = _one_command(rt_robot, lambda s: s.chg.motion[4].issue(CUR, 700), checking=0)
+def test_checks_switched_off_by_the_checking_bits(ls_robot):
+    t = _one_command(ls_robot, lambda s: s.chg.motion[4].issue(CUR, 700), checking=0)
     assert t is None
 
 
 # --- planning-level delivery ---------------------------------------------------------------
-def test_error_reaches_a_main_thread_blocked_in_sleep(rt_robot):
-    s = session(rt_robot.url, rate_hz=50, signals=True)
+def test_error_reaches_a_main_thread_blocked_in_sleep(ls_robot):
+    s = session(ls_robot.url, rate_hz=50, signals=True)
     with s:
         def f1():
             if s.how.cycle > 5:
@@ -356,8 +367,8 @@ def test_error_reaches_a_main_thread_blocked_in_sleep(rt_robot):
     assert s.termination.number == codes.R_USERFUNC
 
 
-def test_default_handler_prints_terminate_and_exits(rt_robot, capsys):
-    s = session(rt_robot.url, rate_hz=50, signals=True, on_error=None)
+def test_default_handler_prints_terminate_and_exits(ls_robot, capsys):
+    s = session(ls_robot.url, rate_hz=50, signals=True, on_error=None)
     s.open()
     with pytest.raises(SystemExit) as e:
         s.control(lambda: 1 / 0)      # the error of the first cycle is delivered before control() returns
@@ -365,7 +376,7 @@ def test_default_handler_prints_terminate_and_exits(rt_robot, capsys):
     assert e.value.code == 1
     err = capsys.readouterr().err
     assert err.startswith("TERMINATE/ in f1: ZeroDivisionError") and "/ user control function raised an exception" in err
-    assert s.link is None and rt_robot.released()
+    assert s.link is None and ls_robot.released()
 
 
 def test_user_error_handler_can_restart_control(robot):
@@ -381,22 +392,22 @@ def test_user_error_handler_can_restart_control(robot):
         s.release()
 
 
-def test_ctrl_c_releases_and_closes(rt_robot, capsys):
-    s = session(rt_robot.url, rate_hz=50, signals=True)
+def test_ctrl_c_releases_and_closes(ls_robot, capsys):
+    s = session(ls_robot.url, rate_hz=50, signals=True)
     s.open()
     s.control(None, None)
     threading.Timer(0.05, os.kill, args=(os.getpid(), signal.SIGINT)).start()
     with pytest.raises(SystemExit) as e:
         s.wait(5.0)
     assert e.value.code == 130
-    assert s.link is None and rt_robot.released() and rt_robot.powered_off()
+    assert s.link is None and ls_robot.released() and ls_robot.powered_off()
     assert "TERMINATE/ interrupt / interrupted from the keyboard" in capsys.readouterr().err
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_user_interrupt_handler(rt_robot):
+def test_user_interrupt_handler(ls_robot):
     hits = []
-    s = session(rt_robot.url, rate_hz=50, signals=True, on_interrupt=lambda: hits.append(1))
+    s = session(ls_robot.url, rate_hz=50, signals=True, on_interrupt=lambda: hits.append(1))
     with s:
         s.control(None, None)
         os.kill(os.getpid(), signal.SIGINT)

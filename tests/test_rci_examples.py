@@ -34,7 +34,7 @@ def run_example(*args: str, timeout: float = 60.0) -> subprocess.CompletedProces
 def test_zero_gravity_holds_and_moves_when_pushed():
     zg = load("zero_gravity")
     with SimulaProcess("-c", "--warm", lockstep=True) as sim:
-        with Session(sim.url, "puma260", rate_hz=36) as s:
+        with Session(sim.url, "puma260", rate_hz=36, lock_memory=False) as s:
             w = zg.Weightless(s)
             s.control(None, w)
             s.chg.power_on.com = 1
@@ -63,7 +63,7 @@ def test_zero_gravity_command_line():
 def test_calibration_program_calibrates_an_uncalibrated_simula():
     cal_mod = load("calibrate")
     with SimulaProcess(seed=5, lockstep=True) as sim:
-        with Session(sim.url, "puma260") as s:
+        with Session(sim.url, "puma260", lock_memory=False) as s:
             assert not s.how.state & codes.CALIB_OK
             cal = cal_mod.calibrate(s, timeout=60)
             assert s.how.state & codes.CALIB_OK and s.how.state & codes.ZINDEX_OK
@@ -77,7 +77,7 @@ def test_teach_program_with_scripted_keys(tmp_path):
     teach = load("teach")
     lines: list[str] = []
     with SimulaProcess("-p", lockstep=True) as sim:
-        with Session(sim.url, "puma260") as s:
+        with Session(sim.url, "puma260", lock_memory=False) as s:
             q0 = CONV.counts_to_angles(np.array(sim.command("state")["state"]["counters"]))
             poses = teach.teach(s, iter("2++++r3--rs3+rpq"), echo=lines.append)
     poses = np.array(poses)

@@ -27,7 +27,7 @@ def _mover(s: Session):
 
 def test_simula_killed_mid_motion_is_detected_within_two_cycles():
     with SimulaProcess("-p", "--power-on", lockstep=False) as sim:
-        s = Session(sim.url, "puma260", rate_hz=50, on_error="raise", signals=False)
+        s = Session(sim.url, "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False)
         with s:
             s.control(_mover(s))
             s.wait(0.3)
@@ -46,7 +46,7 @@ def test_simula_killed_mid_motion_is_detected_within_two_cycles():
 
 def test_stalled_simula_is_a_timeout():
     with SimulaProcess("-p", "--power-on", lockstep=False) as sim:
-        s = Session(sim.url, "puma260", rate_hz=50, on_error="raise", signals=False)
+        s = Session(sim.url, "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False)
         try:
             with s:
                 s.control(_mover(s))
@@ -65,7 +65,7 @@ def test_stalled_simula_is_a_timeout():
 def test_session_with_simula_over_a_pty():
     with SimulaProcess("-p", lockstep=True, pty=True) as sim:
         assert sim.url.startswith("/dev/")
-        with Session(sim.url, "puma260", rate_hz=100, on_error="raise", signals=False) as s:
+        with Session(sim.url, "puma260", rate_hz=100, on_error="raise", signals=False, lock_memory=False) as s:
             s.chg.power_on.com = 1
             s.control(_mover(s))
             c0 = s.how.cycle
