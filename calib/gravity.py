@@ -108,7 +108,7 @@ def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
 def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[GravityRow]:
     """Group passes by (position, joint, direction) and apply the repeat of 4.51."""
     keys = sorted({(p.position, p.joint, p.direction) for p in passes if p.role == "main"},
-                  key=lambda k: (k[0], -k[2]))
+                  key=lambda k: (k[0], -k[1], -k[2]))
     rows = []
     for pos, j, d in keys:
         main = [p for p in passes if (p.position, p.joint, p.direction, p.role) == (pos, j, d, "main")]
