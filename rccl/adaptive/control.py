@@ -92,9 +92,16 @@ class AdaptiveControl:
         if want_force:
             force = self.estimator.tool_force(q, t_a, seg.tool, jac6, check=True)
         if want_dev:
+            # measured minus planned (nominal) path: along compliant axes this is what the comply
+            # transform absorbs and what reveals a slip; along the others the command also carried
+            # the comply offset still being released, which is not a deviation
             dev = self._maps.of(seg.tool).d @ (jac6 @ (q - gen.q))
-        if comply:
-            self.compliance.absorb(dev)
+            if comply:
+                c = self.compliance
+                free = np.array([i not in c.forces for i in range(6)])
+                nominal = dev
+                dev = np.where(free, nominal - c.offset, nominal)
+                c.absorb(nominal)
         if not running:
             return
         end = lim.check(force, dev, gen.t, gen.samples) if lim is not None else None
