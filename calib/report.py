@@ -70,7 +70,7 @@ def render(info: RobotInfo, truth: Truth, outcomes: dict[str, FitOutcome], comma
                          f"{fit.coulomb:.3f} +- {fit.coulomb_err:.3f} | {d:.3f} | {_ok(d <= te)} |")
         L += ["", "## Table 4.3: viscous friction (N m s / rad, x 1000)", "",
               "The viscous term is a few per cent of the Coulomb term even at 160 deg/s, and "
-              "simula's servo current ripple (as large as the current, 4.5.1, filtered as in "
+              "simula's servo current ripple (uniform, up to half the current, 4.5.1; filtered as in "
               "Appendix C) leaves a pass's mean friction uncertain by 1-4 %, so from these "
               "logs the viscous coefficients come out with errors (twice the fit's standard "
               "deviation, 4.5.4) several times the thesis's. The truth lies within the fit's "
