@@ -20,7 +20,7 @@ import argparse
 import json
 import os
 import sys
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
 from typing import Iterator
 
 import numpy as np
@@ -62,21 +62,14 @@ class Servo:
 
 
 def keys_from(stream) -> Iterator[str]:
-    """Single keys from a terminal (cbreak mode) or from a pipe/file (whitespace skipped)."""
+    """Single keys from a terminal (put it in cbreak mode first: ``cbreak``) or a pipe/file."""
     if stream.isatty():
-        import termios
-        import tty
         fd = stream.fileno()
-        saved = termios.tcgetattr(fd)
-        try:
-            tty.setcbreak(fd)
-            while True:
-                ch = os.read(fd, 1).decode(errors="ignore")
-                if not ch:
-                    return
-                yield ch
-        finally:
-            termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+        while True:
+            ch = os.read(fd, 1).decode(errors="ignore")
+            if not ch:
+                return
+            yield ch
     else:
         for line in stream:
             for ch in line:
@@ -84,8 +77,29 @@ def keys_from(stream) -> Iterator[str]:
                     yield ch
 
 
+@contextmanager
+def cbreak(stream):
+    """Keys act at once on a terminal (no <CR>, no echo); restored on exit. No-op on a pipe."""
+    if not stream.isatty():
+        yield
+        return
+    import termios
+    import tty
+    fd = stream.fileno()
+    saved = termios.tcgetattr(fd)
+    tty.setcbreak(fd, termios.TCSANOW)      # TCSANOW: keys typed early are kept, not flushed
+    try:
+        yield
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+
+
+def say(message: str) -> None:
+    print(message, flush=True)
+
+
 def teach(session: Session, keys: Iterator[str], *, step_deg: float = 2.0, speed: float = 0.2,
-          echo=print) -> list[list[float]]:
+          echo=say) -> list[list[float]]:
     """Run the teach loop on an open session; returns the recorded poses (rad)."""
     servo = Servo(session, session.robot, speed)
     session.chg.power_on.com = 1
@@ -95,6 +109,7 @@ def teach(session: Session, keys: Iterator[str], *, step_deg: float = 2.0, speed
     step = np.radians(step_deg)
     poses: list[list[float]] = []
     lower, upper = servo.model.lower, servo.model.upper
+    echo("ready: 1-6 joint, +/- jog, s/f step, r record, p print, q quit")
     for key in keys:
         if key in "123456"[: servo.conv.n]:
             joint = int(key) - 1
@@ -131,6 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     keys = iter(args.keys) if args.keys is not None else keys_from(sys.stdin)
     with ExitStack() as stack:
+        if args.keys is None:
+            stack.enter_context(cbreak(sys.stdin))
         url = args.url
         if args.simula is not None:
             from rci.simula.process import SimulaProcess

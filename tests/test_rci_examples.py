@@ -102,3 +102,36 @@ def test_error_recovery_example_recovers():
     out = r.stdout.splitlines()
     assert out[0].startswith("TERMINATE/ error handler") and out[0].endswith("/ requested velocity too great (joint 1)")
     assert "R_REQVEL: slower" in out and out[-1] == "done at 0.80 x the speed limit"
+
+
+def test_teach_program_on_a_terminal(tmp_path):
+    """Keys typed on a real terminal (a pty in cbreak mode) drive the teach program."""
+    import os
+    import time
+    out = tmp_path / "tty.json"
+    master, slave = os.openpty()
+    proc = subprocess.Popen([sys.executable, "examples/teach.py", "--simula=-p", "--out", str(out)],
+                            cwd=EXAMPLES.parent, stdin=slave, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    os.close(slave)
+    try:
+        deadline = time.monotonic() + 30
+        assert proc.stdout.readline().startswith("ready:")     # keys typed from now on act at once
+        for key in "1++r":
+            os.write(master, key.encode())
+            time.sleep(0.1)
+        while not out.exists() and time.monotonic() < deadline:
+            os.write(master, b"q")
+            time.sleep(0.3)
+            if proc.poll() is not None:
+                break
+        proc.wait(timeout=max(1.0, deadline - time.monotonic()))
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    assert proc.returncode == 0, proc.stderr.read()
+    poses = json.loads(out.read_text())["poses"]
+    assert len(poses) == 1
+    from rci.robot_model import load_robot
+    ready = load_robot("puma260").poses["ready"]
+    np.testing.assert_allclose(np.degrees(np.array(poses[0]) - ready), [4, 0, 0, 0, 0, 0], atol=0.05)
