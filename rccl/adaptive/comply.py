@@ -49,12 +49,13 @@ def select_joints(jac_tool: np.ndarray, axes: list[int], jinv: np.ndarray | None
     taken: set[int] = set()
     out: dict[int, int] = {}
     for i in axes:
-        score = np.abs(jac_tool[i, :] * jinv[:, i])
-        for j in np.argsort(-score):
-            if int(j) not in taken:
-                out[i] = int(j)
-                taken.add(int(j))
-                break
+        score = np.abs(jac_tool[i, :] * jinv[:, i]).tolist()
+        best, best_j = -1.0, -1
+        for j, v in enumerate(score):
+            if j not in taken and v > best:
+                best, best_j = v, j
+        out[i] = best_j
+        taken.add(best_j)
     return out
 
 
@@ -123,15 +124,23 @@ def servo_dac(model: JointModel, joints: list[int], t_a: np.ndarray, t_g: np.nda
     compensated in the direction the joint moves; at rest, in the direction the path asks it
     to move (``qd_path``), or, if the path stands still too, the direction of the torque.
     """
-    ta = np.zeros_like(t_g)
-    ta[joints] = t_a[joints]
-    moving = np.abs(qd) > rest_speed
-    path = np.zeros_like(qd) if qd_path is None else np.where(np.abs(qd_path) > rest_speed, np.sign(qd_path), 0.0)
-    direction = np.where(moving, np.sign(qd), np.where(path != 0, path, np.sign(ta)))
-    speed = np.where(moving, np.abs(qd), 0.0)
-    fric = np.where(direction > 0, model.coulomb_pos + model.viscous_pos * speed,
-                    np.where(direction < 0, -model.coulomb_neg - model.viscous_neg * speed, 0.0))
-    sel = np.zeros_like(t_g)
-    sel[joints] = fric[joints]
+    u = np.array(t_g, dtype=float)           # t_a + t_g + f, only the chosen joints get t_a and f
+    for j in joints:
+        v = float(qd[j])
+        moving = abs(v) > rest_speed
+        if moving:
+            sign = 1.0 if v > 0 else -1.0
+        elif qd_path is not None and abs(float(qd_path[j])) > rest_speed:
+            sign = 1.0 if qd_path[j] > 0 else -1.0
+        else:
+            sign = float(np.sign(t_a[j]))
+        speed = abs(v) if moving else 0.0
+        if sign > 0:
+            f = model.coulomb_pos[j] + model.viscous_pos[j] * speed
+        elif sign < 0:
+            f = -model.coulomb_neg[j] - model.viscous_neg[j] * speed
+        else:
+            f = 0.0
+        u[j] += t_a[j] + f
     # 4.38 with f_dac = K_dac G^-T f: v_dac = K_dac G^-T (t_a + t_g + f)
-    return model.dac_per_joint_torque @ (ta + t_g + sel)
+    return model.dac_per_joint_torque @ u
