@@ -158,7 +158,10 @@ class ControlTask(threading.Thread):
         while not self.finished.wait(interval):
             if self.ended:
                 return
-            if self.in_user and time.monotonic() - self.cycle_start > 2 * self.period and self.s.overrun == "error":
+            # overruns counted only (lockstep simulator): a function that has not returned
+            # after 2 s is hung all the same, and the simulator waits for it forever
+            limit = 2 * self.period if self.s.overrun == "error" else max(2 * self.period, 2.0)
+            if self.in_user and time.monotonic() - self.cycle_start > limit:
                 self.terminate(codes.make_code(codes.R_OVERRUN, codes.F_USER),
                                f"user function still running {time.monotonic() - self.cycle_start:.3f} s after its cycle began "
                                f"(period {self.period:.4f} s)")

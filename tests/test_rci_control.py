@@ -447,3 +447,19 @@ def test_recorder_logs_every_cycle(robot, tmp_path):
     assert (log.records["chg_motion_com"][:, 3] == POS).all()
     assert (log.records["chg_motion_value"][:, 3] == 7).all()
     assert np.all(np.diff(log.records["cycle"].astype(int)) == 1)
+
+
+def test_hung_function_against_a_lockstep_robot_is_caught_after_two_seconds(ls_robot):
+    s = session(ls_robot.url, rate_hz=100)          # overrun="count": slow cycles are fine here...
+    go = threading.Event()
+    with s:
+        def f1():
+            if s.how.cycle == 5:
+                go.wait(10.0)                        # ...but one that never returns is not
+        s.control(f1)
+        t0 = time.monotonic()
+        t = run_until_terminated(s, limit=5.0)
+        waited = time.monotonic() - t0
+        go.set()
+    assert t.number == codes.R_OVERRUN and 2.0 <= waited < 2.5
+    assert ls_robot.released()
