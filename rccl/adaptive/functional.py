@@ -77,6 +77,7 @@ class FunctionalUpdater:
         self.max_step_change = (None if qdd_max is None
                                 else np.asarray(qdd_max, dtype=float) * float(dt) ** 2 * float(share))
         self.prev_dtheta = np.zeros_like(self.max_step)
+        self._cache = None        # (position, snapshot, its transforms' arrays, their T6) after the last update
         self.max_condition = float(max_condition)
         self.last = UpdateInfo()
         self.limited = 0           # samples in which a change was scaled down
@@ -106,7 +107,18 @@ class FunctionalUpdater:
         if callable(jac6):
             jac6 = jac6()
         before = [t._m for t in trs]
-        t6_0 = positions[0].solve(snap) if jac6 is not None else None
+        t6_0 = None
+        if jac6 is not None:
+            # T6 before this sample's calls: last sample's result if no transform of the equation was
+            # replaced since (setters replace a transform's array, never mutate it), else solved anew
+            pos = positions[0]
+            values = [t._m for t in pos.transforms()]
+            c = self._cache
+            if c is not None and c[0] is pos and c[1] is snap and all(a is b for a, b in zip(c[2], values)) \
+                    and len(c[2]) == len(values):
+                t6_0 = c[3]
+            else:
+                t6_0 = pos.solve(snap)
         for t in trs:
             try:
                 t.fn(t)
@@ -115,11 +127,12 @@ class FunctionalUpdater:
             except Exception as exc:  # the user's function: stop, saying which transform
                 raise FunctionalError(f"functional transform {t.name!r}: its function raised "
                                       f"{type(exc).__name__}: {exc}") from exc
-            if not np.all(np.isfinite(t._m)):
+            if not math.isfinite(float(t._m.sum())):
                 raise FunctionalError(f"functional transform {t.name!r}: its function left a non-finite value")
         if jac6 is None:
             return info
         t6_1 = positions[0].solve(snap)
+        self._cache = (positions[0], snap, [t._m for t in positions[0].transforms()], t6_1)
         dc = differential(t6_0, t6_1)
         if not dc.any():
             self.prev_dtheta[:] = 0.0
@@ -151,4 +164,5 @@ class FunctionalUpdater:
             for t, m0 in zip(trs, before):
                 if t._m is not m0:
                     t.set(interpolate(m0, t._m, s))
+            self._cache = None            # the scaled values differ from the solved ones
         return info
