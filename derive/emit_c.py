@@ -29,7 +29,7 @@ from pathlib import Path
 
 import sympy as sp
 
-from derive.kernel import Kernel
+from derive.kernel import Arg, Kernel
 from derive import opcount
 
 #: Functions the C printer knows, with their C spelling.
@@ -87,9 +87,44 @@ def _outputs(kernel: Kernel) -> tuple[list[list[str]], list[sp.Expr]]:
     return names, exprs
 
 
+def dag_xreplace(exprs: list[sp.Expr], subs: dict[sp.Expr, sp.Expr]) -> list[sp.Expr]:
+    """``xreplace`` that visits each distinct subexpression once (SymPy's walks the tree)."""
+    memo: dict[sp.Expr, sp.Expr] = {}
+
+    def walk(e: sp.Expr) -> sp.Expr:
+        if e in subs:
+            return subs[e]
+        if not e.args:
+            return e
+        if e in memo:
+            return memo[e]
+        args = [walk(a) for a in e.args]
+        out = e.func(*args) if any(a is not b for a, b in zip(args, e.args)) else e
+        memo[e] = out
+        return out
+
+    return [walk(sp.sympify(e)) for e in exprs]
+
+
+def dag_atoms(exprs: list[sp.Expr], *types: type) -> set[sp.Expr]:
+    """Subexpressions of the given types, visiting each distinct node once."""
+    seen: set[sp.Expr] = set()
+    found: set[sp.Expr] = set()
+    stack = list(exprs)
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if isinstance(e, types):
+            found.add(e)
+        stack.extend(e.args)
+    return found
+
+
 def _numeric(kernel: Kernel, exprs: list[sp.Expr]) -> list[sp.Expr]:
     subs = {k: sp.Float(v, 17) if not float(v).is_integer() else sp.Integer(int(v)) for k, v in kernel.params.items()}
-    return [sp.sympify(e).xreplace(subs) if subs else sp.sympify(e) for e in exprs]
+    return dag_xreplace(exprs, subs) if subs else [sp.sympify(e) for e in exprs]
 
 
 def _extract_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tuple[sp.Symbol, sp.Expr]]]:
@@ -97,9 +132,7 @@ def _extract_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tuple[sp.Sy
 
     A compound argument (q2 + q3) is itself computed once, before its sin and cos.
     """
-    calls: set[sp.Expr] = set()
-    for e in exprs:
-        calls |= {f for f in e.atoms(sp.sin, sp.cos)}
+    calls = dag_atoms(exprs, sp.sin, sp.cos)
     # sort for a deterministic file: by argument text, sin before cos
     ordered = sorted(calls, key=lambda f: (sp.default_sort_key(f.args[0]), f.func.__name__ != "sin"))
     trig: list[tuple[sp.Symbol, sp.Expr]] = []
@@ -114,18 +147,30 @@ def _extract_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tuple[sp.Sy
         s = sp.Symbol(f"{'s' if f.func is sp.sin else 'c'}_{k}")
         subs[f] = s
         trig.append((s, f.func(arg_syms.get(arg, arg))))
-    return [e.xreplace(subs) for e in exprs], trig
+    return dag_xreplace(exprs, subs), trig
 
 
-def _factor_sum(expr: sp.Expr, rank: dict[sp.Expr, int] | None = None) -> sp.Expr:
+def _factor_sum(expr: sp.Expr, rank: dict[sp.Expr, int] | None = None,
+                memo: dict[sp.Expr, sp.Expr] | None = None) -> sp.Expr:
     """Greedy multivariate Horner: pull a factor shared by several terms out of each sum.
 
     Without ``rank`` the factor shared by most terms goes first; with it, the shared
     factor of lowest rank (e.g. the trig of the joint nearest the base) goes first.
+    ``memo`` keeps shared subtrees shared (expressions are DAGs).
     """
     if expr.is_Atom:
         return expr
-    args = [_factor_sum(a, rank) for a in expr.args]
+    if memo is None:
+        memo = {}
+    if expr in memo:
+        return memo[expr]
+    out = _factor_sum_node(expr, rank, memo)
+    memo[expr] = out
+    return out
+
+
+def _factor_sum_node(expr: sp.Expr, rank, memo) -> sp.Expr:
+    args = [_factor_sum(a, rank, memo) for a in expr.args]
     if not expr.is_Add:
         return expr.func(*args) if args != list(expr.args) else expr
     terms = list(args)
@@ -143,10 +188,10 @@ def _factor_sum(expr: sp.Expr, rank: dict[sp.Expr, int] | None = None) -> sp.Exp
         best = max(shared, key=lambda kv: kv[1])[0]
     inside = [t for t in terms if best in _factors(t)]
     rest = [t for t in terms if best not in _factors(t)]
-    inner = _factor_sum(sp.Add(*[_divide_out(t, best) for t in inside]), rank)
+    inner = _factor_sum(sp.Add(*[_divide_out(t, best) for t in inside]), rank, memo)
     out = sp.Mul(best, inner, evaluate=False)
     if rest:
-        return sp.Add(out, _factor_sum(sp.Add(*rest), rank), evaluate=False)
+        return sp.Add(out, _factor_sum(sp.Add(*rest), rank, memo), evaluate=False)
     return out
 
 
@@ -189,7 +234,7 @@ def _transform_columns(kernel: Kernel) -> list[tuple[int, int]]:
 
 
 def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = None,
-          collapse: bool = False) -> Program:
+          collapse: bool = False, cse_opt: bool = True, expand: bool = True) -> Program:
     """Lower a kernel to assignments.
 
     ``factor``: "" (none), "count" (most shared factor first), "base" / "tip" (trig of the
@@ -225,12 +270,16 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
             syms = [s for s, _ in trig if s.name[0] in "sc"]
             order = syms if factor == "base" else syms[::-1]
             rank = {s: i for i, s in enumerate(order)}
-        work = [_factor_sum(sp.expand(e) if _is_poly_like(e) else e, rank) for e in work]
-    temps, reduced = sp.cse(work, symbols=sp.numbered_symbols("t"), optimizations="basic")
+        memo: dict[sp.Expr, sp.Expr] = {}
+        work = [_factor_sum(sp.expand(e) if expand and _is_poly_like(e) else e, rank, memo) for e in work]
+    # SymPy's "basic" CSE preprocessing (factor_terms) walks the expression *tree*: fine for
+    # small kernels, hours for inverse kinematics whose DAG of 150 nodes is a tree of 10^5
+    temps, reduced = sp.cse(work, symbols=sp.numbered_symbols("t"), optimizations="basic" if cse_opt else None)
     outputs: list[tuple[str, sp.Expr]] = [(flat_names[k], reduced[i]) for i, k in enumerate(keep)]
     for k in sorted(rebuilt):
         outputs.append((flat_names[k], rebuilt[k]))
-    variant = (f"horner[{factor}]+cse" if factor else "cse") + (", trig sums collapsed" if collapse else "")
+    variant = (f"{'expand+' if expand else ''}horner[{factor}]+cse" if factor else "cse")
+    variant += ", trig sums collapsed" if collapse else ""
     variant += "".join(f", {'noa'[c]}=cross" for c in cross.values())
     return Program(kernel, in_names, out_names, trig, list(temps), outputs, sym_names, variant)
 
@@ -361,8 +410,44 @@ def kernel_body(prog: Program) -> str:
     pr = CPrinter(names)
     lines = [f"    const double {s.name} = {pr.expr(f)};" for s, f in prog.trig]
     lines += [f"    const double {s.name} = {pr.expr(v)};" for s, v in prog.temps]
-    lines += [f"    {name} = {pr.expr(v)};" for name, v in prog.outputs]
+    n_main = len(prog.kernel.outputs)
+    guard_names = {n for row in prog.out_names[n_main:] for n in row}
+    lines += [f"    {name} = {pr.expr(v)};" for name, v in prog.outputs if name not in guard_names]
+    if guard_names:
+        lines.append("    /* guards: >= 0 where the outputs are valid */")
+        lines += [f"    {name} = {pr.expr(v)};" for name, v in prog.outputs if name in guard_names]
     return "\n".join(lines)
+
+
+def tree_size(exprs: list[sp.Expr]) -> int:
+    """Number of nodes of the expressions written out as trees (what naive walks visit)."""
+    memo: dict[sp.Expr, int] = {}
+
+    def size(e: sp.Expr) -> int:
+        if e not in memo:
+            memo[e] = 1 + sum(size(a) for a in e.args)
+        return memo[e]
+
+    return sum(size(e) for e in exprs)
+
+
+def dag_size(exprs: list[sp.Expr]) -> int:
+    """Number of distinct subexpressions (tree size would count shared subtrees repeatedly)."""
+    seen: set[sp.Expr] = set()
+    stack = list(exprs)
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        stack.extend(e.args)
+    return len(seen)
+
+
+#: above this many distinct subexpressions, or this many tree nodes, only plain CSE is
+#: tried (the rewrites that expand or factor sums cost too much on large kernels)
+LARGE_KERNEL = 1500
+LARGE_TREE = 20000
 
 
 def best_program(kernel: Kernel) -> tuple[Program, str]:
@@ -371,10 +456,16 @@ def best_program(kernel: Kernel) -> tuple[Program, str]:
     cross_choices: list[dict[int, int]] = [{}]
     if len(cols) == 1:
         cross_choices += [{cols[0]: c} for c in range(3)]
+    _, exprs = _outputs(kernel)
+    large = dag_size(exprs) > LARGE_KERNEL or tree_size(exprs) > LARGE_TREE
+    collapses = (False,) if large else (False, True)
+    factors = ("",) if large else ("", "count", "base", "tip")
     best = None
-    for collapse, factor, cross in itertools.product((False, True), ("", "count", "base", "tip"), cross_choices):
+    for collapse, factor, expand, cross in itertools.product(collapses, factors, (True, False), cross_choices):
+        if expand and not factor:
+            continue
         try:
-            prog = lower(kernel, factor=factor, cross=cross, collapse=collapse)
+            prog = lower(kernel, factor=factor, cross=cross, collapse=collapse, cse_opt=not large, expand=expand)
             body = kernel_body(prog)
         except ValueError:
             if factor:
@@ -710,6 +801,53 @@ def source_hash(text: str) -> str:
     import hashlib
     body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#define RCCL_SOURCE_HASH"))
     return hashlib.sha256(body.encode()).hexdigest()
+
+
+#: the lowered programs of the last ``emit`` per robot, reused by the CasADi back end
+LAST_PROGRAMS: dict[str, tuple[list[Kernel], list[tuple[Program, str]]]] = {}
+
+COMMAND = "make derive  (python -m derive)"
+
+
+def emit(kernels: list[Kernel], robot: str, out_dir: Path) -> list[Path]:
+    """Back-end entry of ``python -m derive``: ``out_dir/_c/<robot>.c`` and the op-count reports.
+
+    The reports cover every generated C file present, so they are complete after the
+    last robot. The extension is compiled by ``pip install`` (setup.py), not here.
+    """
+    out_dir = Path(out_dir)
+    kernels = list(kernels) + all_configurations_kernels(kernels)
+    path, programs = write(robot, kernels, out_dir / "_c", COMMAND)
+    LAST_PROGRAMS[robot] = (kernels, programs)
+    reports = out_dir.parent.parent / "reports"
+    c_files = sorted((out_dir / "_c").glob("*.c"))
+    opcount.write_reports(c_files, reports / "opcounts.md", reports / "opcounts.json", COMMAND)
+    return [path, reports / "opcounts.md", reports / "opcounts.json"]
+
+
+def all_configurations_kernels(kernels: list[Kernel]) -> list[Kernel]:
+    """``ik_all``: the ``ik`` kernel evaluated for every configuration at once.
+
+    Built here (a back-end composition, not new kinematics) by substituting each sign
+    combination of the ``config`` input, in ``itertools.product((1, -1), repeat=n)``
+    order (the order of the runtime's ``Config.all()``), so common subexpressions are
+    shared between configurations. Outputs: ``q`` (n_configs, 6) and ``guards``
+    (n_configs, n_guards), a configuration being valid when all its guards are >= 0.
+    """
+    ik = next((k for k in kernels if k.name == "ik"), None)
+    if ik is None or len(ik.inputs) != 2 or ik.inputs[1].name != "config":
+        return []
+    signs = list(ik.inputs[1].value)
+    q = ik.outputs[0].value
+    rows, grows = [], []
+    for combo in itertools.product((1, -1), repeat=len(signs)):
+        sub = dict(zip(signs, combo))
+        rows.append(dag_xreplace(list(q), sub))
+        grows.append(dag_xreplace([g.expr for g in ik.guards], sub))
+    doc = ("every configuration of ik at once (rows in Config.all() order); guards per row, "
+           "a row is valid when all its guards are >= 0")
+    return [Kernel(ik.robot, "ik_all", doc, (ik.inputs[0],),
+                   (Arg("q", sp.Matrix(rows)), Arg("guards", sp.Matrix(grows))), (), dict(ik.params), ik.source)]
 
 
 def write(robot: str, kernels: list[Kernel], out_dir: Path, command: str = "make derive") -> tuple[Path, list[tuple[Program, str]]]:
