@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from derive import emit_python
+from derive import emit_c, emit_casadi, emit_python
 from derive.derivation import ROBOT_NAMES, derive_robot
 from derive.kernels import build_kernels
 
@@ -20,6 +20,8 @@ OUT_DIR = ROOT / "rccl" / "kinematics"
 #: (name, emit function); each writes its files for one robot into OUT_DIR
 BACKENDS = [
     ("python", emit_python.emit),
+    ("c", emit_c.emit),
+    ("casadi", emit_casadi.emit),
 ]
 
 

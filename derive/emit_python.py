@@ -160,7 +160,8 @@ def _function(kernel: Kernel, lowered, many: bool) -> str:
 
 
 def _kernel_table(kernels: list[Kernel]) -> str:
-    lines = ["_KERNELS = {"]
+    # the compiled C kernels replace these where available (rccl.kinematics.backend)
+    lines = ["_KERNELS = _backend.accelerate(ROBOT, {"]
     for k in kernels:
         ins = ", ".join(f"({a.name!r}, {a.shape!r})" for a in k.inputs)
         outs = ", ".join(f"({a.name!r}, {a.shape!r})" for a in k.outputs)
@@ -171,7 +172,7 @@ def _kernel_table(kernels: list[Kernel]) -> str:
             f"        outputs=({outs}{',' if len(k.outputs) == 1 else ''}),\n"
             f"        guards=({guards}{',' if len(k.guards) == 1 else ''})),"
         )
-    lines.append("}")
+    lines.append("})")
     return "\n".join(lines)
 
 
@@ -199,6 +200,7 @@ import math
 
 import numpy
 
+from rccl.kinematics import backend as _backend
 from rccl.kinematics import runtime as _rt
 
 ROBOT = {spec.name!r}

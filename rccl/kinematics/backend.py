@@ -88,3 +88,22 @@ def kernel(robot: str, name: str, in_shapes: tuple[Shape, ...], out_shapes: tupl
             "Python code. Rebuild with `pip install -e .` after `make derive`.")
         return None
     return getattr(mod, name)
+
+
+def accelerate(robot: str, kernels: dict[str, Any]) -> dict[str, Any]:
+    """Swap the Python code of generated kernels for the compiled C where it is available.
+
+    ``kernels`` maps names to the runtime's ``KernelFn`` records (fields ``one``,
+    ``many``, ``inputs``, ``outputs``, ``guards``); each record whose C kernel exists
+    with the same shapes gets the C function as both its single and batched code.
+    The C does its own shape and NaN checks and returns the same tuple layout
+    (outputs, then guards) as the generated Python.
+    """
+    import dataclasses
+
+    out = {}
+    for name, k in kernels.items():
+        fn = kernel(robot, name, tuple(s for _, s in k.inputs),
+                    tuple(s for _, s in k.outputs) + ((),) * len(k.guards))
+        out[name] = dataclasses.replace(k, one=fn, many=fn) if fn is not None else k
+    return out
