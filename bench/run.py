@@ -1,0 +1,378 @@
+"""`make bench`: speed of the generated C, generated Python, CasADi and Pinocchio kinematics, in one run.
+
+Writes reports/bench.md. Every figure is measured in this run on this machine; ratios
+are Pinocchio's time divided by the back end's (bigger is faster). Per-call latency is
+the best of several timeit repeats of one Python call; batched throughput is one call
+over N configurations (C, generated Python's numpy code, CasADi ``map``) against a
+Python loop over Pinocchio calls of the same size.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import time
+import timeit
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from rccl.kinematics import backend  # noqa: E402
+
+COMMAND = "make bench  (python -m bench.run)"
+
+
+# ------------------------------------------------------------------ timing helpers
+
+def per_call(fn: Callable[[], object], budget: float = 0.15) -> float:
+    """Seconds per call: best of 5 repeats, each long enough to be measurable."""
+    fn()
+    n, t = 1, 0.0
+    while t < budget / 5:
+        n *= 4
+        t = timeit.timeit(fn, number=n)
+    return min(timeit.repeat(fn, number=n, repeat=5)) / n
+
+
+def once(fn: Callable[[], object], repeat: int = 1) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def loop(fn: Callable[[np.ndarray], object], rows: np.ndarray) -> float:
+    """Seconds for a plain Python loop calling fn on each row."""
+    t0 = time.perf_counter()
+    for r in rows:
+        fn(r)
+    return time.perf_counter() - t0
+
+
+# ------------------------------------------------------------------ the four back ends
+
+@dataclass
+class Op:
+    """One computation measured on every back end."""
+
+    name: str
+    c: Callable            # single call, args per configuration
+    py: Callable           # generated Python, one configuration
+    py_many: Callable      # generated Python, batched numpy code
+    cas: ca.Function | None
+    pin: Callable          # Pinocchio, one configuration
+    make_args: Callable[[np.ndarray], tuple]  # Q (N, 6) -> batched args
+    results: dict = field(default_factory=dict)
+
+
+def pin_model(robot: str):
+    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
+    data = model.createData()
+    return model, data, model.getFrameId("link6")
+
+
+def build_ops(robot: str, rng: np.random.Generator) -> tuple[list[Op], object]:
+    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    cm = backend.c_module(robot)
+    if cm is None:
+        raise SystemExit("bench: the C kernels are not compiled; run `pip install -e .` first")
+    model, data, fid = pin_model(robot)
+    cas = {}
+    for name in ("fk", "jacobian6", "cartesian_from_joint6", "torque_from_force6", "joint_from_cartesian6",
+                 "force_from_torque6", "gravity", "ik", "ik_all"):
+        cas[name] = ca.Function.load(str(ROOT / "rccl" / "kinematics" / "casadi" / robot / f"{name}.casadi"))
+    coeffs = np.array([0.5] * len(mod.GRAVITY_COEFFS))  # timing only; values do not matter
+
+    def pin_fk(q):
+        pin.forwardKinematics(model, data, q)
+        return pin.updateFramePlacement(model, data, fid).homogeneous
+
+    def pin_j6(q):
+        return pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+
+    def v6(n):
+        return rng.normal(size=(n, 6))
+
+    ops = [
+        Op("fk", cm.fk, mod._fk_one, mod._fk_many, cas["fk"], pin_fk, lambda Q: (Q,)),
+        Op("jacobian6", cm.jacobian6, mod._jacobian6_one, mod._jacobian6_many, cas["jacobian6"], pin_j6,
+           lambda Q: (Q,)),
+        Op("cartesian_from_joint6", cm.cartesian_from_joint6, mod._cartesian_from_joint6_one,
+           mod._cartesian_from_joint6_many, cas["cartesian_from_joint6"],
+           lambda q, dq: pin_j6(q) @ dq, lambda Q: (Q, v6(len(Q)))),
+        Op("torque_from_force6", cm.torque_from_force6, mod._torque_from_force6_one,
+           mod._torque_from_force6_many, cas["torque_from_force6"],
+           lambda q, f: pin_j6(q).T @ f, lambda Q: (Q, v6(len(Q)))),
+        Op("joint_from_cartesian6", cm.joint_from_cartesian6, mod._joint_from_cartesian6_one,
+           mod._joint_from_cartesian6_many, cas["joint_from_cartesian6"],
+           lambda q, dc: np.linalg.solve(pin_j6(q), dc), lambda Q: (Q, v6(len(Q)))),
+        Op("force_from_torque6", cm.force_from_torque6, mod._force_from_torque6_one,
+           mod._force_from_torque6_many, cas["force_from_torque6"],
+           lambda q, tau: np.linalg.solve(pin_j6(q).T, tau), lambda Q: (Q, v6(len(Q)))),
+        Op("gravity", cm.gravity, mod._gravity_one, mod._gravity_many, cas["gravity"],
+           lambda q, c: pin.computeGeneralizedGravity(model, data, q),
+           lambda Q: (Q, np.broadcast_to(coeffs, (len(Q), len(coeffs))).copy())),
+    ]
+    return ops, (mod, cm, model, data, fid, cas)
+
+
+def random_q(mod, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Configurations inside the joint ranges, away from the singular boundaries."""
+    lo, hi = np.asarray(mod.LOWER), np.asarray(mod.UPPER)
+    q = rng.uniform(lo, hi, size=(n, 6))
+    return q
+
+
+def measure_op(op: Op, Q1: np.ndarray, big: dict[int, np.ndarray], n_pin_loop: dict[int, int]) -> None:
+    args1 = op.make_args(Q1[:1])
+    one = tuple(a[0] for a in args1)
+    cas_one = [np.asarray(a, dtype=float) for a in one]
+    r = op.results
+    r["c_call"] = per_call(lambda: op.c(*one))
+    r["py_call"] = per_call(lambda: op.py(*one))
+    r["cas_call"] = per_call(lambda: op.cas(*cas_one))
+    r["pin_call"] = per_call(lambda: op.pin(*one))
+    for n, Q in big.items():
+        args = op.make_args(Q)
+        r[f"c_{n}"] = once(lambda: op.c(*args), repeat=2) / n
+        r[f"py_{n}"] = once(lambda: op.py_many(*args)) / n
+        fmap = op.cas.map(n)
+        cargs = [np.ascontiguousarray(a.reshape(n, -1).T) for a in args]
+        r[f"cas_{n}"] = once(lambda: fmap(*cargs)) / n
+        m = n_pin_loop[n]
+        rows = list(zip(*[a[:m] for a in args]))
+        t0 = time.perf_counter()
+        for row in rows:
+            op.pin(*row)
+        r[f"pin_{n}"] = (time.perf_counter() - t0) / m
+
+
+# ------------------------------------------------------------------ inverse kinematics
+
+def dls_ik(model, data, fid, target: pin.SE3, q0: np.ndarray, tol: float = 1e-10,
+           max_iter: int = 200, damping: float = 1e-6) -> tuple[np.ndarray, int, bool]:
+    """Damped least squares on Pinocchio: q <- q + J^T (J J^T + lambda I)^-1 e, e = log6 error in frame 6."""
+    q = q0.copy()
+    for it in range(max_iter):
+        pin.forwardKinematics(model, data, q)
+        current = pin.updateFramePlacement(model, data, fid)
+        err = pin.log6(current.actInv(target)).vector
+        if np.linalg.norm(err) < tol:
+            return q, it, True
+        j = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+        j = pin.Jlog6(current.actInv(target)) @ j
+        q = q + j.T @ np.linalg.solve(j @ j.T + damping * np.eye(6), err)
+    return q, max_iter, False
+
+
+def pose_error(t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, float]:
+    """(position error m, rotation error rad) between two homogeneous transforms."""
+    dp = np.linalg.norm(t_a[:3, 3] - t_b[:3, 3])
+    r = t_a[:3, :3].T @ t_b[:3, :3]
+    ang = np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))
+    return float(dp), float(ang)
+
+
+def measure_ik(mod, cm, model, data, fid, cas, Q: np.ndarray, big: dict[int, np.ndarray], rng) -> dict:
+    out: dict = {}
+    T = cm.fk(Q)[0]
+    cfg = np.array(mod.Config(1, 1, 1).signs, dtype=float)
+    t1 = T[0]
+    out["c_ik_call"] = per_call(lambda: cm.ik(t1, cfg))
+    out["py_ik_call"] = per_call(lambda: mod._ik_one(t1, cfg))
+    out["cas_ik_call"] = per_call(lambda: cas["ik"](t1, cfg))
+    out["c_ik_all_call"] = per_call(lambda: cm.ik_all(t1))
+    out["public_ik_call"] = per_call(lambda: mod.ik(t1, mod.Config(1, 1, 1)))
+    out["public_ik_all_call"] = per_call(lambda: mod.ik_all(t1))
+    for n, Qb in big.items():
+        Tb = cm.fk(Qb)[0]
+        cfgs = np.broadcast_to(cfg, (n, len(cfg))).copy()
+        out[f"c_ik_{n}"] = once(lambda: cm.ik(Tb, cfgs), repeat=2) / n
+        out[f"c_ik_all_{n}"] = once(lambda: cm.ik_all(Tb), repeat=2) / n
+        out[f"py_ik_{n}"] = once(lambda: mod._ik_many(Tb, cfgs)) / n
+    # accuracy of the closed form: every valid solution reproduces its pose
+    n_acc = 2000
+    Ta = T[:n_acc]
+    qs, guards = cm.ik_all(Ta)
+    valid = (guards >= 0).all(axis=2)
+    back = cm.fk(qs.reshape(-1, 6))[0].reshape(n_acc, -1, 4, 4)
+    err = np.abs(back - Ta[:, None])[valid]
+    out["c_ik_all_valid"] = float(valid.sum(axis=1).mean())
+    out["c_ik_all_maxerr"] = float(err.max())
+    # numerical: damped least squares on Pinocchio from a start 0.3 rad (uniform, per joint) off the answer
+    n_num = 200
+    t_num = 0.0
+    iters, ok, pos_err, rot_err = [], 0, [], []
+    for i in range(n_num):
+        target = pin.SE3(T[i])
+        q0 = Q[i] + rng.uniform(-0.3, 0.3, 6)
+        t0 = time.perf_counter()
+        q, it, conv = dls_ik(model, data, fid, target, q0)
+        t_num += time.perf_counter() - t0
+        iters.append(it)
+        ok += conv
+        pin.forwardKinematics(model, data, q)
+        e = pose_error(pin.updateFramePlacement(model, data, fid).homogeneous, T[i])
+        pos_err.append(e[0])
+        rot_err.append(e[1])
+    out.update(dls_time=t_num / n_num, dls_ok=ok / n_num, dls_iters=float(np.mean(iters)),
+               dls_pos=float(np.max(pos_err)), dls_rot=float(np.max(rot_err)), dls_n=n_num)
+    # same poses through the closed form for the per-pose accuracy comparison
+    pe, re = [], []
+    for i in range(n_num):
+        q = cm.ik(T[i], cfg)[0] if False else mod.ik(T[i], mod.config_of(Q[i]))
+        e = pose_error(cm.fk(q)[0], T[i])
+        pe.append(e[0])
+        re.append(e[1])
+    out.update(cf_pos=float(np.max(pe)), cf_rot=float(np.max(re)))
+    return out
+
+
+# ------------------------------------------------------------------ report
+
+def machine() -> list[str]:
+    cpu = platform.processor() or "?"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        gcc = subprocess.run(["gcc", "--version"], capture_output=True, text=True).stdout.splitlines()[0]
+    except OSError:
+        gcc = "no gcc"
+    return [
+        f"- machine: {cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}",
+        f"- Python {platform.python_version()}, numpy {np.__version__}, Pinocchio {pin.__version__}, "
+        f"CasADi {ca.__version__}, compiler: {gcc} (flags -O3 -fno-math-errno, from setup.py)",
+    ]
+
+
+def us(t: float) -> str:
+    return f"{t * 1e6:.3g}"
+
+
+def ns(t: float) -> str:
+    return f"{t * 1e9:.3g}"
+
+
+def ratio(a: float, b: float) -> str:
+    return f"{a / b:.3g}x"
+
+
+def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[int], n_pin: dict[int, int],
+                 public: dict, elapsed: float) -> None:
+    L = ["# Kinematics benchmark: generated C, generated Python, CasADi, Pinocchio", "",
+         f"Command: `{COMMAND}` (bench/run.py); robot: {robot}; measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
+         f"in one run of {elapsed:.0f} s.", ""]
+    L += machine()
+    L += ["",
+          "Ratios are Pinocchio's time over the back end's (bigger is faster). `C` is the compiled",
+          "kernel called directly (`rccl.kinematics._c.<robot>.<kernel>`, which checks shapes and NaN",
+          "itself); `Python` the generated straight-line code (`_<kernel>_one` / `_<kernel>_many`);",
+          "`CasADi` the saved SX Function (`casadi.Function.load`), batched with `Function.map`;",
+          "Pinocchio the equivalent call on `models/urdf/<robot>.urdf`: FK = forwardKinematics +",
+          "updateFramePlacement; Jacobian = computeFrameJacobian(LOCAL); the four Jacobian",
+          "computations = that Jacobian times, transposed times, or solved against the vector;",
+          "gravity = computeGeneralizedGravity.",
+          "",
+          "## One call from Python (latency, microseconds)", "",
+          "| computation | C | Python | CasADi | Pinocchio | C vs Pinocchio | target >= 3x |",
+          "|---|---:|---:|---:|---:|---:|---|"]
+    for op in ops:
+        r = op.results
+        sp_ = r["pin_call"] / r["c_call"]
+        L.append(f"| {op.name} | {us(r['c_call'])} | {us(r['py_call'])} | {us(r['cas_call'])} | {us(r['pin_call'])} | "
+                 f"{sp_:.3g}x | {'reached' if sp_ >= 3 else f'missed ({sp_:.2g}x)'} |")
+    L += ["", "Through the public API (`rccl.kinematics.<robot>.fk(q)` etc., C inside, plus the runtime's",
+          "Python-side checks in `rccl/kinematics/runtime.py`):", "",
+          "| call | microseconds | vs Pinocchio |", "|---|---:|---:|"]
+    for name, (t, tp) in public.items():
+        L.append(f"| {name} | {us(t)} | {ratio(tp, t)} |")
+    for n in sizes:
+        L += ["", f"## Batched, N = {n:.0e} (nanoseconds per configuration)", "",
+              f"Pinocchio: a Python loop over {n_pin[n]:.0e} configurations.", "",
+              "| computation | C | Python (numpy) | CasADi map | Pinocchio loop | C vs Pinocchio | target >= 50x |",
+              "|---|---:|---:|---:|---:|---:|---|"]
+        for op in ops:
+            r = op.results
+            sp_ = r[f"pin_{n}"] / r[f"c_{n}"]
+            L.append(f"| {op.name} | {ns(r[f'c_{n}'])} | {ns(r[f'py_{n}'])} | {ns(r[f'cas_{n}'])} | "
+                     f"{ns(r[f'pin_{n}'])} | {sp_:.3g}x | {'reached' if sp_ >= 50 else f'missed ({sp_:.3g}x)'} |")
+    L += ["", "## Inverse kinematics", "",
+          "Closed form (thesis 3.19-3.53), one configuration (`ik`) and all eight (`ik_all`, one",
+          "kernel with subexpressions shared between configurations):", "",
+          "| | C | Python | CasADi |", "|---|---:|---:|---:|",
+          f"| one call, one configuration (us) | {us(ik['c_ik_call'])} | {us(ik['py_ik_call'])} | {us(ik['cas_ik_call'])} |",
+          f"| one call, all 8 configurations (us) | {us(ik['c_ik_all_call'])} | | |",
+          f"| public `ik(T, config)` / `ik_all(T)` (us) | {us(ik['public_ik_call'])} / {us(ik['public_ik_all_call'])} | | |"]
+    for n in sizes:
+        t8 = ik[f"c_ik_all_{n}"]
+        L.append(f"| batched N = {n:.0e}: one configuration (ns/pose) | {ns(ik[f'c_ik_{n}'])} | {ns(ik[f'py_ik_{n}'])} | |")
+        L.append(f"| batched N = {n:.0e}: all 8 configurations (ns/pose; target <= 1000) | {ns(t8)} "
+                 f"({'reached' if t8 <= 1e-6 else f'missed by {t8 / 1e-6:.2f}x'}) | | |")
+    L += ["",
+          f"Accuracy of the closed form: over 2000 random poses, {ik['c_ik_all_valid']:.2f} valid solutions per pose on "
+          f"average (guards >= 0), and FK of every valid solution reproduces the pose to {ik['c_ik_all_maxerr']:.1e} "
+          "(largest element difference).", "",
+          f"Numerical comparison on {ik['dls_n']} of the same poses: damped least squares on Pinocchio",
+          "(log6 error in frame 6, Jlog6-corrected frame Jacobian, damping 1e-6, tolerance 1e-10, at most",
+          "200 iterations), started 0.3 rad (uniform per joint) from the true joints. The closed form",
+          "uses the public `ik(T, config_of(q_true))`.", "",
+          "| solver | time per pose (us) | converged | mean iterations | max position error (m) | max rotation error (rad) |",
+          "|---|---:|---:|---:|---:|---:|",
+          f"| DLS on Pinocchio | {us(ik['dls_time'])} | {ik['dls_ok'] * 100:.0f}% | {ik['dls_iters']:.1f} | "
+          f"{ik['dls_pos']:.1e} | {ik['dls_rot']:.1e} |",
+          f"| closed form, C kernel, one configuration | {us(ik['c_ik_call'])} | 100% | - | {ik['cf_pos']:.1e} | {ik['cf_rot']:.1e} |",
+          f"| closed form, C kernel, all 8 (batched) | {us(ik[f'c_ik_all_{sizes[0]}'])} | | | | |",
+          ""]
+    path.write_text("\n".join(L) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", default="puma260")
+    ap.add_argument("--sizes", default="100000,1000000")
+    ap.add_argument("--out", default=str(ROOT / "reports" / "bench.md"))
+    args = ap.parse_args(argv)
+    t_start = time.perf_counter()
+    rng = np.random.default_rng(7)
+    sizes = [int(s) for s in args.sizes.split(",")]
+    ops, (mod, cm, model, data, fid, cas) = build_ops(args.robot, rng)
+    big = {n: random_q(mod, n, rng) for n in sizes}
+    # the Pinocchio loop runs the full N (the brief asks for it); it dominates the run time
+    n_pin = {n: n for n in sizes}
+    Q1 = random_q(mod, 10, rng)
+    for op in ops:
+        t0 = time.perf_counter()
+        measure_op(op, Q1, big, n_pin)
+        print(f"bench: {op.name}: {time.perf_counter() - t0:.1f} s", flush=True)
+    q = Q1[0]
+    public = {
+        "fk(q)": (per_call(lambda: mod.fk(q)), ops[0].results["pin_call"]),
+        "jacobian6(q)": (per_call(lambda: mod.jacobian6(q)), ops[1].results["pin_call"]),
+        "gravity(q, coeffs)": (per_call(lambda: mod.gravity(q, mod.GRAVITY_COEFFS and dict(zip(mod.GRAVITY_COEFFS, [0.5] * len(mod.GRAVITY_COEFFS))))),
+                               ops[-1].results["pin_call"]),
+    }
+    ik = measure_ik(mod, cm, model, data, fid, cas, random_q(mod, 5000, rng), big, rng)
+    print(f"bench: ik: done", flush=True)
+    write_report(Path(args.out), args.robot, ops, ik, sizes, n_pin, public, time.perf_counter() - t_start)
+    print(f"bench: wrote {args.out} in {time.perf_counter() - t_start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,193 @@
+"""The generated back ends of both arms agree: compiled C, generated Python, CasADi, and Pinocchio on the URDF."""
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rccl.kinematics import backend
+
+ROOT = Path(__file__).resolve().parent.parent
+ROBOTS = ("puma260", "microbo")
+TOL = 1e-9  # the derivation's cross-check tolerance for kinematic quantities
+
+
+def _mod(robot):
+    return importlib.import_module(f"rccl.kinematics.{robot}")
+
+
+def _c(robot):
+    cm = backend.c_module(robot)
+    if cm is None:
+        pytest.fail(f"the compiled {robot} kernels are missing or stale: run `pip install -e .` after `make derive`")
+    return cm
+
+
+def _casadi(robot, name):
+    return ca.Function.load(str(ROOT / "rccl" / "kinematics" / "casadi" / robot / f"{name}.casadi"))
+
+
+def _qs(mod, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(mod.LOWER), np.asarray(mod.UPPER)
+    return rng.uniform(lo, hi, size=(n, 6))
+
+
+def _inputs(mod, name, qs, rng):
+    """Batched inputs for a kernel, from its signature in the generated module."""
+    k = mod._KERNELS[name]
+    args = []
+    for arg_name, shape in k.inputs:
+        if arg_name == "q":
+            args.append(qs)
+        elif arg_name == "T":
+            args.append(_c(mod.ROBOT).fk(qs)[0])
+        elif arg_name == "config":
+            args.append(rng.choice([-1.0, 1.0], size=(len(qs),) + shape))
+        else:
+            args.append(rng.uniform(0.1, 1.0, size=(len(qs),) + shape))
+    return args
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_public_module_uses_the_c_kernels(robot):
+    mod = _mod(robot)
+    cm = _c(robot)
+    assert mod._KERNELS["fk"].one is cm.fk
+    assert set(cm.kernels()) >= set(mod._KERNELS)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_c_equals_generated_python_for_every_kernel(robot):
+    mod = _mod(robot)
+    cm = _c(robot)
+    rng = np.random.default_rng(11)
+    qs = _qs(mod, 64, 5)
+    for name in mod._KERNELS:
+        args = _inputs(mod, name, qs, rng)
+        c_out = getattr(cm, name)(*args)
+        with np.errstate(all="ignore"):
+            py_out = getattr(mod, f"_{name}_many")(*args)
+        assert len(c_out) == len(py_out), name
+        for a, b in zip(c_out, py_out):
+            a, b = np.asarray(a), np.asarray(b)
+            ok = np.isfinite(b)
+            scale = 1 + np.abs(b[ok])
+            assert np.all(np.abs(a[ok] - b[ok]) <= TOL * scale), f"{robot}.{name}"
+            assert np.array_equal(np.isfinite(a), ok), f"{robot}.{name}: NaN/inf pattern differs"
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_single_and_batched_c_calls_agree(robot):
+    mod = _mod(robot)
+    cm = _c(robot)
+    rng = np.random.default_rng(12)
+    qs = _qs(mod, 8, 6)
+    for name in mod._KERNELS:
+        args = _inputs(mod, name, qs, rng)
+        batch = getattr(cm, name)(*args)
+        for i in (0, 5):
+            single = getattr(cm, name)(*[a[i] for a in args])
+            for s, b in zip(single, batch):
+                np.testing.assert_array_equal(s, b[i], err_msg=f"{robot}.{name}")
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_casadi_equals_c(robot):
+    mod = _mod(robot)
+    cm = _c(robot)
+    rng = np.random.default_rng(13)
+    qs = _qs(mod, 3, 7)
+    for name in list(mod._KERNELS) + ["ik_all"]:
+        f = _casadi(robot, name)
+        args = _inputs(mod, name, qs, rng) if name != "ik_all" else [cm.fk(qs)[0]]
+        for i in range(len(qs)):
+            row = [a[i] for a in args]
+            c_out = getattr(cm, name)(*row)
+            ca_out = f(*[np.asarray(r, dtype=float) for r in row])
+            ca_out = ca_out if isinstance(ca_out, tuple) else (ca_out,)
+            for a, b in zip(c_out, ca_out):
+                a = np.asarray(a, dtype=float)
+                b = np.array(b, dtype=float).reshape(a.shape)
+                ok = np.isfinite(a)
+                np.testing.assert_allclose(b[ok], a[ok], atol=TOL, rtol=TOL, err_msg=f"{robot}.{name}")
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_c_agrees_with_pinocchio(robot):
+    mod = _mod(robot)
+    cm = _c(robot)
+    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
+    data = model.createData()
+    fid = model.getFrameId("link6")
+    qs = _qs(mod, 40, 8)
+    t_batch = cm.fk(qs)[0]
+    j_batch = cm.jacobian6(qs)[0]
+    for q, t, j in zip(qs, t_batch, j_batch):
+        pin.framesForwardKinematics(model, data, q)
+        np.testing.assert_allclose(t, data.oMf[fid].homogeneous, atol=TOL)
+        np.testing.assert_allclose(j, pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL), atol=TOL)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_c_gravity_agrees_with_pinocchio(robot):
+    """gravity_links with the URDF's own link masses and centres of mass (DH frames) against Pinocchio."""
+    mod = _mod(robot)
+    cm = _c(robot)
+    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
+    data = model.createData()
+    # total mass and centre of mass of the bodies moving with joint k, in DH frame k
+    masses, coms = np.zeros(6), np.zeros((6, 3))
+    for k in range(1, 7):
+        f = model.frames[model.getFrameId(f"link{k}")]
+        inertia = model.inertias[f.parentJoint]
+        masses[k - 1] = inertia.mass
+        coms[k - 1] = f.placement.actInv(inertia.lever) if inertia.mass > 0 else 0.0
+    for q in _qs(mod, 20, 9):
+        np.testing.assert_allclose(cm.gravity_links(q, masses, coms)[0],
+                                   pin.computeGeneralizedGravity(model, data, q), atol=1e-8)
+
+
+def test_ik_all_kernel_matches_ik_per_configuration():
+    mod = _mod("puma260")
+    cm = _c("puma260")
+    qs = _qs(mod, 50, 10)
+    poses = cm.fk(qs)[0]
+    q_all, g_all = cm.ik_all(poses)
+    assert q_all.shape == (50, len(mod.CONFIGS), 6)
+    for j, cfg in enumerate(mod.CONFIGS):
+        signs = np.broadcast_to(np.array(cfg.signs, dtype=float), (50, 3))
+        q_one, *guards = cm.ik(poses, signs)
+        np.testing.assert_allclose(q_all[:, j], q_one, atol=1e-12)
+        np.testing.assert_allclose(g_all[:, j], np.stack(guards, axis=1), atol=1e-12)
+    valid = (g_all >= 0).all(axis=2)
+    back = cm.fk(q_all[valid])[0]
+    np.testing.assert_allclose(back, np.repeat(poses[:, None], len(mod.CONFIGS), axis=1)[valid], atol=TOL)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_bad_input_to_c_kernels(robot):
+    cm = _c(robot)
+    with pytest.raises(ValueError, match=r"fk: input 'q' has shape \(5,\), need \(6,\) or \(N, 6\)"):
+        cm.fk(np.zeros(5))
+    with pytest.raises(ValueError, match=r"input 'q' row 2 element 4 is NaN"):
+        q = np.zeros((3, 6))
+        q[2, 4] = np.nan
+        cm.jacobian6(q)
+    with pytest.raises(ValueError, match=r"input 'T' has shape \(3, 4\)"):
+        cm.ik_all(np.eye(4)[:3])
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_bad_input_through_public_api(robot):
+    mod = _mod(robot)
+    with pytest.raises(ValueError):
+        mod.fk(np.zeros(7))
+    with pytest.raises(ValueError):
+        mod.fk(np.full(6, np.nan))
+    with pytest.raises(ValueError):
+        mod.jacobian6(np.zeros((2, 5)))
