@@ -14,6 +14,7 @@ import math
 
 import numpy
 
+from rccl.kinematics import backend as _backend
 from rccl.kinematics import runtime as _rt
 
 ROBOT = 'puma260'
@@ -1942,7 +1943,7 @@ def _tool_load_many(c, load):
     return (c_loaded_,)
 
 
-_KERNELS = {
+_KERNELS = _backend.accelerate(ROBOT, {
     'fk': _rt.KernelFn('fk', _fk_one, _fk_many,
         inputs=(('q', (6,)),),
         outputs=(('T', (4, 4)),),
@@ -2019,7 +2020,7 @@ _KERNELS = {
         inputs=(('c', (3,)), ('load', (2,))),
         outputs=(('c_loaded', (3,)),),
         guards=()),
-}
+})
 
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
 
