@@ -39,6 +39,8 @@ demo: $(STAMP) $(DERIVED)
 bench: $(STAMP)
 	$(PY) bench/rccl_cycle.py
 	$(PY) bench/calib_fit.py
+	$(PY) -m pip install --quiet --no-deps -e .   # rebuild the C kernels from the current generated C
+	$(PY) -m bench.run
 
 clean:
 	rm -rf $(VENV) build *.egg-info
