@@ -37,6 +37,7 @@ demo: $(STAMP) $(DERIVED)
 	$(PY) examples/zero_gravity.py --simula "-c --warm" --cycles 180
 
 bench: $(STAMP)
+	$(PY) bench/rci_loop.py
 	$(PY) bench/rccl_cycle.py
 	$(PY) bench/calib_fit.py
 	$(PY) -m pip install --quiet --no-deps -e .   # rebuild the C kernels from the current generated C
