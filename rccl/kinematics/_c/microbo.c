@@ -11,7 +11,7 @@
 #include <string.h>
 
 #define MAXIO 3
-#define RCCL_SOURCE_HASH "6b14ace7658896fe9e7c3300b3d1f6ff5dae90fafb4a8769819a07b5c758ee01"
+#define RCCL_SOURCE_HASH "35f6118b8794aff405333dac70d082201c7bc6bf11a2a17c17a0a553621f708a"
 
 /* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[base]+cse, o=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
@@ -843,6 +843,22 @@ static PyObject *np_empty = NULL;         /* numpy.empty, to allocate results */
 static PyObject *np_array = NULL;         /* numpy.array, to convert lists and other dtypes */
 static PyObject *np_array_kw = NULL;      /* {"dtype": "float64", "order": "C"} */
 
+/* Shape tuple of one unbatched output (new reference); small shapes are cached so the
+ * common single call builds no tuple. */
+static PyObject *single_shape(const arg_shape *s)
+{
+    static PyObject *cache0 = NULL, *cache1[64] = {NULL}, *cache2[16][16] = {{NULL}};
+    PyObject **slot = NULL;
+    if (s->ndim == 0) slot = &cache0;
+    else if (s->ndim == 1 && s->dim[0] < 64) slot = &cache1[s->dim[0]];
+    else if (s->ndim == 2 && s->dim[0] < 16 && s->dim[1] < 16) slot = &cache2[s->dim[0]][s->dim[1]];
+    if (slot && *slot) { Py_INCREF(*slot); return *slot; }
+    PyObject *t = s->ndim == 0 ? PyTuple_New(0) : s->ndim == 1 ? Py_BuildValue("(n)", s->dim[0])
+                : Py_BuildValue("(nn)", s->dim[0], s->dim[1]);
+    if (slot && t) { Py_INCREF(t); *slot = t; }  /* the cache keeps one reference for the process */
+    return t;
+}
+
 static PyObject *shape_text(const arg_shape *s)
 {
     if (s->ndim == 0) return PyUnicode_FromString("() or (N,)");
@@ -928,13 +944,20 @@ static PyObject *call_kernel(const kernel_entry *k, PyObject *const *args, Py_ss
     Py_ssize_t rows = n < 0 ? 1 : n;
     for (int o = 0; o < k->nout; ++o) {
         const arg_shape *s = &k->out[o];
-        PyObject *shape = PyTuple_New((n >= 0) + s->ndim);
-        if (!shape) goto done;
-        int off = 0;
-        if (n >= 0) PyTuple_SET_ITEM(shape, off++, PyLong_FromSsize_t(n));
-        for (int d = 0; d < s->ndim; ++d) PyTuple_SET_ITEM(shape, off++, PyLong_FromSsize_t(s->dim[d]));
-        outs[o] = PyObject_CallOneArg(np_empty, shape);
-        Py_DECREF(shape);
+        PyObject *shape;
+        if (n < 0) {
+            shape = single_shape(s);
+            if (!shape) goto done;
+            outs[o] = PyObject_Vectorcall(np_empty, &shape, 1, NULL);
+            Py_DECREF(shape);
+        } else {
+            shape = PyTuple_New(1 + s->ndim);
+            if (!shape) goto done;
+            PyTuple_SET_ITEM(shape, 0, PyLong_FromSsize_t(n));
+            for (int d = 0; d < s->ndim; ++d) PyTuple_SET_ITEM(shape, d + 1, PyLong_FromSsize_t(s->dim[d]));
+            outs[o] = PyObject_Vectorcall(np_empty, &shape, 1, NULL);
+            Py_DECREF(shape);
+        }
         if (!outs[o]) goto done;
         Py_buffer ov;
         if (PyObject_GetBuffer(outs[o], &ov, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) goto done;
