@@ -77,8 +77,10 @@ def test_ik_round_trip(name):
             sols = mod.ik_all(t, q_ref=q)
         assert sols, "fk(q) must be reachable"
         for cfg, qs in sols:
-            # near a singularity the closed form is ill-conditioned (errors ~ eps / distance)
-            assert np.abs(mod.fk(qs) - t).max() < (1e-13 if well else 1e-11)
+            # near a singularity the closed form is ill-conditioned: on a boundary the
+            # branches meet through sqrt(rounding) (~1e-11 in fk), and within the wrist
+            # tolerance (|S5| < 1e-9) theta4 is taken from q_ref, which costs up to |S5|
+            assert np.abs(mod.fk(qs) - t).max() < (1e-13 if well else 2e-9)
         if well:
             # (near a singularity q itself is not recoverable: the branches meet to within
             # sqrt(eps) and theta4/theta6 trade off; there only fk(ik(T)) = T is asked)
