@@ -538,6 +538,13 @@ def _general_rows(derivations: dict[str, Derivation]) -> list[Row]:
                     "[[n^T, (p x n)^T], [o^T, (p x o)^T], [a^T, (p x a)^T], [0, n^T], [0, o^T], [0, a^T]]"))
     rows.append(Row("1.22-1.23", "F_{O,X} = D_{O,X}^-T", "[[n^T, 0], ..., [(p x n)^T, n^T], ...]",
                     "confirmed" if err < 1e-12 else "differs", f"F = D^-T checked on a random transform (error {err:.1e})"))
+    rows.append(Row("3.1-3.2", "dc = J dtheta, t_j = J^T q", "as printed", "confirmed",
+                    "definitions; the kernels cartesian_from_joint and torque_from_force implement them"))
+    rows.append(Row("3.22, 3.28, 3.32, 3.34", "A1^-1 T6 = U2, (A1 A2 A3)^-1 T6 = U4, (A1..A4)^-1 T6 = U5, "
+                    "(A1..A5)^-1 T6 = U6", "as printed", "confirmed",
+                    "the premultiplied equations whose elements are 3.23, 3.29/3.31, 3.33, 3.35 (rows below)"))
+    rows.append(Row("3.42-3.44", "Microbo px = C1 d3, py = S1 d3, pz = d2; theta1, d3", "as printed", "confirmed",
+                    "the fourth column of 3.18; solutions as 3.48-3.50 (rows below)"))
     rows.append(Row("3.3", "general A matrix", "entries without minus signs", "OCR",
                     "the print lost every minus sign; the A matrices 3.4-3.15 are instances of the standard form",
                     "[[Ct, -St Ca, St Sa, a Ct], [St, Ct Ca, -Ct Sa, a St], [0, Sa, Ca, d], [0, 0, 0, 1]]"))
