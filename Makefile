@@ -4,10 +4,12 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-DERIVE_SRC := $(wildcard derive/*.py derive/*/*.py models/*.toml models/urdf/*.urdf)
-DERIVED    := reports/thesis-equations.md
+# The derivation's inputs; their hash is kept beside the generated code so that
+# `make demo` re-derives exactly when an input's content changed (not its file time).
+DERIVE_SRC   := $(sort $(wildcard derive/*.py models/*.toml models/urdf/*.urdf))
+DERIVE_STAMP := rccl/kinematics/derived-from.sha256
 
-.PHONY: all venv derive test demo bench clean
+.PHONY: all venv derive derive-if-needed test demo bench clean
 
 all: test
 
@@ -22,15 +24,18 @@ $(STAMP): pyproject.toml $(wildcard setup.py)
 # Regenerate every derived file (generated kinematics code, derivation reports).
 derive: $(STAMP)
 	$(PY) -m derive
+	cat $(DERIVE_SRC) | sha256sum | cut -d' ' -f1 > $(DERIVE_STAMP)
 
-# Derive only when a derivation input is newer than its outputs.
-$(DERIVED): $(DERIVE_SRC) | $(STAMP)
-	$(PY) -m derive
+# Derive only when the inputs differ from those the committed code was derived from.
+derive-if-needed: $(STAMP)
+	@if [ "$$(cat $(DERIVE_SRC) | sha256sum | cut -d' ' -f1)" = "$$(cat $(DERIVE_STAMP) 2>/dev/null)" ]; \
+	then echo "derive: generated code is up to date with derive/ and models/"; \
+	else $(MAKE) derive && $(PY) -m pip install --quiet --no-deps -e .; fi
 
 test: $(STAMP)
 	$(PY) -m pytest -q
 
-demo: $(STAMP) $(DERIVED)
+demo: derive-if-needed
 	$(PY) -m derive.crosscheck --samples 2000
 	$(PY) -m rccl.plots
 	$(VENV)/bin/calib report
