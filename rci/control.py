@@ -132,13 +132,16 @@ class ControlTask(threading.Thread):
         s.rt_status = self.rt
         watchdog = threading.Thread(target=self._watchdog, name="rci-watchdog", daemon=True)
         try:
+            # the watchdog starts before START, not after: creating a thread under
+            # mlockall(MCL_FUTURE) faults in and locks its whole stack (8 MiB by default),
+            # which took 1-2 ms and made the first cycles miss their deadline at 1 kHz
+            if s.watchdog:
+                watchdog.start()
             try:
                 self.link.send(protocol.START, s._next_msg_seq(), protocol.Start(s.rate_hz).encode())
             except LinkClosed as e:
                 self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), str(e), link_ok=False)
                 return
-            if s.watchdog:
-                watchdog.start()
             self._loop()
         except BaseException as e:  # a bug in RCI itself must still release the arm
             self.terminate(codes.make_code(codes.R_BTEST, codes.F_SEVERE), f"internal error: {_describe_exception(e)}")

@@ -4,6 +4,11 @@
 ``/dev/ttyUSB0`` or a pty slave ``/dev/pts/5``, ``socket://127.0.0.1:7600`` for simula, and
 ``loop://`` for unit tests. The port is put in non-blocking mode once; ``Link.recv`` waits
 with select() on the port's file descriptor, so the control task never spins.
+
+For ``socket://`` the link reads and writes the (non-blocking) socket pyserial opened
+directly: pyserial's socket ``read`` makes two select() calls around each recv() and its
+``write`` one more, which at 1 kHz were three extra system calls (and GIL hand-offs) on
+the control task's critical path every cycle.
 """
 from __future__ import annotations
 
@@ -26,6 +31,7 @@ class Link:
         self.decoder = FrameDecoder()
         self.port.timeout = 0            # non-blocking reads: we wait in select()
         sock = getattr(port, "_socket", None)
+        self._sock = sock
         if sock is not None:
             # one small frame per cycle each way: Nagle's algorithm would hold a CHG back
             # until the previous one is acknowledged, costing a cycle at high rates
@@ -64,6 +70,21 @@ class Link:
     def send(self, ftype: int, seq: int, payload: bytes = b"") -> None:
         """Encode and write one frame; LinkClosed if the port is gone."""
         data = encode_frame(ftype, seq, payload)
+        sock = self._sock
+        if sock is not None:
+            try:
+                n = sock.send(data)
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError as e:
+                raise LinkClosed(f"{self.url}: write failed: {e}") from None
+            if n < len(data):               # socket buffer full: let pyserial wait (write timeout)
+                try:
+                    self.port.write(data[n:])
+                except (serial.SerialException, OSError) as e:
+                    raise LinkClosed(f"{self.url}: write failed: {e}") from None
+            self.bytes_out += len(data)
+            return
         try:
             n = self.port.write(data)
             self.port.flush() if self._fd is None else None
@@ -95,6 +116,15 @@ class Link:
                     return b""
                 if not ready:
                     return b""
+            sock = self._sock
+            if sock is not None:
+                try:
+                    data = sock.recv(4096)
+                except (BlockingIOError, InterruptedError):
+                    return b""
+                if not data:
+                    raise LinkClosed(f"{self.url}: socket disconnected")
+                return data
             data = self.port.read(4096)
         else:
             self.port.timeout = max(wait, 0.0)
@@ -158,6 +188,7 @@ class Link:
                 pass
             sock.close()
             self.port._socket = None
+            self._sock = None
             self.port.is_open = False
             return self._close_wake()
         try:

@@ -9,6 +9,7 @@ control channel and the real-time clock, so a run is easy to reason about.
 from __future__ import annotations
 
 import errno
+import gc
 import os
 import select
 import socket
@@ -29,6 +30,50 @@ from .control import ControlChannel
 SERVER_NAME = "simula 1"
 WATCHDOG_CYCLES = 5        # real-time mode: missing CHGs in a row before the arm is stopped
 SPIN_S = 0.0002            # real-time mode: busy-wait the last 200 us before a tick (jitter)
+
+
+class TickTrace:
+    """Real-time mode: per-tick wall-clock timestamps (time.monotonic, shared with the controller).
+
+    Enabled by the environment variable ``RCI_SIMULA_TRACE=<file.npz>``; written when the
+    server closes. One row per tick: ``deadline`` (the tick's scheduled time), ``sent`` (its
+    HOW written), ``chg`` (the CHG answering that HOW read, 0 if none in time), ``late`` (1 if
+    the tick found no CHG for the previous HOW), ``spin`` (when the busy-wait before the tick
+    began: a late value means the select() wake-up was late), ``prep`` (seconds spent
+    preparing the next HOW after the CHG came in). Compare with the controller's
+    ``CycleTiming.arrival`` to split a late cycle between the two processes and the link.
+    """
+
+    def __init__(self, path: str, capacity: int = 1 << 18) -> None:
+        self.path = path
+        self.deadline = np.zeros(capacity)
+        self.sent = np.zeros(capacity)
+        self.chg = np.zeros(capacity)
+        self.late = np.zeros(capacity, dtype=np.int8)
+        self.spin = np.zeros(capacity)
+        self.prep = np.zeros(capacity)
+        self.cur_spin = 0.0
+        self.n = 0
+        self.capacity = capacity
+
+    def tick(self, deadline: float, sent: float, late: bool) -> None:
+        if self.n < self.capacity:
+            self.deadline[self.n], self.sent[self.n], self.late[self.n] = deadline, sent, late
+            self.spin[self.n] = self.cur_spin
+            self.n += 1
+
+    def got_chg(self, t: float) -> None:
+        if 0 < self.n <= self.capacity:
+            self.chg[self.n - 1] = t
+
+    def prepared(self, seconds: float) -> None:
+        if 0 < self.n <= self.capacity:
+            self.prep[self.n - 1] = seconds
+
+    def save(self) -> None:
+        n = self.n
+        np.savez(self.path, deadline=self.deadline[:n], sent=self.sent[:n], chg=self.chg[:n],
+                 late=self.late[:n], spin=self.spin[:n], prep=self.prep[:n])
 
 
 class Transport:
@@ -153,6 +198,12 @@ class Server:
         self.last_idle = time.monotonic()
         self.stopping = False
         self._pending_rate = rate_hz
+        # real-time mode: the next HOW frame, computed as soon as the CHG that decides it is
+        # in, so a tick only writes bytes (the arm step and the encoding, ~75 us at 1 kHz,
+        # used to sit between the tick and the HOW and added their variation to the jitter)
+        self._prepared: tuple[How, bytes] | None = None
+        trace = os.environ.get("RCI_SIMULA_TRACE")
+        self.trace: TickTrace | None = TickTrace(trace) if trace and not lockstep else None
 
     # --- endpoints ----------------------------------------------------------------------
     def listen_tcp(self, host: str, port: int) -> str:
@@ -190,23 +241,42 @@ class Server:
             self._drop("client stopped reading or went away")
 
     def _send_msg(self, ftype: int, payload: bytes = b"") -> None:
-        if self.session is not None:
-            self._send(ftype, self.session.msg_seq, payload)
-            self.session.msg_seq += 1
+        s = self.session
+        if s is not None:
+            s.msg_seq += 1              # before sending: a failed send drops the session
+            self._send(ftype, s.msg_seq - 1, payload)
 
     def _error(self, code: int, text: str) -> None:
         self.log(text)
         self._send_msg(protocol.ERROR, protocol.ErrorMsg(code, text).encode())
 
-    def _send_how(self) -> None:
+    def _how(self, seq: int) -> How:
+        """Sample the arm now: the HOW for cycle ``seq``."""
         smp = self.arm.sample()
         if smp.status:
-            self.log(f"status {smp.status} ({codes.STATUS_TEXT.get(smp.status, '?')}) at cycle {self.seq}")
+            self.log(f"status {smp.status} ({codes.STATUS_TEXT.get(smp.status, '?')}) at cycle {seq}")
         how = How(pos=smp.pos, adcr=smp.adcr, status=smp.status, state=smp.state, exio=0,
                   inport1=smp.inport1, outport1=smp.outport1,
                   time_ns=int(round(self.arm.t * 1e9)), rate_hz=self.rate,
                   robot_overruns=self.overruns)
-        self._send(protocol.HOW, self.seq, protocol.encode_how(how))
+        return how
+
+    def _send_how(self) -> None:
+        self._send(protocol.HOW, self.seq, protocol.encode_how(self._how(self.seq)))
+
+    def _prepare_next(self) -> None:
+        """Real-time mode, CHG of this cycle applied: advance the arm to the next tick now.
+
+        The arm's motion from this tick to the next depends only on the commands in hand,
+        so it is computed here, while the clock still has most of the period to run; the
+        tick then sends the frame at once (re-encoded there only if a stale or duplicate CHG
+        has changed ``robot_overruns`` meanwhile).
+        """
+        self.arm.step(1.0 / self.rate)
+        self.rate = self._pending_rate
+        seq = (self.seq + 1) & 0xFFFFFFFF
+        how = self._how(seq)
+        self._prepared = (how, protocol.encode_frame(protocol.HOW, seq, protocol.encode_how(how)))
 
     def _drop(self, why: str) -> None:
         """The client is gone: hold the arm and wait for the next one (pty: keep the device)."""
@@ -252,6 +322,7 @@ class Server:
                 self._error(codes.ST_BAD_COMMAND, f"bad START: {exc}")
                 return
             self.rate = self._pending_rate = rate
+            self._prepared = None
             s.running = True
             self.overruns = 0
             self.missed = 0
@@ -273,6 +344,8 @@ class Server:
                 return
             self.got_chg = True
             self.missed = 0
+            if self.trace is not None:
+                self.trace.got_chg(time.monotonic())
             events = self.arm.apply(chg, 1.0 / self.rate)
             if self.arm.status:
                 self.log(self.arm.status_text)
@@ -296,6 +369,10 @@ class Server:
                 self._send_how()
             else:
                 self._pending_rate = new_rate
+                t0 = time.monotonic()
+                self._prepare_next()
+                if self.trace is not None:
+                    self.trace.prepared(time.monotonic() - t0)
         elif f.type == protocol.BYE:
             try:
                 bye = protocol.Bye.decode(f.payload)
@@ -333,13 +410,50 @@ class Server:
             self._handle(f)
 
     # --- real-time clock --------------------------------------------------------------------
+    def _poll_client(self) -> None:
+        """Read whatever the controller has sent, without waiting."""
+        s = self.session
+        if s is None:
+            return
+        try:
+            ready, _, _ = select.select([s.transport], [], [], 0)
+        except (InterruptedError, ValueError, OSError):
+            return
+        if ready:
+            self._on_readable()
+
+    def _wait_for_tick(self) -> None:
+        """The last SPIN_S before a tick: busy-wait for accuracy, still reading the link.
+
+        A CHG arriving in this window is taken in (it is in time: the robot looks for it at
+        the tick), and, once in, the next HOW is prepared while the clock runs out.
+        """
+        while True:
+            now = time.monotonic()
+            if now >= self.next_tick:
+                return
+            s = self.session
+            if s is None or not s.running:
+                return
+            if not self.got_chg:
+                self._poll_client()
+
     def _tick(self) -> None:
         """Real-time mode, one period elapsed: advance the arm and send the next HOW."""
         s = self.session
         if s is None or not s.running:
+            self._prepared = None
             self.next_tick += 1.0 / self.rate
             return
         if not self.got_chg:
+            self._poll_client()            # a CHG that came in at the last moment is in time
+            s = self.session
+            if s is None or not s.running:
+                self._prepared = None
+                return
+        deadline = self.next_tick
+        late = not self.got_chg
+        if late:
             self.overruns += 1
             self.missed += 1
             if self.missed >= self.watchdog and self.missed / self.rate >= self.watchdog_time:
@@ -352,13 +466,26 @@ class Server:
                 self._send_how()
                 s.running = False
                 return
-        self.arm.step(1.0 / self.rate)
-        self.rate = self._pending_rate
+        prepared, self._prepared = self._prepared, None
+        if prepared is None:                  # no CHG in time (or none yet): step the arm now
+            self.arm.step(1.0 / self.rate)
+            self.rate = self._pending_rate
+            self.seq = (self.seq + 1) & 0xFFFFFFFF
+            self.got_chg = False
+            self._send_how()
+        else:
+            how, frame = prepared
+            self.seq = (self.seq + 1) & 0xFFFFFFFF
+            self.got_chg = False
+            if how.robot_overruns != self.overruns:
+                how.robot_overruns = self.overruns
+                frame = protocol.encode_frame(protocol.HOW, self.seq, protocol.encode_how(how))
+            if not s.transport.write(frame):
+                self._drop("client stopped reading or went away")
+        if self.trace is not None:
+            self.trace.tick(deadline, time.monotonic(), late)
         self.next_tick += 1.0 / self.rate          # the new rate's period from here on
         self._report()
-        self.seq = (self.seq + 1) & 0xFFFFFFFF
-        self.got_chg = False
-        self._send_how()
         now = time.monotonic()
         if now - self.next_tick > 5.0 / self.rate:         # far behind (machine stalled): resync
             self.next_tick = now + 1.0 / self.rate
@@ -381,6 +508,11 @@ class Server:
     def serve_forever(self, control: ControlChannel | None = None) -> None:
         """Run until :meth:`stop` (or a signal handler calling it)."""
         self.control = control
+        if not self.lockstep:
+            # collections of the young generation every 700 allocations (the default) came
+            # every few hundred ticks and took up to 0.2 ms; most objects of a tick die young,
+            # so a far higher threshold costs little per collection and makes them rare
+            gc.set_threshold(50_000, 50, 100)
         while not self.stopping:
             fds: list = []
             if self.listener is not None:
@@ -411,8 +543,9 @@ class Server:
             if not self.lockstep:
                 running = self.session is not None and self.session.running
                 if running and time.monotonic() >= self.next_tick - SPIN_S:
-                    while time.monotonic() < self.next_tick:
-                        pass                                    # the last SPIN_S: spin for accuracy
+                    if self.trace is not None:
+                        self.trace.cur_spin = time.monotonic()
+                    self._wait_for_tick()
                     self._tick()
                     self.last_idle = time.monotonic()
                 else:
@@ -422,6 +555,8 @@ class Server:
         self.stopping = True
 
     def close(self) -> None:
+        if self.trace is not None:
+            self.trace.save()
         if self.session is not None:
             self.session.transport.close()
         if self.pty is not None:
