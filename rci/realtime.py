@@ -83,6 +83,25 @@ def set_fifo(priority: int, status: RealtimeStatus) -> None:
         status.sched_fifo = f"refused: {e.strerror or e}"
 
 
+def pin_to_cpus(cpus: set[int], pid: int = 0) -> bool | str:
+    """Restrict ``pid`` (0: the calling thread; threads it starts inherit it) to ``cpus``.
+
+    Returns True, or the reason it could not be done. Why: on a kernel built with
+    ``preempt=none`` (this machine's default, see docs/rci.md "Timing") a real-time task
+    woken onto a CPU where an ordinary task is inside a long system call waits until that
+    call ends (0.9 ms measured). Keeping the controller and simula on one CPU makes each
+    hand-off a wake-up on the CPU the sender is already running on, where it takes effect
+    at once.
+    """
+    if not hasattr(os, "sched_setaffinity"):
+        return f"not available on {sys.platform}"
+    try:
+        os.sched_setaffinity(pid, cpus)
+    except (OSError, ValueError) as e:
+        return f"refused: {e}"
+    return True
+
+
 class GCControl:
     """Keeps the cyclic garbage collector out of the control cycles.
 
