@@ -105,7 +105,7 @@ def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
     d = summary.as_dict()
     d.update(rate=rate, seconds=seconds, robot_overruns=robot_overruns, realtime=rt, load=os.getloadavg()[0],
              load0=load0, steal_ms=(steal1 - steal0) * 1000.0 / os.sysconf("SC_CLK_TCK") if steal0 >= 0 else float("nan"),
-             pinned=f"CPU {cpu}" if pinned is True else f"not pinned ({pinned})",
+             pinned="not pinned" if cpu is None else f"CPU {cpu}" if pinned is True else f"not pinned ({pinned})",
              warm_missed=warm_missed, steady_missed=d["missed"] - warm_missed)
     return d
 
@@ -130,7 +130,7 @@ def render(results: list[dict], command: str) -> str:
     ]
     for r in results:
         lines.append(
-            f"| {r['rate']} | {r['seconds']:.0f} | {r['cycles']} | {r['warm_missed']} / {r['steady_missed']} | {r['overruns']} "
+            f"| {r['rate']}{'' if r['pinned'] == results[0]['pinned'] else ' (' + r['pinned'] + ')'} | {r['seconds']:.0f} | {r['cycles']} | {r['warm_missed']} / {r['steady_missed']} | {r['overruns']} "
             f"| {r['jitter_p50'] * 1e6:.0f} | {r['jitter_p99'] * 1e6:.0f} | {r['jitter_max'] * 1e6:.0f} "
             f"| {r['overhead_p50'] * 1e6:.0f} / {r['overhead_p99'] * 1e6:.0f} "
             f"| {r['user_share_p50'] * 100:.1f} % / {r['user_share_p99'] * 100:.1f} % | {r['load0']:.1f} / {r['load']:.1f} "
@@ -161,6 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=str(ROOT / "reports" / "bench-rci.md"))
     ap.add_argument("--cpu", type=int, default=(os.cpu_count() or 1) - 1,
                     help="CPU to pin simula and the controller to (default: the last one; -1: no pinning)")
+    ap.add_argument("--unpinned-too", action="store_true",
+                    help="after the pinned runs, run the highest rate once more without pinning (for comparison)")
     args = ap.parse_args(argv)
     results = []
     for rate in args.rates:
@@ -171,6 +173,12 @@ def main(argv: list[str] | None = None) -> int:
               f"load {r['load0']:.1f} -> {r['load']:.1f}, steal {r['steal_ms']:.0f} ms, {r['pinned']}",
               flush=True)
         results.append(r)
+        if args.unpinned_too and rate == max(args.rates) and args.cpu >= 0:
+            r = run_rate(rate, args.seconds, None)
+            print(f"{rate:5d} Hz unpinned: missed {r['warm_missed']} (warm-up) + {r['steady_missed']}, "
+                  f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
+                  f"load {r['load0']:.1f} -> {r['load']:.1f}", flush=True)
+            results.append(r)
     command = "python bench/rci_loop.py" + ("" if argv is None and len(sys.argv) == 1 else " " + " ".join(sys.argv[1:] if argv is None else argv))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(render(results, command))
