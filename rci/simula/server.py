@@ -512,7 +512,15 @@ class Server:
             # collections of the young generation every 700 allocations (the default) came
             # every few hundred ticks and took up to 0.2 ms; most objects of a tick die young,
             # so a far higher threshold costs little per collection and makes them rare
+            saved_gc = gc.get_threshold()
             gc.set_threshold(50_000, 50, 100)
+        try:
+            self._serve(control)
+        finally:
+            if not self.lockstep:
+                gc.set_threshold(*saved_gc)
+
+    def _serve(self, control: ControlChannel | None) -> None:
         while not self.stopping:
             fds: list = []
             if self.listener is not None:
