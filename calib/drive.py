@@ -13,6 +13,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 
+FILTER_TAU = 0.015      # s, current-sense low-pass (Appendix C)
+SERVO_PERIOD = 0.001    # s, joint microcontroller period (Appendix C: 1000 Hz)
+# Half a millisecond matters: on joint 2 every 1 ms of unaccounted lag reads as 6e-3
+# N m s/rad of viscous friction (gravity's torque shifted along the path by v x lag).
+
+
 @dataclass(frozen=True)
 class Drive:
     """Linear maps between raw readings and joint quantities (SI units).
@@ -21,8 +27,10 @@ class Drive:
     G: motor shaft angle per joint angle (6,6), theta_s = G theta.
     amps_per_adc: V_g / R_i per channel (A per ADC count).
     sigma: torque sensitivity per motor (N m / A), Table 4.1.
-    current_lag: delay (s) of the ADC readings behind the motor current: the time
-      constant of the Appendix C filter.
+    current_lag: delay (s) of the ADC readings behind the joint angle they describe:
+      the time constant of the Appendix C filter (15 ms) plus half the joint servo's
+      period (the 1 kHz PID computes each tick's current from the position at the tick's
+      start and holds it for the tick, a zero-order hold that lags by half a tick).
     """
 
     R: np.ndarray
@@ -30,7 +38,7 @@ class Drive:
     amps_per_adc: np.ndarray
     sigma: np.ndarray
     encoder_offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
-    current_lag: float = 0.015
+    current_lag: float = FILTER_TAU + SERVO_PERIOD / 2
 
     def current_angles(self, t: np.ndarray, counts: np.ndarray) -> np.ndarray:
         """Joint angles (rad), (N,6), where the joints were when the ADC readings of the

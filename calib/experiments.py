@@ -24,20 +24,32 @@ ACCEL = 1.5  # rad/s^2 at the turns: gentle, so the servo keeps the setpoint
 # Friction poses: joint i sweeps a window centred on the pose's angle; the other joints
 # put the axis vertical (joints 1, 4, 5) or centre the window on the angle where the
 # arm points straight up, so that gravity's work over the window cancels (2, 3).
-# Degrees; tests/test_calib_programs.py checks each against the gravity regressor.
+# Degrees (pose, half-width of the window); tests/test_calib_programs.py checks each
+# against the gravity regressor.  The windows are as long as the joint's range leaves
+# room for the turns at speed: a longer pass averages more readings, and the turns
+# (which yield nothing) cost the same whatever the window.
 FRICTION_POSES: dict[int, tuple[tuple[float, ...], float]] = {
-    1: ((90, 90, -90, 0, 0, 0), 60),      # joint 1 axis is always vertical
-    2: ((90, 90, -90, 90, 90, 0), 50),    # arm straight up at theta2 = 90
-    3: ((90, 90, -90, 90, 90, 0), 50),    # forearm straight up at theta2 + theta3 = 0
-    4: ((90, 90, -90, 0, 45, 0), 60),     # forearm vertical: joint 4 axis vertical
-    5: ((90, 90, 0, 90, 0, 0), 60),       # forearm horizontal, theta4 = 90: axis 5 vertical
-    6: ((90, 90, -90, 0, 0, 0), 60),      # theta5 = 0 under a vertical forearm: axis 6 vertical
+    1: ((90, 90, -90, 0, 0, 0), 90),      # joint 1 axis is always vertical
+    2: ((90, 90, -90, 90, 90, 0), 60),    # arm straight up at theta2 = 90
+    3: ((90, 90, -90, 90, 90, 0), 60),    # forearm straight up at theta2 + theta3 = 0
+    4: ((90, 90, -90, 0, 45, 0), 150),    # forearm vertical: joint 4 axis vertical
+    5: ((90, 90, 0, 90, 0, 0), 55),       # forearm horizontal, theta4 = 90: axis 5 vertical
+    6: ((90, 90, -90, 0, 0, 0), 150),     # theta5 = 0 under a vertical forearm: axis 6 vertical
 }
-FRICTION_SPEEDS_DEG = (5, 10, 20, 40, 70, 110, 160)
-# Round trips per speed: a pass's mean friction is as good as the time it averages over,
-# so the fast speeds, which carry the viscous term, get more passes.
-FRICTION_TRIPS = (1, 1, 1, 2, 4, 6, 8)
-SWEEP_ACCEL = 6.0  # rad/s^2 at the turns of friction sweeps: short ramps beyond the window
+# Candidate speeds (deg/s); each joint uses those up to its top speed (friction_top_speed):
+# the viscous coefficient is the slope of friction against speed, so its error falls
+# with the spread of the speeds, and the top of the range is worth the most.
+FRICTION_SPEEDS_DEG = (5, 10, 20, 40, 70, 110, 160, 200, 240)
+# Round trips per speed: a pass's mean friction is as good as the readings it averages,
+# and the fast passes (short, but the ones that carry the viscous term) get more trips.
+FRICTION_TRIPS = (1, 1, 1, 2, 3, 4, 6, 8, 10)
+MAX_PASS_S = 40.0  # s: the slowest speeds are skipped on the long windows of joints 4, 6
+SWEEP_ACCEL = 12.0  # rad/s^2 at the turns of friction sweeps: short ramps beyond the window
+TURN_MARGIN = 4 * DEG  # beyond the ramp: the last setpoints before a joint limit
+FRICTION_RATE_HZ = 72  # readings per second in friction logs: twice the thesis's 36 Hz,
+# so each pass averages twice as many ADC readings (each carries its own sensor noise and
+# the part of the 1 kHz ripple the 15 ms filter lets through); still under 5 filter
+# time constants apart, so the readings are not redundant
 
 
 @dataclass
@@ -49,6 +61,7 @@ class Plan:
     meta: dict[str, Any]
     simula_args: list[str] = field(default_factory=list)
     warmup: Path | None = None
+    rate_hz: int = 36
 
 
 WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)
@@ -70,23 +83,63 @@ def _prepend(here: np.ndarray | None, path: Path) -> Path:
     return Path(tuple(_start_move(here, first)) + path.segments)
 
 
-def friction_plans(joints=range(1, 7), speeds_deg=FRICTION_SPEEDS_DEG,
-                   trips: tuple[int, ...] | int = FRICTION_TRIPS) -> list[Plan]:
-    """4.5.4: passes in both directions at several constant speeds, no potential-energy change."""
+def friction_top_speed(joint: int, lo: float, hi: float, lower: np.ndarray,
+                       upper: np.ndarray, vmax: np.ndarray) -> float:
+    """Fastest sweep (rad/s) of ``joint`` (1-based) through [lo, hi]: 90 % of the joint's
+    velocity limit, or less where the ramp at SWEEP_ACCEL must fit between the window
+    and the joint's range (with TURN_MARGIN and sweep_path's 2 degrees to spare)."""
+    room = min(lo - lower[joint - 1], upper[joint - 1] - hi) - TURN_MARGIN - 2 * DEG
+    if room <= 0:
+        raise ValueError(f"joint {joint}: window [{lo:.3f}, {hi:.3f}] rad leaves no room "
+                         "to turn inside the joint's range")
+    return float(min(0.9 * vmax[joint - 1], np.sqrt(2 * SWEEP_ACCEL * room)))
+
+
+def _robot_limits() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from rci.robot_model import load_robot
+
+    m = load_robot("puma260")
+    return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)
+
+
+def friction_plans(joints=range(1, 7), speeds_deg=None,
+                   trips: tuple[int, ...] | int | None = None) -> list[Plan]:
+    """4.5.4: passes in both directions at several constant speeds, no potential-energy change.
+
+    By default each joint runs the FRICTION_SPEEDS_DEG up to its top speed
+    (friction_top_speed), the last replaced by the top speed itself, with FRICTION_TRIPS
+    round trips; ``speeds_deg`` and ``trips`` override both (then used as given).
+    """
+    lower, upper, vmax = _robot_limits()
     plans = []
     for j in joints:
         qdeg, half = FRICTION_POSES[j]
         q = np.array(qdeg, float) * DEG
         lo, hi = q[j - 1] - half * DEG, q[j - 1] + half * DEG
-        n_trips = [trips] * len(speeds_deg) if isinstance(trips, int) else list(trips)
+        if speeds_deg is None:
+            top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
+            slowest = 2 * half / MAX_PASS_S          # deg/s: no pass longer than MAX_PASS_S
+            cand = [(v, n) for v, n in zip(FRICTION_SPEEDS_DEG, FRICTION_TRIPS)
+                    if slowest <= v < top]
+            if top - cand[-1][0] < 15:
+                cand[-1] = (top, cand[-1][1])  # too close to its neighbour: move it to the top
+            else:
+                cand.append((top, FRICTION_TRIPS[-1]))
+            speeds = [float(v) for v, _ in cand]
+            n_trips = [n for _, n in cand] if trips is None else trips
+        else:
+            speeds = list(speeds_deg)
+            n_trips = trips if trips is not None else 1
+        n_trips = [n_trips] * len(speeds) if isinstance(n_trips, int) else list(n_trips)
         segs = []
-        for v, n in zip(speeds_deg, n_trips):
+        for v, n in zip(speeds, n_trips):
             segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
                                start=segs[-1].end if segs else None).segments
         path = Path(tuple(segs))
         meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
-                "speeds": [v * DEG for v in speeds_deg], "trips": n_trips}
-        plans.append(Plan(f"friction-j{j}", path, meta, warmup=sweep_warmup(q, j - 1, lo, hi)))
+                "speeds": [v * DEG for v in speeds], "trips": n_trips}
+        plans.append(Plan(f"friction-j{j}", path, meta, warmup=sweep_warmup(q, j - 1, lo, hi),
+                          rate_hz=FRICTION_RATE_HZ))
     return plans
 
 

@@ -39,7 +39,8 @@ def _store(raw: str, out_dir: str) -> str:
 def _run(url: str, plan: Plan, out_dir: str, work: str, seed: int) -> None:
     t0 = time.monotonic()
     raw = os.path.join(work, plan.name + ".rcilog")
-    info = run_plan(url, plan, raw, extra_meta={"simula_seed": seed, "simula_args": plan.simula_args})
+    info = run_plan(url, plan, raw, rate_hz=plan.rate_hz,
+                    extra_meta={"simula_seed": seed, "simula_args": plan.simula_args})
     final = _store(raw, out_dir)
     print(f"{plan.name:28s} {info.records:6d} records  {os.path.getsize(final) / 1e3:7.0f} kB"
           f"  {time.monotonic() - t0:6.1f} s", flush=True)

@@ -69,14 +69,16 @@ def render(info: RobotInfo, truth: Truth, outcomes: dict[str, FitOutcome], comma
                 L.append(f"| {r.joint} | {name} | {th:.3f} +- {te:.3f} | {tr[j]:.3f} | "
                          f"{fit.coulomb:.3f} +- {fit.coulomb_err:.3f} | {d:.3f} | {_ok(d <= te)} |")
         L += ["", "## Table 4.3: viscous friction (N m s / rad, x 1000)", "",
-              "The viscous term is a few per cent of the Coulomb term even at 160 deg/s, and "
-              "simula's servo current ripple (uniform, up to half the current, 4.5.1; filtered as in "
-              "Appendix C) leaves a pass's mean friction uncertain by 1-4 %, so from these "
-              "logs the viscous coefficients come out with errors (twice the fit's standard "
-              "deviation, 4.5.4) several times the thesis's. The truth lies within the fit's "
-              "own error; it does not lie within the thesis's narrower bounds. Tighter values "
-              "need more passes at high speed (the error falls as one over the square root of "
-              "the time spent at speed).", "",
+              "The viscous term is a few per cent of the Coulomb term, so it needs each pass's "
+              "mean friction to a fraction of a per cent (4.5.3: repeatable to under 1 %). "
+              "Three things make that possible here (docs/calib.md, 'Viscous friction'): "
+              "simula's servo ripple is the PID's noise-shaped quantisation error, which the "
+              "15 ms filter of Appendix C averages out (it was white noise, 1-4 % per pass); "
+              "the friction logs are read at 72 Hz over windows as long as each joint's range "
+              "allows, at speeds up to 90 % of its velocity limit; and each reading is paired "
+              "with the angle 15.5 ms earlier (the filter's time constant plus half a servo "
+              "tick), since on joints 2 and 3 every millisecond of lag error turns gravity "
+              "into several 1e-3 N m s/rad of false viscous friction.", "",
               "| joint | dir | thesis | truth | fit | abs(fit - truth) | within thesis bound | within fit error |",
               "|---|---|---|---|---|---|---|---|"]
         for r in res:

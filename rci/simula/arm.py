@@ -157,6 +157,7 @@ class Arm:
         self.moving = np.zeros(n, dtype=bool)
         self.current = np.zeros(n)          # instantaneous motor current (A)
         self.filtered = np.zeros(n)         # after the Appendix C filter (A)
+        self._ripple_err = np.zeros(n)      # last servo tick's current quantisation error (A)
         self.motor_torque = np.zeros(n)     # t_s (N*m)
         self.status = codes.ST_OK
         self.status_text = ""
@@ -489,8 +490,17 @@ class Arm:
         d = self.truth.disturbances
         x = self.current
         if ripple is not None and self.power:
+            # The PID's output is coarsely quantised (Appendix C) and its integral term
+            # feeds each tick's quantisation error back into the next, so the fluctuation
+            # is the difference of successive errors (first-order noise shaping): large
+            # from tick to tick (peaks of twice ``amp``, "as high as the average current",
+            # 4.5.1) but with no power at low frequency, so the joint gets on average the
+            # current it needs and the 15 ms filter averages the ripple out, as the
+            # thesis's repeatable work measurements (4.5.3) show it did.
             amp = ripple * np.abs(x) + d.ripple_floor
-            x = x + amp * self.rng.uniform(-1.0, 1.0, self.n)
+            err = amp * self.rng.uniform(-1.0, 1.0, self.n)
+            x = x + err - self._ripple_err
+            self._ripple_err = err
         if h != self._alpha_h:
             self._alpha = 1.0 - np.exp(-h / d.filter_tau) if d.filter_tau > 0 else 1.0
             self._alpha_h = h
