@@ -40,10 +40,12 @@ demo: derive-if-needed
 	$(PY) -m rccl.plots
 	$(VENV)/bin/calib report
 	$(PY) examples/zero_gravity.py --simula "-c --warm" --cycles 180
+	$(PY) examples/adaptive_circle.py --plot
 
 bench: $(STAMP)
 	$(PY) bench/rci_loop.py
 	$(PY) bench/rccl_cycle.py
+	$(PY) bench/rccl_adaptive.py
 	$(PY) bench/calib_fit.py
 	$(PY) -m pip install --quiet --no-deps -e .   # rebuild the C kernels from the current generated C
 	$(PY) -m bench.run
