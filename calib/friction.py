@@ -113,17 +113,28 @@ def _half_difference_profile(th: np.ndarray, tau: np.ndarray, passes: list[Pass]
 def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
     """Weighted least squares of |f| = F_c + F_v |omega|, both coefficients >= 0.
 
-    A pass's mean friction averages the current noise over the time it takes, so that
-    part of its variance goes as 1 / duration, i.e. as the speed; what does not average
-    away (the position-dependent friction the window does not cancel, a joint still
-    warming up) is the same at any speed.  The variance is modelled as proportional to
-    speed + median speed, and each point weighted by its inverse.
+    A pass's mean friction averages the current noise over the readings it takes, so
+    that part of its variance goes as 1 / duration, i.e. as the speed; what does not
+    average away (a joint still warming up, the filter's effect on the position
+    pattern) is the same at any speed.  The variance is modelled as a |omega| + b and
+    both are estimated from the residuals of a first fit weighted 1 / (speed + median
+    speed) (two-step feasible generalised least squares); each point is then weighted
+    by the inverse of its modelled variance.
     """
     speed = np.array([p.speed for p in points])
     f = np.array([p.friction for p in points])
+    A = np.c_[np.ones_like(speed), speed]
     w = 1.0 / np.sqrt(speed + np.median(speed))
-    fit = bounded_lsq(np.c_[np.ones_like(speed), speed] * w[:, None], f * w,
-                      lower=np.zeros(2), what=what)
+    fit = bounded_lsq(A * w[:, None], f * w, lower=np.zeros(2), what=what)
+    if len(points) >= 6:
+        r2 = (f - A @ fit.x) ** 2
+        # variance model from the squared residuals, a and b >= 0; a floor of 1 % of the
+        # mean variance keeps one lucky point from taking all the weight
+        var = bounded_lsq(A[:, ::-1], r2, lower=np.zeros(2), what=what + " (variance)").x
+        model = np.maximum(var[0] * speed + var[1], 0.01 * r2.mean())
+        if np.all(np.isfinite(model)) and model.max() > 0:
+            w = 1.0 / np.sqrt(model)
+            fit = bounded_lsq(A * w[:, None], f * w, lower=np.zeros(2), what=what)
     return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=2 * float(fit.std[0]),
                         viscous=float(fit.x[1]), viscous_err=2 * float(fit.std[1]),
                         points=len(points))

@@ -78,7 +78,11 @@ def render(info: RobotInfo, truth: Truth, outcomes: dict[str, FitOutcome], comma
               "allows, at speeds up to 90 % of its velocity limit; and each reading is paired "
               "with the angle 15.5 ms earlier (the filter's time constant plus half a servo "
               "tick), since on joints 2 and 3 every millisecond of lag error turns gravity "
-              "into several 1e-3 N m s/rad of false viscous friction.", "",
+              "into several 1e-3 N m s/rad of false viscous friction. The fit weights each "
+              "pass by the inverse of a variance model (a |omega| + b) estimated from the "
+              "residuals. Joint 5's bounds are finer than its logs resolve: its +-100 deg "
+              "range leaves a 110-degree window, and the slope to +-0.04e-3 would need "
+              "several hundred passes at the per-pass noise here.", "",
               "| joint | dir | thesis | truth | fit | abs(fit - truth) | within thesis bound | within fit error |",
               "|---|---|---|---|---|---|---|---|"]
         for r in res:
