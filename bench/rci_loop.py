@@ -98,6 +98,9 @@ def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
             robot_overruns = s.how.robot_overruns
             s.release()
             summary = s.timing.summary(skip=rate // 2)      # skip the first half second (warm-up)
+            n = min(s.timing.count, s.timing.capacity)
+            arrivals = s.timing.arrival[:n][rate // 2:] if s.timing.count <= s.timing.capacity else np.array([])
+            long_gaps = int(np.sum(np.diff(arrivals) > 2.0 / rate)) if len(arrivals) > 1 else 0
             rt = s.rt_status.summary()
     if cpu is not None and pinned is True:
         pin_to_cpus(set(range(os.cpu_count() or 1)))        # give this process all CPUs back
@@ -106,7 +109,7 @@ def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
     d.update(rate=rate, seconds=seconds, robot_overruns=robot_overruns, realtime=rt, load=os.getloadavg()[0],
              load0=load0, steal_ms=(steal1 - steal0) * 1000.0 / os.sysconf("SC_CLK_TCK") if steal0 >= 0 else float("nan"),
              pinned="not pinned" if cpu is None else f"CPU {cpu}" if pinned is True else f"not pinned ({pinned})",
-             warm_missed=warm_missed, steady_missed=d["missed"] - warm_missed)
+             warm_missed=warm_missed, steady_missed=d["missed"] - warm_missed, long_gaps=long_gaps)
     return d
 
 
@@ -124,13 +127,13 @@ def render(results: list[dict], command: str) -> str:
         "joint with POS (a minimal real program). The first half second of each run is left out.",
         f"Both processes: {results[0]['pinned'] if results else 'n/a'}. Kernel: {kernel_preemption()}.",
         "",
-        "| rate (Hz) | s | cycles | missed (warm-up / after) | overruns | jitter p50 (us) | jitter p99 (us) | jitter max (us) "
+        "| rate (Hz) | s | cycles | missed (warm-up / after) | overruns | HOW gaps > 2 periods | jitter p50 (us) | jitter p99 (us) | jitter max (us) "
         "| RCI work p50 / p99 (us) | period left to user code p50 / p99 | load avg (1 min) start / end | steal (ms) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         lines.append(
-            f"| {r['rate']}{'' if r['pinned'] == results[0]['pinned'] else ' (' + r['pinned'] + ')'} | {r['seconds']:.0f} | {r['cycles']} | {r['warm_missed']} / {r['steady_missed']} | {r['overruns']} "
+            f"| {r['rate']}{'' if r['pinned'] == results[0]['pinned'] else ' (' + r['pinned'] + ')'} | {r['seconds']:.0f} | {r['cycles']} | {r['warm_missed']} / {r['steady_missed']} | {r['overruns']} | {r['long_gaps']} "
             f"| {r['jitter_p50'] * 1e6:.0f} | {r['jitter_p99'] * 1e6:.0f} | {r['jitter_max'] * 1e6:.0f} "
             f"| {r['overhead_p50'] * 1e6:.0f} / {r['overhead_p99'] * 1e6:.0f} "
             f"| {r['user_share_p50'] * 100:.1f} % / {r['user_share_p99'] * 100:.1f} % | {r['load0']:.1f} / {r['load']:.1f} "
@@ -140,6 +143,9 @@ def render(results: list[dict], command: str) -> str:
         "- *missed*: cycles the robot saw without a timely CHG (`how.robot_overruns`) plus HOW sequence gaps,",
         "  in the first 0.5 s (warm-up: first calls, cold caches) and after it.",
         "- *overruns*: cycles whose work (HOW arrival to end of f2) exceeded the period (counted, not fatal here).",
+        "- *HOW gaps > 2 periods*: after warm-up, successive HOWs that reached the controller more than two periods",
+        "  apart: simula itself (or the link) stalled. The controller missed nothing then, so these are not in",
+        "  *missed*, but the simulated robot did not keep its period; they are also the *jitter max*.",
         "- *jitter*: |interval between successive HOW arrivals at the controller - period|; it contains",
         "  simula's own timing error, the socket and the controller's wake-up latency.",
         "- *RCI work*: the control task's own time per cycle (decode, checks, encode, send), user functions excluded;",
@@ -170,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{rate:5d} Hz: cycles {r['cycles']}, missed {r['warm_missed']} (warm-up) + {r['steady_missed']}, overruns {r['overruns']}, "
               f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
               f"RCI work p99 {r['overhead_p99'] * 1e6:.0f} us, left to user p99 {r['user_share_p99'] * 100:.1f} %, "
-              f"load {r['load0']:.1f} -> {r['load']:.1f}, steal {r['steal_ms']:.0f} ms, {r['pinned']}",
+              f"HOW gaps > 2 periods {r['long_gaps']}, load {r['load0']:.1f} -> {r['load']:.1f}, steal {r['steal_ms']:.0f} ms, {r['pinned']}",
               flush=True)
         results.append(r)
         if args.unpinned_too and rate == max(args.rates) and args.cpu >= 0:
