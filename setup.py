@@ -6,6 +6,7 @@ install still succeeds, prints one warning, and the generated Python code is use
 """
 from __future__ import annotations
 
+import ctypes.util
 import sys
 from pathlib import Path
 
@@ -16,10 +17,31 @@ HERE = Path(__file__).parent
 C_DIR = Path("rccl", "kinematics", "_c")
 
 
+def _numpy_include() -> str | None:
+    """numpy's C headers, for the public fast path of the kernels; None without numpy."""
+    try:
+        import numpy
+    except ImportError:
+        return None
+    return numpy.get_include()
+
+
 class OptionalBuildExt(build_ext):
     """Compile the kernels with optimisation; warn once and carry on when that fails."""
 
     def build_extensions(self) -> None:
+        include = _numpy_include()
+        if include is None:
+            print("WARNING: numpy headers not found; the C kinematics kernels are built without "
+                  "their fast public entry (calls go through the Python checks).", file=sys.stderr)
+        mvec = ctypes.util.find_library("mvec") if sys.platform.startswith("linux") else None
+        for ext in self.extensions:
+            if mvec:  # glibc's vector sin/cos for the batched loops (emit_c.py: RCCL_LIBMVEC)
+                ext.define_macros.append(("RCCL_LIBMVEC", "1"))
+                ext.libraries.append("mvec")
+            if include is not None:
+                ext.include_dirs.append(include)
+                ext.define_macros.append(("RCCL_NUMPY_API", "1"))
         if self.compiler.compiler_type == "unix":
             for ext in self.extensions:
                 # -fno-math-errno lets sin/cos pairs become sincos and sqrt inline

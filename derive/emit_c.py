@@ -506,8 +506,114 @@ def _c_string(s: str) -> str:
     return json.dumps(s)
 
 
+#: rows per block of the batched loops whose sines and cosines are computed a block at a time
+TRIG_BLOCK = 64
+
+
+def _vector_trig(prog: Program) -> tuple[list[str], list[tuple[str, str, int]], str, int] | None:
+    """The kernel split for batches: (argument statements, [(local, sin|cos, argument index)],
+    row body reading the trig values from ``tv[t * ts]``, number of arguments); None when a sine or cosine takes
+    an argument that is not a sum of inputs (then the plain row loop is used)."""
+    trig_funcs = [(sym, f) for sym, f in prog.trig if isinstance(f, (sp.sin, sp.cos))]
+    if not trig_funcs:
+        return None
+    inputs = set(prog.symbol_names)
+    xsyms = {sym for sym, f in prog.trig if not isinstance(f, (sp.sin, sp.cos))}
+    for _, f in trig_funcs:
+        a = f.args[0]
+        if a.atoms(sp.Function) or not a.free_symbols <= inputs | xsyms:
+            return None
+    names = dict(prog.symbol_names)
+    for sym, _ in prog.trig:
+        names[sym] = sym.name
+    pr = CPrinter(names)
+    args: list[str] = []
+    arg_index: dict[str, int] = {}
+    stmts = [f"const double {sym.name} = {pr.expr(f)};" for sym, f in prog.trig if sym in xsyms]
+    table = []
+    for sym, f in trig_funcs:
+        text = pr.expr(f.args[0])
+        if text not in arg_index:
+            arg_index[text] = len(args)
+            args.append(text)
+        table.append((sym.name, "sin" if isinstance(f, sp.sin) else "cos", arg_index[text]))
+    stmts += [f"ta[{i}][r] = {a};" for i, a in enumerate(args)]
+    lines = kernel_body(prog).splitlines()
+    local = {name: t for t, (name, _, _) in enumerate(table)}
+    row = []
+    for line in lines:
+        head = line.strip().split(" = ")[0].replace("const double ", "")
+        if head in local:
+            row.append(f"    const double {head} = tv[{local[head]} * ts];")
+        else:
+            row.append(line)
+    return stmts, table, "\n".join(row), len(args)
+
+
+def _batch_vector(prog: Program, split) -> str:
+    k = prog.kernel
+    stmts, table, row, nargs = split
+    nin, nout = len(prog.in_names), len(prog.out_names)
+    params = ["const double *restrict tv", "Py_ssize_t ts"]
+    params += [f"const double *restrict in{i}" for i in range(nin)]
+    params += [f"double *restrict out{i}" for i in range(nout)]
+    ins = "; ".join(f"const double *restrict in{i} = inb{i} + (r0 + r) * is[{i}]" for i in range(nin))
+    call = ", ".join([f"&tv[0][r], {TRIG_BLOCK}"] + [f"inb{i} + (r0 + r) * is[{i}]" for i in range(nin)]
+                     + [f"outb{i} + (r0 + r) * os[{i}]" for i in range(nout)])
+    trig = "\n".join(f"            vtrig_{fn}(ta[{a}], tv[{t}], m);" for t, (_, fn, a) in enumerate(table))
+    fns = sorted({fn for _, fn, _ in table})
+    one_trig = " ".join(f"vtrig_{fn}(a, {fn[0]}v, {nargs});" for fn in fns)
+    one_call = ", ".join(["tv", "1"] + [f"in{i}" for i in range(nin)] + [f"(double *)out[{i}]" for i in range(nout)])
+    return f"""
+#ifdef RCCL_VECTOR_TRIG
+/* {k.name} for batches: the row above with its sines and cosines precomputed */
+static inline void kv_{k.name}({", ".join(params)})
+{{
+{row}
+}}
+
+/* blocks of {TRIG_BLOCK} rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {{  /* one row: its sines (and cosines) side by side in the vector lanes */
+        {'; '.join(f'const double *restrict in{i} = (const double *)in[{i}]' for i in range(nin))};
+        double ta[{nargs}][1], sv[{nargs}], cv[{nargs}], tv[{len(table)}];
+        const int r = 0;
+        {" ".join(stmts)}
+        double a[{nargs}];
+        for (int i = 0; i < {nargs}; ++i) a[i] = ta[i][0];
+        {one_trig}
+        {" ".join(f"tv[{t}] = {'sv' if fn == 'sin' else 'cv'}[{a}];" for t, (_, fn, a) in enumerate(table))}
+        kv_{k.name}({one_call});
+        return 1;
+    }}
+    {'; '.join(f'const double *inb{i} = (const double *)in[{i}]' for i in range(nin))};
+    {'; '.join(f'double *outb{i} = out[{i}]' for i in range(nout))};
+    double ta[{nargs}][{TRIG_BLOCK}], tv[{len(table)}][{TRIG_BLOCK}];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += {TRIG_BLOCK}) {{
+        const int m = n - r0 < {TRIG_BLOCK} ? (int)(n - r0) : {TRIG_BLOCK};
+        for (int r = 0; r < m; ++r) {{
+            {ins};
+            {" ".join(stmts)}
+        }}
+{trig}
+        for (int r = 0; r < m; ++r)
+            kv_{k.name}({call});
+    }}
+    return 1;
+}}
+#endif
+"""
+
+
 def kernel_c(prog: Program, body: str) -> str:
     k = prog.kernel
+    split = _vector_trig(prog)
+    vector = _batch_vector(prog, split) if split else ""
+    try_vector = (f"#ifdef RCCL_VECTOR_TRIG\n    if (batch_vector_{k.name}(n, in, is, out, os)) return;\n#endif\n"
+                  if split else "")
     nin, nout = len(prog.in_names), len(prog.out_names)
     params = [f"const double *restrict in{i}" for i in range(nin)]
     params += [f"double *restrict out{i}" for i in range(nout)]
@@ -523,10 +629,10 @@ static inline void k_{k.name}({sig})
 {body}
 /* END KERNEL {k.robot}.{k.name} */
 }}
-
+{vector}
 static void batch_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {{
-    {'; '.join(f'const double *in{i} = (const double *)in[{i}]' for i in range(nin))};
+{try_vector}    {'; '.join(f'const double *in{i} = (const double *)in[{i}]' for i in range(nin))};
     {'; '.join(f'double *out{i} = out[{i}]' for i in range(nout))};
     (void)is; (void)os;
     for (Py_ssize_t r = 0; r < n; ++r)
@@ -546,21 +652,28 @@ def _shape_c(shape: tuple[int, ...]) -> str:
 
 def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> str:
     kernels = "".join(kernel_c(p, b) for p, b in programs)
-    table, methods = [], []
+    table, methods, pubdefs = [], [], []
     for i, (p, _) in enumerate(programs):
         k = p.kernel
         ins = [_shape(a) for a in k.inputs]
         outs = [_shape(a) for a in k.outputs] + [()] * len(k.guards)
         onames = [a.name for a in k.outputs] + [g.name for g in k.guards]
         table.append(
-            f"    {{{_c_string(k.name)}, batch_{k.name}, {len(ins)}, {len(outs)},\n"
+            f"    {{{_c_string(k.name)}, batch_{k.name}, {len(ins)}, {len(outs)}, {len(k.guards)},\n"
             f"     {{{', '.join(_shape_c(s) for s in ins)}}},\n"
             f"     {{{', '.join(_shape_c(s) for s in outs)}}},\n"
             f"     {{{', '.join(_c_string(a.name) for a in k.inputs)}}},\n"
             f"     {{{', '.join(_c_string(n) for n in onames)}}}}},")
         methods.append(
             f"static PyObject *py_{k.name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs)\n"
-            f"{{ (void)self; return call_kernel(&KERNELS[{i}], args, nargs); }}\n")
+            f"{{ (void)self; return call_kernel(&KERNELS[{i}], args, nargs); }}\n"
+            f"#ifdef RCCL_NUMPY_API\n"
+            f"static PyObject *pub_{k.name}(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)\n"
+            f"{{ return public_call(&KERNELS[{i}], fallback, args, nargs, kwnames); }}\n"
+            f"#endif\n")
+        pubdefs.append(
+            f"    {{{_c_string(k.name)}, (PyCFunction)(void (*)(void))pub_{k.name}, METH_FASTCALL | METH_KEYWORDS, "
+            f"{_c_string(_method_doc(k))}}},")
     defs = "\n".join(
         f"    {{{_c_string(p.kernel.name)}, (PyCFunction)(void (*)(void))py_{p.kernel.name}, METH_FASTCALL, "
         f"{_c_string(_method_doc(p.kernel))}}}," for p, _ in programs)
@@ -568,7 +681,7 @@ def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> s
                 + [len(p.kernel.outputs) + len(p.kernel.guards) for p, _ in programs] + [1])
     return RUNTIME.format(
         robot=robot, command=command, kernels=kernels, table="\n".join(table), nk=len(programs), maxio=maxio,
-        methods="\n".join(methods), defs=defs)
+        methods="\n".join(methods), defs=defs, pubdefs="\n".join(pubdefs))
 
 
 def _method_doc(k: Kernel) -> str:
@@ -590,6 +703,36 @@ RUNTIME = r"""/* Kinematics kernels of the {robot}, as a CPython extension modul
 #include <Python.h>
 #include <math.h>
 #include <string.h>
+#ifdef RCCL_NUMPY_API
+/* numpy's C API, when setup.py found numpy's headers: the public fast path below */
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#endif
+
+#if defined(RCCL_LIBMVEC) && defined(__x86_64__) && defined(__GNUC__)
+/* glibc's vector math library (libmvec): sin/cos of 4 doubles at once with AVX2, within
+ * 4 ulp; used for batches when the CPU has AVX2 (checked at import), else plain libm. */
+#define RCCL_VECTOR_TRIG 1
+#include <immintrin.h>
+__m256d _ZGVdN4v_sin(__m256d);
+__m256d _ZGVdN4v_cos(__m256d);
+static int have_vector_trig = 0;
+
+#define VTRIG(fn) \
+__attribute__((target("avx2,fma"))) static void vtrig_##fn(const double *x, double *y, int m) \
+{{ \
+    int i = 0; \
+    for (; i + 4 <= m; i += 4) _mm256_storeu_pd(y + i, _ZGVdN4v_##fn(_mm256_loadu_pd(x + i))); \
+    if (i < m) {{ /* the tail, padded into one vector */ \
+        double xt[4] = {{0, 0, 0, 0}}, yt[4]; \
+        for (int j = 0; i + j < m; ++j) xt[j] = x[i + j]; \
+        _mm256_storeu_pd(yt, _ZGVdN4v_##fn(_mm256_loadu_pd(xt))); \
+        for (int j = 0; i + j < m; ++j) y[i + j] = yt[j]; \
+    }} \
+}}
+VTRIG(sin)
+VTRIG(cos)
+#endif
 
 #define MAXIO {maxio}
 #define RCCL_SOURCE_HASH "@HASH@"
@@ -601,7 +744,7 @@ typedef struct {{ int ndim; Py_ssize_t dim[2]; Py_ssize_t size; }} arg_shape;
 typedef struct {{
     const char *name;
     batch_fn fn;
-    int nin, nout;
+    int nin, nout, nguard;      /* nout counts the outputs and then the nguard guards */
     arg_shape in[MAXIO];
     arg_shape out[MAXIO];
     const char *in_name[MAXIO];
@@ -762,7 +905,71 @@ done:
     return result;
 }}
 
+#ifdef RCCL_NUMPY_API
+/* The public entry of a kernel (rccl.kinematics.backend.public): when every argument is
+ * already an unbatched float64 C-contiguous numpy array of the kernel's shape with finite
+ * values, run the row function, and when every guard is >= 0 and the first output is
+ * finite return that output (a new array). Anything else (lists, batches, keywords, NaN,
+ * a failing guard, a non-finite result) goes to `fallback`, the Python code that gives
+ * the contract's conversions, messages and exceptions: no error behaviour is lost. */
+static PyObject *public_call(const kernel_entry *k, PyObject *fallback, PyObject *const *args, Py_ssize_t nargs,
+                             PyObject *kwnames)
+{{
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    double guard[MAXIO];
+    static const Py_ssize_t zero[MAXIO] = {{0}};
+    if (kwnames || nargs != k->nin || k->nout - k->nguard != 1) goto slow;
+    for (int i = 0; i < k->nin; ++i) {{
+        PyObject *x = args[i];
+        if (!PyArray_CheckExact(x)) goto slow;
+        PyArrayObject *a = (PyArrayObject *)x;
+        const arg_shape *s = &k->in[i];
+        if (PyArray_TYPE(a) != NPY_DOUBLE || PyArray_NDIM(a) != s->ndim
+            || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) goto slow;
+        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d) != s->dim[d]) goto slow;
+        const double *v = (const double *)PyArray_DATA(a);
+        for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(v[j])) goto slow;
+        ip[i] = v;
+    }}
+    const arg_shape *s = &k->out[0];
+    npy_intp dims[2] = {{s->dim[0], s->dim[1]}};
+    PyObject *res = PyArray_SimpleNew(s->ndim, dims, NPY_DOUBLE);
+    if (!res) return NULL;
+    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
+    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
+    k->fn(1, ip, zero, op, zero);
+    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) {{ Py_DECREF(res); goto slow; }}
+    for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(op[0][j])) {{ Py_DECREF(res); goto slow; }}
+    return res;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}}
+#endif
+
 {methods}
+#ifdef RCCL_NUMPY_API
+static PyMethodDef PUBLIC_DEFS[] = {{
+{pubdefs}
+}};
+
+/* public(name, fallback): the kernel's fast public entry, falling back to `fallback`. */
+static PyObject *public(PyObject *self, PyObject *args)
+{{
+    const char *name;
+    PyObject *fallback;
+    if (!PyArg_ParseTuple(args, "sO:public", &name, &fallback)) return NULL;
+    if (!PyCallable_Check(fallback)) {{ PyErr_SetString(PyExc_TypeError, "public: fallback must be callable"); return NULL; }}
+    for (int i = 0; i < {nk}; ++i)
+        if (strcmp(KERNELS[i].name, name) == 0) {{
+            if (KERNELS[i].nout - KERNELS[i].nguard != 1) break;
+            return PyCFunction_NewEx(&PUBLIC_DEFS[i], fallback, NULL);
+        }}
+    PyErr_Format(PyExc_KeyError, "{robot}: no single-output kernel %s", name);
+    return NULL;
+}}
+#endif
+
 static PyObject *arg_shape_tuple(const arg_shape *s)
 {{
     return s->ndim == 0 ? PyTuple_New(0) : s->ndim == 1 ? Py_BuildValue("(n)", s->dim[0])
@@ -798,6 +1005,9 @@ static PyMethodDef methods[] = {{
 {defs}
     {{"kernels", kernels, METH_NOARGS, "kernels() -> {{name: (input shapes, output shapes)}}"}},
     {{"source_hash", source_hash, METH_NOARGS, "sha256 of the generated C this module was built from"}},
+#ifdef RCCL_NUMPY_API
+    {{"public", public, METH_VARARGS, "public(name, fallback) -> fast public entry of a kernel (see public_call)"}},
+#endif
     {{NULL, NULL, 0, NULL}}
 }};
 
@@ -807,6 +1017,13 @@ static struct PyModuleDef moduledef = {{
 
 PyMODINIT_FUNC PyInit_{robot}(void)
 {{
+#ifdef RCCL_NUMPY_API
+    import_array();
+#endif
+#ifdef RCCL_VECTOR_TRIG
+    __builtin_cpu_init();
+    have_vector_trig = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
     PyObject *np = PyImport_ImportModule("numpy");
     if (!np) return NULL;
     np_empty = PyObject_GetAttrString(np, "empty");

@@ -260,22 +260,34 @@ def jacobian6(q):
 
 def cartesian_from_joint(q, dq, frame=6):
     """dc = J dq observed in frame 4 or 6 (thesis 3.71, 3.75, 3.79)."""
-    return _ROBOT.call(_rt.frame_kernel("cartesian_from_joint", frame), q, dq)[0]
+    fn = _FRAMES["cartesian_from_joint"].get(frame) if frame in (4, 6) else None
+    if fn is None:
+        _rt.frame_kernel("cartesian_from_joint", frame)  # raises InvalidInput naming the bad frame
+    return fn(q, dq)
 
 
 def torque_from_force(q, f, frame=6):
     """tau = J^T f with f observed in frame 4 or 6 (thesis 3.72, 3.76, 3.79)."""
-    return _ROBOT.call(_rt.frame_kernel("torque_from_force", frame), q, f)[0]
+    fn = _FRAMES["torque_from_force"].get(frame) if frame in (4, 6) else None
+    if fn is None:
+        _rt.frame_kernel("torque_from_force", frame)  # raises InvalidInput naming the bad frame
+    return fn(q, f)
 
 
 def joint_from_cartesian(q, dc, frame=6):
     """dq = J^-1 dc with dc observed in frame 4 or 6 (thesis 3.73, 3.77, 3.79); raises Singular."""
-    return _ROBOT.call(_rt.frame_kernel("joint_from_cartesian", frame), q, dc)[0]
+    fn = _FRAMES["joint_from_cartesian"].get(frame) if frame in (4, 6) else None
+    if fn is None:
+        _rt.frame_kernel("joint_from_cartesian", frame)  # raises InvalidInput naming the bad frame
+    return fn(q, dc)
 
 
 def force_from_torque(q, tau, frame=6):
     """f = J^-T tau observed in frame 4 or 6 (thesis 3.74, 3.78, 3.79); raises Singular."""
-    return _ROBOT.call(_rt.frame_kernel("force_from_torque", frame), q, tau)[0]
+    fn = _FRAMES["force_from_torque"].get(frame) if frame in (4, 6) else None
+    if fn is None:
+        _rt.frame_kernel("force_from_torque", frame)  # raises InvalidInput naming the bad frame
+    return fn(q, tau)
 
 
 def gravity(q, coeffs):
@@ -303,6 +315,24 @@ def coefficients_from_links(masses, coms):
 def tool_load(coeffs, mass, com):
     """Coefficients with a tool of `mass` kg at `com` on the z6 axis (thesis 4.26)."""
     return _ROBOT.tool_load(coeffs, mass, com)
+
+
+def _framed(name):
+    def run(q, x):
+        return _ROBOT.call(name, q, x)[0]
+    run.__name__ = name
+    return _backend.public(ROBOT, name, run, _KERNELS)
+
+
+# The compiled fast entries (rccl.kinematics.backend.public) for one configuration given
+# as float64 numpy arrays; every other call, and every error, goes to the Python above.
+_FRAMES = {{base: {{f: _framed(f"{{base}}{{f}}") for f in (4, 6)}}
+           for base in ("cartesian_from_joint", "torque_from_force", "joint_from_cartesian", "force_from_torque")}}
+fk = _backend.public(ROBOT, "fk", fk, _KERNELS)
+jacobian4 = _backend.public(ROBOT, "jacobian4", jacobian4, _KERNELS)
+jacobian6 = _backend.public(ROBOT, "jacobian6", jacobian6, _KERNELS)
+gravity = _backend.public(ROBOT, "gravity", gravity, _KERNELS)
+gravity_regressor = _backend.public(ROBOT, "gravity_regressor", gravity_regressor, _KERNELS)
 '''
     return head + "\n\n" + "\n\n\n".join(funcs) + "\n\n\n" + _kernel_table(kernels) + "\n" + api
 

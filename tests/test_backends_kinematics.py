@@ -191,3 +191,110 @@ def test_bad_input_through_public_api(robot):
         mod.fk(np.full(6, np.nan))
     with pytest.raises(ValueError):
         mod.jacobian6(np.zeros((2, 5)))
+
+
+# -- the public fast entries and ik_all on the compiled kernel ---------------------------
+
+_SINGLE = {  # public function -> (kernel, second argument or None)
+    "fk": ("fk", None), "jacobian4": ("jacobian4", None), "jacobian6": ("jacobian6", None),
+    "gravity_regressor": ("gravity_regressor", None),
+}
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_public_fast_entry_equals_the_python_runtime(robot):
+    import types
+    mod = _mod(robot)
+    _c(robot)
+    assert not isinstance(mod.fk, types.FunctionType), "fk should be the compiled fast entry"
+    rng = np.random.default_rng(21)
+    for q in _qs(mod, 20, 11):
+        for public, (kernel, _) in _SINGLE.items():
+            np.testing.assert_array_equal(getattr(mod, public)(q), mod._ROBOT.call(kernel, q)[0])
+        c = rng.uniform(0.1, 1.0, len(mod.GRAVITY_COEFFS))
+        np.testing.assert_array_equal(mod.gravity(q, c), mod._ROBOT.call("gravity", q, c)[0])
+        np.testing.assert_array_equal(mod.gravity(q, dict(zip(mod.GRAVITY_COEFFS, c))), mod.gravity(q, c))
+        v = rng.uniform(-1, 1, 6)
+        for base in ("cartesian_from_joint", "torque_from_force", "joint_from_cartesian", "force_from_torque"):
+            for frame in (4, 6):
+                np.testing.assert_array_equal(getattr(mod, base)(q, v, frame=frame),
+                                              mod._ROBOT.call(f"{base}{frame}", q, v)[0])
+    q = _qs(mod, 1, 12)[0]
+    # every other form of call still goes through the runtime: lists, keywords, ints, batches
+    np.testing.assert_array_equal(mod.fk(list(q)), mod.fk(q))
+    np.testing.assert_array_equal(mod.fk(q=q), mod.fk(q))
+    assert mod.fk(np.zeros(6, dtype=int)).shape == (4, 4)
+    assert mod.fk(np.stack([q, q])).shape == (2, 4, 4)
+    out1, out2 = mod.fk(q), mod.fk(q)
+    assert out1 is not out2  # a new array per call, never a shared buffer
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_public_fast_entry_keeps_every_error(robot):
+    from rccl.kinematics import errors
+    mod = _mod(robot)
+    with pytest.raises(errors.InvalidInput, match="not finite"):
+        mod.fk(np.full(6, np.nan))
+    with pytest.raises(errors.InvalidInput, match="has shape"):
+        mod.jacobian6(np.zeros(5))
+    with pytest.raises(errors.InvalidInput, match="frame must be 4 or 6"):
+        mod.cartesian_from_joint(np.zeros(6), np.zeros(6), frame=5)
+    with pytest.raises(errors.InvalidInput, match="coefficients"):
+        mod.gravity(np.zeros(6), {})
+    # q = 0 is singular for both arms (sin theta5 = 0; for the Microbo also d3 = 0): the
+    # guard fails in C and the runtime names the problem
+    with pytest.raises(errors.Singular, match="guard_"):
+        mod.joint_from_cartesian(np.zeros(6), np.ones(6))
+    with pytest.raises(errors.Singular):
+        mod.force_from_torque(np.zeros(6), np.ones(6), frame=4)
+
+
+def _ik_all_by_loop(mod, t, q_ref=None):
+    """The previous ik_all: ik per configuration, unreachable ones left out, duplicates dropped."""
+    from rccl.kinematics import errors, runtime
+    found = []
+    for cfg in mod.CONFIGS:
+        try:
+            q = mod.ik(t, cfg, q_ref)
+        except errors.Unreachable:
+            continue
+        if not any(np.all(np.abs(np.where(mod._ROBOT.revolute, runtime._wrap(q - o), q - o)) < 1e-6) for _, o in found):
+            found.append((cfg, q))
+    return found
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_ik_all_on_the_kernel_equals_the_loop_over_ik(robot):
+    from rccl.kinematics import runtime
+    mod = _mod(robot)
+    assert mod._ROBOT.ik_all_kernel is not None
+    qs = _qs(mod, 30, 13)
+    poses = mod.fk(qs)
+    batch = mod.ik_all(poses, q_ref=qs)
+    assert len(batch) == len(qs)
+    for t, q, sols in zip(poses, qs, batch):
+        want = _ik_all_by_loop(mod, t, q)
+        assert [c for c, _ in sols] == [c for c, _ in want]
+        for (_, a), (_, b) in zip(sols, want):
+            # equal up to 2 pi on revolute joints (a joint half a turn from q_ref is a tie)
+            d = np.where(mod._ROBOT.revolute, runtime._wrap(a - b), a - b)
+            np.testing.assert_allclose(d, 0, atol=1e-9)
+        assert any(np.allclose(s, q, atol=1e-7) for _, s in sols)
+        single = mod.ik_all(t, q_ref=q)
+        assert [c for c, _ in single] == [c for c, _ in sols]
+
+
+def test_ik_all_wrist_singular_and_unreachable():
+    from rccl.kinematics import errors
+    mod = _mod("puma260")
+    q = np.array([0.3, -0.5, 0.4, 0.7, 0.0, 0.2])  # theta5 = 0: wrist singular
+    t = mod.fk(q)
+    with pytest.raises(errors.Singular, match="sin\\(theta5\\) = 0"):
+        mod.ik_all(t)
+    sols = mod.ik_all(t, q_ref=q)
+    assert sols and all(np.allclose(mod.fk(s), t, atol=1e-9) for _, s in sols)
+    assert any(np.allclose(s, q, atol=1e-7) for _, s in sols)
+    far = np.eye(4)
+    far[:3, 3] = [5.0, 0.0, 0.0]
+    assert mod.ik_all(far) == []
+    assert mod.ik_all(np.stack([far, mod.fk(np.full(6, 0.3))]))[0] == []

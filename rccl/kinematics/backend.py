@@ -107,3 +107,21 @@ def accelerate(robot: str, kernels: dict[str, Any]) -> dict[str, Any]:
                     tuple(s for _, s in k.outputs) + ((),) * len(k.guards))
         out[name] = dataclasses.replace(k, one=fn, many=fn) if fn is not None else k
     return out
+
+
+def public(robot: str, name: str, fallback: Callable, kernels: dict[str, Any]) -> Callable:
+    """The public function of kernel ``name``: its compiled fast entry, or ``fallback``.
+
+    The fast entry (C, built with numpy's headers) runs the kernel directly when every
+    argument is an unbatched float64 numpy array of the kernel's shape with finite values,
+    every guard is >= 0 and the result is finite, and returns the first output; any other
+    call (lists, batches, keywords, bad input, failing guards) is handed to ``fallback``
+    unchanged, so errors and conversions are exactly those of the Python runtime.
+    ``kernels`` are the accelerated KernelFn records: the fast entry is used only when the
+    record's code is this module's compiled kernel (same shapes).
+    """
+    mod = c_module(robot)
+    k = kernels.get(name)
+    if mod is None or k is None or not hasattr(mod, "public") or k.one is not getattr(mod, name, None):
+        return fallback
+    return mod.public(name, fallback)

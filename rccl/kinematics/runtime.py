@@ -120,6 +120,16 @@ class Robot:
         self.upper = np.asarray(upper, dtype=float)
         self.config_type = config_type
         self.coeff_names = tuple(coeff_names)
+        #: the compiled kernel solving every configuration of a pose at once, or None
+        self.ik_all_kernel = self._find_ik_all()
+
+    def _find_ik_all(self) -> Callable | None:
+        from rccl.kinematics import backend  # the loader of the compiled kernels
+        ik = self.kernels.get("ik")
+        if ik is None:
+            return None
+        n_cfg, n_guard = len(self.config_type.all()), len(ik.guards)
+        return backend.kernel(self.name, "ik_all", ((4, 4),), ((n_cfg, 6), (n_cfg, n_guard)))
 
     # -- dispatch ----------------------------------------------------------------------
 
@@ -305,18 +315,67 @@ class Robot:
                 f"[{lo[j]:.6g}, {hi[j]:.6g}] m; {context(i)}")
 
     def ik_all(self, T, q_ref=None):
+        """Every distinct solution of one pose (a list of (config, q)) or of a batch of poses
+        (N, 4, 4) (a list of such lists; q_ref then (N, 6)).
+
+        The compiled ``ik_all`` kernel solves every configuration at once; a configuration
+        whose guards all pass is taken from it directly, any other goes through ``ik`` so
+        errors and the wrist-singular fallback are exactly those of ``ik`` (an unreachable
+        configuration is left out, a singular one raises).
+        """
         t = self._pose(T)
-        if t.ndim != 2:
-            raise errors.InvalidInput(f"{self.name}.ik_all: takes one pose (4, 4), got {t.shape}")
-        found: list[tuple[Any, np.ndarray]] = []
-        for cfg in self.config_type.all():
-            try:
-                q = self.ik(t, cfg, q_ref)
+        batch = t.ndim == 3
+        ref = None
+        if q_ref is not None:
+            ref = np.asarray(q_ref, dtype=float)
+            if ref.shape != t.shape[:-2] + (6,) or not np.isfinite(ref).all():
+                raise errors.InvalidInput(f"{self.name}.ik_all: q_ref must be finite with shape "
+                                          f"{t.shape[:-2] + (6,)}, got {ref.shape}")
+        if self.ik_all_kernel is None:
+            q_all = g_all = None
+        else:
+            with np.errstate(all="ignore"):
+                q_all, g_all = self.ik_all_kernel(t)[:2]
+        if not batch:
+            return self._ik_all_one(t, ref, q_all, g_all)
+        return [self._ik_all_one(t[i], None if ref is None else ref[i],
+                                 None if q_all is None else q_all[i], None if g_all is None else g_all[i])
+                for i in range(t.shape[0])]
+
+    def _ik_all_one(self, t, ref, q_all, g_all) -> list[tuple[Any, np.ndarray]]:
+        configs = self.config_type.all()
+        sols: list[tuple[Any, np.ndarray]] = []
+        for j, cfg in enumerate(configs):
+            if q_all is not None and (g_all[j] >= 0).all() and np.isfinite(q_all[j]).all():
+                q = q_all[j].copy()
+                if ref is not None:
+                    q[self.revolute] = ref[self.revolute] + _wrap(q[self.revolute] - ref[self.revolute])
+                if self._prismatic_ok(q):
+                    sols.append((cfg, q))
+                    continue
+            try:  # the exceptional rows: exactly what ik does (messages, wrist fallback, ranges)
+                sols.append((cfg, self.ik(t, cfg, ref)))
             except errors.Unreachable:
                 continue
-            if not any(self._same(q, other) for _, other in found):
-                found.append((cfg, q))
-        return found
+        if not sols:
+            return []
+        # keep the first of every group of equal solutions (2 pi apart on revolute joints)
+        qs = np.array([q for _, q in sols])
+        d = qs[:, None, :] - qs[None, :, :]
+        d[..., self.revolute] = _wrap(d[..., self.revolute])
+        same = np.all(np.abs(d) < SAME_SOLUTION_TOL, axis=-1)
+        kept: list[int] = []
+        for i in range(len(sols)):
+            if not any(same[i, k] for k in kept):
+                kept.append(i)
+        return [sols[i] for i in kept]
+
+    def _prismatic_ok(self, q: np.ndarray) -> bool:
+        pri = ~self.revolute
+        if not pri.any():
+            return True
+        qp = q[pri]
+        return bool(np.all((qp >= self.lower[pri] - 1e-12) & (qp <= self.upper[pri] + 1e-12)))
 
     def _same(self, a: np.ndarray, b: np.ndarray) -> bool:
         d = a - b

@@ -9,9 +9,39 @@
 #include <Python.h>
 #include <math.h>
 #include <string.h>
+#ifdef RCCL_NUMPY_API
+/* numpy's C API, when setup.py found numpy's headers: the public fast path below */
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#endif
+
+#if defined(RCCL_LIBMVEC) && defined(__x86_64__) && defined(__GNUC__)
+/* glibc's vector math library (libmvec): sin/cos of 4 doubles at once with AVX2, within
+ * 4 ulp; used for batches when the CPU has AVX2 (checked at import), else plain libm. */
+#define RCCL_VECTOR_TRIG 1
+#include <immintrin.h>
+__m256d _ZGVdN4v_sin(__m256d);
+__m256d _ZGVdN4v_cos(__m256d);
+static int have_vector_trig = 0;
+
+#define VTRIG(fn) \
+__attribute__((target("avx2,fma"))) static void vtrig_##fn(const double *x, double *y, int m) \
+{ \
+    int i = 0; \
+    for (; i + 4 <= m; i += 4) _mm256_storeu_pd(y + i, _ZGVdN4v_##fn(_mm256_loadu_pd(x + i))); \
+    if (i < m) { /* the tail, padded into one vector */ \
+        double xt[4] = {0, 0, 0, 0}, yt[4]; \
+        for (int j = 0; i + j < m; ++j) xt[j] = x[i + j]; \
+        _mm256_storeu_pd(yt, _ZGVdN4v_##fn(_mm256_loadu_pd(xt))); \
+        for (int j = 0; i + j < m; ++j) y[i + j] = yt[j]; \
+    } \
+}
+VTRIG(sin)
+VTRIG(cos)
+#endif
 
 #define MAXIO 3
-#define RCCL_SOURCE_HASH "35f6118b8794aff405333dac70d082201c7bc6bf11a2a17c17a0a553621f708a"
+#define RCCL_SOURCE_HASH "5b1a24579dd5299874243964d0402a28ca15061e072bb376c3aebd69b21cd281"
 
 /* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[base]+cse, o=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
@@ -47,8 +77,85 @@ static inline void k_fk(const double *restrict in0, double *restrict out0)
 /* END KERNEL microbo.fk */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* fk for batches: the row above with its sines and cosines precomputed */
+static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double t0 = c_7*s_4;
+    const double t1 = s_2*s_6 + c_3*c_5*c_7;
+    const double t2 = c_3*s_4;
+    out0[0] = c_1*t0 - s_0*t1;
+    out0[2] = -c_1*c_5 - s_0*t2;
+    out0[3] = c_1*in0[2];
+    out0[4] = c_1*t1 + s_0*t0;
+    out0[6] = c_1*t2 - c_5*s_0;
+    out0[7] = s_0*in0[2];
+    out0[8] = c_5*c_7*s_2 - c_3*s_6;
+    out0[10] = s_2*s_4;
+    out0[11] = in0[1];
+    out0[12] = 0.0;
+    out0[13] = 0.0;
+    out0[14] = 0.0;
+    out0[15] = 1.0;
+    out0[1] = out0[6]*out0[8] - out0[10]*out0[4];
+    out0[5] = out0[0]*out0[10] - out0[2]*out0[8];
+    out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[4][1], sv[4], cv[4], tv[8];
+        const int r = 0;
+        ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+        double a[4];
+        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+        kv_fk(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[4][64], tv[8][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+            vtrig_sin(ta[3], tv[6], m);
+            vtrig_cos(ta[3], tv[7], m);
+        for (int r = 0; r < m; ++r)
+            kv_fk(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_fk(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -110,8 +217,63 @@ static inline void k_ik_wrist(const double *restrict in0, const double *restrict
 /* END KERNEL microbo.ik_wrist */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* ik_wrist for batches: the row above with its sines and cosines precomputed */
+static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double t0 = s_2*in0[10] - c_3*(s_0*in0[2] - c_1*in0[6]);
+    const double t1 = c_1*in0[2] + s_0*in0[6];
+    const double t2 = c_1*in0[5] - s_0*in0[1];
+    out0[0] = atan2(t0, -t1);
+    out0[1] = atan2(-(t0*(c_1*in0[1] + s_0*in0[5]) - t1*(c_3*t2 + s_2*in0[9]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        ta[0][r] = in1[0]; ta[1][r] = in1[3];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_ik_wrist(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in1[0]; ta[1][r] = in1[3];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_ik_wrist(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -128,8 +290,53 @@ static inline void k_config_indicators(const double *restrict in0, double *restr
 /* END KERNEL microbo.config_indicators */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* config_indicators for batches: the row above with its sines and cosines precomputed */
+static inline void kv_config_indicators(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    out0[0] = s_0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[1][1], sv[1], cv[1], tv[1];
+        const int r = 0;
+        ta[0][r] = in0[4];
+        double a[1];
+        for (int i = 0; i < 1; ++i) a[i] = ta[i][0];
+        vtrig_sin(a, sv, 1);
+        tv[0] = sv[0];
+        kv_config_indicators(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[1][64], tv[1][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            ta[0][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+        for (int r = 0; r < m; ++r)
+            kv_config_indicators(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_config_indicators(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -185,8 +392,95 @@ static inline void k_jacobian4(const double *restrict in0, double *restrict out0
 /* END KERNEL microbo.jacobian4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* jacobian4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_jacobian4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double t0 = -c_1;
+    out0[0] = c_1*in0[2];
+    out0[1] = s_0;
+    out0[2] = 0.0;
+    out0[3] = 0.0;
+    out0[4] = 0.0;
+    out0[5] = 0.0;
+    out0[6] = 0.0;
+    out0[7] = 0.0;
+    out0[8] = 1.0;
+    out0[9] = 0.0;
+    out0[10] = 0.0;
+    out0[11] = 0.0;
+    out0[12] = s_0*in0[2];
+    out0[13] = t0;
+    out0[14] = 0.0;
+    out0[15] = 0.0;
+    out0[16] = 0.0;
+    out0[17] = 0.0;
+    out0[18] = s_0;
+    out0[19] = 0.0;
+    out0[20] = 0.0;
+    out0[21] = 0.0;
+    out0[22] = 0.0;
+    out0[23] = s_2;
+    out0[24] = 0.0;
+    out0[25] = 0.0;
+    out0[26] = 0.0;
+    out0[27] = 1.0;
+    out0[28] = 0.0;
+    out0[29] = -c_3;
+    out0[30] = t0;
+    out0[31] = 0.0;
+    out0[32] = 0.0;
+    out0[33] = 0.0;
+    out0[34] = 1.0;
+    out0[35] = 0.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_jacobian4(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_jacobian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_jacobian4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -252,8 +546,107 @@ static inline void k_jacobian6(const double *restrict in0, double *restrict out0
 /* END KERNEL microbo.jacobian6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* jacobian6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_jacobian6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double t0 = s_0*s_4;
+    const double t1 = c_1*c_5;
+    const double t2 = c_1*s_4;
+    const double t3 = c_3*c_5*s_0 - t2;
+    const double t4 = c_5*s_2;
+    const double t5 = -t1 - c_3*t0;
+    const double t6 = -s_2*s_4;
+    const double t7 = s_0*s_2;
+    const double t8 = -c_3;
+    out0[0] = in0[2]*(t0 + c_3*t1);
+    out0[1] = t3;
+    out0[2] = t4;
+    out0[3] = 0.0;
+    out0[4] = 0.0;
+    out0[5] = 0.0;
+    out0[6] = in0[2]*(c_5*s_0 - c_3*t2);
+    out0[7] = t5;
+    out0[8] = t6;
+    out0[9] = 0.0;
+    out0[10] = 0.0;
+    out0[11] = 0.0;
+    out0[12] = c_1*s_2*in0[2];
+    out0[13] = t7;
+    out0[14] = t8;
+    out0[15] = 0.0;
+    out0[16] = 0.0;
+    out0[17] = 0.0;
+    out0[18] = t3;
+    out0[19] = 0.0;
+    out0[20] = 0.0;
+    out0[21] = t4;
+    out0[22] = s_4;
+    out0[23] = 0.0;
+    out0[24] = t5;
+    out0[25] = 0.0;
+    out0[26] = 0.0;
+    out0[27] = t6;
+    out0[28] = c_5;
+    out0[29] = 0.0;
+    out0[30] = t7;
+    out0[31] = 0.0;
+    out0[32] = 0.0;
+    out0[33] = t8;
+    out0[34] = 0.0;
+    out0[35] = 1.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[3][1], sv[3], cv[3], tv[6];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+        kv_jacobian6(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[3][64], tv[6][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+        for (int r = 0; r < m; ++r)
+            kv_jacobian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_jacobian6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -279,8 +672,65 @@ static inline void k_cartesian_from_joint4(const double *restrict in0, const dou
 /* END KERNEL microbo.cartesian_from_joint4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* cartesian_from_joint4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double t0 = c_1*in1[0];
+    out0[0] = s_0*in1[1] + t0*in0[2];
+    out0[1] = in1[2];
+    out0[2] = s_0*in1[0]*in0[2] - c_1*in1[1];
+    out0[3] = s_0*in1[0] + s_2*in1[5];
+    out0[4] = in1[3] - c_3*in1[5];
+    out0[5] = in1[4] - t0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_cartesian_from_joint4(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_cartesian_from_joint4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_cartesian_from_joint4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -305,8 +755,64 @@ static inline void k_torque_from_force4(const double *restrict in0, const double
 /* END KERNEL microbo.torque_from_force4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* torque_from_force4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    out0[0] = c_1*(in1[0]*in0[2] - in1[5]) + s_0*(in1[3] + in1[2]*in0[2]);
+    out0[1] = s_0*in1[0] - c_1*in1[2];
+    out0[2] = in1[1];
+    out0[3] = in1[4];
+    out0[4] = in1[5];
+    out0[5] = s_2*in1[3] - c_3*in1[4];
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_torque_from_force4(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_torque_from_force4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_torque_from_force4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -344,8 +850,78 @@ static inline void k_joint_from_cartesian4(const double *restrict in0, const dou
 /* END KERNEL microbo.joint_from_cartesian4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* joint_from_cartesian4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double x_0 = 2.0*in0[3];
+    const double s_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double t0 = 1.0/in0[2];
+    const double t1 = 1.0/s_3;
+    const double t2 = c_4*t1;
+    const double t3 = t0*in1[0];
+    const double t4 = 0.5*s_2;
+    const double t5 = t3*t4;
+    const double t6 = t0*in1[2];
+    const double t7 = t6*s_0*s_0;
+    out0[0] = t0*(c_1*in1[0] + s_0*in1[2]);
+    out0[1] = s_0*in1[0] - c_1*in1[2];
+    out0[2] = in1[1];
+    out0[3] = in1[4] + c_4*t1*in1[3] - t2*t5 - t2*t7;
+    out0[4] = in1[5] + t3*c_1*c_1 + t4*t6;
+    out0[5] = t1*(in1[3] - t5 - t7);
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = fabs(in0[2]) - 1e-09;
+    out2[0] = fabs(s_3) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[3][1], sv[3], cv[3], tv[5];
+        const int r = 0;
+        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2];
+        kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
+    double ta[3][64], tv[5][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+        for (int r = 0; r < m; ++r)
+            kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_joint_from_cartesian4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2];
     (void)is; (void)os;
@@ -378,8 +954,73 @@ static inline void k_force_from_torque4(const double *restrict in0, const double
 /* END KERNEL microbo.force_from_torque4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* force_from_torque4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double x_0 = 2.0*in0[3];
+    const double s_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double t0 = 1.0/in0[2];
+    const double t1 = (in1[5] + c_4*in1[3])/s_3;
+    const double t2 = 0.5*s_2*t0;
+    out0[0] = s_0*in1[1] + c_1*t0*(in1[0] + c_1*in1[4]) - t1*t2;
+    out0[1] = in1[2];
+    out0[2] = t2*in1[4] + s_0*t0*(in1[0] - s_0*t1) - c_1*in1[1];
+    out0[3] = t1;
+    out0[4] = in1[3];
+    out0[5] = in1[4];
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = fabs(in0[2]) - 1e-09;
+    out2[0] = fabs(s_3) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[3][1], sv[3], cv[3], tv[5];
+        const int r = 0;
+        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2];
+        kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
+    double ta[3][64], tv[5][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+        for (int r = 0; r < m; ++r)
+            kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_force_from_torque4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2];
     (void)is; (void)os;
@@ -413,8 +1054,75 @@ static inline void k_cartesian_from_joint6(const double *restrict in0, const dou
 /* END KERNEL microbo.cartesian_from_joint6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* cartesian_from_joint6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double t0 = s_0*in1[0];
+    const double t1_n = t0*in0[2] - c_1*in1[1];
+    const double t2 = c_1*in1[0];
+    const double t3 = s_0*in1[1] + t2*in0[2];
+    const double t4 = c_3*t3 + s_2*in1[2];
+    const double t5 = c_3*t0 + s_2*in1[3];
+    const double t6_n = in1[4] - t2;
+    out0[0] = c_5*t4 + s_4*t1_n;
+    out0[1] = c_5*t1_n - s_4*t4;
+    out0[2] = s_2*t3 - c_3*in1[2];
+    out0[3] = c_5*t5 + s_4*t6_n;
+    out0[4] = c_5*t6_n - s_4*t5;
+    out0[5] = c_3*(c_3*in1[5] - in1[3]) + s_2*(t0 + s_2*in1[5]);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[3][1], sv[3], cv[3], tv[6];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+        kv_cartesian_from_joint6(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[3][64], tv[6][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+        for (int r = 0; r < m; ++r)
+            kv_cartesian_from_joint6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_cartesian_from_joint6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -446,8 +1154,73 @@ static inline void k_torque_from_force6(const double *restrict in0, const double
 /* END KERNEL microbo.torque_from_force6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* torque_from_force6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double t0 = c_5*in1[0] - s_4*in1[1];
+    const double t1 = c_3*t0 + s_2*in1[2];
+    const double t2 = c_5*in1[4] + s_4*in1[3];
+    const double t3 = c_5*in1[1] + s_4*in1[0];
+    const double t4 = c_5*in1[3] - s_4*in1[4];
+    out0[0] = s_0*(c_3*t4 + s_2*in1[5] + t3*in0[2]) - c_1*(t2 - t1*in0[2]);
+    out0[1] = s_0*t1 - c_1*t3;
+    out0[2] = s_2*t0 - c_3*in1[2];
+    out0[3] = s_2*t4 - c_3*in1[5];
+    out0[4] = t2;
+    out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[3][1], sv[3], cv[3], tv[6];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+        kv_torque_from_force6(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[3][64], tv[6][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+        for (int r = 0; r < m; ++r)
+            kv_torque_from_force6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_torque_from_force6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -491,8 +1264,86 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
 /* END KERNEL microbo.joint_from_cartesian6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* joint_from_cartesian6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double x_0 = 2.0*in0[3];
+    const double s_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double t0 = 1.0/in0[2];
+    const double t1 = c_6*in1[1] + s_5*in1[0];
+    const double t2 = c_6*in1[0] - s_5*in1[1];
+    const double t3 = c_4*t2;
+    const double t4 = t3 + s_3*in1[2];
+    const double t5 = c_6*in1[3] - s_5*in1[4];
+    const double t6 = 1.0/s_3;
+    const double t7 = t5*t6;
+    const double t8 = t0*t1;
+    const double t9 = t6*t8*s_0*s_0;
+    const double t10 = 0.5*s_2;
+    const double t11 = t0*t10*(in1[2] + t3*t6);
+    out0[0] = t0*(c_1*t4 + s_0*t1);
+    out0[1] = s_0*t4 - c_1*t1;
+    out0[2] = s_3*t2 - c_4*in1[2];
+    out0[3] = t7*c_4*c_4 + s_3*t5 - c_4*t11 - c_4*t9;
+    out0[4] = c_6*in1[4] + s_5*in1[3] + t10*t8 + t0*t4*c_1*c_1;
+    out0[5] = in1[5] + c_4*t7 - t11 - t9;
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = fabs(in0[2]) - 1e-09;
+    out2[0] = fabs(s_3) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[4][1], sv[4], cv[4], tv[7];
+        const int r = 0;
+        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+        double a[4];
+        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+        kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
+    double ta[4][64], tv[7][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+        for (int r = 0; r < m; ++r)
+            kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_joint_from_cartesian6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2];
     (void)is; (void)os;
@@ -532,8 +1383,82 @@ static inline void k_force_from_torque6(const double *restrict in0, const double
 /* END KERNEL microbo.force_from_torque6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* force_from_torque6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double x_0 = 2.0*in0[3];
+    const double s_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double t0 = 2.0*c_1;
+    const double t1 = 1.0/in0[2];
+    const double t2 = (in1[5] + c_4*in1[3])/s_3;
+    const double t3 = 2.0*s_0;
+    const double t4_n = t1*(s_2*in1[4] + t3*(in1[0] - s_0*t2)) - t0*in1[1];
+    const double t5 = t1*(t0*(in1[0] + c_1*in1[4]) - s_2*t2) + t3*in1[1];
+    const double t6 = c_4*t5 + 2.0*s_3*in1[2];
+    const double t7 = c_4*t2 + s_3*in1[3];
+    out0[0] = 0.5*c_6*t6 + 0.5*s_5*t4_n;
+    out0[1] = 0.5*c_6*t4_n - 0.5*s_5*t6;
+    out0[2] = 0.5*s_3*t5 - c_4*in1[2];
+    out0[3] = c_6*t7 + s_5*in1[4];
+    out0[4] = c_6*in1[4] - s_5*t7;
+    out0[5] = in1[5];
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = fabs(in0[2]) - 1e-09;
+    out2[0] = fabs(s_3) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[4][1], sv[4], cv[4], tv[7];
+        const int r = 0;
+        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+        double a[4];
+        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+        kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
+    double ta[4][64], tv[7][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+        for (int r = 0; r < m; ++r)
+            kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_force_from_torque6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2];
     (void)is; (void)os;
@@ -558,8 +1483,64 @@ static inline void k_gravity(const double *restrict in0, const double *restrict 
 /* END KERNEL microbo.gravity */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* gravity for batches: the row above with its sines and cosines precomputed */
+static inline void kv_gravity(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    out0[0] = 0.0;
+    out0[1] = in1[0];
+    out0[2] = 0.0;
+    out0[3] = -c_1*s_2*in1[1];
+    out0[4] = -c_3*s_0*in1[1];
+    out0[5] = 0.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_gravity(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_gravity(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_gravity(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -590,8 +1571,70 @@ static inline void k_gravity_regressor(const double *restrict in0, double *restr
 /* END KERNEL microbo.gravity_regressor */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* gravity_regressor for batches: the row above with its sines and cosines precomputed */
+static inline void kv_gravity_regressor(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    out0[0] = 0.0;
+    out0[1] = 0.0;
+    out0[2] = 1.0;
+    out0[3] = 0.0;
+    out0[4] = 0.0;
+    out0[5] = 0.0;
+    out0[6] = 0.0;
+    out0[7] = -c_1*s_2;
+    out0[8] = 0.0;
+    out0[9] = -c_3*s_0;
+    out0[10] = 0.0;
+    out0[11] = 0.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_gravity_regressor(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_gravity_regressor(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_gravity_regressor(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -622,8 +1665,72 @@ static inline void k_gravity_links(const double *restrict in0, const double *res
 /* END KERNEL microbo.gravity_links */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* gravity_links for batches: the row above with its sines and cosines precomputed */
+static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double t0 = c_5*in2[16] + s_4*in2[15];
+    const double t1 = in2[14]*in1[4] + in2[17]*in1[5];
+    const double t2 = c_5*in2[15] - s_4*in2[16];
+    const double t3 = in2[12]*in1[4] + t2*in1[5];
+    out0[0] = 0.0;
+    out0[1] = 9.81*(in1[1] + in1[2] + in1[3] + in1[4] + in1[5]);
+    out0[2] = 0.0;
+    out0[3] = 9.81*c_1*(c_3*t3 + in2[9]*in1[3] + s_2*t1) + 9.81*s_0*(in2[11]*in1[3] + in2[13]*in1[4] + t0*in1[5]);
+    out0[4] = 9.81*s_0*(c_3*t1 - s_2*t3);
+    out0[5] = -9.81*in1[5]*(c_1*t2 + c_3*s_0*t0);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1]; const double *restrict in2 = (const double *)in[2];
+        double ta[3][1], sv[3], cv[3], tv[6];
+        const int r = 0;
+        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+        kv_gravity_links(tv, 1, in0, in1, in2, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
+    double *outb0 = out[0];
+    double ta[3][64], tv[6][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+        for (int r = 0; r < m; ++r)
+            kv_gravity_links(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], inb2 + (r0 + r) * is[2], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_gravity_links(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1]; const double *in2 = (const double *)in[2];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -729,7 +1836,7 @@ typedef struct { int ndim; Py_ssize_t dim[2]; Py_ssize_t size; } arg_shape;
 typedef struct {
     const char *name;
     batch_fn fn;
-    int nin, nout;
+    int nin, nout, nguard;      /* nout counts the outputs and then the nguard guards */
     arg_shape in[MAXIO];
     arg_shape out[MAXIO];
     const char *in_name[MAXIO];
@@ -737,102 +1844,102 @@ typedef struct {
 } kernel_entry;
 
 static const kernel_entry KERNELS[20] = {
-    {"fk", batch_fk, 1, 1,
+    {"fk", batch_fk, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {4, 4}, 16}},
      {"q"},
      {"T"}},
-    {"ik", batch_ik, 2, 3,
+    {"ik", batch_ik, 2, 3, 2,
      {{2, {4, 4}, 16}, {0, {0, 0}, 1}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"T", "config"},
      {"q", "guard_axis", "guard_wrist"}},
-    {"ik_wrist", batch_ik_wrist, 2, 1,
+    {"ik_wrist", batch_ik_wrist, 2, 1, 0,
      {{2, {4, 4}, 16}, {1, {6, 0}, 6}},
      {{1, {2, 0}, 2}},
      {"T", "q"},
      {"q56"}},
-    {"config_indicators", batch_config_indicators, 1, 1,
+    {"config_indicators", batch_config_indicators, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{0, {0, 0}, 1}},
      {"q"},
      {"indicator"}},
-    {"jacobian4", batch_jacobian4, 1, 1,
+    {"jacobian4", batch_jacobian4, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"}},
-    {"jacobian6", batch_jacobian6, 1, 1,
+    {"jacobian6", batch_jacobian6, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"}},
-    {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1,
+    {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"}},
-    {"torque_from_force4", batch_torque_from_force4, 2, 1,
+    {"torque_from_force4", batch_torque_from_force4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"}},
-    {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 3,
+    {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_axis", "guard_wrist"}},
-    {"force_from_torque4", batch_force_from_torque4, 2, 3,
+    {"force_from_torque4", batch_force_from_torque4, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_axis", "guard_wrist"}},
-    {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1,
+    {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"}},
-    {"torque_from_force6", batch_torque_from_force6, 2, 1,
+    {"torque_from_force6", batch_torque_from_force6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"}},
-    {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 3,
+    {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_axis", "guard_wrist"}},
-    {"force_from_torque6", batch_force_from_torque6, 2, 3,
+    {"force_from_torque6", batch_force_from_torque6, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_axis", "guard_wrist"}},
-    {"gravity", batch_gravity, 2, 1,
+    {"gravity", batch_gravity, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {2, 0}, 2}},
      {{1, {6, 0}, 6}},
      {"q", "c"},
      {"tau"}},
-    {"gravity_regressor", batch_gravity_regressor, 1, 1,
+    {"gravity_regressor", batch_gravity_regressor, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 2}, 12}},
      {"q"},
      {"Y"}},
-    {"gravity_links", batch_gravity_links, 3, 1,
+    {"gravity_links", batch_gravity_links, 3, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {6, 0}, 6}},
      {"q", "m", "com"},
      {"tau"}},
-    {"coefficients_from_links", batch_coefficients_from_links, 2, 1,
+    {"coefficients_from_links", batch_coefficients_from_links, 2, 1, 0,
      {{1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {2, 0}, 2}},
      {"m", "com"},
      {"c"}},
-    {"tool_load", batch_tool_load, 2, 1,
+    {"tool_load", batch_tool_load, 2, 1, 0,
      {{1, {2, 0}, 2}, {1, {2, 0}, 2}},
      {{1, {2, 0}, 2}},
      {"c", "load"},
      {"c_loaded"}},
-    {"ik_all", batch_ik_all, 1, 2,
+    {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {2, 6}, 12}, {2, {2, 2}, 4}},
      {"T"},
@@ -989,65 +2096,228 @@ done:
     return result;
 }
 
+#ifdef RCCL_NUMPY_API
+/* The public entry of a kernel (rccl.kinematics.backend.public): when every argument is
+ * already an unbatched float64 C-contiguous numpy array of the kernel's shape with finite
+ * values, run the row function, and when every guard is >= 0 and the first output is
+ * finite return that output (a new array). Anything else (lists, batches, keywords, NaN,
+ * a failing guard, a non-finite result) goes to `fallback`, the Python code that gives
+ * the contract's conversions, messages and exceptions: no error behaviour is lost. */
+static PyObject *public_call(const kernel_entry *k, PyObject *fallback, PyObject *const *args, Py_ssize_t nargs,
+                             PyObject *kwnames)
+{
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    double guard[MAXIO];
+    static const Py_ssize_t zero[MAXIO] = {0};
+    if (kwnames || nargs != k->nin || k->nout - k->nguard != 1) goto slow;
+    for (int i = 0; i < k->nin; ++i) {
+        PyObject *x = args[i];
+        if (!PyArray_CheckExact(x)) goto slow;
+        PyArrayObject *a = (PyArrayObject *)x;
+        const arg_shape *s = &k->in[i];
+        if (PyArray_TYPE(a) != NPY_DOUBLE || PyArray_NDIM(a) != s->ndim
+            || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) goto slow;
+        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d) != s->dim[d]) goto slow;
+        const double *v = (const double *)PyArray_DATA(a);
+        for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(v[j])) goto slow;
+        ip[i] = v;
+    }
+    const arg_shape *s = &k->out[0];
+    npy_intp dims[2] = {s->dim[0], s->dim[1]};
+    PyObject *res = PyArray_SimpleNew(s->ndim, dims, NPY_DOUBLE);
+    if (!res) return NULL;
+    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
+    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
+    k->fn(1, ip, zero, op, zero);
+    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) { Py_DECREF(res); goto slow; }
+    for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(op[0][j])) { Py_DECREF(res); goto slow; }
+    return res;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+#endif
+
 static PyObject *py_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[0], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_fk(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[0], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_ik(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[1], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_ik(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[1], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_ik_wrist(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[2], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_ik_wrist(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[2], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_config_indicators(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[3], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_config_indicators(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[3], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_jacobian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[4], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_jacobian4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[4], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_jacobian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[5], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_jacobian6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[5], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_cartesian_from_joint4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[6], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_cartesian_from_joint4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[6], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_torque_from_force4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[7], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_torque_from_force4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[7], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_joint_from_cartesian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[8], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_joint_from_cartesian4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[8], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_force_from_torque4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[9], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_force_from_torque4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[9], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_cartesian_from_joint6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[10], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_cartesian_from_joint6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[10], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_torque_from_force6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[11], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_torque_from_force6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[11], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_joint_from_cartesian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[12], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_joint_from_cartesian6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[12], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_force_from_torque6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[13], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_force_from_torque6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[13], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[14], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_gravity(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[14], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_gravity_regressor(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[15], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_gravity_regressor(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[15], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_gravity_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[16], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_gravity_links(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[16], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_coefficients_from_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[17], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_coefficients_from_links(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[17], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_tool_load(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[18], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_tool_load(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[18], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[19], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[19], fallback, args, nargs, kwnames); }
+#endif
+
+#ifdef RCCL_NUMPY_API
+static PyMethodDef PUBLIC_DEFS[] = {
+    {"fk", (PyCFunction)(void (*)(void))pub_fk, METH_FASTCALL | METH_KEYWORDS, "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"ik", (PyCFunction)(void (*)(void))pub_ik, METH_FASTCALL | METH_KEYWORDS, "ik(T[4, 4], config[]) -> (q[6], guard_axis, guard_wrist): joint variables for pose T in one configuration (signs +-1: wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"ik_wrist", (PyCFunction)(void (*)(void))pub_ik_wrist, METH_FASTCALL | METH_KEYWORDS, "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"config_indicators", (PyCFunction)(void (*)(void))pub_config_indicators, METH_FASTCALL | METH_KEYWORDS, "config_indicators(q[6]) -> (indicator[]): values whose signs are the configuration of q (wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"jacobian4", (PyCFunction)(void (*)(void))pub_jacobian4, METH_FASTCALL | METH_KEYWORDS, "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"jacobian6", (PyCFunction)(void (*)(void))pub_jacobian6, METH_FASTCALL | METH_KEYWORDS, "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"cartesian_from_joint4", (PyCFunction)(void (*)(void))pub_cartesian_from_joint4, METH_FASTCALL | METH_KEYWORDS, "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"torque_from_force4", (PyCFunction)(void (*)(void))pub_torque_from_force4, METH_FASTCALL | METH_KEYWORDS, "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"joint_from_cartesian4", (PyCFunction)(void (*)(void))pub_joint_from_cartesian4, METH_FASTCALL | METH_KEYWORDS, "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_axis, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"force_from_torque4", (PyCFunction)(void (*)(void))pub_force_from_torque4, METH_FASTCALL | METH_KEYWORDS, "force_from_torque4(q[6], tau[6]) -> (f[6], guard_axis, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"cartesian_from_joint6", (PyCFunction)(void (*)(void))pub_cartesian_from_joint6, METH_FASTCALL | METH_KEYWORDS, "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"torque_from_force6", (PyCFunction)(void (*)(void))pub_torque_from_force6, METH_FASTCALL | METH_KEYWORDS, "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"joint_from_cartesian6", (PyCFunction)(void (*)(void))pub_joint_from_cartesian6, METH_FASTCALL | METH_KEYWORDS, "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_axis, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"force_from_torque6", (PyCFunction)(void (*)(void))pub_force_from_torque6, METH_FASTCALL | METH_KEYWORDS, "force_from_torque6(q[6], tau[6]) -> (f[6], guard_axis, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"gravity", (PyCFunction)(void (*)(void))pub_gravity, METH_FASTCALL | METH_KEYWORDS, "gravity(q[6], c[2]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"gravity_regressor", (PyCFunction)(void (*)(void))pub_gravity_regressor, METH_FASTCALL | METH_KEYWORDS, "gravity_regressor(q[6]) -> (Y[6, 2]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"gravity_links", (PyCFunction)(void (*)(void))pub_gravity_links, METH_FASTCALL | METH_KEYWORDS, "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"coefficients_from_links", (PyCFunction)(void (*)(void))pub_coefficients_from_links, METH_FASTCALL | METH_KEYWORDS, "coefficients_from_links(m[6], com[6, 3]) -> (c[2]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"tool_load", (PyCFunction)(void (*)(void))pub_tool_load, METH_FASTCALL | METH_KEYWORDS, "tool_load(c[2], load[2]) -> (c_loaded[2]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"ik_all", (PyCFunction)(void (*)(void))pub_ik_all, METH_FASTCALL | METH_KEYWORDS, "ik_all(T[4, 4]) -> (q[2, 6], guards[2, 2]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+};
+
+/* public(name, fallback): the kernel's fast public entry, falling back to `fallback`. */
+static PyObject *public(PyObject *self, PyObject *args)
+{
+    const char *name;
+    PyObject *fallback;
+    if (!PyArg_ParseTuple(args, "sO:public", &name, &fallback)) return NULL;
+    if (!PyCallable_Check(fallback)) { PyErr_SetString(PyExc_TypeError, "public: fallback must be callable"); return NULL; }
+    for (int i = 0; i < 20; ++i)
+        if (strcmp(KERNELS[i].name, name) == 0) {
+            if (KERNELS[i].nout - KERNELS[i].nguard != 1) break;
+            return PyCFunction_NewEx(&PUBLIC_DEFS[i], fallback, NULL);
+        }
+    PyErr_Format(PyExc_KeyError, "microbo: no single-output kernel %s", name);
+    return NULL;
+}
+#endif
 
 static PyObject *arg_shape_tuple(const arg_shape *s)
 {
@@ -1103,6 +2373,9 @@ static PyMethodDef methods[] = {
     {"ik_all", (PyCFunction)(void (*)(void))py_ik_all, METH_FASTCALL, "ik_all(T[4, 4]) -> (q[2, 6], guards[2, 2]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"kernels", kernels, METH_NOARGS, "kernels() -> {name: (input shapes, output shapes)}"},
     {"source_hash", source_hash, METH_NOARGS, "sha256 of the generated C this module was built from"},
+#ifdef RCCL_NUMPY_API
+    {"public", public, METH_VARARGS, "public(name, fallback) -> fast public entry of a kernel (see public_call)"},
+#endif
     {NULL, NULL, 0, NULL}
 };
 
@@ -1112,6 +2385,13 @@ static struct PyModuleDef moduledef = {
 
 PyMODINIT_FUNC PyInit_microbo(void)
 {
+#ifdef RCCL_NUMPY_API
+    import_array();
+#endif
+#ifdef RCCL_VECTOR_TRIG
+    __builtin_cpu_init();
+    have_vector_trig = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
     PyObject *np = PyImport_ImportModule("numpy");
     if (!np) return NULL;
     np_empty = PyObject_GetAttrString(np, "empty");

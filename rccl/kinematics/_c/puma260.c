@@ -9,9 +9,39 @@
 #include <Python.h>
 #include <math.h>
 #include <string.h>
+#ifdef RCCL_NUMPY_API
+/* numpy's C API, when setup.py found numpy's headers: the public fast path below */
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#endif
+
+#if defined(RCCL_LIBMVEC) && defined(__x86_64__) && defined(__GNUC__)
+/* glibc's vector math library (libmvec): sin/cos of 4 doubles at once with AVX2, within
+ * 4 ulp; used for batches when the CPU has AVX2 (checked at import), else plain libm. */
+#define RCCL_VECTOR_TRIG 1
+#include <immintrin.h>
+__m256d _ZGVdN4v_sin(__m256d);
+__m256d _ZGVdN4v_cos(__m256d);
+static int have_vector_trig = 0;
+
+#define VTRIG(fn) \
+__attribute__((target("avx2,fma"))) static void vtrig_##fn(const double *x, double *y, int m) \
+{ \
+    int i = 0; \
+    for (; i + 4 <= m; i += 4) _mm256_storeu_pd(y + i, _ZGVdN4v_##fn(_mm256_loadu_pd(x + i))); \
+    if (i < m) { /* the tail, padded into one vector */ \
+        double xt[4] = {0, 0, 0, 0}, yt[4]; \
+        for (int j = 0; i + j < m; ++j) xt[j] = x[i + j]; \
+        _mm256_storeu_pd(yt, _ZGVdN4v_##fn(_mm256_loadu_pd(xt))); \
+        for (int j = 0; i + j < m; ++j) y[i + j] = yt[j]; \
+    } \
+}
+VTRIG(sin)
+VTRIG(cos)
+#endif
 
 #define MAXIO 5
-#define RCCL_SOURCE_HASH "fb0dfdb73e980c3ac370fa49097a6c1a27e7adb82d4861252dd29d6b0a212bc9"
+#define RCCL_SOURCE_HASH "ca3e24070112d5f716e1e233292bbed8284405c7a479b3806639d0985132dbc5"
 
 /* puma260.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[count]+cse, n=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
@@ -57,8 +87,99 @@ static inline void k_fk(const double *restrict in0, double *restrict out0)
 /* END KERNEL puma260.fk */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* fk for batches: the row above with its sines and cosines precomputed */
+static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double s_8 = tv[8 * ts];
+    const double c_9 = tv[9 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_10 = tv[10 * ts];
+    const double c_11 = tv[11 * ts];
+    const double t0 = c_7*s_8;
+    const double t1 = c_5*c_9 - s_4*t0;
+    const double t2 = s_6*s_8;
+    const double t3 = c_5*t0 + c_9*s_4;
+    const double t4_n = s_10*t2 - c_11*t3;
+    const double t5 = c_5*s_6;
+    const double t6 = c_11*t5 + c_7*s_10;
+    const double t7 = c_3 - s_10;
+    out0[1] = c_1*t4_n - s_0*t1;
+    out0[2] = s_0*s_4*s_6 - c_1*t6;
+    out0[3] = 0.12624*s_0 + 0.2032*c_1*t7;
+    out0[5] = c_1*t1 + s_0*t4_n;
+    out0[6] = -s_0*t6 - c_1*s_4*s_6;
+    out0[7] = 0.2032*s_0*t7 - 0.12624*c_1;
+    out0[9] = -c_11*t2 - s_10*t3;
+    out0[10] = c_11*c_7 - s_10*t5;
+    out0[11] = 0.2032*(c_11 + s_2);
+    out0[12] = 0.0;
+    out0[13] = 0.0;
+    out0[14] = 0.0;
+    out0[15] = 1.0;
+    out0[0] = out0[10]*out0[5] - out0[6]*out0[9];
+    out0[4] = out0[2]*out0[9] - out0[10]*out0[1];
+    out0[8] = out0[1]*out0[6] - out0[2]*out0[5];
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[6][1], sv[6], cv[6], tv[12];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        double a[6];
+        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5];
+        kv_fk(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[6][64], tv[12][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+            vtrig_sin(ta[3], tv[6], m);
+            vtrig_cos(ta[3], tv[7], m);
+            vtrig_sin(ta[4], tv[8], m);
+            vtrig_cos(ta[4], tv[9], m);
+            vtrig_sin(ta[5], tv[10], m);
+            vtrig_cos(ta[5], tv[11], m);
+        for (int r = 0; r < m; ++r)
+            kv_fk(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_fk(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -139,8 +260,118 @@ static inline void k_ik(const double *restrict in0, const double *restrict in1, 
 /* END KERNEL puma260.ik */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* ik for batches: the row above with its sines and cosines precomputed */
+static inline void kv_ik(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3, double *restrict out4)
+{
+    const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double t0 = in0[3]*in0[3];
+    const double t1 = in0[7]*in0[7];
+    const double t2 = c_1*in0[3];
+    const double t3 = s_0*in0[7];
+    const double t4 = in0[11]*in0[11] + (t2 + t3)*(t2 + t3);
+    const double t5 = 0.08258048 - t4;
+    const double t6_n = 0.16516096 - t4;
+    const double t7 = t4*t6_n;
+    const double t8 = 0.5*t7 + 0.5*fabs(t4*t6_n);
+    const double t9 = in1[0]*in1[1]*sqrt(t8);
+    const double t10 = atan2(t5, -t9);
+    const double t11 = 0.2032*t2;
+    const double t12 = 0.2032*t3;
+    const double t13 = 1.0/sqrt(t5*t5 + t8*in1[0]*in1[0]*in1[1]*in1[1]);
+    const double t14 = 0.2032*in0[11];
+    const double t15 = t13*t9;
+    const double t16 = 0.2032*c_1*t13*t5*in0[3] + 0.2032*s_0*t13*t5*in0[7] - t11 - t12 - t14*t15;
+    const double t17 = 0.2032*in0[11] - t11*t15 - t12*t15 - t13*t14*t5;
+    const double t18 = s_0*in0[2];
+    const double t19 = c_1*in0[6] - t18;
+    const double t20 = t19*in1[2];
+    const double t21 = 1.0/sqrt(t16*t16 + t17*t17);
+    const double t22 = t16*t21*in0[10];
+    const double t23 = t17*t21;
+    const double t24 = c_1*in0[2];
+    const double t25 = t23*t24;
+    const double t26 = s_0*in0[6];
+    const double t27 = t23*t26;
+    const double t28 = t22 + t25 + t27;
+    const double t29 = t28*in1[2];
+    const double t30 = in1[2]*in1[2];
+    const double t31 = t19*t19;
+    const double t32 = t28*t28;
+    const double t33 = 1.0/sqrt(t30*t31 + t30*t32);
+    const double t34 = t20*t33;
+    const double t35 = t29*t33;
+    const double t36 = t22*t35 + t25*t35 + t27*t35 + c_1*t34*in0[6] - t18*t34;
+    const double t37 = t16*t21;
+    const double t38 = t17*t21*in0[10] - t24*t37 - t26*t37;
+    const double t39 = c_1*in0[5];
+    const double t40 = 1.0/sqrt(t36*t36 + t38*t38);
+    const double t41 = t38*t40;
+    const double t42 = t34*t41;
+    const double t43 = s_0*in0[1];
+    const double t44 = t37*in0[9];
+    const double t45 = t35*t41;
+    const double t46 = c_1*in0[1];
+    const double t47 = t23*t45;
+    const double t48 = s_0*in0[5];
+    const double t49 = t36*t40;
+    const double t50 = t37*t49;
+    const double t51 = t23*t34;
+    out0[0] = atan2(0.12624, in1[0]*sqrt(0.5*t0 + 0.5*t1 + 0.5*fabs(t0 + t1 - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    out0[1] = atan2(t16, t17) - t10;
+    out0[2] = t10;
+    out0[3] = atan2(-t20, -t29);
+    out0[4] = atan2(t36, t38);
+    out0[5] = atan2(t39*t42 + t44*t45 + t46*t47 + t46*t50 + t47*t48 + t48*t50 - t42*t43 - t23*t49*in0[9], t34*t44 + t35*t43 + t46*t51 + t48*t51 - t35*t39);
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = 1.000000000001*t0 + 1.000000000001*t1 - 0.015936537599984063;
+    out2[0] = 6.819535677030399e-15 + t7;
+    out3[0] = t4 - 2.837053696e-19;
+    out4[0] = sqrt(t31 + t32) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[1][1], sv[1], cv[1], tv[2];
+        const int r = 0;
+        const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0;
+        double a[1];
+        for (int i = 0; i < 1; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 1); vtrig_sin(a, sv, 1);
+        tv[0] = sv[0]; tv[1] = cv[0];
+        kv_ik(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3], (double *)out[4]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3]; double *outb4 = out[4];
+    double ta[1][64], tv[2][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0;
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+        for (int r = 0; r < m; ++r)
+            kv_ik(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3], outb4 + (r0 + r) * os[4]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_ik(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_ik(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2]; double *out3 = out[3]; double *out4 = out[4];
     (void)is; (void)os;
@@ -170,8 +401,71 @@ static inline void k_ik_wrist(const double *restrict in0, const double *restrict
 /* END KERNEL puma260.ik_wrist */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* ik_wrist for batches: the row above with its sines and cosines precomputed */
+static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double x_0 = in1[1] + in1[2];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double t0 = c_1*in0[2] + s_0*in0[6];
+    const double t1 = c_3*(s_4*in0[10] + c_5*t0) - s_2*(s_0*in0[2] - c_1*in0[6]);
+    const double t2 = c_5*in0[10] - s_4*t0;
+    const double t3 = c_1*in0[5] - s_0*in0[1];
+    const double t4 = c_1*in0[1] + s_0*in0[5];
+    const double t5 = c_5*t4 + s_4*in0[9];
+    out0[0] = atan2(-t1, t2);
+    out0[1] = atan2((t1*(c_5*in0[9] - s_4*t4) - t2*(c_3*t5 + s_2*t3))/sqrt(t1*t1 + t2*t2), c_3*t3 - s_2*t5);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[3][1], sv[3], cv[3], tv[6];
+        const int r = 0;
+        const double x_0 = in1[1] + in1[2]; ta[0][r] = in1[0]; ta[1][r] = in1[3]; ta[2][r] = x_0;
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+        kv_ik_wrist(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[3][64], tv[6][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in1[1] + in1[2]; ta[0][r] = in1[0]; ta[1][r] = in1[3]; ta[2][r] = x_0;
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+        for (int r = 0; r < m; ++r)
+            kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_ik_wrist(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -195,8 +489,63 @@ static inline void k_config_indicators(const double *restrict in0, double *restr
 /* END KERNEL puma260.config_indicators */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* config_indicators for batches: the row above with its sines and cosines precomputed */
+static inline void kv_config_indicators(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_3 = tv[3 * ts];
+    const double t0 = c_0 - s_3;
+    out0[0] = 0.2032*t0;
+    out0[1] = -0.2032*c_1*t0;
+    out0[2] = s_2;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[4][1], sv[4], cv[4], tv[4];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[4]; ta[3][r] = x_0;
+        double a[4];
+        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = sv[3];
+        kv_config_indicators(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[4][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[4]; ta[3][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_cos(ta[1], tv[1], m);
+            vtrig_sin(ta[2], tv[2], m);
+            vtrig_sin(ta[3], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_config_indicators(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_config_indicators(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -267,8 +616,118 @@ static inline void k_jacobian4(const double *restrict in0, double *restrict out0
 /* END KERNEL puma260.jacobian4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* jacobian4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_jacobian4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double x_1 = in0[2] - in0[3];
+    const double s_8 = tv[8 * ts];
+    const double c_9 = tv[9 * ts];
+    const double x_2 = in0[2] + in0[3];
+    const double s_10 = tv[10 * ts];
+    const double c_11 = tv[11 * ts];
+    const double t0 = c_0 - s_6;
+    const double t1 = 0.2032*s_2;
+    const double t2 = 0.2032*c_3;
+    const double t3 = -t2;
+    const double t4 = -s_2;
+    out0[0] = 0.12624*c_3*c_7 + t0*t1;
+    out0[1] = 0.1016*s_10 + 0.1016*s_8 + t3;
+    out0[2] = t3;
+    out0[3] = 0.0;
+    out0[4] = 0.0;
+    out0[5] = 0.0;
+    out0[6] = -0.12624*s_6;
+    out0[7] = 0.2032*c_1;
+    out0[8] = 0.0;
+    out0[9] = 0.0;
+    out0[10] = 0.0;
+    out0[11] = 0.0;
+    out0[12] = 0.12624*c_7*s_2 - t0*t2;
+    out0[13] = 0.1016*c_9 - 0.1016*c_11 - t1;
+    out0[14] = -t1;
+    out0[15] = 0.0;
+    out0[16] = 0.0;
+    out0[17] = 0.0;
+    out0[18] = c_3*s_6;
+    out0[19] = t4;
+    out0[20] = t4;
+    out0[21] = 0.0;
+    out0[22] = 0.0;
+    out0[23] = -s_4;
+    out0[24] = c_7;
+    out0[25] = 0.0;
+    out0[26] = 0.0;
+    out0[27] = 1.0;
+    out0[28] = 0.0;
+    out0[29] = c_5;
+    out0[30] = s_2*s_6;
+    out0[31] = c_3;
+    out0[32] = c_3;
+    out0[33] = 0.0;
+    out0[34] = 1.0;
+    out0[35] = 0.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[7][1], sv[7], cv[7], tv[12];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; const double x_1 = in0[2] - in0[3]; const double x_2 = in0[2] + in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2;
+        double a[7];
+        for (int i = 0; i < 7; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 7); vtrig_sin(a, sv, 7);
+        tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = cv[2]; tv[4] = sv[3]; tv[5] = cv[3]; tv[6] = sv[4]; tv[7] = cv[4]; tv[8] = sv[5]; tv[9] = cv[5]; tv[10] = sv[6]; tv[11] = cv[6];
+        kv_jacobian4(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[7][64], tv[12][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            const double x_0 = in0[1] + in0[2]; const double x_1 = in0[2] - in0[3]; const double x_2 = in0[2] + in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_cos(ta[1], tv[1], m);
+            vtrig_sin(ta[2], tv[2], m);
+            vtrig_cos(ta[2], tv[3], m);
+            vtrig_sin(ta[3], tv[4], m);
+            vtrig_cos(ta[3], tv[5], m);
+            vtrig_sin(ta[4], tv[6], m);
+            vtrig_cos(ta[4], tv[7], m);
+            vtrig_sin(ta[5], tv[8], m);
+            vtrig_cos(ta[5], tv[9], m);
+            vtrig_sin(ta[6], tv[10], m);
+            vtrig_cos(ta[6], tv[11], m);
+        for (int r = 0; r < m; ++r)
+            kv_jacobian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_jacobian4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -351,8 +810,129 @@ static inline void k_jacobian6(const double *restrict in0, double *restrict out0
 /* END KERNEL puma260.jacobian6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* jacobian6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_jacobian6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = c_4*s_7;
+    const double t1 = c_8*s_3;
+    const double t2 = t0 + c_6*t1;
+    const double t3 = s_3*s_7;
+    const double t4 = c_4*c_8;
+    const double t5_n = t3 - c_6*t4;
+    const double t6 = 0.12624*c_10;
+    const double t7 = 0.2032*s_3;
+    const double t8 = 0.12624*s_5 + c_6*t7;
+    const double t9_n = 1.0 - s_1;
+    const double t10 = c_2*s_5;
+    const double t11 = c_4*c_6;
+    const double t12 = t1 + c_6*t0;
+    const double t13 = t4 - c_6*t3;
+    const double t14 = s_3*s_5;
+    const double t15 = c_4*s_5;
+    const double t16 = c_8*s_5;
+    const double t17 = -t2;
+    const double t18_n = -s_5*s_7;
+    const double t19 = -t13;
+    out0[0] = 0.2032*c_0*t2 - s_9*(0.2032*t0 + c_8*t8) - t5_n*t6;
+    out0[1] = 0.2032*c_8*(t10 - t11*t9_n) + 0.2032*t3*t9_n;
+    out0[2] = 0.2032*t5_n;
+    out0[3] = 0.0;
+    out0[4] = 0.0;
+    out0[5] = 0.0;
+    out0[6] = 0.2032*c_0*t13 - s_9*(0.2032*t4 - s_7*t8) - t12*t6;
+    out0[7] = 0.2032*t1*t9_n - 0.2032*s_7*(t10 - t11*t9_n);
+    out0[8] = 0.2032*t12;
+    out0[9] = 0.0;
+    out0[10] = 0.0;
+    out0[11] = 0.0;
+    out0[12] = -s_5*(c_0*t7 + c_4*t6) - s_9*(0.12624*c_6 - 0.2032*t14);
+    out0[13] = 0.2032*c_2*c_6 + 0.2032*t15*t9_n;
+    out0[14] = 0.2032*t15;
+    out0[15] = 0.0;
+    out0[16] = 0.0;
+    out0[17] = 0.0;
+    out0[18] = c_10*t16 - s_9*t5_n;
+    out0[19] = t17;
+    out0[20] = t17;
+    out0[21] = t16;
+    out0[22] = -s_7;
+    out0[23] = 0.0;
+    out0[24] = c_10*t18_n - s_9*t12;
+    out0[25] = t19;
+    out0[26] = t19;
+    out0[27] = t18_n;
+    out0[28] = -c_8;
+    out0[29] = 0.0;
+    out0[30] = c_10*c_6 - s_9*t15;
+    out0[31] = t14;
+    out0[32] = t14;
+    out0[33] = c_6;
+    out0[34] = 0.0;
+    out0[35] = 1.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[6][1], sv[6], cv[6], tv[11];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        double a[6];
+        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+        kv_jacobian6(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[6][64], tv[11][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+            vtrig_sin(ta[5], tv[9], m);
+            vtrig_cos(ta[5], tv[10], m);
+        for (int r = 0; r < m; ++r)
+            kv_jacobian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_jacobian6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -389,8 +969,81 @@ static inline void k_cartesian_from_joint4(const double *restrict in0, const dou
 /* END KERNEL puma260.cartesian_from_joint4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* cartesian_from_joint4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double t0 = 0.2032*in1[0]*(c_0 - s_7);
+    const double t1 = c_8*in1[0];
+    const double t2 = 0.2032*in1[1];
+    const double t3 = 0.12624*t1 + t2*(s_1 - 1.0) - 0.2032*in1[2];
+    const double t4 = s_7*in1[0];
+    const double t5 = in1[1] + in1[2];
+    out0[0] = c_4*t3 + s_3*t0;
+    out0[1] = c_2*t2 - 0.12624*t4;
+    out0[2] = s_3*t3 - c_4*t0;
+    out0[3] = c_4*s_7*in1[0] - s_5*in1[5] - s_3*t5;
+    out0[4] = in1[3] + t1 + c_6*in1[5];
+    out0[5] = in1[4] + c_4*t5 + s_3*t4;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[5][1], sv[5], cv[5], tv[9];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        double a[5];
+        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+        kv_cartesian_from_joint4(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[5][64], tv[9][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+        for (int r = 0; r < m; ++r)
+            kv_cartesian_from_joint4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_cartesian_from_joint4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -426,8 +1079,80 @@ static inline void k_torque_from_force4(const double *restrict in0, const double
 /* END KERNEL puma260.torque_from_force4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* torque_from_force4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double t0 = 0.2032*in1[2];
+    const double t1 = in1[3] + t0;
+    const double t2 = 0.2032*in1[0];
+    const double t3_n = in1[5] - t2;
+    const double t4 = s_1 - 1.0;
+    out0[0] = c_8*(in1[4] + 0.12624*c_4*in1[0] + 0.12624*s_3*in1[2]) - 0.2032*c_0*(c_4*in1[2] - s_3*in1[0]) - s_7*(0.12624*in1[1] - c_4*t1 - s_3*t3_n);
+    out0[1] = 0.2032*c_2*in1[1] + c_4*(in1[5] + t2*t4) + s_3*(t0*t4 - in1[3]);
+    out0[2] = c_4*t3_n - s_3*t1;
+    out0[3] = in1[4];
+    out0[4] = in1[5];
+    out0[5] = c_6*in1[4] - s_5*in1[3];
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[5][1], sv[5], cv[5], tv[9];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        double a[5];
+        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+        kv_torque_from_force4(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[5][64], tv[9][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+        for (int r = 0; r < m; ++r)
+            kv_torque_from_force4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_torque_from_force4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -476,8 +1201,93 @@ static inline void k_joint_from_cartesian4(const double *restrict in0, const dou
 /* END KERNEL puma260.joint_from_cartesian4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* joint_from_cartesian4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double t0 = c_0 - s_7;
+    const double t1 = 1.0/t0;
+    const double t2 = t1*(c_4*in1[2] - s_3*in1[0]);
+    const double t3 = 1.0/c_2;
+    const double t4 = 4.921259842519685*in1[1];
+    const double t5 = 0.12624*t3;
+    const double t6 = c_4*(0.2032*in1[0] + t5*in1[2]);
+    const double t7 = 24.218798437596877*c_0*t1;
+    const double t8 = t6*t7;
+    const double t9 = s_3*(0.2032*in1[2] - t5*in1[0]);
+    const double t10 = t7*t9;
+    const double t11 = 1.0/s_5;
+    const double t12 = t10 - s_1*t3*t4;
+    const double t13 = s_3*t12 + s_3*t8 - in1[3] - 4.921259842519685*s_7*t1*in1[2];
+    out0[0] = -4.921259842519685*t2;
+    out0[1] = t3*(t4 - 3.0573811147622294*s_7*t2);
+    out0[2] = 4.921259842519685*t3*in1[1]*(s_1 - 1.0) + 24.218798437596877*s_7*t1*(t6 + t9) - t10 - t8;
+    out0[3] = in1[4] + 4.921259842519685*c_8*t2 - c_6*t11*t13;
+    out0[4] = in1[5] + c_4*(t12 + t8) - 4.921259842519685*s_7*t1*in1[0];
+    out0[5] = t11*t13;
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = 0.2032*fabs(t0) - 4.064e-10;
+    out2[0] = fabs(c_2) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[5][1], sv[5], cv[5], tv[9];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        double a[5];
+        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+        kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
+    double ta[5][64], tv[9][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+        for (int r = 0; r < m; ++r)
+            kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_joint_from_cartesian4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2]; double *out3 = out[3];
     (void)is; (void)os;
@@ -527,8 +1337,94 @@ static inline void k_force_from_torque4(const double *restrict in0, const double
 /* END KERNEL puma260.force_from_torque4 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* force_from_torque4 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double t0 = c_0 - s_7;
+    const double t1 = 1.0/t0;
+    const double t2 = 4.921259842519685*s_7;
+    const double t3_n = in1[2];
+    const double t4 = in1[1] - t3_n;
+    const double t5 = 1.0/c_2;
+    const double t6 = 3.0573811147622294*t5;
+    const double t7 = 4.921259842519685*in1[0] + s_7*t4*t6 - 4.921259842519685*c_8*in1[3];
+    const double t8 = c_4*in1[4];
+    const double t9 = t8 - t3_n;
+    const double t10 = 1.0/s_5;
+    const double t11 = c_6*in1[3];
+    const double t12 = t10*(t11 - in1[5]);
+    const double t13 = s_3*t12;
+    const double t14 = 24.218798437596877*c_4;
+    out0[0] = t1*(c_0*(4.921259842519685*c_4*t9 + s_3*(t13*t6 + t6*in1[2] - t14*(t10*(0.2032*t11 - 0.2032*in1[5]) + 0.12624*t5*in1[4]))) + s_3*t7 + t2*(c_4*in1[2] - in1[4]));
+    out0[1] = 4.921259842519685*t5*(t4 + s_1*(t13 + in1[2] - t8));
+    out0[2] = t1*(c_0*(3.0573811147622294*c_4*t5*t9 - s_3*(4.921259842519685*t13 + 4.921259842519685*in1[2] - t14*(0.2032*in1[4] - t10*t5*(0.12624*t11 - 0.12624*in1[5])))) + t2*(t12 + s_3*in1[2]) - c_4*t7);
+    out0[3] = t12;
+    out0[4] = in1[3];
+    out0[5] = in1[4];
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = 0.2032*fabs(t0) - 4.064e-10;
+    out2[0] = fabs(c_2) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[5][1], sv[5], cv[5], tv[9];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        double a[5];
+        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+        kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
+    double ta[5][64], tv[9][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+        for (int r = 0; r < m; ++r)
+            kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_force_from_torque4(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2]; double *out3 = out[3];
     (void)is; (void)os;
@@ -574,8 +1470,92 @@ static inline void k_cartesian_from_joint6(const double *restrict in0, const dou
 /* END KERNEL puma260.cartesian_from_joint6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* cartesian_from_joint6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = 0.2032*in1[0]*(c_0 - s_9);
+    const double t1 = c_10*in1[0];
+    const double t2 = 0.2032*in1[1];
+    const double t3 = 0.12624*t1 + t2*(s_1 - 1.0) - 0.2032*in1[2];
+    const double t4 = c_4*t0 - s_3*t3;
+    const double t5 = s_9*in1[0];
+    const double t6 = c_2*t2 - 0.12624*t5;
+    const double t7 = c_4*t3 + s_3*t0;
+    const double t8 = c_6*t7 + s_5*t6;
+    const double t9 = in1[1] + in1[2];
+    const double t10 = in1[4] + c_4*t9 + s_3*t5;
+    const double t11 = in1[3] + t1 + c_6*in1[5];
+    const double t12 = s_5*in1[5] + s_3*t9 - c_4*t5;
+    out0[0] = c_8*t8 + s_7*t4;
+    out0[1] = c_8*t4 - s_7*t8;
+    out0[2] = c_6*t6 - s_5*t7;
+    out0[3] = c_8*(s_5*t11 - c_6*t12) - s_7*t10;
+    out0[4] = -c_8*t10 - s_7*(s_5*t11 - c_6*t12);
+    out0[5] = c_6*t11 + s_5*t12;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[6][1], sv[6], cv[6], tv[11];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        double a[6];
+        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+        kv_cartesian_from_joint6(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[6][64], tv[11][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+            vtrig_sin(ta[5], tv[9], m);
+            vtrig_cos(ta[5], tv[10], m);
+        for (int r = 0; r < m; ++r)
+            kv_cartesian_from_joint6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_cartesian_from_joint6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -631,8 +1611,102 @@ static inline void k_torque_from_force6(const double *restrict in0, const double
 /* END KERNEL puma260.torque_from_force6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* torque_from_force6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = c_8*in1[1];
+    const double t1 = s_7*in1[0];
+    const double t2 = s_5*in1[2];
+    const double t3 = c_8*in1[0];
+    const double t4 = s_7*in1[1];
+    const double t5 = t3 - t4;
+    const double t6 = c_6*t5 - t2;
+    const double t7 = c_6*in1[5];
+    const double t8 = 0.12624*s_3;
+    const double t9 = c_6*in1[2];
+    const double t10_n = t5;
+    const double t11 = s_5*in1[5];
+    const double t12 = c_8*in1[3] - s_7*in1[4];
+    const double t13 = 0.2032*t0 + 0.2032*t1 + t11 - c_6*t12;
+    const double t14 = 0.2032*c_6;
+    const double t15 = 0.2032*t2;
+    const double t16_n = -c_8*in1[4];
+    const double t17 = s_7*in1[3];
+    const double t18 = t16_n - t17;
+    const double t19 = t15 + t18 - t10_n*t14;
+    const double t20 = s_1 - 1.0;
+    const double t21 = 0.2032*t20;
+    const double t22_n = t20;
+    out0[0] = 0.2032*c_0*(c_4*(t0 + t1) + s_3*t6) + c_10*(t7 + 0.12624*c_4*t6 - c_8*(t8*in1[1] - s_5*in1[3]) - s_7*(t8*in1[0] + s_5*in1[4])) + s_9*(s_3*t19 - 0.12624*t9 - c_4*t13 - 0.12624*s_5*t10_n);
+    out0[1] = 0.2032*c_2*(t9 + s_5*t5) + c_4*(t18 + t14*(t20*t3 - t22_n*t4) - t15*t22_n) + s_3*(t11 + s_7*(c_6*in1[4] - t21*in1[0]) - c_8*(c_6*in1[3] + t21*in1[1]));
+    out0[2] = c_4*t19 + s_3*t13;
+    out0[3] = t7 + s_5*t12;
+    out0[4] = t16_n - t17;
+    out0[5] = in1[5]*(c_6*c_6 + s_5*s_5);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[6][1], sv[6], cv[6], tv[11];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        double a[6];
+        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+        kv_torque_from_force6(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[6][64], tv[11][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+            vtrig_sin(ta[5], tv[9], m);
+            vtrig_cos(ta[5], tv[10], m);
+        for (int r = 0; r < m; ++r)
+            kv_torque_from_force6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_torque_from_force6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -703,8 +1777,117 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
 /* END KERNEL puma260.joint_from_cartesian6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* joint_from_cartesian6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = c_0 - s_9;
+    const double t1 = 1.0/t0;
+    const double t2 = c_8*in1[1] + s_7*in1[0];
+    const double t3 = c_4*t2;
+    const double t4 = s_5*in1[2];
+    const double t5 = c_8*in1[0] - s_7*in1[1];
+    const double t6 = c_6*t5;
+    const double t7 = t6 - t4;
+    const double t8 = s_3*t7;
+    const double t9 = t1*(t3 + t8);
+    const double t10 = 1.0/c_2;
+    const double t11 = c_6*in1[2];
+    const double t12 = 4.921259842519685*t11;
+    const double t13 = s_5*t5;
+    const double t14 = 4.921259842519685*s_1;
+    const double t15 = 0.12624*t3;
+    const double t16 = 0.2032*s_3*t2;
+    const double t17 = 0.2032*c_4;
+    const double t18 = t17*t7;
+    const double t19_n = t18 - t16;
+    const double t20 = 24.218798437596877*c_0;
+    const double t21 = 0.12624*s_3;
+    const double t22 = c_8*in1[3] - s_7*in1[4];
+    const double t23 = 4.921259842519685*c_10;
+    const double t24 = 1.0/s_5;
+    const double t25 = 4.921259842519685*s_9*t1;
+    const double t26 = t24*(c_6*t22 - t2*t25);
+    const double t27 = t10*t14;
+    const double t28 = t27*(t5 + t11*t24);
+    const double t29 = in1[2]*(t17 - t10*t21);
+    const double t30 = t16 + t10*(t15 + t21*t6) - t17*t6;
+    const double t31 = -t5;
+    const double t32 = t4 + c_6*t31;
+    const double t33 = t1*t20;
+    out0[0] = 4.921259842519685*t9;
+    out0[1] = t10*(t12 + 4.921259842519685*t13 + 3.0573811147622294*s_9*t9);
+    out0[2] = t1*(24.218798437596877*s_9*(t19_n - t10*(t15 + t21*t7)) + t20*(t10*(t15 + 0.12624*t8) - t19_n)) + t10*(t12*(s_1 - 1.0) + t13*(t14 - 4.921259842519685));
+    out0[3] = c_6*(t26 + s_3*(t28 + t1*(t20*(t29 + t24*t30) - t23*t5))) + s_5*t22 - t1*t23*(t3 - s_3*t4);
+    out0[4] = c_4*(t27*(s_5*t31 - t11) + t33*(t18 + t10*(0.12624*s_3*t32 - t15) - t16)) + t25*t32 - c_8*in1[4] - s_7*in1[3];
+    out0[5] = in1[5] - t26 - s_3*(t28 + t33*(t29 + t24*t30));
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = 0.2032*fabs(t0) - 4.064e-10;
+    out2[0] = fabs(c_2) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[6][1], sv[6], cv[6], tv[11];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        double a[6];
+        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+        kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
+    double ta[6][64], tv[11][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+            vtrig_sin(ta[5], tv[9], m);
+            vtrig_cos(ta[5], tv[10], m);
+        for (int r = 0; r < m; ++r)
+            kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_joint_from_cartesian6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2]; double *out3 = out[3];
     (void)is; (void)os;
@@ -769,8 +1952,111 @@ static inline void k_force_from_torque6(const double *restrict in0, const double
 /* END KERNEL puma260.force_from_torque6 */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* force_from_torque6 for batches: the row above with its sines and cosines precomputed */
+static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = c_0 - s_9;
+    const double t1 = 1.0/t0;
+    const double t2 = 1.0/s_5;
+    const double t3 = c_6*in1[3];
+    const double t4 = t2*(t3 - in1[5]);
+    const double t5 = 4.921259842519685*s_9;
+    const double t6 = t5*(t4 + s_3*in1[2]);
+    const double t7_n = in1[2];
+    const double t8 = in1[1] - t7_n;
+    const double t9 = 1.0/c_2;
+    const double t10 = 3.0573811147622294*t9;
+    const double t11 = 4.921259842519685*in1[0] + s_9*t10*t8 - 4.921259842519685*c_10*in1[3];
+    const double t12 = c_4*in1[4];
+    const double t13 = t12 - t7_n;
+    const double t14 = s_3*t4;
+    const double t15 = 24.218798437596877*c_4;
+    const double t16 = 4.921259842519685*t14 + 4.921259842519685*in1[2] - t15*(0.2032*in1[4] - t2*t9*(0.12624*t3 - 0.12624*in1[5]));
+    const double t17 = t8 + s_1*(t14 + in1[2] - t12);
+    const double t18 = 4.921259842519685*s_5*t17*t9;
+    const double t19 = c_4*t13;
+    const double t20 = 4.921259842519685*t19;
+    const double t21 = 0.12624*t9*in1[4];
+    const double t22_n = 0.2032*in1[5] - 0.2032*t3;
+    const double t23 = t10*t14 + t10*in1[2];
+    const double t24 = s_3*t11 + t5*(c_4*in1[2] - in1[4]);
+    const double t25 = t24 + c_0*(t20 + s_3*(t23 - t15*(t21 - t2*t22_n)));
+    const double t26 = c_6*t1;
+    const double t27 = c_6*t4 + s_5*in1[3];
+    out0[0] = c_8*(t18 + t25*t26) - s_7*t1*(t6 + c_0*(3.0573811147622294*c_4*t13*t9 - s_3*t16) - c_4*t11);
+    out0[1] = -s_7*(t18 + t26*(t24 + c_0*(t20 + s_3*(t23 + t15*(t2*t22_n - t21))))) - c_8*t1*(t6 + c_0*(t10*t19 - s_3*t16) - c_4*t11);
+    out0[2] = 4.921259842519685*c_6*t17*t9 - s_5*t1*t25;
+    out0[3] = c_8*t27 - s_7*in1[4];
+    out0[4] = -c_8*in1[4] - s_7*t27;
+    out0[5] = in1[5];
+    /* guards: >= 0 where the outputs are valid */
+    out1[0] = 0.2032*fabs(t0) - 4.064e-10;
+    out2[0] = fabs(c_2) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[6][1], sv[6], cv[6], tv[11];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        double a[6];
+        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+        kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
+    double ta[6][64], tv[11][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+            vtrig_sin(ta[4], tv[7], m);
+            vtrig_cos(ta[4], tv[8], m);
+            vtrig_sin(ta[5], tv[9], m);
+            vtrig_cos(ta[5], tv[10], m);
+        for (int r = 0; r < m; ++r)
+            kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_force_from_torque6(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0]; double *out1 = out[1]; double *out2 = out[2]; double *out3 = out[3];
     (void)is; (void)os;
@@ -802,8 +2088,74 @@ static inline void k_gravity(const double *restrict in0, const double *restrict 
 /* END KERNEL puma260.gravity */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* gravity for batches: the row above with its sines and cosines precomputed */
+static inline void kv_gravity(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double t0 = c_4*s_5;
+    const double t1 = c_6*s_3;
+    const double t2 = s_5*in1[1] + in1[2]*(t0 + c_2*t1);
+    out0[0] = 0.0;
+    out0[1] = t2 + c_0*in1[0];
+    out0[2] = t2;
+    out0[3] = -s_1*s_3*s_5*in1[2];
+    out0[4] = in1[2]*(t1 + c_2*t0);
+    out0[5] = 0.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
+        double ta[4][1], sv[4], cv[4], tv[7];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
+        double a[4];
+        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+        kv_gravity(tv, 1, in0, in1, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[4][64], tv[7][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+        for (int r = 0; r < m; ++r)
+            kv_gravity(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_gravity(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -847,8 +2199,86 @@ static inline void k_gravity_regressor(const double *restrict in0, double *restr
 /* END KERNEL puma260.gravity_regressor */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* gravity_regressor for batches: the row above with its sines and cosines precomputed */
+static inline void kv_gravity_regressor(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double t0 = c_4*s_5;
+    const double t1 = c_6*s_3;
+    const double t2 = t0 + c_2*t1;
+    out0[0] = 0.0;
+    out0[1] = 0.0;
+    out0[2] = 0.0;
+    out0[3] = c_0;
+    out0[4] = s_5;
+    out0[5] = t2;
+    out0[6] = 0.0;
+    out0[7] = s_5;
+    out0[8] = t2;
+    out0[9] = 0.0;
+    out0[10] = 0.0;
+    out0[11] = -s_1*s_3*s_5;
+    out0[12] = 0.0;
+    out0[13] = 0.0;
+    out0[14] = t1 + c_2*t0;
+    out0[15] = 0.0;
+    out0[16] = 0.0;
+    out0[17] = 0.0;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[4][1], sv[4], cv[4], tv[7];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
+        double a[4];
+        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+        kv_gravity_regressor(tv, 1, in0, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[4][64], tv[7][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
+        }
+            vtrig_cos(ta[0], tv[0], m);
+            vtrig_sin(ta[1], tv[1], m);
+            vtrig_cos(ta[1], tv[2], m);
+            vtrig_sin(ta[2], tv[3], m);
+            vtrig_cos(ta[2], tv[4], m);
+            vtrig_sin(ta[3], tv[5], m);
+            vtrig_cos(ta[3], tv[6], m);
+        for (int r = 0; r < m; ++r)
+            kv_gravity_regressor(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_gravity_regressor(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -894,8 +2324,91 @@ static inline void k_gravity_links(const double *restrict in0, const double *res
 /* END KERNEL puma260.gravity_links */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* gravity_links for batches: the row above with its sines and cosines precomputed */
+static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_8 = tv[8 * ts];
+    const double c_9 = tv[9 * ts];
+    const double t0 = 1.993392*in1[4] + 1.993392*in1[5];
+    const double t1 = in2[14]*in1[4] + in2[17]*in1[5];
+    const double t2 = c_5*t1;
+    const double t3 = 9.81*s_8;
+    const double t4 = in2[12]*in1[4];
+    const double t5 = c_7*in2[15] - s_6*in2[16];
+    const double t6 = t4 + t5*in1[5];
+    const double t7 = c_7*in2[16] + s_6*in2[15];
+    const double t8 = in2[13]*in1[4] + t7*in1[5] - in2[11]*in1[3];
+    const double t9 = s_4*t1;
+    const double t10 = in2[9]*in1[3] - t9;
+    const double t11_n = 9.81*c_3*c_9*(t10 + c_5*t6) + 9.81*c_9*in2[6]*in1[2] - s_8*(t0 + 9.81*in2[8]*in1[2] + in1[3]*(1.993392 + 9.81*in2[10])) - t2*t3 - 9.81*c_9*s_2*t8 - s_4*t3*t6;
+    const double t12 = t4 + t5*in1[5];
+    const double t13 = c_3*s_8;
+    out0[0] = 0.0;
+    out0[1] = t11_n + c_1*(1.993392*in1[2] + 1.993392*in1[3] + t0 + in1[1]*(1.993392 + 9.81*in2[3])) - 9.81*s_0*in2[4]*in1[1];
+    out0[2] = t11_n;
+    out0[3] = -t3*(c_3*t8 + s_2*(t10 + c_5*t12));
+    out0[4] = 9.81*c_5*c_9*t6 - 9.81*c_9*t9 - 9.81*t13*(t2 + s_4*t12);
+    out0[5] = -9.81*in1[5]*(c_5*t13*t7 + c_9*s_4*t7 + s_2*s_8*t5);
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1]; const double *restrict in2 = (const double *)in[2];
+        double ta[5][1], sv[5], cv[5], tv[10];
+        const int r = 0;
+        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ta[4][r] = x_0;
+        double a[5];
+        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4];
+        kv_gravity_links(tv, 1, in0, in1, in2, (double *)out[0]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
+    double *outb0 = out[0];
+    double ta[5][64], tv[10][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ta[4][r] = x_0;
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
+            vtrig_sin(ta[3], tv[6], m);
+            vtrig_cos(ta[3], tv[7], m);
+            vtrig_sin(ta[4], tv[8], m);
+            vtrig_cos(ta[4], tv[9], m);
+        for (int r = 0; r < m; ++r)
+            kv_gravity_links(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], inb2 + (r0 + r) * is[2], outb0 + (r0 + r) * os[0]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_gravity_links(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1]; const double *in2 = (const double *)in[2];
     double *out0 = out[0];
     (void)is; (void)os;
@@ -1246,8 +2759,350 @@ static inline void k_ik_all(const double *restrict in0, double *restrict out0, d
 /* END KERNEL puma260.ik_all */
 }
 
+#ifdef RCCL_VECTOR_TRIG
+/* ik_all for batches: the row above with its sines and cosines precomputed */
+static inline void kv_ik_all(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0, double *restrict out1)
+{
+    const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double t0_n = atan2(-in0[7], in0[3]);
+    const double t1 = in0[3]*in0[3];
+    const double t2 = in0[7]*in0[7];
+    const double t3 = sqrt(0.5*t1 + 0.5*t2 + 0.5*fabs(t1 + t2 - 0.015936537599999998) - 0.007968268799999999);
+    const double t4 = atan2(0.12624, t3) - t0_n;
+    const double t5 = in0[11]*in0[11];
+    const double t6 = c_3*in0[3];
+    const double t7 = s_2*in0[7];
+    const double t8 = t5 + (t6 + t7)*(t6 + t7);
+    const double t9 = 0.08258048 - t8;
+    const double t10_n = 0.16516096 - t8;
+    const double t11 = t10_n*t8;
+    const double t12 = 0.5*t11 + 0.5*fabs(t10_n*t8);
+    const double t13 = sqrt(t12);
+    const double t14 = atan2(t9, -t13);
+    const double t15 = 0.2032*t6;
+    const double t16 = 0.2032*t7;
+    const double t17 = 1.0/sqrt(t12 + t9*t9);
+    const double t18 = 0.2032*in0[11];
+    const double t19 = t17*t18;
+    const double t20 = t13*t19;
+    const double t21 = 0.2032*c_3*t17*t9*in0[3] + 0.2032*s_2*t17*t9*in0[7] - t15 - t16 - t20;
+    const double t22_n = 0.2032*in0[11];
+    const double t23 = t19*t9;
+    const double t24 = t13*t17;
+    const double t25 = t15*t24 + t16*t24;
+    const double t26 = t22_n - t23 - t25;
+    const double t27 = atan2(t21, t26) - t14;
+    const double t28 = s_2*in0[2];
+    const double t29 = c_3*in0[6];
+    const double t30 = t28 - t29;
+    const double t31 = 1.0/sqrt(t21*t21 + t26*t26);
+    const double t32 = t21*t31*in0[10];
+    const double t33 = t26*t31;
+    const double t34 = c_3*in0[2];
+    const double t35 = t33*t34;
+    const double t36 = s_2*in0[6];
+    const double t37 = t33*t36;
+    const double t38 = t32 + t35 + t37;
+    const double t39 = -t30;
+    const double t40 = t39*t39;
+    const double t41 = sqrt(t38*t38 + t40);
+    const double t42 = 1.0/t41;
+    const double t43 = t39*t42;
+    const double t44 = t38*t42;
+    const double t45 = t29*t43 + t32*t44 + t35*t44 + t37*t44 - t28*t43;
+    const double t46 = t21*t31;
+    const double t47 = t26*t31*in0[10] - t34*t46 - t36*t46;
+    const double t48 = c_3*in0[5];
+    const double t49 = t47*t47;
+    const double t50 = 1.0/sqrt(t45*t45 + t49);
+    const double t51 = t43*t47;
+    const double t52 = t50*t51;
+    const double t53 = s_2*in0[1];
+    const double t54 = t46*in0[9];
+    const double t55 = t44*t47;
+    const double t56 = t54*t55;
+    const double t57 = c_3*in0[1];
+    const double t58 = t33*t55;
+    const double t59 = t50*t58;
+    const double t60 = s_2*in0[5];
+    const double t61 = t45*t50;
+    const double t62 = t46*t61;
+    const double t63 = t33*in0[9];
+    const double t64 = t33*t43;
+    const double t65 = t43*t54 + t44*t53 + t57*t64 + t60*t64 - t44*t48;
+    const double t66 = -t45;
+    const double t67 = 1.0/sqrt(t49 + t66*t66);
+    const double t68 = t58*t67;
+    const double t69 = atan2(t9, t13);
+    const double t70 = t17*t9;
+    const double t71 = t20 + t15*t70 + t16*t70 - t15 - t16;
+    const double t72 = t18 + t25 - t23;
+    const double t73 = atan2(t71, t72) - t69;
+    const double t74 = 1.0/sqrt(t71*t71 + t72*t72);
+    const double t75 = t71*t74*in0[10];
+    const double t76 = t72*t74;
+    const double t77 = t34*t76;
+    const double t78 = t36*t76;
+    const double t79 = t75 + t77 + t78;
+    const double t80 = sqrt(t40 + t79*t79);
+    const double t81 = 1.0/t80;
+    const double t82 = t39*t81;
+    const double t83 = t79*t81;
+    const double t84 = t29*t82 + t75*t83 + t77*t83 + t78*t83 - t28*t82;
+    const double t85 = t71*t74;
+    const double t86 = t72*t74*in0[10] - t34*t85 - t36*t85;
+    const double t87 = t86*t86;
+    const double t88 = 1.0/sqrt(t84*t84 + t87);
+    const double t89 = t82*t86;
+    const double t90 = t88*t89;
+    const double t91 = t85*in0[9];
+    const double t92 = t83*t86;
+    const double t93 = t91*t92;
+    const double t94 = t76*t92;
+    const double t95 = t88*t94;
+    const double t96 = t84*t88;
+    const double t97 = t85*t96;
+    const double t98 = t76*in0[9];
+    const double t99 = t76*t82;
+    const double t100 = t53*t83 + t57*t99 + t60*t99 + t82*t91 - t48*t83;
+    const double t101 = -t84;
+    const double t102 = 1.0/sqrt(t101*t101 + t87);
+    const double t103 = t102*t94;
+    const double t104 = atan2(0.12624, -t3) - t0_n;
+    const double t105 = c_1*in0[3];
+    const double t106 = s_0*in0[7];
+    const double t107 = t5 + (t105 + t106)*(t105 + t106);
+    const double t108 = 0.08258048 - t107;
+    const double t109_n = 0.16516096 - t107;
+    const double t110 = t107*t109_n;
+    const double t111 = 0.5*t110 + 0.5*fabs(t107*t109_n);
+    const double t112 = sqrt(t111);
+    const double t113 = atan2(t108, t112);
+    const double t114 = 0.2032*t105;
+    const double t115 = 0.2032*t106;
+    const double t116 = 1.0/sqrt(t108*t108 + t111);
+    const double t117 = t108*t116;
+    const double t118 = t116*t18;
+    const double t119 = t112*t118;
+    const double t120 = t119 + t114*t117 + t115*t117 - t114 - t115;
+    const double t121 = t108*t118;
+    const double t122 = t112*t116;
+    const double t123 = t114*t122 + t115*t122;
+    const double t124 = t123 + t18 - t121;
+    const double t125 = atan2(t120, t124) - t113;
+    const double t126 = s_0*in0[2];
+    const double t127 = c_1*in0[6];
+    const double t128 = t126 - t127;
+    const double t129 = 1.0/sqrt(t120*t120 + t124*t124);
+    const double t130 = t120*t129*in0[10];
+    const double t131 = t124*t129;
+    const double t132 = c_1*in0[2];
+    const double t133 = t131*t132;
+    const double t134 = s_0*in0[6];
+    const double t135 = t131*t134;
+    const double t136 = t130 + t133 + t135;
+    const double t137 = -t128;
+    const double t138 = t137*t137;
+    const double t139 = sqrt(t136*t136 + t138);
+    const double t140 = 1.0/t139;
+    const double t141 = t137*t140;
+    const double t142 = t136*t140;
+    const double t143 = t127*t141 + t130*t142 + t133*t142 + t135*t142 - t126*t141;
+    const double t144 = t120*t129;
+    const double t145 = t124*t129*in0[10] - t132*t144 - t134*t144;
+    const double t146 = c_1*in0[5];
+    const double t147 = t145*t145;
+    const double t148 = 1.0/sqrt(t143*t143 + t147);
+    const double t149 = t141*t145;
+    const double t150 = t148*t149;
+    const double t151 = s_0*in0[1];
+    const double t152 = t144*in0[9];
+    const double t153 = t142*t145;
+    const double t154 = t152*t153;
+    const double t155 = c_1*in0[1];
+    const double t156 = t131*t153;
+    const double t157 = t148*t156;
+    const double t158 = s_0*in0[5];
+    const double t159 = t143*t148;
+    const double t160 = t144*t159;
+    const double t161 = t131*in0[9];
+    const double t162 = t131*t141;
+    const double t163 = t141*t152 + t142*t151 + t155*t162 + t158*t162 - t142*t146;
+    const double t164 = -t143;
+    const double t165 = 1.0/sqrt(t147 + t164*t164);
+    const double t166 = t156*t165;
+    const double t167 = atan2(t108, -t112);
+    const double t168 = 0.2032*c_1*t108*t116*in0[3] + 0.2032*s_0*t108*t116*in0[7] - t114 - t115 - t119;
+    const double t169 = t22_n - t121 - t123;
+    const double t170 = atan2(t168, t169) - t167;
+    const double t171 = 1.0/sqrt(t168*t168 + t169*t169);
+    const double t172 = t168*t171*in0[10];
+    const double t173 = t169*t171;
+    const double t174 = t132*t173;
+    const double t175 = t134*t173;
+    const double t176 = t172 + t174 + t175;
+    const double t177 = sqrt(t138 + t176*t176);
+    const double t178 = 1.0/t177;
+    const double t179 = t137*t178;
+    const double t180 = t176*t178;
+    const double t181 = t127*t179 + t172*t180 + t174*t180 + t175*t180 - t126*t179;
+    const double t182 = t168*t171;
+    const double t183 = t169*t171*in0[10] - t132*t182 - t134*t182;
+    const double t184 = t183*t183;
+    const double t185 = 1.0/sqrt(t181*t181 + t184);
+    const double t186 = t179*t183;
+    const double t187 = t185*t186;
+    const double t188 = t182*in0[9];
+    const double t189 = t180*t183;
+    const double t190 = t188*t189;
+    const double t191 = t173*t189;
+    const double t192 = t185*t191;
+    const double t193 = t181*t185;
+    const double t194 = t182*t193;
+    const double t195 = t173*in0[9];
+    const double t196 = t173*t179;
+    const double t197 = t151*t180 + t155*t196 + t158*t196 + t179*t188 - t146*t180;
+    const double t198 = -t181;
+    const double t199 = 1.0/sqrt(t184 + t198*t198);
+    const double t200 = t191*t199;
+    const double t201 = 1.000000000001*t1 + 1.000000000001*t2 - 0.015936537599984063;
+    const double t202 = 6.819535677030399e-15 + t11;
+    const double t203 = t8 - 2.837053696e-19;
+    const double t204 = t41 - 1e-09;
+    const double t205 = t80 - 1e-09;
+    const double t206 = 6.819535677030399e-15 + t110;
+    const double t207 = t107 - 2.837053696e-19;
+    const double t208 = t139 - 1e-09;
+    const double t209 = t177 - 1e-09;
+    out0[0] = t4;
+    out0[1] = t27;
+    out0[2] = t14;
+    out0[3] = atan2(t30, -t38);
+    out0[4] = atan2(t45, t47);
+    out0[5] = atan2(t48*t52 + t50*t56 + t57*t59 + t57*t62 + t59*t60 + t60*t62 - t52*t53 - t61*t63, t65);
+    out0[6] = t4;
+    out0[7] = t27;
+    out0[8] = t14;
+    out0[9] = atan2(t39, t38);
+    out0[10] = atan2(t66, t47);
+    out0[11] = atan2(c_3*t21*t31*t66*t67*in0[1] + s_2*t39*t42*t47*t67*in0[1] + s_2*t21*t31*t66*t67*in0[5] - t56*t67 - t57*t68 - t60*t68 - t48*t51*t67 - t63*t66*t67, -t65);
+    out0[12] = t4;
+    out0[13] = t73;
+    out0[14] = t69;
+    out0[15] = atan2(t30, -t79);
+    out0[16] = atan2(t84, t86);
+    out0[17] = atan2(t48*t90 + t57*t95 + t57*t97 + t60*t95 + t60*t97 + t88*t93 - t53*t90 - t96*t98, t100);
+    out0[18] = t4;
+    out0[19] = t73;
+    out0[20] = t69;
+    out0[21] = atan2(t39, t79);
+    out0[22] = atan2(t101, t86);
+    out0[23] = atan2(c_3*t101*t102*t71*t74*in0[1] + s_2*t102*t39*t81*t86*in0[1] + s_2*t101*t102*t71*t74*in0[5] - t102*t93 - t103*t57 - t103*t60 - t101*t102*t98 - t102*t48*t89, -t100);
+    out0[24] = t104;
+    out0[25] = t125;
+    out0[26] = t113;
+    out0[27] = atan2(t128, -t136);
+    out0[28] = atan2(t143, t145);
+    out0[29] = atan2(t146*t150 + t148*t154 + t155*t157 + t155*t160 + t157*t158 + t158*t160 - t150*t151 - t159*t161, t163);
+    out0[30] = t104;
+    out0[31] = t125;
+    out0[32] = t113;
+    out0[33] = atan2(t137, t136);
+    out0[34] = atan2(t164, t145);
+    out0[35] = atan2(c_1*t120*t129*t164*t165*in0[1] + s_0*t137*t140*t145*t165*in0[1] + s_0*t120*t129*t164*t165*in0[5] - t154*t165 - t155*t166 - t158*t166 - t146*t149*t165 - t161*t164*t165, -t163);
+    out0[36] = t104;
+    out0[37] = t170;
+    out0[38] = t167;
+    out0[39] = atan2(t128, -t176);
+    out0[40] = atan2(t181, t183);
+    out0[41] = atan2(t146*t187 + t155*t192 + t155*t194 + t158*t192 + t158*t194 + t185*t190 - t151*t187 - t193*t195, t197);
+    out0[42] = t104;
+    out0[43] = t170;
+    out0[44] = t167;
+    out0[45] = atan2(t137, t176);
+    out0[46] = atan2(t198, t183);
+    out0[47] = atan2(c_1*t168*t171*t198*t199*in0[1] + s_0*t137*t178*t183*t199*in0[1] + s_0*t168*t171*t198*t199*in0[5] - t155*t200 - t158*t200 - t190*t199 - t146*t186*t199 - t195*t198*t199, -t197);
+    out1[0] = t201;
+    out1[1] = t202;
+    out1[2] = t203;
+    out1[3] = t204;
+    out1[4] = t201;
+    out1[5] = t202;
+    out1[6] = t203;
+    out1[7] = t204;
+    out1[8] = t201;
+    out1[9] = t202;
+    out1[10] = t203;
+    out1[11] = t205;
+    out1[12] = t201;
+    out1[13] = t202;
+    out1[14] = t203;
+    out1[15] = t205;
+    out1[16] = t201;
+    out1[17] = t206;
+    out1[18] = t207;
+    out1[19] = t208;
+    out1[20] = t201;
+    out1[21] = t206;
+    out1[22] = t207;
+    out1[23] = t208;
+    out1[24] = t201;
+    out1[25] = t206;
+    out1[26] = t207;
+    out1[27] = t209;
+    out1[28] = t201;
+    out1[29] = t206;
+    out1[30] = t207;
+    out1[31] = t209;
+}
+
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
+ * then the straight-line rows */
+static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
+        const double *restrict in0 = (const double *)in[0];
+        double ta[2][1], sv[2], cv[2], tv[4];
+        const int r = 0;
+        const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+        kv_ik_all(tv, 1, in0, (double *)out[0], (double *)out[1]);
+        return 1;
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0]; double *outb1 = out[1];
+    double ta[2][64], tv[4][64];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
+        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
+        }
+            vtrig_sin(ta[0], tv[0], m);
+            vtrig_cos(ta[0], tv[1], m);
+            vtrig_sin(ta[1], tv[2], m);
+            vtrig_cos(ta[1], tv[3], m);
+        for (int r = 0; r < m; ++r)
+            kv_ik_all(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1]);
+    }
+    return 1;
+}
+#endif
+
 static void batch_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_ik_all(n, in, is, out, os)) return;
+#endif
     const double *in0 = (const double *)in[0];
     double *out0 = out[0]; double *out1 = out[1];
     (void)is; (void)os;
@@ -1262,7 +3117,7 @@ typedef struct { int ndim; Py_ssize_t dim[2]; Py_ssize_t size; } arg_shape;
 typedef struct {
     const char *name;
     batch_fn fn;
-    int nin, nout;
+    int nin, nout, nguard;      /* nout counts the outputs and then the nguard guards */
     arg_shape in[MAXIO];
     arg_shape out[MAXIO];
     const char *in_name[MAXIO];
@@ -1270,102 +3125,102 @@ typedef struct {
 } kernel_entry;
 
 static const kernel_entry KERNELS[20] = {
-    {"fk", batch_fk, 1, 1,
+    {"fk", batch_fk, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {4, 4}, 16}},
      {"q"},
      {"T"}},
-    {"ik", batch_ik, 2, 5,
+    {"ik", batch_ik, 2, 5, 4,
      {{2, {4, 4}, 16}, {1, {3, 0}, 3}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"T", "config"},
      {"q", "guard_arm_reach", "guard_elbow_reach", "guard_folded", "guard_wrist"}},
-    {"ik_wrist", batch_ik_wrist, 2, 1,
+    {"ik_wrist", batch_ik_wrist, 2, 1, 0,
      {{2, {4, 4}, 16}, {1, {6, 0}, 6}},
      {{1, {2, 0}, 2}},
      {"T", "q"},
      {"q56"}},
-    {"config_indicators", batch_config_indicators, 1, 1,
+    {"config_indicators", batch_config_indicators, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{1, {3, 0}, 3}},
      {"q"},
      {"indicator"}},
-    {"jacobian4", batch_jacobian4, 1, 1,
+    {"jacobian4", batch_jacobian4, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"}},
-    {"jacobian6", batch_jacobian6, 1, 1,
+    {"jacobian6", batch_jacobian6, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"}},
-    {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1,
+    {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"}},
-    {"torque_from_force4", batch_torque_from_force4, 2, 1,
+    {"torque_from_force4", batch_torque_from_force4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"}},
-    {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 4,
+    {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"}},
-    {"force_from_torque4", batch_force_from_torque4, 2, 4,
+    {"force_from_torque4", batch_force_from_torque4, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_shoulder", "guard_elbow", "guard_wrist"}},
-    {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1,
+    {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"}},
-    {"torque_from_force6", batch_torque_from_force6, 2, 1,
+    {"torque_from_force6", batch_torque_from_force6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"}},
-    {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 4,
+    {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"}},
-    {"force_from_torque6", batch_force_from_torque6, 2, 4,
+    {"force_from_torque6", batch_force_from_torque6, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_shoulder", "guard_elbow", "guard_wrist"}},
-    {"gravity", batch_gravity, 2, 1,
+    {"gravity", batch_gravity, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {3, 0}, 3}},
      {{1, {6, 0}, 6}},
      {"q", "c"},
      {"tau"}},
-    {"gravity_regressor", batch_gravity_regressor, 1, 1,
+    {"gravity_regressor", batch_gravity_regressor, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 3}, 18}},
      {"q"},
      {"Y"}},
-    {"gravity_links", batch_gravity_links, 3, 1,
+    {"gravity_links", batch_gravity_links, 3, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {6, 0}, 6}},
      {"q", "m", "com"},
      {"tau"}},
-    {"coefficients_from_links", batch_coefficients_from_links, 2, 1,
+    {"coefficients_from_links", batch_coefficients_from_links, 2, 1, 0,
      {{1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {3, 0}, 3}},
      {"m", "com"},
      {"c"}},
-    {"tool_load", batch_tool_load, 2, 1,
+    {"tool_load", batch_tool_load, 2, 1, 0,
      {{1, {3, 0}, 3}, {1, {2, 0}, 2}},
      {{1, {3, 0}, 3}},
      {"c", "load"},
      {"c_loaded"}},
-    {"ik_all", batch_ik_all, 1, 2,
+    {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {8, 6}, 48}, {2, {8, 4}, 32}},
      {"T"},
@@ -1522,65 +3377,228 @@ done:
     return result;
 }
 
+#ifdef RCCL_NUMPY_API
+/* The public entry of a kernel (rccl.kinematics.backend.public): when every argument is
+ * already an unbatched float64 C-contiguous numpy array of the kernel's shape with finite
+ * values, run the row function, and when every guard is >= 0 and the first output is
+ * finite return that output (a new array). Anything else (lists, batches, keywords, NaN,
+ * a failing guard, a non-finite result) goes to `fallback`, the Python code that gives
+ * the contract's conversions, messages and exceptions: no error behaviour is lost. */
+static PyObject *public_call(const kernel_entry *k, PyObject *fallback, PyObject *const *args, Py_ssize_t nargs,
+                             PyObject *kwnames)
+{
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    double guard[MAXIO];
+    static const Py_ssize_t zero[MAXIO] = {0};
+    if (kwnames || nargs != k->nin || k->nout - k->nguard != 1) goto slow;
+    for (int i = 0; i < k->nin; ++i) {
+        PyObject *x = args[i];
+        if (!PyArray_CheckExact(x)) goto slow;
+        PyArrayObject *a = (PyArrayObject *)x;
+        const arg_shape *s = &k->in[i];
+        if (PyArray_TYPE(a) != NPY_DOUBLE || PyArray_NDIM(a) != s->ndim
+            || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) goto slow;
+        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d) != s->dim[d]) goto slow;
+        const double *v = (const double *)PyArray_DATA(a);
+        for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(v[j])) goto slow;
+        ip[i] = v;
+    }
+    const arg_shape *s = &k->out[0];
+    npy_intp dims[2] = {s->dim[0], s->dim[1]};
+    PyObject *res = PyArray_SimpleNew(s->ndim, dims, NPY_DOUBLE);
+    if (!res) return NULL;
+    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
+    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
+    k->fn(1, ip, zero, op, zero);
+    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) { Py_DECREF(res); goto slow; }
+    for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(op[0][j])) { Py_DECREF(res); goto slow; }
+    return res;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+#endif
+
 static PyObject *py_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[0], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_fk(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[0], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_ik(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[1], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_ik(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[1], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_ik_wrist(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[2], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_ik_wrist(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[2], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_config_indicators(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[3], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_config_indicators(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[3], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_jacobian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[4], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_jacobian4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[4], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_jacobian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[5], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_jacobian6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[5], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_cartesian_from_joint4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[6], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_cartesian_from_joint4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[6], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_torque_from_force4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[7], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_torque_from_force4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[7], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_joint_from_cartesian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[8], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_joint_from_cartesian4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[8], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_force_from_torque4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[9], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_force_from_torque4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[9], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_cartesian_from_joint6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[10], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_cartesian_from_joint6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[10], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_torque_from_force6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[11], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_torque_from_force6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[11], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_joint_from_cartesian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[12], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_joint_from_cartesian6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[12], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_force_from_torque6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[13], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_force_from_torque6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[13], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[14], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_gravity(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[14], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_gravity_regressor(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[15], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_gravity_regressor(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[15], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_gravity_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[16], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_gravity_links(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[16], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_coefficients_from_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[17], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_coefficients_from_links(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[17], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_tool_load(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[18], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_tool_load(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[18], fallback, args, nargs, kwnames); }
+#endif
 
 static PyObject *py_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[19], args, nargs); }
+#ifdef RCCL_NUMPY_API
+static PyObject *pub_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[19], fallback, args, nargs, kwnames); }
+#endif
+
+#ifdef RCCL_NUMPY_API
+static PyMethodDef PUBLIC_DEFS[] = {
+    {"fk", (PyCFunction)(void (*)(void))pub_fk, METH_FASTCALL | METH_KEYWORDS, "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"ik", (PyCFunction)(void (*)(void))pub_ik, METH_FASTCALL | METH_KEYWORDS, "ik(T[4, 4], config[3]) -> (q[6], guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist): joint variables for pose T in one configuration (signs +-1: arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"ik_wrist", (PyCFunction)(void (*)(void))pub_ik_wrist, METH_FASTCALL | METH_KEYWORDS, "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"config_indicators", (PyCFunction)(void (*)(void))pub_config_indicators, METH_FASTCALL | METH_KEYWORDS, "config_indicators(q[6]) -> (indicator[3]): values whose signs are the configuration of q (arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"jacobian4", (PyCFunction)(void (*)(void))pub_jacobian4, METH_FASTCALL | METH_KEYWORDS, "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"jacobian6", (PyCFunction)(void (*)(void))pub_jacobian6, METH_FASTCALL | METH_KEYWORDS, "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"cartesian_from_joint4", (PyCFunction)(void (*)(void))pub_cartesian_from_joint4, METH_FASTCALL | METH_KEYWORDS, "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"torque_from_force4", (PyCFunction)(void (*)(void))pub_torque_from_force4, METH_FASTCALL | METH_KEYWORDS, "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"joint_from_cartesian4", (PyCFunction)(void (*)(void))pub_joint_from_cartesian4, METH_FASTCALL | METH_KEYWORDS, "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"force_from_torque4", (PyCFunction)(void (*)(void))pub_force_from_torque4, METH_FASTCALL | METH_KEYWORDS, "force_from_torque4(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"cartesian_from_joint6", (PyCFunction)(void (*)(void))pub_cartesian_from_joint6, METH_FASTCALL | METH_KEYWORDS, "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"torque_from_force6", (PyCFunction)(void (*)(void))pub_torque_from_force6, METH_FASTCALL | METH_KEYWORDS, "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"joint_from_cartesian6", (PyCFunction)(void (*)(void))pub_joint_from_cartesian6, METH_FASTCALL | METH_KEYWORDS, "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"force_from_torque6", (PyCFunction)(void (*)(void))pub_force_from_torque6, METH_FASTCALL | METH_KEYWORDS, "force_from_torque6(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"gravity", (PyCFunction)(void (*)(void))pub_gravity, METH_FASTCALL | METH_KEYWORDS, "gravity(q[6], c[3]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"gravity_regressor", (PyCFunction)(void (*)(void))pub_gravity_regressor, METH_FASTCALL | METH_KEYWORDS, "gravity_regressor(q[6]) -> (Y[6, 3]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"gravity_links", (PyCFunction)(void (*)(void))pub_gravity_links, METH_FASTCALL | METH_KEYWORDS, "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"coefficients_from_links", (PyCFunction)(void (*)(void))pub_coefficients_from_links, METH_FASTCALL | METH_KEYWORDS, "coefficients_from_links(m[6], com[6, 3]) -> (c[3]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"tool_load", (PyCFunction)(void (*)(void))pub_tool_load, METH_FASTCALL | METH_KEYWORDS, "tool_load(c[3], load[2]) -> (c_loaded[3]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+    {"ik_all", (PyCFunction)(void (*)(void))pub_ik_all, METH_FASTCALL | METH_KEYWORDS, "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+};
+
+/* public(name, fallback): the kernel's fast public entry, falling back to `fallback`. */
+static PyObject *public(PyObject *self, PyObject *args)
+{
+    const char *name;
+    PyObject *fallback;
+    if (!PyArg_ParseTuple(args, "sO:public", &name, &fallback)) return NULL;
+    if (!PyCallable_Check(fallback)) { PyErr_SetString(PyExc_TypeError, "public: fallback must be callable"); return NULL; }
+    for (int i = 0; i < 20; ++i)
+        if (strcmp(KERNELS[i].name, name) == 0) {
+            if (KERNELS[i].nout - KERNELS[i].nguard != 1) break;
+            return PyCFunction_NewEx(&PUBLIC_DEFS[i], fallback, NULL);
+        }
+    PyErr_Format(PyExc_KeyError, "puma260: no single-output kernel %s", name);
+    return NULL;
+}
+#endif
 
 static PyObject *arg_shape_tuple(const arg_shape *s)
 {
@@ -1636,6 +3654,9 @@ static PyMethodDef methods[] = {
     {"ik_all", (PyCFunction)(void (*)(void))py_ik_all, METH_FASTCALL, "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"kernels", kernels, METH_NOARGS, "kernels() -> {name: (input shapes, output shapes)}"},
     {"source_hash", source_hash, METH_NOARGS, "sha256 of the generated C this module was built from"},
+#ifdef RCCL_NUMPY_API
+    {"public", public, METH_VARARGS, "public(name, fallback) -> fast public entry of a kernel (see public_call)"},
+#endif
     {NULL, NULL, 0, NULL}
 };
 
@@ -1645,6 +3666,13 @@ static struct PyModuleDef moduledef = {
 
 PyMODINIT_FUNC PyInit_puma260(void)
 {
+#ifdef RCCL_NUMPY_API
+    import_array();
+#endif
+#ifdef RCCL_VECTOR_TRIG
+    __builtin_cpu_init();
+    have_vector_trig = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
     PyObject *np = PyImport_ImportModule("numpy");
     if (!np) return NULL;
     np_empty = PyObject_GetAttrString(np, "empty");
