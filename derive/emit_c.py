@@ -234,7 +234,7 @@ def _transform_columns(kernel: Kernel) -> list[tuple[int, int]]:
 
 
 def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = None,
-          collapse: bool = False, cse_opt: bool = True, expand: bool = True) -> Program:
+          collapse: bool = False, cse_opt: bool = True, expand: bool = True, staged: bool = False) -> Program:
     """Lower a kernel to assignments.
 
     ``factor``: "" (none), "count" (most shared factor first), "base" / "tip" (trig of the
@@ -244,6 +244,13 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
     """
     in_names, sym_names = _input_symbols(kernel)
     out_names, exprs = _outputs(kernel)
+    n_stage = 0
+    if staged:
+        # the kernel's structure hint: stage definitions first, then the main outputs in
+        # terms of the stage symbols (guards unchanged)
+        main = [e for m in kernel.staged for e in arg_elements(m)]
+        exprs = [v for _, v in kernel.stages] + main + exprs[len(main):]
+        n_stage = len(kernel.stages)
     exprs = _numeric(kernel, exprs)
     if collapse:
         exprs = [_collapse(e) for e in exprs]
@@ -262,6 +269,7 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
         for r in range(3):
             rebuilt[off + 4 * r + col] = cr[r]
     exprs, trig = _extract_trig(exprs)
+    stage_exprs, exprs = exprs[:n_stage], exprs[n_stage:]
     keep = [k for k in range(len(exprs)) if k not in rebuilt]
     work = [exprs[k] for k in keep]
     if factor:
@@ -272,14 +280,22 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
             rank = {s: i for i, s in enumerate(order)}
         memo: dict[sp.Expr, sp.Expr] = {}
         work = [_factor_sum(sp.expand(e) if expand and _is_poly_like(e) else e, rank, memo) for e in work]
+        stage_exprs = [_factor_sum(sp.expand(e) if expand and _is_poly_like(e) else e, rank, memo)
+                       for e in stage_exprs]
+    stage_temps: list[tuple[sp.Symbol, sp.Expr]] = []
+    if n_stage:
+        t1, r1 = sp.cse(stage_exprs, symbols=sp.numbered_symbols("u"), optimizations="basic" if cse_opt else None)
+        stage_temps = list(t1) + [(sym, r) for (sym, _), r in zip(kernel.stages, r1)]
     # SymPy's "basic" CSE preprocessing (factor_terms) walks the expression *tree*: fine for
     # small kernels, hours for inverse kinematics whose DAG of 150 nodes is a tree of 10^5
     temps, reduced = sp.cse(work, symbols=sp.numbered_symbols("t"), optimizations="basic" if cse_opt else None)
+    temps = stage_temps + list(temps)
     outputs: list[tuple[str, sp.Expr]] = [(flat_names[k], reduced[i]) for i, k in enumerate(keep)]
     for k in sorted(rebuilt):
         outputs.append((flat_names[k], rebuilt[k]))
     variant = (f"{'expand+' if expand else ''}horner[{factor}]+cse" if factor else "cse")
     variant += ", trig sums collapsed" if collapse else ""
+    variant += ", staged (frame-4 computation + one map)" if staged else ""
     variant += "".join(f", {'noa'[c]}=cross" for c in cross.values())
     return Program(kernel, in_names, out_names, trig, list(temps), outputs, sym_names, variant)
 
@@ -461,11 +477,14 @@ def best_program(kernel: Kernel) -> tuple[Program, str]:
     collapses = (False,) if large else (False, True)
     factors = ("",) if large else ("", "count", "base", "tip")
     best = None
-    for collapse, factor, expand, cross in itertools.product(collapses, factors, (True, False), cross_choices):
+    stagings = (False, True) if kernel.stages else (False,)
+    for collapse, factor, expand, cross, staged in itertools.product(collapses, factors, (True, False),
+                                                                     cross_choices, stagings):
         if expand and not factor:
             continue
         try:
-            prog = lower(kernel, factor=factor, cross=cross, collapse=collapse, cse_opt=not large, expand=expand)
+            prog = lower(kernel, factor=factor, cross=cross, collapse=collapse, cse_opt=not large, expand=expand,
+                         staged=staged)
             body = kernel_body(prog)
         except ValueError:
             if factor:

@@ -44,7 +44,7 @@ def build_kernels(d: Derivation) -> list[Kernel]:
     qarg = Arg("q", q, "joint variables (rad; m for Microbo joints 2, 3)")
     ks: list[Kernel] = []
 
-    def kernel(name, doc, inputs, outputs, guards=(), source=""):
+    def kernel(name, doc, inputs, outputs, guards=(), source="", stages=(), staged=()):
         used = set()
         for o in outputs:
             used |= o.value.free_symbols
@@ -55,7 +55,8 @@ def build_kernels(d: Derivation) -> list[Kernel]:
             raise ValueError(f"{robot}.{name}: outputs depend on {sorted(map(str, used - given))}, "
                              "which are neither inputs nor robot constants")
         kp = {s: v for s, v in params.items() if s in used}
-        ks.append(Kernel(robot, name, doc, tuple(inputs), tuple(outputs), tuple(guards), kp, source))
+        ks.append(Kernel(robot, name, doc, tuple(inputs), tuple(outputs), tuple(guards), kp, source,
+                         tuple(stages), tuple(staged)))
 
     # -- forward kinematics ------------------------------------------------------------
     kernel("fk", "T6: link 6 in the base frame (4x4 homogeneous transform, m)",
@@ -102,7 +103,20 @@ def build_kernels(d: Derivation) -> list[Kernel]:
     y_inv = y.inv()
     dc4 = j4 * dq
     inv_guards = _jacobian_guards(robot)
+    w = sp.Matrix(sp.symbols("w0:6", real=True))  # the frame-4 side of one map of (3.79)
     for frame in (4, 6):
+        st: dict[str, tuple] = {}
+        if frame == 6:
+            # the same computations kept as "frame-4 computation + one map of (3.79)" for
+            # the C lowering, which otherwise sees the map multiplied in and expanded
+            fwd4 = (jr * (y * dq)).applyfunc(sp.expand)
+            force4 = (jr_inv.T * (y_inv.T * tau)).applyfunc(sp.expand)
+            st = {
+                "fwd": (tuple(zip(w, fwd4)), (bb * w,)),
+                "torque": (tuple(zip(w, bbt * f)), ((y.T * (jr.T * w)).applyfunc(sp.expand),)),
+                "joint": (tuple(zip(w, bbt * dc)), ((y_inv * (jr_inv * w)).applyfunc(sp.expand),)),
+                "force": (tuple(zip(w, force4)), (bb * w,)),
+            }
         if frame == 4:
             fwd = (jr * (y * dq)).applyfunc(sp.expand)
             torque = (y.T * (jr.T * f)).applyfunc(sp.expand)
@@ -117,16 +131,16 @@ def build_kernels(d: Derivation) -> list[Kernel]:
             src = ("3.79",) * 4
         kernel(f"cartesian_from_joint{frame}", f"dc = J dq observed in frame {frame}",
                [qarg, Arg("dq", dq, "joint rates or differentials")],
-               [Arg("dc", fwd, f"Cartesian differential in frame {frame}")], source=src[0])
+               [Arg("dc", fwd, f"Cartesian differential in frame {frame}")], (), src[0], *st.get("fwd", ()))
         kernel(f"torque_from_force{frame}", f"tau = J^T f with f observed in frame {frame}",
                [qarg, Arg("f", f, f"force/moment in frame {frame}")],
-               [Arg("tau", torque, "joint torques (N m; N on prismatic joints)")], source=src[1])
+               [Arg("tau", torque, "joint torques (N m; N on prismatic joints)")], (), src[1], *st.get("torque", ()))
         kernel(f"joint_from_cartesian{frame}", f"dq = J^-1 dc with dc observed in frame {frame}",
                [qarg, Arg("dc", dc, f"Cartesian differential in frame {frame}")],
-               [Arg("dq", joint, "joint differentials")], inv_guards, source=src[2])
+               [Arg("dq", joint, "joint differentials")], inv_guards, src[2], *st.get("joint", ()))
         kernel(f"force_from_torque{frame}", f"f = J^-T tau, observed in frame {frame}",
                [qarg, Arg("tau", tau, "joint torques")],
-               [Arg("f", force, f"force/moment in frame {frame}")], inv_guards, source=src[3])
+               [Arg("f", force, f"force/moment in frame {frame}")], inv_guards, src[3], *st.get("force", ()))
 
     # -- gravity -----------------------------------------------------------------------
     gm = d.gravity

@@ -5,6 +5,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 import sympy as sp
 
 from derive import thesis_print as tp
@@ -104,3 +105,24 @@ def test_thesis_report_names_command_and_errata():
     assert "make derive" in text.splitlines()[2]
     for eq in ("| 3.61 |", "| 3.80 |", "| 3.40 |", "| 3.53 |", "| 4.24 | coefficient c13"):
         assert eq in text, eq
+
+
+@pytest.mark.slow  # derives both arms (~1 min); the C-vs-Python back-end tests check the same on every run
+def test_staged_frame6_kernels_equal_their_outputs():
+    """The structure hint of the frame-6 Jacobian computations (frame-4 computation + one
+    map of 3.79, used by the C lowering) has the values of the kernels' outputs."""
+    from derive.derivation import derive_robot
+    from derive.kernels import build_kernels
+
+    rng = np.random.default_rng(5)
+    for robot in ("microbo", "puma260"):
+        kernels = [k for k in build_kernels(derive_robot(robot)) if k.stages]
+        assert {k.name for k in kernels} >= {f"{b}6" for b in ("cartesian_from_joint", "torque_from_force")}
+        for k in kernels:
+            subs = {s: float(rng.uniform(0.2, 1.2)) for a in k.inputs for s in a.value.free_symbols}
+            subs.update({s: float(v) for s, v in k.params.items()})
+            stage = {sym: float(sp.sympify(v).xreplace(subs)) for sym, v in k.stages}
+            for staged, out in zip(k.staged, k.outputs):
+                got = np.array(staged.xreplace(subs).xreplace(stage), dtype=float)
+                want = np.array(out.value.xreplace(subs), dtype=float)
+                np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12, err_msg=f"{robot}.{k.name}")

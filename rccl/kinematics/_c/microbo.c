@@ -41,7 +41,7 @@ VTRIG(cos)
 #endif
 
 #define MAXIO 3
-#define RCCL_SOURCE_HASH "5b1a24579dd5299874243964d0402a28ca15061e072bb376c3aebd69b21cd281"
+#define RCCL_SOURCE_HASH "c195315748b2813636eecbe7394dd8e82b682b78ac7d5f690a52dda6522b13ab"
 
 /* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[base]+cse, o=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
@@ -1028,7 +1028,7 @@ static void batch_force_from_torque4(Py_ssize_t n, const double *const *in, cons
         k_force_from_torque4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2]);
 }
 
-/* microbo.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse) */
+/* microbo.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (frame-4 computation + one map)) */
 static inline void k_cartesian_from_joint6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL microbo.cartesian_from_joint6 */
@@ -1038,19 +1038,21 @@ static inline void k_cartesian_from_joint6(const double *restrict in0, const dou
     const double c_3 = cos(in0[4]);
     const double s_4 = sin(in0[5]);
     const double c_5 = cos(in0[5]);
-    const double t0 = s_0*in1[0];
-    const double t1_n = t0*in0[2] - c_1*in1[1];
-    const double t2 = c_1*in1[0];
-    const double t3 = s_0*in1[1] + t2*in0[2];
-    const double t4 = c_3*t3 + s_2*in1[2];
-    const double t5 = c_3*t0 + s_2*in1[3];
-    const double t6_n = in1[4] - t2;
-    out0[0] = c_5*t4 + s_4*t1_n;
-    out0[1] = c_5*t1_n - s_4*t4;
-    out0[2] = s_2*t3 - c_3*in1[2];
-    out0[3] = c_5*t5 + s_4*t6_n;
-    out0[4] = c_5*t6_n - s_4*t5;
-    out0[5] = c_3*(c_3*in1[5] - in1[3]) + s_2*(t0 + s_2*in1[5]);
+    const double u0 = c_1*in1[0];
+    const double w0 = s_0*in1[1] + u0*in0[2];
+    const double w1 = in1[2];
+    const double w2 = s_0*in1[0]*in0[2] - c_1*in1[1];
+    const double w3 = s_0*in1[0] + s_2*in1[5];
+    const double w4 = in1[3] - c_3*in1[5];
+    const double w5 = in1[4] - u0;
+    const double t0 = c_3*w0 + s_2*w1;
+    const double t1 = c_3*w3 + s_2*w4;
+    out0[0] = c_5*t0 + s_4*w2;
+    out0[1] = c_5*w2 - s_4*t0;
+    out0[2] = s_2*w0 - c_3*w1;
+    out0[3] = c_5*t1 + s_4*w5;
+    out0[4] = c_5*w5 - s_4*t1;
+    out0[5] = s_2*w3 - c_3*w4;
 /* END KERNEL microbo.cartesian_from_joint6 */
 }
 
@@ -1064,19 +1066,21 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     const double c_3 = tv[3 * ts];
     const double s_4 = tv[4 * ts];
     const double c_5 = tv[5 * ts];
-    const double t0 = s_0*in1[0];
-    const double t1_n = t0*in0[2] - c_1*in1[1];
-    const double t2 = c_1*in1[0];
-    const double t3 = s_0*in1[1] + t2*in0[2];
-    const double t4 = c_3*t3 + s_2*in1[2];
-    const double t5 = c_3*t0 + s_2*in1[3];
-    const double t6_n = in1[4] - t2;
-    out0[0] = c_5*t4 + s_4*t1_n;
-    out0[1] = c_5*t1_n - s_4*t4;
-    out0[2] = s_2*t3 - c_3*in1[2];
-    out0[3] = c_5*t5 + s_4*t6_n;
-    out0[4] = c_5*t6_n - s_4*t5;
-    out0[5] = c_3*(c_3*in1[5] - in1[3]) + s_2*(t0 + s_2*in1[5]);
+    const double u0 = c_1*in1[0];
+    const double w0 = s_0*in1[1] + u0*in0[2];
+    const double w1 = in1[2];
+    const double w2 = s_0*in1[0]*in0[2] - c_1*in1[1];
+    const double w3 = s_0*in1[0] + s_2*in1[5];
+    const double w4 = in1[3] - c_3*in1[5];
+    const double w5 = in1[4] - u0;
+    const double t0 = c_3*w0 + s_2*w1;
+    const double t1 = c_3*w3 + s_2*w4;
+    out0[0] = c_5*t0 + s_4*w2;
+    out0[1] = c_5*w2 - s_4*t0;
+    out0[2] = s_2*w0 - c_3*w1;
+    out0[3] = c_5*t1 + s_4*w5;
+    out0[4] = c_5*w5 - s_4*t1;
+    out0[5] = s_2*w3 - c_3*w4;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1130,7 +1134,7 @@ static void batch_cartesian_from_joint6(Py_ssize_t n, const double *const *in, c
         k_cartesian_from_joint6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* microbo.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse) */
+/* microbo.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (frame-4 computation + one map)) */
 static inline void k_torque_from_force6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL microbo.torque_from_force6 */
@@ -1140,17 +1144,20 @@ static inline void k_torque_from_force6(const double *restrict in0, const double
     const double c_3 = cos(in0[4]);
     const double s_4 = sin(in0[5]);
     const double c_5 = cos(in0[5]);
-    const double t0 = c_5*in1[0] - s_4*in1[1];
-    const double t1 = c_3*t0 + s_2*in1[2];
-    const double t2 = c_5*in1[4] + s_4*in1[3];
-    const double t3 = c_5*in1[1] + s_4*in1[0];
-    const double t4 = c_5*in1[3] - s_4*in1[4];
-    out0[0] = s_0*(c_3*t4 + s_2*in1[5] + t3*in0[2]) - c_1*(t2 - t1*in0[2]);
-    out0[1] = s_0*t1 - c_1*t3;
-    out0[2] = s_2*t0 - c_3*in1[2];
-    out0[3] = s_2*t4 - c_3*in1[5];
-    out0[4] = t2;
-    out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
+    const double u0 = c_5*in1[0] - s_4*in1[1];
+    const double u1 = c_5*in1[3] - s_4*in1[4];
+    const double w0 = c_3*u0 + s_2*in1[2];
+    const double w1 = s_2*u0 - c_3*in1[2];
+    const double w2 = c_5*in1[1] + s_4*in1[0];
+    const double w3 = c_3*u1 + s_2*in1[5];
+    const double w4 = s_2*u1 - c_3*in1[5];
+    const double w5 = c_5*in1[4] + s_4*in1[3];
+    out0[0] = c_1*(in0[2]*w0 - w5) + s_0*(w3 + in0[2]*w2);
+    out0[1] = s_0*w0 - c_1*w2;
+    out0[2] = w1;
+    out0[3] = w4;
+    out0[4] = w5;
+    out0[5] = s_2*w3 - c_3*w4;
 /* END KERNEL microbo.torque_from_force6 */
 }
 
@@ -1164,17 +1171,20 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     const double c_3 = tv[3 * ts];
     const double s_4 = tv[4 * ts];
     const double c_5 = tv[5 * ts];
-    const double t0 = c_5*in1[0] - s_4*in1[1];
-    const double t1 = c_3*t0 + s_2*in1[2];
-    const double t2 = c_5*in1[4] + s_4*in1[3];
-    const double t3 = c_5*in1[1] + s_4*in1[0];
-    const double t4 = c_5*in1[3] - s_4*in1[4];
-    out0[0] = s_0*(c_3*t4 + s_2*in1[5] + t3*in0[2]) - c_1*(t2 - t1*in0[2]);
-    out0[1] = s_0*t1 - c_1*t3;
-    out0[2] = s_2*t0 - c_3*in1[2];
-    out0[3] = s_2*t4 - c_3*in1[5];
-    out0[4] = t2;
-    out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
+    const double u0 = c_5*in1[0] - s_4*in1[1];
+    const double u1 = c_5*in1[3] - s_4*in1[4];
+    const double w0 = c_3*u0 + s_2*in1[2];
+    const double w1 = s_2*u0 - c_3*in1[2];
+    const double w2 = c_5*in1[1] + s_4*in1[0];
+    const double w3 = c_3*u1 + s_2*in1[5];
+    const double w4 = s_2*u1 - c_3*in1[5];
+    const double w5 = c_5*in1[4] + s_4*in1[3];
+    out0[0] = c_1*(in0[2]*w0 - w5) + s_0*(w3 + in0[2]*w2);
+    out0[1] = s_0*w0 - c_1*w2;
+    out0[2] = w1;
+    out0[3] = w4;
+    out0[4] = w5;
+    out0[5] = s_2*w3 - c_3*w4;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1351,7 +1361,7 @@ static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2]);
 }
 
-/* microbo.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse) */
+/* microbo.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse, staged (frame-4 computation + one map)) */
 static inline void k_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
 {
 /* BEGIN KERNEL microbo.force_from_torque6 */
@@ -1363,20 +1373,23 @@ static inline void k_force_from_torque6(const double *restrict in0, const double
     const double c_4 = cos(in0[4]);
     const double s_5 = sin(in0[5]);
     const double c_6 = cos(in0[5]);
-    const double t0 = 2.0*c_1;
-    const double t1 = 1.0/in0[2];
-    const double t2 = (in1[5] + c_4*in1[3])/s_3;
-    const double t3 = 2.0*s_0;
-    const double t4_n = t1*(s_2*in1[4] + t3*(in1[0] - s_0*t2)) - t0*in1[1];
-    const double t5 = t1*(t0*(in1[0] + c_1*in1[4]) - s_2*t2) + t3*in1[1];
-    const double t6 = c_4*t5 + 2.0*s_3*in1[2];
-    const double t7 = c_4*t2 + s_3*in1[3];
-    out0[0] = 0.5*c_6*t6 + 0.5*s_5*t4_n;
-    out0[1] = 0.5*c_6*t4_n - 0.5*s_5*t6;
-    out0[2] = 0.5*s_3*t5 - c_4*in1[2];
-    out0[3] = c_6*t7 + s_5*in1[4];
-    out0[4] = c_6*in1[4] - s_5*t7;
-    out0[5] = in1[5];
+    const double u0 = 1.0/in0[2];
+    const double u1 = (in1[5] + c_4*in1[3])/s_3;
+    const double u2 = 0.5*s_2*u0;
+    const double w0 = s_0*in1[1] + c_1*u0*(in1[0] + c_1*in1[4]) - u1*u2;
+    const double w1 = in1[2];
+    const double w2 = u2*in1[4] + s_0*u0*(in1[0] - s_0*u1) - c_1*in1[1];
+    const double w3 = u1;
+    const double w4 = in1[3];
+    const double w5 = in1[4];
+    const double t0 = c_4*w0 + s_3*w1;
+    const double t1 = c_4*w3 + s_3*w4;
+    out0[0] = c_6*t0 + s_5*w2;
+    out0[1] = c_6*w2 - s_5*t0;
+    out0[2] = s_3*w0 - c_4*w1;
+    out0[3] = c_6*t1 + s_5*w5;
+    out0[4] = c_6*w5 - s_5*t1;
+    out0[5] = s_3*w3 - c_4*w4;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
     out2[0] = fabs(s_3) - 1e-09;
@@ -1395,20 +1408,23 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     const double c_4 = tv[4 * ts];
     const double s_5 = tv[5 * ts];
     const double c_6 = tv[6 * ts];
-    const double t0 = 2.0*c_1;
-    const double t1 = 1.0/in0[2];
-    const double t2 = (in1[5] + c_4*in1[3])/s_3;
-    const double t3 = 2.0*s_0;
-    const double t4_n = t1*(s_2*in1[4] + t3*(in1[0] - s_0*t2)) - t0*in1[1];
-    const double t5 = t1*(t0*(in1[0] + c_1*in1[4]) - s_2*t2) + t3*in1[1];
-    const double t6 = c_4*t5 + 2.0*s_3*in1[2];
-    const double t7 = c_4*t2 + s_3*in1[3];
-    out0[0] = 0.5*c_6*t6 + 0.5*s_5*t4_n;
-    out0[1] = 0.5*c_6*t4_n - 0.5*s_5*t6;
-    out0[2] = 0.5*s_3*t5 - c_4*in1[2];
-    out0[3] = c_6*t7 + s_5*in1[4];
-    out0[4] = c_6*in1[4] - s_5*t7;
-    out0[5] = in1[5];
+    const double u0 = 1.0/in0[2];
+    const double u1 = (in1[5] + c_4*in1[3])/s_3;
+    const double u2 = 0.5*s_2*u0;
+    const double w0 = s_0*in1[1] + c_1*u0*(in1[0] + c_1*in1[4]) - u1*u2;
+    const double w1 = in1[2];
+    const double w2 = u2*in1[4] + s_0*u0*(in1[0] - s_0*u1) - c_1*in1[1];
+    const double w3 = u1;
+    const double w4 = in1[3];
+    const double w5 = in1[4];
+    const double t0 = c_4*w0 + s_3*w1;
+    const double t1 = c_4*w3 + s_3*w4;
+    out0[0] = c_6*t0 + s_5*w2;
+    out0[1] = c_6*w2 - s_5*t0;
+    out0[2] = s_3*w0 - c_4*w1;
+    out0[3] = c_6*t1 + s_5*w5;
+    out0[4] = c_6*w5 - s_5*t1;
+    out0[5] = s_3*w3 - c_4*w4;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
     out2[0] = fabs(s_3) - 1e-09;

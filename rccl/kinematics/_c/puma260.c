@@ -41,7 +41,7 @@ VTRIG(cos)
 #endif
 
 #define MAXIO 5
-#define RCCL_SOURCE_HASH "ca3e24070112d5f716e1e233292bbed8284405c7a479b3806639d0985132dbc5"
+#define RCCL_SOURCE_HASH "0c8e9cb613a07dbbce0e22d645865544d5c33ec16e70aba38d5fe94106f2c4d6"
 
 /* puma260.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[count]+cse, n=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
@@ -1432,7 +1432,7 @@ static void batch_force_from_torque4(Py_ssize_t n, const double *const *in, cons
         k_force_from_torque4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma260.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: horner[count]+cse) */
+/* puma260.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (frame-4 computation + one map)) */
 static inline void k_cartesian_from_joint6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL puma260.cartesian_from_joint6 */
@@ -1448,25 +1448,26 @@ static inline void k_cartesian_from_joint6(const double *restrict in0, const dou
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
-    const double t0 = 0.2032*in1[0]*(c_0 - s_9);
-    const double t1 = c_10*in1[0];
-    const double t2 = 0.2032*in1[1];
-    const double t3 = 0.12624*t1 + t2*(s_1 - 1.0) - 0.2032*in1[2];
-    const double t4 = c_4*t0 - s_3*t3;
-    const double t5 = s_9*in1[0];
-    const double t6 = c_2*t2 - 0.12624*t5;
-    const double t7 = c_4*t3 + s_3*t0;
-    const double t8 = c_6*t7 + s_5*t6;
-    const double t9 = in1[1] + in1[2];
-    const double t10 = in1[4] + c_4*t9 + s_3*t5;
-    const double t11 = in1[3] + t1 + c_6*in1[5];
-    const double t12 = s_5*in1[5] + s_3*t9 - c_4*t5;
-    out0[0] = c_8*t8 + s_7*t4;
-    out0[1] = c_8*t4 - s_7*t8;
-    out0[2] = c_6*t6 - s_5*t7;
-    out0[3] = c_8*(s_5*t11 - c_6*t12) - s_7*t10;
-    out0[4] = -c_8*t10 - s_7*(s_5*t11 - c_6*t12);
-    out0[5] = c_6*t11 + s_5*t12;
+    const double u0 = 0.2032*in1[0]*(c_0 - s_9);
+    const double u1 = c_10*in1[0];
+    const double u2 = 0.2032*in1[1];
+    const double u3 = 0.12624*u1 + u2*(s_1 - 1.0) - 0.2032*in1[2];
+    const double u4 = s_9*in1[0];
+    const double u5 = in1[1] + in1[2];
+    const double w0 = c_4*u3 + s_3*u0;
+    const double w1 = c_2*u2 - 0.12624*u4;
+    const double w2_n = c_4*u0 - s_3*u3;
+    const double w3 = c_4*s_9*in1[0] - s_5*in1[5] - s_3*u5;
+    const double w4 = in1[3] + u1 + c_6*in1[5];
+    const double w5 = in1[4] + c_4*u5 + s_3*u4;
+    const double t0 = c_6*w0 + s_5*w1;
+    const double t1 = c_6*w3 + s_5*w4;
+    out0[0] = c_8*t0 + s_7*w2_n;
+    out0[1] = c_8*w2_n - s_7*t0;
+    out0[2] = c_6*w1 - s_5*w0;
+    out0[3] = c_8*t1 - s_7*w5;
+    out0[4] = -c_8*w5 - s_7*t1;
+    out0[5] = c_6*w4 - s_5*w3;
 /* END KERNEL puma260.cartesian_from_joint6 */
 }
 
@@ -1486,25 +1487,26 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
-    const double t0 = 0.2032*in1[0]*(c_0 - s_9);
-    const double t1 = c_10*in1[0];
-    const double t2 = 0.2032*in1[1];
-    const double t3 = 0.12624*t1 + t2*(s_1 - 1.0) - 0.2032*in1[2];
-    const double t4 = c_4*t0 - s_3*t3;
-    const double t5 = s_9*in1[0];
-    const double t6 = c_2*t2 - 0.12624*t5;
-    const double t7 = c_4*t3 + s_3*t0;
-    const double t8 = c_6*t7 + s_5*t6;
-    const double t9 = in1[1] + in1[2];
-    const double t10 = in1[4] + c_4*t9 + s_3*t5;
-    const double t11 = in1[3] + t1 + c_6*in1[5];
-    const double t12 = s_5*in1[5] + s_3*t9 - c_4*t5;
-    out0[0] = c_8*t8 + s_7*t4;
-    out0[1] = c_8*t4 - s_7*t8;
-    out0[2] = c_6*t6 - s_5*t7;
-    out0[3] = c_8*(s_5*t11 - c_6*t12) - s_7*t10;
-    out0[4] = -c_8*t10 - s_7*(s_5*t11 - c_6*t12);
-    out0[5] = c_6*t11 + s_5*t12;
+    const double u0 = 0.2032*in1[0]*(c_0 - s_9);
+    const double u1 = c_10*in1[0];
+    const double u2 = 0.2032*in1[1];
+    const double u3 = 0.12624*u1 + u2*(s_1 - 1.0) - 0.2032*in1[2];
+    const double u4 = s_9*in1[0];
+    const double u5 = in1[1] + in1[2];
+    const double w0 = c_4*u3 + s_3*u0;
+    const double w1 = c_2*u2 - 0.12624*u4;
+    const double w2_n = c_4*u0 - s_3*u3;
+    const double w3 = c_4*s_9*in1[0] - s_5*in1[5] - s_3*u5;
+    const double w4 = in1[3] + u1 + c_6*in1[5];
+    const double w5 = in1[4] + c_4*u5 + s_3*u4;
+    const double t0 = c_6*w0 + s_5*w1;
+    const double t1 = c_6*w3 + s_5*w4;
+    out0[0] = c_8*t0 + s_7*w2_n;
+    out0[1] = c_8*w2_n - s_7*t0;
+    out0[2] = c_6*w1 - s_5*w0;
+    out0[3] = c_8*t1 - s_7*w5;
+    out0[4] = -c_8*w5 - s_7*t1;
+    out0[5] = c_6*w4 - s_5*w3;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1563,7 +1565,7 @@ static void batch_cartesian_from_joint6(Py_ssize_t n, const double *const *in, c
         k_cartesian_from_joint6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma260.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse) */
+/* puma260.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (frame-4 computation + one map)) */
 static inline void k_torque_from_force6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL puma260.torque_from_force6 */
@@ -1579,35 +1581,25 @@ static inline void k_torque_from_force6(const double *restrict in0, const double
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
-    const double t0 = c_8*in1[1];
-    const double t1 = s_7*in1[0];
-    const double t2 = s_5*in1[2];
-    const double t3 = c_8*in1[0];
-    const double t4 = s_7*in1[1];
-    const double t5 = t3 - t4;
-    const double t6 = c_6*t5 - t2;
-    const double t7 = c_6*in1[5];
-    const double t8 = 0.12624*s_3;
-    const double t9 = c_6*in1[2];
-    const double t10_n = t5;
-    const double t11 = s_5*in1[5];
-    const double t12 = c_8*in1[3] - s_7*in1[4];
-    const double t13 = 0.2032*t0 + 0.2032*t1 + t11 - c_6*t12;
-    const double t14 = 0.2032*c_6;
-    const double t15 = 0.2032*t2;
-    const double t16_n = -c_8*in1[4];
-    const double t17 = s_7*in1[3];
-    const double t18 = t16_n - t17;
-    const double t19 = t15 + t18 - t10_n*t14;
-    const double t20 = s_1 - 1.0;
-    const double t21 = 0.2032*t20;
-    const double t22_n = t20;
-    out0[0] = 0.2032*c_0*(c_4*(t0 + t1) + s_3*t6) + c_10*(t7 + 0.12624*c_4*t6 - c_8*(t8*in1[1] - s_5*in1[3]) - s_7*(t8*in1[0] + s_5*in1[4])) + s_9*(s_3*t19 - 0.12624*t9 - c_4*t13 - 0.12624*s_5*t10_n);
-    out0[1] = 0.2032*c_2*(t9 + s_5*t5) + c_4*(t18 + t14*(t20*t3 - t22_n*t4) - t15*t22_n) + s_3*(t11 + s_7*(c_6*in1[4] - t21*in1[0]) - c_8*(c_6*in1[3] + t21*in1[1]));
-    out0[2] = c_4*t19 + s_3*t13;
-    out0[3] = t7 + s_5*t12;
-    out0[4] = t16_n - t17;
-    out0[5] = in1[5]*(c_6*c_6 + s_5*s_5);
+    const double u0 = c_8*in1[0] - s_7*in1[1];
+    const double u1 = c_8*in1[3] - s_7*in1[4];
+    const double w0 = c_6*u0 - s_5*in1[2];
+    const double w1 = c_6*in1[2] + s_5*u0;
+    const double w2 = -c_8*in1[1] - s_7*in1[0];
+    const double w3 = c_6*u1 - s_5*in1[5];
+    const double w4 = c_6*in1[5] + s_5*u1;
+    const double w5 = -c_8*in1[4] - s_7*in1[3];
+    const double t0 = 0.2032*w2;
+    const double t1 = t0 + w3;
+    const double t2 = 0.2032*w0;
+    const double t3_n = w5 - t2;
+    const double t4 = s_1 - 1.0;
+    out0[0] = c_10*(w4 + 0.12624*c_4*w0 + 0.12624*s_3*w2) - 0.2032*c_0*(c_4*w2 - s_3*w0) - s_9*(0.12624*w1 - c_4*t1 - s_3*t3_n);
+    out0[1] = 0.2032*c_2*w1 + c_4*(w5 + t2*t4) + s_3*(t0*t4 - w3);
+    out0[2] = c_4*t3_n - s_3*t1;
+    out0[3] = w4;
+    out0[4] = w5;
+    out0[5] = c_6*w4 - s_5*w3;
 /* END KERNEL puma260.torque_from_force6 */
 }
 
@@ -1627,35 +1619,25 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
-    const double t0 = c_8*in1[1];
-    const double t1 = s_7*in1[0];
-    const double t2 = s_5*in1[2];
-    const double t3 = c_8*in1[0];
-    const double t4 = s_7*in1[1];
-    const double t5 = t3 - t4;
-    const double t6 = c_6*t5 - t2;
-    const double t7 = c_6*in1[5];
-    const double t8 = 0.12624*s_3;
-    const double t9 = c_6*in1[2];
-    const double t10_n = t5;
-    const double t11 = s_5*in1[5];
-    const double t12 = c_8*in1[3] - s_7*in1[4];
-    const double t13 = 0.2032*t0 + 0.2032*t1 + t11 - c_6*t12;
-    const double t14 = 0.2032*c_6;
-    const double t15 = 0.2032*t2;
-    const double t16_n = -c_8*in1[4];
-    const double t17 = s_7*in1[3];
-    const double t18 = t16_n - t17;
-    const double t19 = t15 + t18 - t10_n*t14;
-    const double t20 = s_1 - 1.0;
-    const double t21 = 0.2032*t20;
-    const double t22_n = t20;
-    out0[0] = 0.2032*c_0*(c_4*(t0 + t1) + s_3*t6) + c_10*(t7 + 0.12624*c_4*t6 - c_8*(t8*in1[1] - s_5*in1[3]) - s_7*(t8*in1[0] + s_5*in1[4])) + s_9*(s_3*t19 - 0.12624*t9 - c_4*t13 - 0.12624*s_5*t10_n);
-    out0[1] = 0.2032*c_2*(t9 + s_5*t5) + c_4*(t18 + t14*(t20*t3 - t22_n*t4) - t15*t22_n) + s_3*(t11 + s_7*(c_6*in1[4] - t21*in1[0]) - c_8*(c_6*in1[3] + t21*in1[1]));
-    out0[2] = c_4*t19 + s_3*t13;
-    out0[3] = t7 + s_5*t12;
-    out0[4] = t16_n - t17;
-    out0[5] = in1[5]*(c_6*c_6 + s_5*s_5);
+    const double u0 = c_8*in1[0] - s_7*in1[1];
+    const double u1 = c_8*in1[3] - s_7*in1[4];
+    const double w0 = c_6*u0 - s_5*in1[2];
+    const double w1 = c_6*in1[2] + s_5*u0;
+    const double w2 = -c_8*in1[1] - s_7*in1[0];
+    const double w3 = c_6*u1 - s_5*in1[5];
+    const double w4 = c_6*in1[5] + s_5*u1;
+    const double w5 = -c_8*in1[4] - s_7*in1[3];
+    const double t0 = 0.2032*w2;
+    const double t1 = t0 + w3;
+    const double t2 = 0.2032*w0;
+    const double t3_n = w5 - t2;
+    const double t4 = s_1 - 1.0;
+    out0[0] = c_10*(w4 + 0.12624*c_4*w0 + 0.12624*s_3*w2) - 0.2032*c_0*(c_4*w2 - s_3*w0) - s_9*(0.12624*w1 - c_4*t1 - s_3*t3_n);
+    out0[1] = 0.2032*c_2*w1 + c_4*(w5 + t2*t4) + s_3*(t0*t4 - w3);
+    out0[2] = c_4*t3_n - s_3*t1;
+    out0[3] = w4;
+    out0[4] = w5;
+    out0[5] = c_6*w4 - s_5*w3;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1714,7 +1696,7 @@ static void batch_torque_from_force6(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma260.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse) */
+/* puma260.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[tip]+cse, staged (frame-4 computation + one map)) */
 static inline void k_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma260.joint_from_cartesian6 */
@@ -1730,46 +1712,33 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
+    const double u0 = c_8*in1[0] - s_7*in1[1];
+    const double u1 = c_8*in1[3] - s_7*in1[4];
+    const double w0 = c_6*u0 - s_5*in1[2];
+    const double w1 = c_6*in1[2] + s_5*u0;
+    const double w2 = -c_8*in1[1] - s_7*in1[0];
+    const double w3 = c_6*u1 - s_5*in1[5];
+    const double w4 = c_6*in1[5] + s_5*u1;
+    const double w5_n = c_8*in1[4] + s_7*in1[3];
     const double t0 = c_0 - s_9;
     const double t1 = 1.0/t0;
-    const double t2 = c_8*in1[1] + s_7*in1[0];
-    const double t3 = c_4*t2;
-    const double t4 = s_5*in1[2];
-    const double t5 = c_8*in1[0] - s_7*in1[1];
-    const double t6 = c_6*t5;
-    const double t7 = t6 - t4;
-    const double t8 = s_3*t7;
-    const double t9 = t1*(t3 + t8);
-    const double t10 = 1.0/c_2;
-    const double t11 = c_6*in1[2];
-    const double t12 = 4.921259842519685*t11;
-    const double t13 = s_5*t5;
-    const double t14 = 4.921259842519685*s_1;
-    const double t15 = 0.12624*t3;
-    const double t16 = 0.2032*s_3*t2;
-    const double t17 = 0.2032*c_4;
-    const double t18 = t17*t7;
-    const double t19_n = t18 - t16;
-    const double t20 = 24.218798437596877*c_0;
-    const double t21 = 0.12624*s_3;
-    const double t22 = c_8*in1[3] - s_7*in1[4];
-    const double t23 = 4.921259842519685*c_10;
-    const double t24 = 1.0/s_5;
-    const double t25 = 4.921259842519685*s_9*t1;
-    const double t26 = t24*(c_6*t22 - t2*t25);
-    const double t27 = t10*t14;
-    const double t28 = t27*(t5 + t11*t24);
-    const double t29 = in1[2]*(t17 - t10*t21);
-    const double t30 = t16 + t10*(t15 + t21*t6) - t17*t6;
-    const double t31 = -t5;
-    const double t32 = t4 + c_6*t31;
-    const double t33 = t1*t20;
-    out0[0] = 4.921259842519685*t9;
-    out0[1] = t10*(t12 + 4.921259842519685*t13 + 3.0573811147622294*s_9*t9);
-    out0[2] = t1*(24.218798437596877*s_9*(t19_n - t10*(t15 + t21*t7)) + t20*(t10*(t15 + 0.12624*t8) - t19_n)) + t10*(t12*(s_1 - 1.0) + t13*(t14 - 4.921259842519685));
-    out0[3] = c_6*(t26 + s_3*(t28 + t1*(t20*(t29 + t24*t30) - t23*t5))) + s_5*t22 - t1*t23*(t3 - s_3*t4);
-    out0[4] = c_4*(t27*(s_5*t31 - t11) + t33*(t18 + t10*(0.12624*s_3*t32 - t15) - t16)) + t25*t32 - c_8*in1[4] - s_7*in1[3];
-    out0[5] = in1[5] - t26 - s_3*(t28 + t33*(t29 + t24*t30));
+    const double t2 = t1*(c_4*w2 - s_3*w0);
+    const double t3 = 1.0/c_2;
+    const double t4 = 0.12624*t3;
+    const double t5 = c_4*(0.2032*w0 + t4*w2);
+    const double t6 = 24.218798437596877*c_0*t1;
+    const double t7 = t5*t6;
+    const double t8 = s_3*(0.2032*w2 - t4*w0);
+    const double t9 = t6*t8;
+    const double t10 = 1.0/s_5;
+    const double t11 = t9 - 4.921259842519685*s_1*t3*w1;
+    const double t12 = s_3*t11 + s_3*t7 - w3 - 4.921259842519685*s_9*t1*w2;
+    out0[0] = -4.921259842519685*t2;
+    out0[1] = t3*(4.921259842519685*w1 - 3.0573811147622294*s_9*t2);
+    out0[2] = 24.218798437596877*s_9*t1*(t5 + t8) + 4.921259842519685*t3*w1*(s_1 - 1.0) - t7 - t9;
+    out0[3] = w4 + 4.921259842519685*c_10*t2 - c_6*t10*t12;
+    out0[4] = c_4*(t11 + t7) - w5_n - 4.921259842519685*s_9*t1*w0;
+    out0[5] = t10*t12;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = 0.2032*fabs(t0) - 4.064e-10;
     out2[0] = fabs(c_2) - 1e-09;
@@ -1793,46 +1762,33 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
+    const double u0 = c_8*in1[0] - s_7*in1[1];
+    const double u1 = c_8*in1[3] - s_7*in1[4];
+    const double w0 = c_6*u0 - s_5*in1[2];
+    const double w1 = c_6*in1[2] + s_5*u0;
+    const double w2 = -c_8*in1[1] - s_7*in1[0];
+    const double w3 = c_6*u1 - s_5*in1[5];
+    const double w4 = c_6*in1[5] + s_5*u1;
+    const double w5_n = c_8*in1[4] + s_7*in1[3];
     const double t0 = c_0 - s_9;
     const double t1 = 1.0/t0;
-    const double t2 = c_8*in1[1] + s_7*in1[0];
-    const double t3 = c_4*t2;
-    const double t4 = s_5*in1[2];
-    const double t5 = c_8*in1[0] - s_7*in1[1];
-    const double t6 = c_6*t5;
-    const double t7 = t6 - t4;
-    const double t8 = s_3*t7;
-    const double t9 = t1*(t3 + t8);
-    const double t10 = 1.0/c_2;
-    const double t11 = c_6*in1[2];
-    const double t12 = 4.921259842519685*t11;
-    const double t13 = s_5*t5;
-    const double t14 = 4.921259842519685*s_1;
-    const double t15 = 0.12624*t3;
-    const double t16 = 0.2032*s_3*t2;
-    const double t17 = 0.2032*c_4;
-    const double t18 = t17*t7;
-    const double t19_n = t18 - t16;
-    const double t20 = 24.218798437596877*c_0;
-    const double t21 = 0.12624*s_3;
-    const double t22 = c_8*in1[3] - s_7*in1[4];
-    const double t23 = 4.921259842519685*c_10;
-    const double t24 = 1.0/s_5;
-    const double t25 = 4.921259842519685*s_9*t1;
-    const double t26 = t24*(c_6*t22 - t2*t25);
-    const double t27 = t10*t14;
-    const double t28 = t27*(t5 + t11*t24);
-    const double t29 = in1[2]*(t17 - t10*t21);
-    const double t30 = t16 + t10*(t15 + t21*t6) - t17*t6;
-    const double t31 = -t5;
-    const double t32 = t4 + c_6*t31;
-    const double t33 = t1*t20;
-    out0[0] = 4.921259842519685*t9;
-    out0[1] = t10*(t12 + 4.921259842519685*t13 + 3.0573811147622294*s_9*t9);
-    out0[2] = t1*(24.218798437596877*s_9*(t19_n - t10*(t15 + t21*t7)) + t20*(t10*(t15 + 0.12624*t8) - t19_n)) + t10*(t12*(s_1 - 1.0) + t13*(t14 - 4.921259842519685));
-    out0[3] = c_6*(t26 + s_3*(t28 + t1*(t20*(t29 + t24*t30) - t23*t5))) + s_5*t22 - t1*t23*(t3 - s_3*t4);
-    out0[4] = c_4*(t27*(s_5*t31 - t11) + t33*(t18 + t10*(0.12624*s_3*t32 - t15) - t16)) + t25*t32 - c_8*in1[4] - s_7*in1[3];
-    out0[5] = in1[5] - t26 - s_3*(t28 + t33*(t29 + t24*t30));
+    const double t2 = t1*(c_4*w2 - s_3*w0);
+    const double t3 = 1.0/c_2;
+    const double t4 = 0.12624*t3;
+    const double t5 = c_4*(0.2032*w0 + t4*w2);
+    const double t6 = 24.218798437596877*c_0*t1;
+    const double t7 = t5*t6;
+    const double t8 = s_3*(0.2032*w2 - t4*w0);
+    const double t9 = t6*t8;
+    const double t10 = 1.0/s_5;
+    const double t11 = t9 - 4.921259842519685*s_1*t3*w1;
+    const double t12 = s_3*t11 + s_3*t7 - w3 - 4.921259842519685*s_9*t1*w2;
+    out0[0] = -4.921259842519685*t2;
+    out0[1] = t3*(4.921259842519685*w1 - 3.0573811147622294*s_9*t2);
+    out0[2] = 24.218798437596877*s_9*t1*(t5 + t8) + 4.921259842519685*t3*w1*(s_1 - 1.0) - t7 - t9;
+    out0[3] = w4 + 4.921259842519685*c_10*t2 - c_6*t10*t12;
+    out0[4] = c_4*(t11 + t7) - w5_n - 4.921259842519685*s_9*t1*w0;
+    out0[5] = t10*t12;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = 0.2032*fabs(t0) - 4.064e-10;
     out2[0] = fabs(c_2) - 1e-09;
@@ -1895,7 +1851,7 @@ static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma260.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse) */
+/* puma260.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse, staged (frame-4 computation + one map)) */
 static inline void k_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma260.force_from_torque6 */
@@ -1911,42 +1867,36 @@ static inline void k_force_from_torque6(const double *restrict in0, const double
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
-    const double t0 = c_0 - s_9;
-    const double t1 = 1.0/t0;
-    const double t2 = 1.0/s_5;
-    const double t3 = c_6*in1[3];
-    const double t4 = t2*(t3 - in1[5]);
-    const double t5 = 4.921259842519685*s_9;
-    const double t6 = t5*(t4 + s_3*in1[2]);
-    const double t7_n = in1[2];
-    const double t8 = in1[1] - t7_n;
-    const double t9 = 1.0/c_2;
-    const double t10 = 3.0573811147622294*t9;
-    const double t11 = 4.921259842519685*in1[0] + s_9*t10*t8 - 4.921259842519685*c_10*in1[3];
-    const double t12 = c_4*in1[4];
-    const double t13 = t12 - t7_n;
-    const double t14 = s_3*t4;
-    const double t15 = 24.218798437596877*c_4;
-    const double t16 = 4.921259842519685*t14 + 4.921259842519685*in1[2] - t15*(0.2032*in1[4] - t2*t9*(0.12624*t3 - 0.12624*in1[5]));
-    const double t17 = t8 + s_1*(t14 + in1[2] - t12);
-    const double t18 = 4.921259842519685*s_5*t17*t9;
-    const double t19 = c_4*t13;
-    const double t20 = 4.921259842519685*t19;
-    const double t21 = 0.12624*t9*in1[4];
-    const double t22_n = 0.2032*in1[5] - 0.2032*t3;
-    const double t23 = t10*t14 + t10*in1[2];
-    const double t24 = s_3*t11 + t5*(c_4*in1[2] - in1[4]);
-    const double t25 = t24 + c_0*(t20 + s_3*(t23 - t15*(t21 - t2*t22_n)));
-    const double t26 = c_6*t1;
-    const double t27 = c_6*t4 + s_5*in1[3];
-    out0[0] = c_8*(t18 + t25*t26) - s_7*t1*(t6 + c_0*(3.0573811147622294*c_4*t13*t9 - s_3*t16) - c_4*t11);
-    out0[1] = -s_7*(t18 + t26*(t24 + c_0*(t20 + s_3*(t23 + t15*(t2*t22_n - t21))))) - c_8*t1*(t6 + c_0*(t10*t19 - s_3*t16) - c_4*t11);
-    out0[2] = 4.921259842519685*c_6*t17*t9 - s_5*t1*t25;
-    out0[3] = c_8*t27 - s_7*in1[4];
-    out0[4] = -c_8*in1[4] - s_7*t27;
-    out0[5] = in1[5];
+    const double u0 = 1.0/(c_0 - s_9);
+    const double u1 = 4.921259842519685*s_9;
+    const double u2_n = in1[2];
+    const double u3 = in1[1] - u2_n;
+    const double u4 = 1.0/c_2;
+    const double u5 = 3.0573811147622294*u4;
+    const double u6 = 4.921259842519685*in1[0] + s_9*u3*u5 - 4.921259842519685*c_10*in1[3];
+    const double u7 = c_4*in1[4];
+    const double u8 = u7 - u2_n;
+    const double u9 = 1.0/s_5;
+    const double u10 = c_6*in1[3];
+    const double u11 = u9*(u10 - in1[5]);
+    const double u12 = s_3*u11;
+    const double u13 = 24.218798437596877*c_4;
+    const double w0 = u0*(c_0*(4.921259842519685*c_4*u8 + s_3*(u5*in1[2] + u12*u5 - u13*(0.12624*u4*in1[4] + u9*(0.2032*u10 - 0.2032*in1[5])))) + s_3*u6 + u1*(c_4*in1[2] - in1[4]));
+    const double w1 = 4.921259842519685*u4*(u3 + s_1*(in1[2] + u12 - u7));
+    const double w2 = u0*(c_0*(3.0573811147622294*c_4*u4*u8 - s_3*(4.921259842519685*in1[2] + 4.921259842519685*u12 - u13*(0.2032*in1[4] - u4*u9*(0.12624*u10 - 0.12624*in1[5])))) + u1*(u11 + s_3*in1[2]) - c_4*u6);
+    const double w3 = u11;
+    const double w4 = in1[3];
+    const double w5 = in1[4];
+    const double t0 = c_6*w0 + s_5*w1;
+    const double t1 = c_6*w3 + s_5*w4;
+    out0[0] = c_8*t0 - s_7*w2;
+    out0[1] = -c_8*w2 - s_7*t0;
+    out0[2] = c_6*w1 - s_5*w0;
+    out0[3] = c_8*t1 - s_7*w5;
+    out0[4] = -c_8*w5 - s_7*t1;
+    out0[5] = c_6*w4 - s_5*w3;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = 0.2032*fabs(t0) - 4.064e-10;
+    out1[0] = 0.2032*fabs(c_0 - s_9) - 4.064e-10;
     out2[0] = fabs(c_2) - 1e-09;
     out3[0] = fabs(s_5) - 1e-09;
 /* END KERNEL puma260.force_from_torque6 */
@@ -1968,42 +1918,36 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
-    const double t0 = c_0 - s_9;
-    const double t1 = 1.0/t0;
-    const double t2 = 1.0/s_5;
-    const double t3 = c_6*in1[3];
-    const double t4 = t2*(t3 - in1[5]);
-    const double t5 = 4.921259842519685*s_9;
-    const double t6 = t5*(t4 + s_3*in1[2]);
-    const double t7_n = in1[2];
-    const double t8 = in1[1] - t7_n;
-    const double t9 = 1.0/c_2;
-    const double t10 = 3.0573811147622294*t9;
-    const double t11 = 4.921259842519685*in1[0] + s_9*t10*t8 - 4.921259842519685*c_10*in1[3];
-    const double t12 = c_4*in1[4];
-    const double t13 = t12 - t7_n;
-    const double t14 = s_3*t4;
-    const double t15 = 24.218798437596877*c_4;
-    const double t16 = 4.921259842519685*t14 + 4.921259842519685*in1[2] - t15*(0.2032*in1[4] - t2*t9*(0.12624*t3 - 0.12624*in1[5]));
-    const double t17 = t8 + s_1*(t14 + in1[2] - t12);
-    const double t18 = 4.921259842519685*s_5*t17*t9;
-    const double t19 = c_4*t13;
-    const double t20 = 4.921259842519685*t19;
-    const double t21 = 0.12624*t9*in1[4];
-    const double t22_n = 0.2032*in1[5] - 0.2032*t3;
-    const double t23 = t10*t14 + t10*in1[2];
-    const double t24 = s_3*t11 + t5*(c_4*in1[2] - in1[4]);
-    const double t25 = t24 + c_0*(t20 + s_3*(t23 - t15*(t21 - t2*t22_n)));
-    const double t26 = c_6*t1;
-    const double t27 = c_6*t4 + s_5*in1[3];
-    out0[0] = c_8*(t18 + t25*t26) - s_7*t1*(t6 + c_0*(3.0573811147622294*c_4*t13*t9 - s_3*t16) - c_4*t11);
-    out0[1] = -s_7*(t18 + t26*(t24 + c_0*(t20 + s_3*(t23 + t15*(t2*t22_n - t21))))) - c_8*t1*(t6 + c_0*(t10*t19 - s_3*t16) - c_4*t11);
-    out0[2] = 4.921259842519685*c_6*t17*t9 - s_5*t1*t25;
-    out0[3] = c_8*t27 - s_7*in1[4];
-    out0[4] = -c_8*in1[4] - s_7*t27;
-    out0[5] = in1[5];
+    const double u0 = 1.0/(c_0 - s_9);
+    const double u1 = 4.921259842519685*s_9;
+    const double u2_n = in1[2];
+    const double u3 = in1[1] - u2_n;
+    const double u4 = 1.0/c_2;
+    const double u5 = 3.0573811147622294*u4;
+    const double u6 = 4.921259842519685*in1[0] + s_9*u3*u5 - 4.921259842519685*c_10*in1[3];
+    const double u7 = c_4*in1[4];
+    const double u8 = u7 - u2_n;
+    const double u9 = 1.0/s_5;
+    const double u10 = c_6*in1[3];
+    const double u11 = u9*(u10 - in1[5]);
+    const double u12 = s_3*u11;
+    const double u13 = 24.218798437596877*c_4;
+    const double w0 = u0*(c_0*(4.921259842519685*c_4*u8 + s_3*(u5*in1[2] + u12*u5 - u13*(0.12624*u4*in1[4] + u9*(0.2032*u10 - 0.2032*in1[5])))) + s_3*u6 + u1*(c_4*in1[2] - in1[4]));
+    const double w1 = 4.921259842519685*u4*(u3 + s_1*(in1[2] + u12 - u7));
+    const double w2 = u0*(c_0*(3.0573811147622294*c_4*u4*u8 - s_3*(4.921259842519685*in1[2] + 4.921259842519685*u12 - u13*(0.2032*in1[4] - u4*u9*(0.12624*u10 - 0.12624*in1[5])))) + u1*(u11 + s_3*in1[2]) - c_4*u6);
+    const double w3 = u11;
+    const double w4 = in1[3];
+    const double w5 = in1[4];
+    const double t0 = c_6*w0 + s_5*w1;
+    const double t1 = c_6*w3 + s_5*w4;
+    out0[0] = c_8*t0 - s_7*w2;
+    out0[1] = -c_8*w2 - s_7*t0;
+    out0[2] = c_6*w1 - s_5*w0;
+    out0[3] = c_8*t1 - s_7*w5;
+    out0[4] = -c_8*w5 - s_7*t1;
+    out0[5] = c_6*w4 - s_5*w3;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = 0.2032*fabs(t0) - 4.064e-10;
+    out1[0] = 0.2032*fabs(c_0 - s_9) - 4.064e-10;
     out2[0] = fabs(c_2) - 1e-09;
     out3[0] = fabs(s_5) - 1e-09;
 }
