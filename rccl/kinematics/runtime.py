@@ -331,51 +331,51 @@ class Robot:
             if ref.shape != t.shape[:-2] + (6,) or not np.isfinite(ref).all():
                 raise errors.InvalidInput(f"{self.name}.ik_all: q_ref must be finite with shape "
                                           f"{t.shape[:-2] + (6,)}, got {ref.shape}")
+        configs = self.config_type.all()
+        n = t.shape[0] if batch else 1
+        t3 = t if batch else t[None]
+        ref2 = None if ref is None else (ref if batch else ref[None])
         if self.ik_all_kernel is None:
-            q_all = g_all = None
+            q_all = np.full((n, len(configs), 6), np.nan)
+            ok = np.zeros((n, len(configs)), dtype=bool)
         else:
             with np.errstate(all="ignore"):
-                q_all, g_all = self.ik_all_kernel(t)[:2]
-        if not batch:
-            return self._ik_all_one(t, ref, q_all, g_all)
-        return [self._ik_all_one(t[i], None if ref is None else ref[i],
-                                 None if q_all is None else q_all[i], None if g_all is None else g_all[i])
-                for i in range(t.shape[0])]
-
-    def _ik_all_one(self, t, ref, q_all, g_all) -> list[tuple[Any, np.ndarray]]:
-        configs = self.config_type.all()
-        sols: list[tuple[Any, np.ndarray]] = []
-        for j, cfg in enumerate(configs):
-            if q_all is not None and (g_all[j] >= 0).all() and np.isfinite(q_all[j]).all():
-                q = q_all[j].copy()
-                if ref is not None:
-                    q[self.revolute] = ref[self.revolute] + _wrap(q[self.revolute] - ref[self.revolute])
-                if self._prismatic_ok(q):
-                    sols.append((cfg, q))
-                    continue
-            try:  # the exceptional rows: exactly what ik does (messages, wrist fallback, ranges)
-                sols.append((cfg, self.ik(t, cfg, ref)))
+                q_all, g_all = self.ik_all_kernel(t3)[:2]
+            # a configuration is taken from the kernel when every guard passes and its joints
+            # are finite and in range; the others go through ik (messages, wrist fallback)
+            ok = (g_all >= 0).all(axis=-1) & np.isfinite(q_all).all(axis=-1)
+            if ref2 is not None:
+                rev = self.revolute
+                q_all[..., rev] = ref2[:, None, rev] + _wrap(q_all[..., rev] - ref2[:, None, rev])
+            pri = ~self.revolute
+            if pri.any():
+                qp = q_all[..., pri]
+                ok &= np.all((qp >= self.lower[pri] - 1e-12) & (qp <= self.upper[pri] + 1e-12), axis=-1)
+        found = ok.copy()
+        for i, j in zip(*np.nonzero(~ok)):
+            try:
+                q_all[i, j] = self.ik(t3[i], configs[j], None if ref2 is None else ref2[i])
+                found[i, j] = True
             except errors.Unreachable:
                 continue
-        if not sols:
-            return []
         # keep the first of every group of equal solutions (2 pi apart on revolute joints)
-        qs = np.array([q for _, q in sols])
-        d = qs[:, None, :] - qs[None, :, :]
+        d = q_all[:, :, None, :] - q_all[:, None, :, :]
         d[..., self.revolute] = _wrap(d[..., self.revolute])
-        same = np.all(np.abs(d) < SAME_SOLUTION_TOL, axis=-1)
-        kept: list[int] = []
-        for i in range(len(sols)):
-            if not any(same[i, k] for k in kept):
-                kept.append(i)
-        return [sols[i] for i in kept]
-
-    def _prismatic_ok(self, q: np.ndarray) -> bool:
-        pri = ~self.revolute
-        if not pri.any():
-            return True
-        qp = q[pri]
-        return bool(np.all((qp >= self.lower[pri] - 1e-12) & (qp <= self.upper[pri] + 1e-12)))
+        with np.errstate(invalid="ignore"):
+            same = np.all(np.abs(d) < SAME_SOLUTION_TOL, axis=-1)
+        if n <= 16:  # few poses: plain Python is cheaper than numpy on 8 x 8 booleans
+            out = []
+            for i, (f_i, s_i) in enumerate(zip(found.tolist(), same.tolist())):
+                kept: list[int] = []
+                for j in range(len(configs)):
+                    if f_i[j] and not any(s_i[j][k] for k in kept):
+                        kept.append(j)
+                out.append([(configs[j], q_all[i, j].copy()) for j in kept])
+            return out if batch else out[0]
+        keep = found.copy()
+        for j in range(1, len(configs)):  # drop j when it equals a kept earlier solution
+            keep[:, j] &= ~np.any(same[:, j, :j] & keep[:, :j], axis=-1)
+        return [[(configs[j], q_all[i, j].copy()) for j in np.nonzero(keep[i])[0]] for i in range(n)]
 
     def _same(self, a: np.ndarray, b: np.ndarray) -> bool:
         d = a - b
