@@ -7,6 +7,7 @@ does not fall, and it moves when pushed.
 
     python examples/zero_gravity.py socket://127.0.0.1:7600      # type <CR> to exit
     python examples/zero_gravity.py --simula "-c --warm" --cycles 180   # own lockstep simula
+    python examples/zero_gravity.py --params fitted.toml ...   # calib's fitted sigma and gravity
 
 As in the thesis, the first control function is a dummy and the second does the work.
 """
@@ -28,10 +29,16 @@ from rci.session import Session
 class Weightless:
     """The control function ``weightless()`` of 2.2.2, bound to one session."""
 
-    def __init__(self, session: Session, robot: str = "puma260") -> None:
+    def __init__(self, session: Session, robot: str = "puma260", fitted=None) -> None:
+        """``fitted``: a ``calib.params.Fitted`` (torque sensitivities, gravity
+        coefficients) to use instead of the robot data file's values."""
         self.s = session
-        self.conv = Conversions.for_robot(robot)
-        self.coeffs = load_robot(robot).gravity_coeffs
+        if fitted is None:
+            self.conv = Conversions.for_robot(robot)
+            self.coeffs = load_robot(robot).gravity_coeffs
+        else:
+            self.conv = Conversions.from_model(load_robot(robot), sigma=fitted.sigma)
+            self.coeffs = dict(fitted.gravity_coeffs)
         self.torques = np.zeros(self.conv.n)        # last gravity torques (N*m), for the planning level
 
     def __call__(self) -> None:
@@ -43,9 +50,9 @@ class Weightless:
         self.torques = gload
 
 
-def run(session: Session, cycles: int | None = None) -> np.ndarray:
+def run(session: Session, cycles: int | None = None, fitted=None) -> np.ndarray:
     """Float the arm until <CR> (or for ``cycles`` control cycles); returns the angle drift (rad)."""
-    weightless = Weightless(session, session.robot)
+    weightless = Weightless(session, session.robot, fitted)
     session.control(None, weightless)         # dummy() is None
     session.chg.power_on.com = 1              # turn on the arm power
     session.wait(until=lambda: session.how.power, seconds=5.0)
@@ -67,14 +74,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rate", type=int, default=36, help="sample rate, Hz (thesis default 36)")
     ap.add_argument("--cycles", type=int, help="release after this many cycles instead of waiting for <CR>")
     ap.add_argument("--simula", metavar="ARGS", help="start a lockstep simula with these options and use it")
+    ap.add_argument("--params", metavar="FILE", help="parameter file of fitted values (`calib fit`)")
     args = ap.parse_args(argv)
+    from calib.errors import CalibError
+    from calib.params import load_fitted
+    try:
+        fitted = load_fitted(args.params, args.robot) if args.params else None
+    except (CalibError, OSError) as exc:
+        print(f"zero_gravity: --params {args.params}: {exc}", file=sys.stderr)
+        return 2
     with ExitStack() as stack:
         url = args.url
         if args.simula is not None:
             from rci.simula.process import SimulaProcess
             url = stack.enter_context(SimulaProcess(*args.simula.split(), robot=args.robot, lockstep=True)).url
         session = stack.enter_context(Session(url, args.robot, rate_hz=args.rate))
-        drift = run(session, args.cycles)
+        drift = run(session, args.cycles, fitted)
         print("joint drift while weightless (deg):", np.array2string(np.degrees(drift), precision=3))
     return 0
 
