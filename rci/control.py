@@ -279,18 +279,10 @@ class ControlTask(threading.Thread):
             # --- user function 1 ----------------------------------------------------
             t_user = 0.0
             if self.f1 is not None:
-                t0 = time.monotonic()
-                self.in_user = True
-                try:
-                    self.f1()
-                except Exception as e:
-                    self.in_user = False
-                    self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER), f"in f1: {_describe_exception(e)}")
+                spent = self._call_user(self.f1, "f1")
+                if spent is None or self.ended:
                     return
-                self.in_user = False
-                t_user += time.monotonic() - t0
-                if self.ended:
-                    return
+                t_user += spent
             if s.terminate and self._user_terminate():
                 return
             # --- check and send chg ------------------------------------------------
@@ -321,18 +313,10 @@ class ControlTask(threading.Thread):
                 t_base = None
             # --- user function 2 ----------------------------------------------------
             if self.f2 is not None:
-                t0 = time.monotonic()
-                self.in_user = True
-                try:
-                    self.f2()
-                except Exception as e:
-                    self.in_user = False
-                    self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER), f"in f2: {_describe_exception(e)}")
+                spent = self._call_user(self.f2, "f2")
+                if spent is None or self.ended:
                     return
-                self.in_user = False
-                t_user += time.monotonic() - t0
-                if self.ended:
-                    return
+                t_user += spent
             if s.terminate and self._user_terminate():
                 return
             # --- bookkeeping -------------------------------------------------------
@@ -350,6 +334,20 @@ class ControlTask(threading.Thread):
                                    f"cycle took {duration * 1e3:.2f} ms, period {self.period * 1e3:.2f} ms "
                                    f"(user functions {t_user * 1e3:.2f} ms)")
                     return
+
+    def _call_user(self, fn, name: str) -> float | None:
+        """Run one user control function; its duration in seconds, or None if it raised
+        (the control is then terminated with R_USERFUNC)."""
+        t0 = time.monotonic()
+        self.in_user = True
+        try:
+            fn()
+        except Exception as e:
+            self.in_user = False  # before terminate, so the watchdog does not see a hung function
+            self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER), f"in {name}: {_describe_exception(e)}")
+            return None
+        self.in_user = False
+        return time.monotonic() - t0
 
     def _user_terminate(self) -> bool:
         """A.5.2: the control functions set ``session.terminate`` to force an error."""
