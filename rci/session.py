@@ -109,6 +109,9 @@ class Session:
         self.termination: codes.Termination | None = None
         self._task: ControlTask | None = None
         self._term_event = threading.Event()     # set when a termination is waiting for delivery
+        # called with the Termination in the control thread, after the implicit release (rci.multi
+        # uses it to release the other arms of a workcell at once); must be quick, must not raise
+        self.termination_listeners: list[Callable[[codes.Termination], Any]] = []
         self._delivered: codes.Termination | None = None
         self._busy = 0
         self._pending_interrupt = False
@@ -351,6 +354,8 @@ class Session:
         self.terminate = term.code
         self.termination = term
         self._term_event.set()
+        for listener in list(self.termination_listeners):
+            listener(term)
         if self._signals_active() and self._main_ident is not None:
             try:
                 signal.pthread_kill(self._main_ident, TERM_SIGNAL)

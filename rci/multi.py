@@ -1,0 +1,728 @@
+"""Multi-robot RCI (thesis 2.4): one planning level, one control task per arm, shared data and channels.
+
+A ``Workcell`` drives several arms, each an ordinary ``rci.Session`` on its own link to its
+own robot or ``simula`` process (thesis 2.4.4.1: each processor has its own robot; each
+control task is one user function driven by its own interrupt, here the arm's HOW). The
+planning level is the user's program, as in single-robot RCI.
+
+Thesis -> Python:
+
+* ``RCIload(image, processor_id)``   -> ``Workcell({"puma": (url, "puma260"), ...}).open()``
+* ``RCIcontrol(event_id, function)`` -> ``cell.control(puma=f, microbo=(f1, f2))``
+* ``RCIrelease(event_id)``           -> ``cell.release("puma")`` or ``cell.release()`` (all)
+* shared memory (c1, c2, t1)          -> ``cell.shared`` (``Shared``: latest value per name)
+* channels (t2, t3)                   -> ``cell.channel(sender, receiver, capacity, overflow)``
+* ``send(receiver_id, buf, size)``    -> ``cell.send(receiver, message)``
+* ``receive(sender_id, buf, size)``   -> ``cell.receive(sender=None)`` -> ``(sender, message)`` or None
+* signals from control tasks          -> ``cell.on_error`` gets an ``ArmTermination`` naming the arm
+
+Sample synchronisation (``sync=``):
+
+* ``"free"``: each arm's task runs on its own robot's clock, at its own rate; data in
+  ``shared`` and the channels is visible to the others as soon as it is written (t1
+  semantics: a reader sees the latest complete value, never a half-written one).
+* ``"lockstep"``: the tasks meet at a barrier at the start of every *sync sample*, one
+  period of ``gcd(rates)`` (arms at 72 and 36 Hz meet every 2nd and every cycle). Writes
+  to ``shared`` and sends on channels made between two barriers become visible to
+  everyone at the next barrier, so arm A's function in sample n sees arm B's data of
+  sample n - 1 whatever the thread timing: runs against lockstep simulas are then
+  deterministic. Against real-time robots with separate clocks the barrier wait counts
+  toward the cycle (it can cause overruns); use it with lockstep simulas or robots
+  sharing a clock.
+
+An error on any arm (a range check, a dead link, an exception in its function) ends that
+arm's control with its own implicit release (A.5), then releases every other arm at once
+(stop, power kept: they are healthy), and tells the planning level with the arm's name.
+"""
+from __future__ import annotations
+
+import collections
+import itertools
+import math
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable, Iterable
+
+import numpy as np
+
+from . import codes
+from .exceptions import ControlTerminated, NoControl, NotOpen, RCIError
+from .realtime import RealtimeStatus, lock_memory, unlock_memory
+from .session import TERM_SIGNAL, Session
+
+PLANNING = "planning"      # the planning level's name as a sender/receiver
+OVERFLOW = ("drop_oldest", "block", "error")
+SYNC_MODES = ("free", "lockstep")
+
+
+# --- errors --------------------------------------------------------------------------
+class MultiError(RCIError):
+    """Misuse of the multi-robot primitives (unknown arm, bad option, wrong level)."""
+
+
+class ChannelFull(MultiError):
+    """A send on a full channel whose overflow policy is "error" (or "block" from a control task)."""
+
+
+class SyncTimeout(MultiError):
+    """Lockstep: an arm did not reach the sample barrier in time (names the arm that is late)."""
+
+
+@dataclass
+class ArmTermination:
+    """Why the workcell's control ended: ``arm`` (its name) and its ``rci.codes.Termination``.
+
+    ``released`` names the other arms the workcell released because of it.
+    """
+
+    arm: str
+    robot: str
+    termination: codes.Termination
+    released: list[str] = field(default_factory=list)
+
+    @property
+    def code(self) -> int:
+        return self.termination.code
+
+    def __str__(self) -> str:
+        rel = f"; released {', '.join(self.released)}" if self.released else ""
+        return f"arm {self.arm!r} ({self.robot}): {self.termination}{rel}"
+
+    def message(self) -> str:
+        """The TERMINATE/ message (the reason is printed after it by ``print_terminate_code``)."""
+        t = self.termination
+        where = f" (cycle {t.cycle})" if t.cycle >= 0 else ""
+        rel = f"; released {', '.join(self.released)}" if self.released else ""
+        return f"arm {self.arm!r} ({self.robot}): {t.detail or t.name}{where}{rel}"
+
+
+class ArmTerminated(ControlTerminated):
+    """Raised at the planning level (``on_error="raise"``): one arm's control ended on an error."""
+
+    def __init__(self, t: ArmTermination) -> None:
+        self.arm = t.arm
+        self.arm_termination = t
+        super().__init__(t.termination)
+        self.args = (str(t),)
+
+    def __str__(self) -> str:
+        return str(self.arm_termination)
+
+
+# --- copying what crosses between tasks ----------------------------------------------
+def snapshot(value: Any) -> Any:
+    """A copy safe to hand to another task: arrays copied (containers walked), others as they are.
+
+    Messages should be immutable or arrays; a mutable object other than these is passed by
+    reference, as in the thesis's shared memory.
+    """
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, (list, tuple)):
+        return type(value)(snapshot(v) for v in value)
+    if isinstance(value, dict):
+        return {k: snapshot(v) for k, v in value.items()}
+    return value
+
+
+# --- shared data (t1) ----------------------------------------------------------------
+class Shared:
+    """Shared data between the control tasks and the planning level (thesis 2.4.2.2, mode t1).
+
+    ``put(name, value)`` / ``get(name, default)`` (also ``shared[name]``). Each value is
+    written and read as one unit under a lock (the "several bytes nondivisibly" RCI needs),
+    and copied (arrays), so a reader never sees half of an update. With ``deferred=True``
+    (a lockstep workcell) writes are held until ``commit()``, called at each sample barrier.
+    """
+
+    def __init__(self, deferred: bool = False) -> None:
+        self._values: dict[Hashable, Any] = {}
+        self._pending: dict[Hashable, Any] = {}
+        self._lock = threading.Lock()
+        self.deferred = deferred
+
+    def put(self, name: Hashable, value: Any) -> None:
+        v = snapshot(value)
+        with self._lock:
+            (self._pending if self.deferred else self._values)[name] = v
+
+    def get(self, name: Hashable, default: Any = None) -> Any:
+        with self._lock:
+            v = self._values.get(name, default)
+        return snapshot(v)
+
+    def __getitem__(self, name: Hashable) -> Any:
+        with self._lock:
+            if name not in self._values:
+                raise KeyError(f"shared data has no {name!r} (yet): names are {sorted(map(str, self._values))}")
+            v = self._values[name]
+        return snapshot(v)
+
+    def __setitem__(self, name: Hashable, value: Any) -> None:
+        self.put(name, value)
+
+    def __contains__(self, name: Hashable) -> bool:
+        with self._lock:
+            return name in self._values
+
+    def commit(self) -> None:
+        """Make the deferred writes visible (lockstep sample barrier)."""
+        with self._lock:
+            if self._pending:
+                self._values.update(self._pending)
+                self._pending.clear()
+
+
+# --- channels (t2, t3) -----------------------------------------------------------------
+class Channel:
+    """A FIFO from one task to another (thesis 2.4.2.2 "data channels", modes t2 and t3).
+
+    ``capacity`` messages at most; on overflow ``"drop_oldest"`` (t3 asynchronous: the
+    oldest is lost and counted in ``dropped``), ``"block"`` (t3 synchronous, and t2 with a
+    large capacity: the sender waits; only the planning level may wait, a control task gets
+    ``ChannelFull``), or ``"error"`` (``ChannelFull``). ``receive()`` returns the oldest
+    message or None; only the planning level may pass a ``timeout`` to wait for one.
+    With ``deferred`` (lockstep) a message sent in sample n is receivable from sample n + 1.
+    """
+
+    def __init__(self, sender: str, receiver: str, capacity: int = 16, overflow: str = "drop_oldest", *,
+                 deferred: bool = False, is_control_thread: Callable[[], bool] = lambda: False) -> None:
+        if overflow not in OVERFLOW:
+            raise MultiError(f"channel {sender}->{receiver}: overflow must be one of {OVERFLOW}, not {overflow!r}")
+        if int(capacity) < 1:
+            raise MultiError(f"channel {sender}->{receiver}: capacity must be >= 1, not {capacity!r}")
+        self.sender, self.receiver = sender, receiver
+        self.capacity = int(capacity)
+        self.overflow = overflow
+        self.deferred = deferred
+        self.dropped = 0
+        self.sent = 0
+        self._items: collections.deque[tuple[int, Any]] = collections.deque()
+        self._pending: list[tuple[int, Any]] = []
+        self._cond = threading.Condition()
+        self._in_control = is_control_thread
+        self._stamp = itertools.count()
+
+    def __repr__(self) -> str:
+        return f"Channel({self.sender!r} -> {self.receiver!r}, {len(self)}/{self.capacity}, {self.overflow})"
+
+    def __len__(self) -> int:
+        return len(self._items) + len(self._pending)
+
+    def send(self, message: Any, timeout: float | None = None, *, stamp: int | None = None) -> None:
+        """Queue ``message`` (a copy of its arrays). Never blocks in a control task."""
+        item = (next(self._stamp) if stamp is None else stamp, snapshot(message))
+        with self._cond:
+            if len(self) >= self.capacity:
+                if self.overflow == "drop_oldest":
+                    if self._items:
+                        self._items.popleft()
+                    else:
+                        self._pending.pop(0)
+                    self.dropped += 1
+                elif self.overflow == "error" or self._in_control():
+                    why = "" if self.overflow == "error" else " (a control task never waits)"
+                    raise ChannelFull(f"channel {self.sender}->{self.receiver} is full "
+                                      f"({self.capacity} messages){why}")
+                else:
+                    if not self._cond.wait_for(lambda: len(self) < self.capacity, timeout):
+                        raise ChannelFull(f"channel {self.sender}->{self.receiver}: still full after {timeout} s")
+            (self._pending if self.deferred else self._items).append(item)
+            self.sent += 1
+            self._cond.notify_all()
+
+    def peek_stamp(self) -> int | None:
+        with self._cond:
+            return self._items[0][0] if self._items else None
+
+    def receive(self, timeout: float = 0.0) -> Any:
+        """The oldest message, or None if there is none (after waiting ``timeout`` s, planning level only)."""
+        if timeout and self._in_control():
+            raise MultiError(f"channel {self.sender}->{self.receiver}: a control task must not wait in receive()")
+        with self._cond:
+            if not self._items and timeout:
+                self._cond.wait_for(lambda: bool(self._items), timeout)
+            if not self._items:
+                return None
+            msg = self._items.popleft()[1]
+            self._cond.notify_all()
+            return msg
+
+    def commit(self) -> None:
+        with self._cond:
+            if self._pending:
+                self._items.extend(self._pending)
+                self._pending.clear()
+                self._cond.notify_all()
+
+
+# --- the workcell -----------------------------------------------------------------------
+ArmSpec = Session | tuple[str, str] | str
+
+
+class Workcell:
+    """Several arms, one control task each, one planning level (thesis 2.4; Figure 2.10).
+
+    ``arms`` maps a name to a ``(url, robot)`` pair or an unopened ``rci.Session``.
+    ``sync`` is ``"free"`` or ``"lockstep"`` (module docstring); ``sync_timeout`` (s) how long
+    an arm waits at a lockstep barrier for the others (default 1 s against lockstep
+    simulas, else two periods of the slowest arm). ``on_error``: None (print and exit 1),
+    ``"raise"`` (``ArmTerminated`` in the main thread) or a callable taking an
+    ``ArmTermination``. Other keyword arguments go to every ``rci.Session`` (``rate_hz=``,
+    ``limits=``, ...); ``rates={"microbo": 18}`` sets one arm's rate.
+    """
+
+    def __init__(self, arms: dict[str, ArmSpec], *, sync: str = "free", sync_timeout: float | None = None,
+                 on_error: Callable[[ArmTermination], Any] | str | None = None,
+                 on_interrupt: Callable[[], Any] | None = None, rates: dict[str, int] | None = None,
+                 signals: bool = True, **session_options: Any) -> None:
+        if not arms:
+            raise MultiError("Workcell: no arms given")
+        if sync not in SYNC_MODES:
+            raise MultiError(f"Workcell: sync must be one of {SYNC_MODES}, not {sync!r}")
+        if PLANNING in arms:
+            raise MultiError(f"Workcell: {PLANNING!r} is the planning level's name; choose another arm name")
+        unknown = set(rates or {}) - set(arms)
+        if unknown:
+            raise MultiError(f"Workcell: rates given for unknown arms {sorted(unknown)}; arms are {sorted(arms)}")
+        self.sync = sync
+        self.sync_timeout = sync_timeout
+        self.on_error = on_error
+        self.on_interrupt = on_interrupt
+        self.use_signals = signals
+        self.sessions: dict[str, Session] = {}
+        for name, spec in arms.items():
+            self.sessions[name] = self._make_session(name, spec, (rates or {}).get(name), session_options)
+        deferred = sync == "lockstep"
+        self.shared = Shared(deferred=deferred)
+        self.channels: dict[tuple[str, str], Channel] = {}
+        self.termination: ArmTermination | None = None       # the first arm error
+        self.terminations: list[ArmTermination] = []          # every arm error, in order
+        self.sample = 0                                       # lockstep: sync samples completed
+        self.rt_status = RealtimeStatus()
+        self._delivered: ArmTermination | None = None
+        self._lock = threading.RLock()
+        self._term_event = threading.Event()
+        self._barrier: threading.Barrier | None = None
+        self._arrived: dict[str, int] = {}
+        self._threads: dict[int, str] = {}
+        self._stamp = itertools.count()
+        self._old_handlers: dict[int, Any] = {}
+        self._main_ident: int | None = None
+        self._busy = 0
+
+    def _make_session(self, name: str, spec: ArmSpec, rate: int | None, options: dict) -> Session:
+        if isinstance(spec, Session):
+            if spec.is_open:
+                raise MultiError(f"arm {name!r}: give the Workcell an unopened Session (it opens it)")
+            s = spec
+            s.use_signals = False
+        else:
+            url, robot = (spec, "puma260") if isinstance(spec, str) else spec
+            opts = dict(options)
+            if rate is not None:
+                opts["rate_hz"] = rate
+            opts["signals"] = False          # the workcell owns the signals: one handler for every arm
+            opts["lock_memory"] = False      # mlockall is process-wide: the workcell takes it once
+            s = Session(url, robot, **opts)
+        s.on_error = lambda _t, _name=name: self._deliver()
+        s.termination_listeners.append(lambda t, _name=name: self._arm_terminated(_name, t))
+        return s
+
+    # --- access -----------------------------------------------------------------------
+    def __getitem__(self, name: str) -> Session:
+        try:
+            return self.sessions[name]
+        except KeyError:
+            raise MultiError(f"no arm {name!r} in this workcell; arms are {sorted(self.sessions)}") from None
+
+    @property
+    def arms(self) -> list[str]:
+        return list(self.sessions)
+
+    def current_task(self) -> str:
+        """The name of the task running this code: an arm name in its control task, else "planning"."""
+        return self._threads.get(threading.get_ident(), PLANNING)
+
+    def _in_control_thread(self) -> bool:
+        return threading.get_ident() in self._threads
+
+    # --- RCIload / open ---------------------------------------------------------------
+    def open(self) -> "Workcell":
+        """Open every arm's link (HELLO/WELCOME); on any failure close the ones already open."""
+        with self._primitive():
+            done: list[Session] = []
+            try:
+                for s in self.sessions.values():
+                    s.open()
+                    done.append(s)
+            except BaseException as e:
+                for s in done:
+                    s._close_quietly(power_off=False)
+                name = next(n for n, s in self.sessions.items() if s not in done)
+                raise type(e)(f"arm {name!r}: {e}") if isinstance(e, RCIError) and e.args else e
+            lock_memory(self.rt_status)
+            self._install_signals()
+            return self
+
+    # --- RCIcontrol ---------------------------------------------------------------------
+    def control(self, **functions: Callable[[], Any] | tuple | None) -> None:
+        """Start control on the named arms: ``control(puma=f, microbo=(f1, f2))``.
+
+        A single function runs as f2 (after ``chg`` is sent, as ``RCIcontrol(dummy, f)``); a
+        pair is (f1, f2). Functions take no arguments (closures share memory). In lockstep
+        every arm of the workcell must be started in one call. Returns once every arm ran
+        its first cycle.
+        """
+        with self._primitive():
+            if not functions:
+                raise MultiError("control(): name at least one arm, e.g. control(puma=f)")
+            for name in functions:
+                self[name]
+            if self.sync == "lockstep":
+                if set(functions) != set(self.sessions):
+                    raise MultiError(f"control(): a lockstep workcell starts all its arms together "
+                                     f"({sorted(self.sessions)}), got {sorted(functions)}")
+                if any(s.in_control for s in self.sessions.values()):
+                    raise MultiError("control(): release the workcell before starting a lockstep control again")
+            self.termination = None
+            self._delivered = None
+            self._term_event.clear()
+            pairs = {}
+            for name, fns in functions.items():
+                f1, f2 = (fns if isinstance(fns, tuple) else (None, fns))
+                for which, f in (("f1", f1), ("f2", f2)):
+                    if f is not None and not callable(f):
+                        raise MultiError(f"control(): arm {name!r}: {which} = {f!r} is not callable")
+                pairs[name] = (f1, f2)
+            if self.sync == "lockstep":
+                self._prepare_lockstep()
+            started: list[str] = []
+            try:
+                for name, (f1, f2) in pairs.items():
+                    self.sessions[name].control(*self._wrap(name, f1, f2))
+                    started.append(name)
+            except BaseException:
+                if self._barrier is not None:
+                    self._barrier.abort()
+                for n in started:
+                    self._release_quietly(n)
+                raise
+
+    def _prepare_lockstep(self) -> None:
+        rates = {n: s.rate_hz for n, s in self.sessions.items()}
+        base = math.gcd(*rates.values())
+        self._every = {n: r // base for n, r in rates.items()}      # cycles per sync sample
+        self._rates = rates
+        self.sample = 0
+        self._arrived = {n: 0 for n in self.sessions}
+
+        def commit() -> None:
+            self.shared.commit()
+            for ch in list(self.channels.values()):
+                ch.commit()
+            self.sample += 1
+
+        self._barrier = threading.Barrier(len(self.sessions), action=commit)
+
+    def _timeout(self) -> float:
+        if self.sync_timeout is not None:
+            return self.sync_timeout
+        if all(s.lockstep for s in self.sessions.values()):
+            return 1.0      # below the 2 s a lockstep session's watchdog allows a function
+        return 2.0 / min(s.rate_hz for s in self.sessions.values())
+
+    def _wrap(self, name: str, f1, f2) -> tuple:
+        """The functions given to the arm's Session: register the thread; in lockstep, the barrier."""
+        session = self.sessions[name]
+        state = {"cycle": 0, "skip": False}
+        threads = self._threads
+
+        def register() -> None:
+            threads[threading.get_ident()] = name
+
+        if self.sync == "free":
+            def g1() -> None:
+                if state["cycle"] == 0:
+                    register()
+                state["cycle"] += 1
+                if f1 is not None:
+                    f1()
+            return g1, f2
+
+        every = self._every[name]
+        rate0 = self._rates[name]
+        barrier = self._barrier
+        timeout = self._timeout()
+
+        def g1() -> None:
+            c = state["cycle"]
+            if c == 0:
+                register()
+            state["cycle"] = c + 1
+            if session.rate_hz != rate0:
+                raise MultiError(f"lockstep: arm {name!r} changed its rate from {rate0} to {session.rate_hz} Hz; "
+                                 "a lockstep workcell keeps its rates")
+            if c % every == 0:
+                self._arrived[name] = c // every
+                try:
+                    barrier.wait(timeout)
+                except threading.BrokenBarrierError:
+                    if self.termination is not None or session._task is None or session._task.release_requested:
+                        state["skip"] = True     # another arm failed or the cell is releasing: do nothing more
+                        return
+                    late = [n for n, k in self._arrived.items() if k < c // every]
+                    raise SyncTimeout(f"lockstep: arm {name!r} waited {timeout:.3f} s at sample {c // every} for "
+                                      f"{', '.join(map(repr, late)) or 'another arm'}") from None
+            if f1 is not None:
+                f1()
+
+        def g2() -> None:
+            if not state["skip"] and f2 is not None:
+                f2()
+
+        return g1, g2
+
+    # --- RCIrelease / close ----------------------------------------------------------------
+    def release(self, *names: str, power_off: bool = False) -> None:
+        """End control on the named arms (all arms under control if none is named)."""
+        with self._primitive():
+            targets = list(names) or [n for n, s in self.sessions.items() if s.in_control]
+            if not targets and not names:
+                raise NoControl("release(): no arm of the workcell is under control")
+            for n in targets:
+                self[n]
+            if self.sync == "lockstep" and names and set(names) != {n for n, s in self.sessions.items()
+                                                                     if s.in_control}:
+                raise MultiError("release(): a lockstep workcell releases all its arms together (call release())")
+            for n in targets:
+                task = self.sessions[n]._task
+                if task is not None and not task.ended:
+                    task.request_release(power_off)       # all at once, then wait for each
+            if self._barrier is not None:
+                self._barrier.abort()
+            for n in targets:
+                s = self.sessions[n]
+                if s.in_control:
+                    s.release(power_off)
+            self._forget_threads()
+
+    def _release_quietly(self, name: str) -> None:
+        try:
+            s = self.sessions[name]
+            if s.in_control:
+                s.release()
+        except Exception:
+            pass
+
+    def _forget_threads(self) -> None:
+        alive = {s._task.ident for s in self.sessions.values() if s._task is not None and s.in_control}
+        for ident in list(self._threads):
+            if ident not in alive:
+                self._threads.pop(ident, None)
+
+    def close(self, power_off: bool = False) -> None:
+        """Release every arm (power off if asked), close every link."""
+        with self._primitive():
+            if not any(s.is_open for s in self.sessions.values()):
+                raise NotOpen("close(): the workcell is not open")
+            self._close_all(power_off)
+
+    def _close_all(self, power_off: bool) -> None:
+        for s in self.sessions.values():
+            task = s._task
+            if task is not None and not task.ended:
+                task.request_release(power_off)
+        if self._barrier is not None:
+            self._barrier.abort()
+        for s in self.sessions.values():
+            s._close_quietly(power_off)
+        if self.rt_status.mlockall is True:
+            unlock_memory()
+            self.rt_status.mlockall = None
+        self._restore_signals()
+
+    def __enter__(self) -> "Workcell":
+        if not any(s.is_open for s in self.sessions.values()):
+            self.open()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self._close_all(power_off=exc_type is not None and exc_type is not SystemExit)
+
+    # --- data between tasks ------------------------------------------------------------------
+    def channel(self, sender: str, receiver: str, capacity: int = 16, overflow: str = "drop_oldest") -> Channel:
+        """The channel from ``sender`` to ``receiver`` (arm names or "planning"), made on first use."""
+        for n in (sender, receiver):
+            if n != PLANNING:
+                self[n]
+        if sender == receiver:
+            raise MultiError(f"channel: {sender!r} cannot send to itself")
+        key = (sender, receiver)
+        with self._lock:
+            ch = self.channels.get(key)
+            if ch is None:
+                ch = Channel(sender, receiver, capacity, overflow, deferred=self.sync == "lockstep",
+                             is_control_thread=self._in_control_thread)
+                self.channels[key] = ch
+            elif (capacity, overflow) != (ch.capacity, ch.overflow):
+                raise MultiError(f"channel {sender}->{receiver} exists with capacity {ch.capacity}, "
+                                 f"overflow {ch.overflow!r}")
+            return ch
+
+    def send(self, receiver: str, message: Any, timeout: float | None = None) -> None:
+        """Thesis ``send(receiver_id, buffer, size)``: from the calling task to ``receiver``."""
+        sender = self.current_task()
+        key = (sender, receiver)
+        ch = self.channels.get(key) or self.channel(sender, receiver)
+        ch.send(message, timeout, stamp=next(self._stamp))
+
+    def receive(self, sender: str | None = None, timeout: float = 0.0) -> tuple[str, Any] | None:
+        """Thesis ``receive(sender_id, ...)``: ``(sender, message)`` for the calling task, or None.
+
+        ``sender=None`` (the thesis's 0) takes the oldest message from any sender. Never
+        waits in a control task; the planning level may give a ``timeout`` (s).
+        """
+        me = self.current_task()
+        if sender is not None and sender != PLANNING:
+            self[sender]
+        if timeout and self._in_control_thread():
+            raise MultiError(f"receive(): arm {me!r}'s control task must not wait")
+        deadline = time.monotonic() + timeout
+        while True:
+            chans = [c for (s, r), c in list(self.channels.items()) if r == me and (sender is None or s == sender)]
+            stamped = [(c.peek_stamp(), c) for c in chans]
+            stamped = [x for x in stamped if x[0] is not None]
+            if stamped:
+                c = min(stamped, key=lambda x: x[0])[1]
+                msg = c.receive()
+                if msg is not None or c.peek_stamp() is not None:
+                    return c.sender, msg
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            self._deliver_here()
+            time.sleep(min(0.002, left))
+
+    # --- planning-level wait and error delivery -------------------------------------------
+    def wait(self, seconds: float | None = None, until: Callable[[], bool] | None = None,
+             poll: float = 0.005) -> bool:
+        """Block the planning level ``seconds`` or until ``until()``; arm errors are delivered at once."""
+        deadline = None if seconds is None else time.monotonic() + seconds
+        while True:
+            self._deliver_here()
+            if until is not None and until():
+                return True
+            now = time.monotonic()
+            if deadline is not None and now >= deadline:
+                return False
+            if until is None and deadline is None and not any(s.in_control for s in self.sessions.values()):
+                return False
+            step = poll if deadline is None else min(poll, deadline - now)
+            if until is None:
+                self._term_event.wait(max(step, 0.0) if deadline is None else max(deadline - now, 0.0))
+                if self.termination is not None and self._delivered is self.termination:
+                    self._term_event.clear()
+            else:
+                time.sleep(max(step, 0.0))
+
+    def _arm_terminated(self, name: str, term: codes.Termination) -> None:
+        """Session listener, in the failing arm's control thread: release the others, tell the planner."""
+        with self._lock:
+            others = [n for n, s in self.sessions.items()
+                      if n != name and s._task is not None and not s._task.ended]
+            at = ArmTermination(name, self.sessions[name].robot, term, others)
+            self.terminations.append(at)
+            first = self.termination is None
+            if first:
+                self.termination = at
+        for n in others:
+            # stop, power kept: the other arms are healthy; their tasks send the release next cycle
+            self.sessions[n]._task.request_release(False)
+        if self._barrier is not None:
+            self._barrier.abort()
+        self._term_event.set()
+        if first and self._old_handlers and self._main_ident is not None:
+            try:
+                signal.pthread_kill(self._main_ident, TERM_SIGNAL)
+            except (ProcessLookupError, OSError):
+                pass
+
+    def _deliver_here(self) -> None:
+        if threading.current_thread() is threading.main_thread() or not self._old_handlers:
+            self._deliver()
+
+    def _deliver(self) -> None:
+        t = self.termination
+        if t is None or self._delivered is t or self._busy:
+            return
+        self._delivered = t
+        for s in self.sessions.values():        # the sessions' own record of it is delivered too
+            s._delivered = s.termination
+            task = s._task
+            if task is not None and task is not threading.current_thread():
+                task.finished.wait(min(0.2, 4 * task.period))
+        h = self.on_error
+        if h == "raise":
+            raise ArmTerminated(t)
+        if h is None:
+            codes.print_terminate_code(t.code, t.message())
+            self._close_all(power_off=t.termination.severe)
+            raise SystemExit(1)
+        h(t)
+
+    class _Primitive:
+        def __init__(self, cell: "Workcell") -> None:
+            self.cell = cell
+
+        def __enter__(self) -> None:
+            self.cell._lock.acquire()
+            self.cell._busy += 1
+
+        def __exit__(self, exc_type, exc, tb) -> None:
+            c = self.cell
+            c._busy -= 1
+            c._lock.release()
+            if c._busy == 0 and exc_type is None and threading.current_thread() is threading.main_thread():
+                c._deliver()
+
+    def _primitive(self) -> "_Primitive":
+        return Workcell._Primitive(self)
+
+    # --- signals ---------------------------------------------------------------------------
+    def _install_signals(self) -> None:
+        if not self.use_signals or threading.current_thread() is not threading.main_thread():
+            return
+        self._main_ident = threading.main_thread().ident
+        self._old_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, lambda *_: self._deliver())
+        self._old_handlers[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_sigint)
+
+    def _restore_signals(self) -> None:
+        if not self._old_handlers or threading.current_thread() is not threading.main_thread():
+            return
+        for sig, old in self._old_handlers.items():
+            signal.signal(sig, old if old is not None else signal.SIG_DFL)
+        self._old_handlers = {}
+
+    def _on_sigint(self, signum, frame) -> None:
+        if self.on_interrupt is not None:
+            self.on_interrupt()
+            return
+        self._close_all(power_off=True)
+        codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), "interrupt (every arm released, power off)")
+        raise SystemExit(130)
+
+
+def open(arms: dict[str, ArmSpec], **options: Any) -> Workcell:  # noqa: A001 (thesis name)
+    """Open a workcell (every arm's link); use it in a ``with`` block."""
+    return Workcell(arms, **options).open()
+
+
+def describe(cell: Workcell) -> Iterable[str]:
+    """One line per arm: name, robot, url, rate, lockstep, in control."""
+    for n, s in cell.sessions.items():
+        yield f"{n}: {s.robot} at {s.url}, {s.rate_hz} Hz, {'lockstep' if s.lockstep else 'real time'}, " \
+              f"{'in control' if s.in_control else 'idle'}"
