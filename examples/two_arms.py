@@ -10,6 +10,7 @@ bounded, the oldest report is lost if the planning level falls behind). The plan
 prints the reports, then releases both arms.
 
     python examples/two_arms.py --simula                     # starts two lockstep simulas
+    python examples/two_arms.py --simula --sync free         # two real-time simulas, no barrier
     python examples/two_arms.py socket://127.0.0.1:7600 socket://127.0.0.1:7601
     python examples/two_arms.py --simula --rates 72 36        # PUMA at 72 Hz, Microbo at 36 Hz
     python examples/two_arms.py --simula --fail-at 40         # the Microbo's function raises at
@@ -122,7 +123,8 @@ def main(url_puma: str, url_microbo: str, seconds: float = 2.0, *, sync: str = "
 def _cli(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("urls", nargs="*", help="PUMA link URL, Microbo link URL")
-    ap.add_argument("--simula", action="store_true", help="start two lockstep simulas (-p) for the run")
+    ap.add_argument("--simula", action="store_true",
+                    help="start two simulas (-p) for the run: lockstep, or real time with --sync free")
     ap.add_argument("--seconds", type=float, default=4.0)
     ap.add_argument("--sync", choices=("lockstep", "free"), default="lockstep")
     ap.add_argument("--rates", type=int, nargs=2, default=(36, 36), metavar=("PUMA_HZ", "MICROBO_HZ"))
@@ -131,7 +133,9 @@ def _cli(argv: list[str] | None = None) -> int:
     with ExitStack() as stack:
         if a.simula:
             from rci.simula.process import SimulaProcess
-            urls = [stack.enter_context(SimulaProcess("-p", robot=r, lockstep=True)).url
+            # free sync lets each arm run on its own robot's clock: real-time simulas then, since two
+            # lockstep simulas left free would each run as fast as it is answered, unrelated in time
+            urls = [stack.enter_context(SimulaProcess("-p", robot=r, lockstep=a.sync == "lockstep")).url
                     for r in ("puma260", "microbo")]
         elif len(a.urls) == 2:
             urls = a.urls

@@ -509,6 +509,14 @@ class Workcell:
                 if s.in_control:
                     s.release(power_off)
             self._forget_threads()
+            self._flush()
+
+    def _flush(self) -> None:
+        """Make deferred writes and sends visible once the tasks are gone, so nothing sent is lost."""
+        if not any(s.in_control for s in self.sessions.values()):
+            self.shared.commit()
+            for ch in list(self.channels.values()):
+                ch.commit()
 
     def _release_quietly(self, name: str) -> None:
         try:
@@ -540,6 +548,7 @@ class Workcell:
             self._barrier.abort()
         for s in self.sessions.values():
             s._close_quietly(power_off)
+        self._flush()
         if self.rt_status.mlockall is True:
             unlock_memory()
             self.rt_status.mlockall = None
