@@ -1,0 +1,552 @@
+"""Event flag triples (thesis 5.6.3): start, stop and status flags that synchronise the motions of one or several arms.
+
+An ``EFT`` belongs to one motion request (``eft = move_ev(arm, position)``):
+
+* **start** (set by ``start_ev``, by default when the move is issued): the motion may not
+  begin until it holds a start code; the trajectory level then starts it as soon as it is
+  ready and copies the start code into **status** (rule 1).
+* **stop** (set by ``stop_ev``): halts the motion and initiates the next queued one; the
+  trajectory level sets it to ``DONE`` when the motion ends naturally. After the end the
+  stop code is copied into **status** (rule 2). Set before the start flag, it deletes the
+  motion from the queue without moving (rule 3).
+* Start codes are positive, stop codes negative, ``NULL`` (0) is reserved and nobody may
+  set it (rules 4, 5): ``status_ev(eft) > 0`` means running, ``< 0`` ended.
+
+Across arms, ``move_ev(arm_b, q, start=eft_a)`` makes B's motion wait for A's: the trajectory
+level that ends A's motion sets B's start flag in the same sample, with no round trip
+through the planning level. ``start_ev(code, e1, e2)`` sets several flags at once (each arm's
+generator sees them at its next sample), so motions of different arms start (or, with
+``stop_ev``, stop) together. Conditional motions (5.6.1) inherit the EFT of the nominal
+motion they replace.
+
+Works on arms from ``rccl.adaptive.open`` (their generator can end a motion early; the stop
+flag is watched once per sample as a motion monitor, 5.4.2). Misuse is refused at once: an
+object that is not a live EFT (``UnknownEvent``), a wait or a chain of start conditions that
+can never be satisfied (``Deadlock``, naming the motions in the cycle), bad codes.
+
+Thesis -> Python: ``move_ev(robot, position, params)`` -> ``move_ev(arm, position, start=START)``;
+``start_ev(code, count, eft...)`` -> ``start_ev(code, *efts)``; ``stop_ev`` likewise;
+``status_ev(eft)`` -> ``status_ev(eft)``; ``free_ev(count, eft...)`` -> ``free_ev(*efts)``;
+``stop_abort(robot)`` -> ``stop_abort(arm)``; waiting on a status -> ``wait_ev(eft)``.
+"""
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from typing import Any, Callable
+
+from .adaptive.conditional import choose
+from .adaptive.ending import MotionEnd
+from .adaptive.generator import HookQueue
+from .adaptive.monitor import Monitor
+from .exceptions import MotionError, RCCLError
+from .motion import Request
+from .position import Position
+
+# --- codes (rule 4: start codes > 0, stop codes < 0; rule 5: NULL is reserved) ------------
+NULL = 0
+START = 1          # the default start code, set by move_ev unless postponed
+DONE = -1          # the motion ended naturally (set by the trajectory level)
+FAULT = -2         # the trajectory level refused or stopped it (an error: see the request's .error)
+ABORTED = -3       # stop_abort flushed it, or a conditional motion replaced it (5.6.1)
+_RESERVED_NAMES = {NULL: "NULL", START: "START", DONE: "DONE", FAULT: "FAULT", ABORTED: "ABORTED"}
+
+
+class EventError(RCCLError):
+    """Misuse of the event flag triples (bad code, an arm that cannot take them, freeing a live one)."""
+
+
+class UnknownEvent(EventError):
+    """The object is not a live event flag triple (never one, or freed by ``free_ev``)."""
+
+
+class Deadlock(EventError):
+    """A wait or a start condition that can never be satisfied; the message names the motions involved."""
+
+
+def code_name(code: int) -> str:
+    return _RESERVED_NAMES.get(code, str(code))
+
+
+class EFT:
+    """An event flag triple bound to one motion request. Read ``start``, ``stop``, ``status``, ``state``."""
+
+    def __init__(self, serial: int, arm: str, request: Request) -> None:
+        self.serial = serial
+        self.arm = arm
+        self.request = request
+        self._start = NULL
+        self._stop = NULL
+        self._status = NULL
+        self.freed = False
+        self.after: EFT | None = None         # start when this one ends (set by move_ev(start=eft) / start_after)
+        self.after_code = START
+        self._followers: list[EFT] = []
+        self.t_started: float | None = None   # time.monotonic() when the trajectory level began it (s)
+        self.t_ended: float | None = None     # ... and when it ended (s): for ordering across arms
+
+    @property
+    def start(self) -> int:
+        return self._start
+
+    @property
+    def stop(self) -> int:
+        return self._stop
+
+    @property
+    def status(self) -> int:
+        """NULL (pending), the start code (active) or the stop code (completed). Read-only."""
+        return self._status
+
+    @property
+    def state(self) -> str:
+        s = self._status
+        return "pending" if s == NULL else ("active" if s > 0 else "completed")
+
+    @property
+    def where(self) -> str:
+        return getattr(self.request.position, "name", "?")
+
+    def __repr__(self) -> str:
+        return (f"EFT(#{self.serial} arm {self.arm!r} to {self.where}: start {code_name(self._start)}, "
+                f"stop {code_name(self._stop)}, status {code_name(self._status)})")
+
+    def describe(self) -> str:
+        return f"motion #{self.serial} of arm {self.arm!r} to {self.where}"
+
+
+# --- the registry (the thesis's "system" that allocates EFTs) -------------------------------
+_lock = threading.RLock()
+_changed = threading.Condition(_lock)
+_serial = itertools.count(1)
+_live: dict[int, EFT] = {}                      # id(eft) -> eft
+_arms: dict[int, "_ArmEvents"] = {}             # id(arm) -> its state
+
+
+def _check_live(eft: Any, where: str) -> EFT:
+    if not isinstance(eft, EFT):
+        raise UnknownEvent(f"{where}: {eft!r} is not an event flag triple (use the EFT move_ev returned)")
+    if eft.freed or id(eft) not in _live:
+        raise UnknownEvent(f"{where}: {eft.describe()} was freed by free_ev; its flags no longer exist")
+    return eft
+
+
+class _StopWatch(Monitor):
+    """The stop flag as a per-sample motion monitor (5.4.2), around the user's own monitor if any."""
+
+    def __init__(self, eft: EFT, inner: Monitor | None) -> None:
+        self.eft = eft
+        self.inner = inner
+        self.fn = inner.fn if inner is not None else (lambda s: None)
+        self.needs = inner.needs if inner is not None else ()
+
+    @property
+    def name(self) -> str:
+        return "stop_ev"
+
+    def __call__(self, s) -> MotionEnd | None:
+        code = self.eft._stop
+        if code != NULL:
+            return MotionEnd("stop", "stop_ev", code=code, t=s.t, sample=s.sample)
+        return self.inner(s) if self.inner is not None else None
+
+
+class _Done(threading.Event):
+    """A request's completion event that also tells the EFT (Request.finish calls its set())."""
+
+    def __init__(self, on_set: Callable[[], None], was_set: bool) -> None:
+        super().__init__()
+        self._on_set = on_set
+        if was_set:
+            super().set()
+
+    def set(self) -> None:
+        super().set()
+        self._on_set()
+
+
+class EventQueue(HookQueue):
+    """The arm's motion queue with the start gate of rule 1 and the queued-stop deletion of rule 3."""
+
+    def __init__(self, events: "_ArmEvents") -> None:
+        super().__init__()
+        self.events = events
+        self.next_eft: EFT | None = None      # set by move_ev around arm.move: the request it queues gets it
+        self.cleared_head: Request | None = None
+
+    def put(self, item: Request) -> None:
+        eft = self.next_eft
+        if eft is not None:
+            self.next_eft = None
+            eft.request = item
+            _bind(eft, item, self.pending.get("evalfn"))
+            if "evalfn" in self.pending:
+                del self.pending["evalfn"]     # merged into the stop watch
+        super().put(item)
+
+    def get(self) -> Request | None:
+        to_drop: list[Request] = []
+        out = None
+        with self._lock:
+            while self._items:
+                head = self._items[0]
+                eft = head.hooks.get("eft")
+                if eft is None:
+                    out = self._items.popleft()
+                    break
+                if eft._stop != NULL:            # rule 3: stopped before it started: delete it
+                    to_drop.append(self._items.popleft())
+                    continue
+                if eft._start == NULL:           # rule 1: not yet: the arm holds, the queue waits
+                    break
+                out = self._items.popleft()
+                break
+        # the global lock only after the queue's (move_ev takes them the other way round: never nested)
+        eft = out.hooks.get("eft") if out is not None else None
+        if eft is not None:
+            with _lock:
+                eft._status = eft._start     # the motion begins: start code -> status
+                eft.t_started = time.monotonic()
+                _changed.notify_all()
+        for r in to_drop:
+            r.finish(MotionError(f"{r.position.name}: deleted from the queue by its stop flag "
+                                 f"({code_name(r.hooks['eft']._stop)}) before it started"))
+        return out
+
+    def clear(self) -> list:
+        items = super().clear()
+        self.cleared_head = items[0] if items else None
+        return items
+
+
+def _bind(eft: EFT, req: Request, inner: Monitor | None) -> None:
+    """Attach ``eft`` to ``req``: the stop watch, the completion hook."""
+    req.hooks["eft"] = eft
+    req.hooks["evalfn"] = _StopWatch(eft, inner)
+    req._done = _Done(lambda: _finished(eft, req), req._done.is_set())
+
+
+class _ArmEvents:
+    """What the event flags keep per arm: its name, its queue, its EFTs in queue order."""
+
+    def __init__(self, arm, name: str) -> None:
+        gen = getattr(arm, "gen", None)
+        if gen is None or not hasattr(gen, "abort") or not isinstance(gen.queue, HookQueue):
+            raise EventError(f"arm {name!r}: event flag triples need an arm from rccl.adaptive.open (its trajectory "
+                             "generator can end a motion early, which the stop flag needs)")
+        self.arm = arm
+        self.name = name
+        self.efts: list[EFT] = []
+        old = gen.queue
+        q = EventQueue(self)
+        with old._lock:
+            q._items.extend(old._items)
+            old._items.clear()
+            q.pending = old.pending
+            gen.queue = q                 # the generator reads its queue attribute every transition
+            arm.queue = q
+
+
+def attach(arm, name: str | None = None) -> str:
+    """Prepare ``arm`` (from ``rccl.adaptive.open``) for event flag triples; returns the arm's name.
+
+    Called by ``move_ev`` on first use (name = the robot's name, made unique); call it
+    yourself to choose the name used in messages.
+    """
+    with _lock:
+        ae = _arms.get(id(arm))
+        if ae is not None:
+            if name is not None and name != ae.name:
+                raise EventError(f"attach: this arm is already attached as {ae.name!r}")
+            return ae.name
+        base = name or getattr(arm, "robot", "arm")
+        taken = {a.name for a in _arms.values()}
+        if name is not None and name in taken:
+            raise EventError(f"attach: another arm is already named {name!r}")
+        final = base
+        for i in itertools.count(2):
+            if final not in taken:
+                break
+            final = f"{base}#{i}"
+        _arms[id(arm)] = _ArmEvents(arm, final)
+        return final
+
+
+def detach(arm) -> None:
+    """Forget an arm (after it is closed)."""
+    with _lock:
+        ae = _arms.pop(id(arm), None)
+        if ae is not None:
+            for e in ae.efts:
+                _live.pop(id(e), None)
+
+
+def _events_of(arm) -> _ArmEvents:
+    attach(arm)
+    return _arms[id(arm)]
+
+
+# --- the primitives -----------------------------------------------------------------------
+def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_code: int = START) -> EFT:
+    """``move`` with an event flag triple: queue a motion of ``arm`` to ``position``; return its EFT.
+
+    ``start``: a start code (default ``START``: the motion may begin when ready), None to
+    postpone it (``start_ev`` later), or another EFT: begin when that motion ends (its
+    stop code, unless it was FAULT or ABORTED), with start code ``after_code``. The motion
+    parameters are the arm's current ones (setvel, setmod, ...), as for ``move``.
+    """
+    ae = _events_of(arm)
+    source = None
+    if isinstance(start, EFT):
+        source = _check_live(start, "move_ev(start=...)")
+        _check_start_code(after_code, "move_ev(after_code=...)")
+    elif start is not None:
+        _check_start_code(start, "move_ev(start=...)")
+    q: EventQueue = arm.gen.queue
+    eft = EFT(next(_serial), ae.name, None)         # its request is bound in EventQueue.put
+    if source is not None:
+        eft.after, eft.after_code = source, after_code
+    elif start is not None:
+        eft._start = int(start)
+    # not under the global lock: move() checks the path (milliseconds) and the arm's trajectory
+    # level takes that lock when a motion ends
+    q.next_eft = eft
+    try:
+        arm.move(position)
+    finally:
+        q.next_eft = None
+    if eft.request is None:                         # pragma: no cover - move() always queues or raises
+        raise EventError("move_ev: the motion was not queued")
+    with _lock:
+        _live[id(eft)] = eft
+        ae.efts.append(eft)
+        if source is not None:
+            source._followers.append(eft)
+            if source._status < 0:                  # it already ended: decide now
+                _fire(source, eft)
+        _changed.notify_all()
+    return eft
+
+
+def start_after(target: EFT, source: EFT, code: int = START) -> None:
+    """Make ``target``'s motion start when ``source``'s ends (its start flag must not be set yet).
+
+    Raises ``Deadlock`` if ``source`` already (through its own start condition or the motions
+    queued before it on its arm) waits for ``target``.
+    """
+    with _lock:
+        target = _check_live(target, "start_after(target)")
+        source = _check_live(source, "start_after(source)")
+        _check_start_code(code, "start_after(code)")
+        if target._start != NULL or target.after is not None:
+            raise EventError(f"start_after: {target.describe()} already has a start condition "
+                             f"(start {code_name(target._start)})")
+        path = _waits_for(source, target)
+        if path is not None:
+            chain = " -> ".join(e.describe() for e in [target] + path)
+            raise Deadlock(f"start_after: {chain}: the motions would wait for each other forever")
+        target.after, target.after_code = source, code
+        source._followers.append(target)
+        if source._status < 0:
+            _fire(source, target)
+        _changed.notify_all()
+
+
+def start_ev(code: int, *efts: EFT) -> None:
+    """Set the start flag of every EFT given to ``code`` (> 0), all at once."""
+    _check_start_code(code, "start_ev")
+    with _lock:
+        checked = [_check_live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
+        for e in checked:
+            e._start = int(code)
+        _changed.notify_all()
+
+
+def stop_ev(code: int, *efts: EFT) -> None:
+    """Set the stop flag of every EFT given to ``code`` (< 0), all at once: each motion halts at its
+    arm's next sample (or, not yet started, is deleted from the queue)."""
+    if not isinstance(code, int) or code >= 0:
+        raise EventError(f"stop_ev: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
+    with _lock:
+        checked = [_check_live(e, f"stop_ev(argument {i + 2})") for i, e in enumerate(efts)]
+        for e in checked:
+            if e._status >= 0:            # an ended motion keeps its stop code
+                e._stop = int(code)
+        _changed.notify_all()
+
+
+def status_ev(eft: EFT) -> int:
+    """The status flag: NULL (0) pending, the start code (> 0) running, the stop code (< 0) ended."""
+    return _check_live(eft, "status_ev")._status
+
+
+def free_ev(*efts: EFT) -> None:
+    """Give EFTs back to the system; their motions must have ended."""
+    with _lock:
+        checked = [_check_live(e, f"free_ev(argument {i + 1})") for i, e in enumerate(efts)]
+        busy = [e for e in checked if e._status >= 0]
+        if busy:
+            raise EventError("free_ev: " + "; ".join(f"{e.describe()} has not ended (status {code_name(e._status)})"
+                                                     for e in busy))
+        for e in checked:
+            e.freed = True
+            _live.pop(id(e), None)
+            for ae in _arms.values():
+                if e in ae.efts:
+                    ae.efts.remove(e)
+
+
+def stop_abort(arm) -> None:
+    """Flush ``arm``'s motion queue and bring it to a halt; every EFT not yet ended gets ABORTED."""
+    ae = _events_of(arm)
+    with _lock:
+        for e in ae.efts:
+            if e._status >= 0 and e._stop == NULL:
+                e._stop = ABORTED
+    for r in arm.gen.queue.clear():
+        r.finish(MotionError(f"{r.position.name}: not run, stop_abort flushed the queue of arm {ae.name!r}"))
+    arm.gen.abort(MotionEnd("stop", "stop_abort", code=ABORTED, t=arm.gen.t, sample=arm.gen.samples))
+    with _lock:
+        _changed.notify_all()
+
+
+def wait_ev(eft: EFT, *, started: bool = False, timeout: float | None = None, poll: float = 0.02) -> int:
+    """Block the planning level until ``eft``'s motion has ended (``started=True``: has begun); its status.
+
+    Raises ``Deadlock`` at once when nothing but this (blocked) planning level could ever
+    start the motion: its start flag, or that of a motion it waits for, is unset with no
+    start condition. Arm faults are delivered while waiting (the arm's ``check``).
+    """
+    eft = _check_live(eft, "wait_ev")
+    done = (lambda: eft._status != NULL) if started else (lambda: eft._status < 0)
+    deadline = None if timeout is None else time.monotonic() + timeout
+    arm = _arm_named(eft.arm)
+    with _lock:
+        while not done():
+            why = _never_starts(eft)
+            if why is not None:
+                raise Deadlock(f"wait_ev: {eft.describe()} can never {'start' if started else 'end'}: {why}")
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"wait_ev: {eft!r} after {timeout} s")
+            _changed.wait(poll)
+            if arm is not None and hasattr(arm, "check"):
+                _lock.release()
+                try:
+                    arm.check()
+                finally:
+                    _lock.acquire()
+        return eft._status
+
+
+# --- internals ---------------------------------------------------------------------------------
+def _check_start_code(code: Any, where: str) -> None:
+    if not isinstance(code, int) or isinstance(code, bool) or code <= 0:
+        raise EventError(f"{where}: start codes are positive integers (rule 4; NULL = 0 is reserved), got {code!r}")
+
+
+def _arm_named(name: str):
+    for ae in _arms.values():
+        if ae.name == name:
+            return ae.arm
+    return None
+
+
+def _finished(eft: EFT, req: Request) -> None:
+    """Request.finish of ``eft``'s request (trajectory level, or the planning level on recover)."""
+    with _lock:
+        if eft.request is not req:
+            return
+        dropper = req.hooks.get("dropped_by")
+        ae = next((a for a in _arms.values() if a.name == eft.arm), None)
+        if dropper is not None and ae is not None and ae.arm.gen.queue.cleared_head is req and eft._stop == NULL:
+            branch = choose(dropper.hooks.get("conditional", []), dropper.hooks.get("ended"))
+            if branch is not None:          # 5.6.3: the conditional motion inherits the nominal motion's EFT
+                eft.request = branch.request
+                _bind(eft, branch.request, branch.request.hooks.get("evalfn"))
+                _changed.notify_all()
+                return
+        if eft._stop == NULL:
+            if req.error is None:
+                eft._stop = DONE
+            elif dropper is not None:
+                eft._stop = ABORTED
+            else:
+                eft._stop = FAULT
+        eft._status = eft._stop
+        eft.t_ended = time.monotonic()
+        for f in eft._followers:
+            _fire(eft, f)
+        _changed.notify_all()
+
+
+def _fire(source: EFT, target: EFT) -> None:
+    """``source`` ended: start ``target`` unless ``source`` failed or was aborted."""
+    if target.after is source and target._start == NULL and source._status not in (FAULT, ABORTED):
+        target._start = target.after_code
+
+
+def _predecessor(e: EFT) -> EFT | None:
+    """The EFT queued just before ``e`` on its arm that has not ended (``e`` cannot start before it ends)."""
+    for a in _arms.values():
+        if a.name == e.arm:
+            lst = a.efts
+            i = lst.index(e) if e in lst else 0
+            for p in reversed(lst[:i]):
+                if p._status >= 0:
+                    return p
+            return None
+    return None
+
+
+def _deps(e: EFT) -> list[EFT]:
+    """The motions ``e`` waits for before it can start (none once it started or its stop flag is set)."""
+    if e._status != NULL or e._stop != NULL:
+        return []
+    out = []
+    p = _predecessor(e)
+    if p is not None:
+        out.append(p)
+    if e._start == NULL and e.after is not None and e.after._status >= 0:
+        out.append(e.after)
+    return out
+
+
+def _waits_for(e: EFT, target: EFT, seen: set | None = None) -> list[EFT] | None:
+    """A chain from ``e`` to ``target`` through start dependencies, or None."""
+    if e is target:
+        return [e]
+    seen = seen if seen is not None else set()
+    if id(e) in seen:
+        return None
+    seen.add(id(e))
+    for d in _deps(e):
+        chain = _waits_for(d, target, seen)
+        if chain is not None:
+            return [e] + chain
+    return None
+
+
+def _never_starts(e: EFT, seen: set | None = None) -> str | None:
+    """Why ``e`` can never start (or end), or None if it can."""
+    if e._status != NULL or e._stop != NULL:      # started, or stopped: it will end
+        return None
+    seen = seen if seen is not None else set()
+    if id(e) in seen:
+        return f"{e.describe()} waits for itself"
+    seen.add(id(e))
+    if e._start == NULL:
+        if e.after is None:
+            return f"the start flag of {e.describe()} is not set and nothing will set it (start_ev it first)"
+        src = e.after
+        if src._status in (FAULT, ABORTED):
+            return f"{e.describe()} waits for {src.describe()}, which ended {code_name(src._status)}"
+        why = _never_starts(src, seen)
+        if why is not None:
+            return f"{e.describe()} waits for {src.describe()}; {why}"
+    p = _predecessor(e)
+    if p is not None:
+        why = _never_starts(p, seen)
+        if why is not None:
+            return f"{e.describe()} is queued behind {p.describe()}; {why}"
+    return None
