@@ -266,7 +266,10 @@ ArmSpec = Session | tuple[str, str] | str
 class Workcell:
     """Several arms, one control task each, one planning level (thesis 2.4; Figure 2.10).
 
-    ``arms`` maps a name to a ``(url, robot)`` pair or an unopened ``rci.Session``.
+    ``arms`` maps a name to a ``(url, robot)`` pair or an unopened ``rci.Session``. A layer
+    above may open and control the sessions itself (RCCL: ``Workcell({"puma": arm.rci, ...})``,
+    then ``arm.open()``, then ``with cell:``): the workcell still names the arm in errors and
+    releases the others (free sync; the lockstep barrier needs ``cell.control``).
     ``sync`` is ``"free"`` or ``"lockstep"`` (module docstring); ``sync_timeout`` (s) how long
     an arm waits at a lockstep barrier for the others (default 1 s against lockstep
     simulas, else two periods of the slowest arm). ``on_error``: None (print and exit 1),
@@ -557,6 +560,8 @@ class Workcell:
     def __enter__(self) -> "Workcell":
         if not any(s.is_open for s in self.sessions.values()):
             self.open()
+        else:       # sessions opened and controlled by a layer above (RCCL arms): take over the signals
+            self._install_signals()
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:

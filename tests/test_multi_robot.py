@@ -199,3 +199,32 @@ def test_shared_copies_arrays_and_defers_until_commit():
     assert c.receive() is None
     c.commit()
     assert c.receive() == "hello"
+
+
+# --- RCCL arms as the control tasks of a workcell (thesis 5.6.2, last paragraph) ------------------
+def test_rccl_arms_in_a_workcell_a_dead_link_names_the_arm_and_releases_the_other():
+    from rccl.adaptive.session import AdaptiveArm
+    from rccl.position import joint_position
+    from rccl.session import Arm
+
+    with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
+            SimulaProcess("-p", robot="microbo", lockstep=True) as m:
+        puma = AdaptiveArm(p.url, "puma260")
+        mic = Arm(m.url, "microbo")
+        cell = Workcell({"puma": puma.rci, "microbo": mic.rci}, on_error="raise")
+        puma.open()
+        mic.open()
+        with cell:
+            q = puma.q.copy()
+            q[0] += 0.3
+            puma.settime(0.2, 30.0)
+            req = puma.move(joint_position("far", puma._kin, q))
+            cell.wait(0.1)
+            m.proc.kill()                        # the Microbo's link dies mid-program
+            with pytest.raises(ArmTerminated) as ei:
+                cell.wait(5.0)
+        e = ei.value
+        assert e.arm == "microbo" and e.termination.number in (codes.R_BTEST, codes.R_TIMEOUT)
+        assert e.termination.severe and e.arm_termination.released == ["puma"]
+        assert not puma.rci.in_control and req.status in ("running", "queued")   # stopped mid-motion
+        assert not running(p)
