@@ -45,7 +45,9 @@ class OptionalBuildExt(build_ext):
         if self.compiler.compiler_type == "unix":
             for ext in self.extensions:
                 # -fno-math-errno lets sin/cos pairs become sincos and sqrt inline
-                ext.extra_compile_args = ["-O3", "-fno-math-errno", "-Wno-unused-variable"]
+                ext.extra_compile_args = ["-O3", "-fno-math-errno", "-Wno-unused-variable", "-pthread"]
+                # large batches are split over threads (emit_c.py: run_rows)
+                ext.extra_link_args = ["-pthread"]
         try:
             super().build_extensions()
         except Exception as exc:  # no compiler, missing headers: fall back to Python kernels

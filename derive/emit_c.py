@@ -127,6 +127,21 @@ def _numeric(kernel: Kernel, exprs: list[sp.Expr]) -> list[sp.Expr]:
     return dag_xreplace(exprs, subs) if subs else [sp.sympify(e) for e in exprs]
 
 
+def _split(xs: list, n: int) -> tuple[list, list]:
+    return xs[:n], xs[n:]
+
+
+def _integral_floats(exprs: list[sp.Expr]) -> list[sp.Expr]:
+    """Floats that are integers up to the rounding of 17-digit arithmetic as integers.
+
+    a2/d4 is 1 exactly for the PUMA (a2 = d4 = 0.2032 m), but 0.2032 * (1/0.2032) comes
+    out 0.99999999999999999: kept, it would cost a multiplication by 1.0.
+    """
+    snap = {f: sp.Integer(round(f)) for f in dag_atoms(exprs, sp.Float)
+            if abs(f - round(f)) <= 1e-15 * max(1.0, abs(float(f)))}
+    return dag_xreplace(exprs, snap) if snap else exprs
+
+
 def _extract_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tuple[sp.Symbol, sp.Expr]]]:
     """Replace every distinct sin(x)/cos(x) by a local symbol computed once.
 
@@ -174,6 +189,11 @@ def _factor_sum_node(expr: sp.Expr, rank, memo) -> sp.Expr:
     if not expr.is_Add:
         return expr.func(*args) if args != list(expr.args) else expr
     terms = list(args)
+    common = _common_coefficient(terms)
+    if common is not None:
+        # a*x - a*y -> a*(x - y): one multiplication instead of one per term
+        inner = [sp.Mul(sp.sign(c), r) for c, r in (t.as_coeff_Mul() for t in terms)]
+        return sp.Mul(common, _factor_sum(sp.Add(*inner), rank, memo), evaluate=False)
     counts: Counter = Counter()
     for t in terms:
         for f in set(_factors(t)):
@@ -193,6 +213,17 @@ def _factor_sum_node(expr: sp.Expr, rank, memo) -> sp.Expr:
     if rest:
         return sp.Add(out, _factor_sum(sp.Add(*rest), rank, memo), evaluate=False)
     return out
+
+
+def _common_coefficient(terms: list[sp.Expr]) -> sp.Expr | None:
+    """|c| when every term of a sum is +-c times something and c is not 1, else None."""
+    coeffs = [t.as_coeff_Mul()[0] for t in terms]
+    if len(terms) < 2 or any(not c.is_Number or c == 0 for c in coeffs):
+        return None
+    first = abs(coeffs[0])
+    if first == 1 or any(abs(c) != first for c in coeffs[1:]):
+        return None
+    return first
 
 
 def _factors(term: sp.Expr) -> list[sp.Expr]:
@@ -252,6 +283,7 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
         exprs = [v for _, v in kernel.stages] + main + exprs[len(main):]
         n_stage = len(kernel.stages)
     exprs = _numeric(kernel, exprs)
+    exprs = _integral_floats(exprs)
     if collapse:
         exprs = [_collapse(e) for e in exprs]
     flat_names = [n for row in out_names for n in row]
@@ -282,22 +314,55 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
         work = [_factor_sum(sp.expand(e) if expand and _is_poly_like(e) else e, rank, memo) for e in work]
         stage_exprs = [_factor_sum(sp.expand(e) if expand and _is_poly_like(e) else e, rank, memo)
                        for e in stage_exprs]
-    stage_temps: list[tuple[sp.Symbol, sp.Expr]] = []
-    if n_stage:
-        t1, r1 = sp.cse(stage_exprs, symbols=sp.numbered_symbols("u"), optimizations="basic" if cse_opt else None)
-        stage_temps = list(t1) + [(sym, r) for (sym, _), r in zip(kernel.stages, r1)]
+    # expanding and factoring multiply constants together (1/d4 * a2 = 1.0 for the PUMA)
+    stage_exprs, work = _split(_integral_floats(stage_exprs + work), len(stage_exprs))
     # SymPy's "basic" CSE preprocessing (factor_terms) walks the expression *tree*: fine for
-    # small kernels, hours for inverse kinematics whose DAG of 150 nodes is a tree of 10^5
-    temps, reduced = sp.cse(work, symbols=sp.numbered_symbols("t"), optimizations="basic" if cse_opt else None)
-    temps = stage_temps + list(temps)
+    # small kernels, hours for inverse kinematics whose DAG of 150 nodes is a tree of 10^5.
+    # Stage definitions and main outputs share one CSE; a stage may use earlier stages.
+    temps, reduced = sp.cse(stage_exprs + work, symbols=sp.numbered_symbols("t"),
+                            optimizations="basic" if cse_opt else None)
+    stage_defs = [(sym, r) for (sym, _), r in zip(kernel.stages, reduced[:n_stage])] if n_stage else []
+    reduced = reduced[n_stage:]
+    temps = _in_dependency_order(list(temps) + stage_defs)
     outputs: list[tuple[str, sp.Expr]] = [(flat_names[k], reduced[i]) for i, k in enumerate(keep)]
     for k in sorted(rebuilt):
         outputs.append((flat_names[k], rebuilt[k]))
+    temps = _live(temps, [v for _, v in outputs])
     variant = (f"{'expand+' if expand else ''}horner[{factor}]+cse" if factor else "cse")
     variant += ", trig sums collapsed" if collapse else ""
-    variant += ", staged (frame-4 computation + one map)" if staged else ""
+    variant += ", staged (the kernel's structure hint)" if staged else ""
     variant += "".join(f", {'noa'[c]}=cross" for c in cross.values())
     return Program(kernel, in_names, out_names, trig, list(temps), outputs, sym_names, variant)
+
+
+def _in_dependency_order(defs: list[tuple[sp.Symbol, sp.Expr]]) -> list[tuple[sp.Symbol, sp.Expr]]:
+    """Order assignments so each comes after the ones it uses (stable otherwise)."""
+    defined = {s for s, _ in defs}
+    deps = {s: v.free_symbols & defined for s, v in defs}
+    done: set[sp.Symbol] = set()
+    out: list[tuple[sp.Symbol, sp.Expr]] = []
+    pending = list(defs)
+    while pending:
+        i = next((i for i, (s, _) in enumerate(pending) if deps[s] <= done), None)
+        if i is None:
+            raise ValueError(f"circular definitions among {[str(s) for s, _ in pending]}")
+        s, v = pending.pop(i)
+        out.append((s, v))
+        done.add(s)
+    return out
+
+
+def _live(defs: list[tuple[sp.Symbol, sp.Expr]], used: list[sp.Expr]) -> list[tuple[sp.Symbol, sp.Expr]]:
+    """Drop assignments no output needs (a stage may define more than the outputs use)."""
+    need: set[sp.Symbol] = set()
+    for e in used:
+        need |= e.free_symbols
+    keep = []
+    for s, v in reversed(defs):
+        if s in need:
+            keep.append((s, v))
+            need |= v.free_symbols
+    return keep[::-1]
 
 
 def _collapse(e: sp.Expr) -> sp.Expr:
@@ -349,6 +414,10 @@ class CPrinter:
             coeff, rest = e.as_coeff_Mul()
             neg = coeff < 0
             coeff = abs(coeff)
+            if neg:
+                flipped = _absorb_sign(rest)
+                if flipped is not None:
+                    return self._product(coeff, flipped), False
             return self._product(coeff, rest), bool(neg)
         if e.is_Add:
             return self._sum(e), False
@@ -412,6 +481,22 @@ class CPrinter:
         if x == sp.Rational(3, 2):
             return f"{bt}*sqrt({self.expr(b)})"
         raise ValueError(f"C printer: power {e} has no pow()-free form")
+
+
+def _absorb_sign(rest: sp.Expr) -> sp.Expr | None:
+    """-rest with the sign moved into one of its sum factors: -(a - b)*c as (b - a)*c,
+    saving the negation; None when no sum factor can take it without a leading minus."""
+    fs = list(rest.args) if rest.is_Mul else [rest]
+    for i, f in enumerate(fs):
+        base, exp = f.as_base_exp()
+        if not (base.is_Add and exp.is_Integer and abs(exp) == 1):
+            continue
+        neg = sp.Add(*[-a for a in base.args])
+        if not neg.is_Add or all(a.as_coeff_Mul()[0] < 0 for a in neg.args):
+            continue
+        fs[i] = neg if exp == 1 else sp.Pow(neg, -1, evaluate=False)
+        return sp.Mul(*fs, evaluate=False)
+    return None
 
 
 def kernel_body(prog: Program) -> str:
@@ -687,8 +772,8 @@ def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> s
             f"static PyObject *py_{k.name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs)\n"
             f"{{ (void)self; return call_kernel(&KERNELS[{i}], args, nargs); }}\n"
             f"#ifdef RCCL_NUMPY_API\n"
-            f"static PyObject *pub_{k.name}(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)\n"
-            f"{{ return public_call(&KERNELS[{i}], fallback, args, nargs, kwnames); }}\n"
+            f"static PyObject *pub_{k.name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)\n"
+            f"{{ return public_call(&KERNELS[{i}], self, args, nargs, kwnames); }}\n"
             f"#endif\n")
         pubdefs.append(
             f"    {{{_c_string(k.name)}, (PyCFunction)(void (*)(void))pub_{k.name}, METH_FASTCALL | METH_KEYWORDS, "
@@ -700,7 +785,7 @@ def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> s
                 + [len(p.kernel.outputs) + len(p.kernel.guards) for p, _ in programs] + [1])
     return RUNTIME.format(
         robot=robot, command=command, kernels=kernels, table="\n".join(table), nk=len(programs), maxio=maxio,
-        methods="\n".join(methods), defs=defs, pubdefs="\n".join(pubdefs))
+        methods="\n".join(methods), defs=defs, pubdefs="\n".join(pubdefs), fast=FAST_C)
 
 
 def _method_doc(k: Kernel) -> str:
@@ -721,6 +806,8 @@ RUNTIME = r"""/* Kinematics kernels of the {robot}, as a CPython extension modul
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #ifdef RCCL_NUMPY_API
 /* numpy's C API, when setup.py found numpy's headers: the public fast path below */
@@ -777,6 +864,7 @@ static const kernel_entry KERNELS[{nk}] = {{
 static PyObject *np_empty = NULL;         /* numpy.empty, to allocate results */
 static PyObject *np_array = NULL;         /* numpy.array, to convert lists and other dtypes */
 static PyObject *np_array_kw = NULL;      /* {{"dtype": "float64", "order": "C"}} */
+{fast}
 
 /* Shape tuple of one unbatched output (new reference); small shapes are cached so the
  * common single call builds no tuple. */
@@ -902,7 +990,7 @@ static PyObject *call_kernel(const kernel_entry *k, PyObject *const *args, Py_ss
     }}
     if (rows > 4096) {{
         Py_BEGIN_ALLOW_THREADS
-        k->fn(rows, ip, is, op, os);
+        run_rows(k, rows, ip, is, op, os, 0);
         Py_END_ALLOW_THREADS
     }} else {{
         k->fn(rows, ip, is, op, os);
@@ -924,47 +1012,6 @@ done:
     return result;
 }}
 
-#ifdef RCCL_NUMPY_API
-/* The public entry of a kernel (rccl.kinematics.backend.public): when every argument is
- * already an unbatched float64 C-contiguous numpy array of the kernel's shape with finite
- * values, run the row function, and when every guard is >= 0 and the first output is
- * finite return that output (a new array). Anything else (lists, batches, keywords, NaN,
- * a failing guard, a non-finite result) goes to `fallback`, the Python code that gives
- * the contract's conversions, messages and exceptions: no error behaviour is lost. */
-static PyObject *public_call(const kernel_entry *k, PyObject *fallback, PyObject *const *args, Py_ssize_t nargs,
-                             PyObject *kwnames)
-{{
-    const double *ip[MAXIO];
-    double *op[MAXIO];
-    double guard[MAXIO];
-    static const Py_ssize_t zero[MAXIO] = {{0}};
-    if (kwnames || nargs != k->nin || k->nout - k->nguard != 1) goto slow;
-    for (int i = 0; i < k->nin; ++i) {{
-        PyObject *x = args[i];
-        if (!PyArray_CheckExact(x)) goto slow;
-        PyArrayObject *a = (PyArrayObject *)x;
-        const arg_shape *s = &k->in[i];
-        if (PyArray_TYPE(a) != NPY_DOUBLE || PyArray_NDIM(a) != s->ndim
-            || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) goto slow;
-        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d) != s->dim[d]) goto slow;
-        const double *v = (const double *)PyArray_DATA(a);
-        for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(v[j])) goto slow;
-        ip[i] = v;
-    }}
-    const arg_shape *s = &k->out[0];
-    npy_intp dims[2] = {{s->dim[0], s->dim[1]}};
-    PyObject *res = PyArray_SimpleNew(s->ndim, dims, NPY_DOUBLE);
-    if (!res) return NULL;
-    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
-    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
-    k->fn(1, ip, zero, op, zero);
-    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) {{ Py_DECREF(res); goto slow; }}
-    for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(op[0][j])) {{ Py_DECREF(res); goto slow; }}
-    return res;
-slow:
-    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
-}}
-#endif
 
 {methods}
 #ifdef RCCL_NUMPY_API
@@ -972,17 +1019,32 @@ static PyMethodDef PUBLIC_DEFS[] = {{
 {pubdefs}
 }};
 
-/* public(name, fallback): the kernel's fast public entry, falling back to `fallback`. */
+/* public(name, fallback, keys=None): the fast public entry of a single-output kernel
+ * (keys: names of the coefficients its last input may also be given by, as a mapping), or
+ * of "ik", "ik_all", "config_of" (after ik_setup), falling back to `fallback`. */
 static PyObject *public(PyObject *self, PyObject *args)
 {{
     const char *name;
-    PyObject *fallback;
-    if (!PyArg_ParseTuple(args, "sO:public", &name, &fallback)) return NULL;
+    PyObject *fallback, *keys = Py_None;
+    if (!PyArg_ParseTuple(args, "sO|O:public", &name, &fallback, &keys)) return NULL;
     if (!PyCallable_Check(fallback)) {{ PyErr_SetString(PyExc_TypeError, "public: fallback must be callable"); return NULL; }}
+    if (keys != Py_None && !PyTuple_Check(keys)) {{ PyErr_SetString(PyExc_TypeError, "public: keys must be a tuple"); return NULL; }}
+    for (int i = 0; i < (int)(sizeof IK_DEFS / sizeof IK_DEFS[0]); ++i)
+        if (strcmp(IK_DEFS[i].ml_name, name) == 0) {{
+            if (!IK.ready) {{ PyErr_SetString(PyExc_RuntimeError, "public: call ik_setup first"); return NULL; }}
+            return PyCFunction_NewEx(&IK_DEFS[i], fallback, NULL);
+        }}
     for (int i = 0; i < {nk}; ++i)
         if (strcmp(KERNELS[i].name, name) == 0) {{
             if (KERNELS[i].nout - KERNELS[i].nguard != 1) break;
-            return PyCFunction_NewEx(&PUBLIC_DEFS[i], fallback, NULL);
+            if (keys != Py_None) {{
+                for (Py_ssize_t j = 0; j < PyTuple_GET_SIZE(keys); ++j) PyUnicode_InternInPlace(&PyTuple_GET_ITEM(keys, j));
+            }}
+            PyObject *data = PyTuple_Pack(2, fallback, keys);
+            if (!data) return NULL;
+            PyObject *fn = PyCFunction_NewEx(&PUBLIC_DEFS[i], data, NULL);
+            Py_DECREF(data);
+            return fn;
         }}
     PyErr_Format(PyExc_KeyError, "{robot}: no single-output kernel %s", name);
     return NULL;
@@ -1014,6 +1076,12 @@ static PyObject *kernels(PyObject *self, PyObject *noargs)
     return d;
 }}
 
+static PyObject *threads(PyObject *self, PyObject *noargs)
+{{
+    (void)self; (void)noargs;
+    return PyLong_FromLong(n_threads);
+}}
+
 static PyObject *source_hash(PyObject *self, PyObject *noargs)
 {{
     (void)self; (void)noargs;
@@ -1024,8 +1092,10 @@ static PyMethodDef methods[] = {{
 {defs}
     {{"kernels", kernels, METH_NOARGS, "kernels() -> {{name: (input shapes, output shapes)}}"}},
     {{"source_hash", source_hash, METH_NOARGS, "sha256 of the generated C this module was built from"}},
+    {{"threads", threads, METH_NOARGS, "threads() -> the most threads a large batch is split over (RCCL_KINEMATICS_THREADS)"}},
 #ifdef RCCL_NUMPY_API
-    {{"public", public, METH_VARARGS, "public(name, fallback) -> fast public entry of a kernel (see public_call)"}},
+    {{"public", public, METH_VARARGS, "public(name, fallback, keys=None) -> fast public entry of a kernel (see public_call)"}},
+    {{"ik_setup", ik_setup, METH_VARARGS, "ik_setup(Config, fields, configs, revolute, lower, upper, rigid_tol, same_tol): data of the ik/ik_all/config_of entries"}},
 #endif
     {{NULL, NULL, 0, NULL}}
 }};
@@ -1038,7 +1108,11 @@ PyMODINIT_FUNC PyInit_{robot}(void)
 {{
 #ifdef RCCL_NUMPY_API
     import_array();
+    str_value = PyUnicode_InternFromString("value");
+    str_gravity_coeffs = PyUnicode_InternFromString("gravity_coeffs");
+    if (!str_value || !str_gravity_coeffs) return NULL;
 #endif
+    init_threads();
 #ifdef RCCL_VECTOR_TRIG
     __builtin_cpu_init();
     have_vector_trig = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
@@ -1052,6 +1126,579 @@ PyMODINIT_FUNC PyInit_{robot}(void)
     if (!np_empty || !np_array || !np_array_kw) return NULL;
     return PyModule_Create(&moduledef);
 }}
+"""
+
+
+FAST_C = r"""/* ---------------------------------------------------------------- batched rows
+ * Every batched call runs its rows in chunks of CHUNK: inputs of the chunk scanned for
+ * NaN/inf, the kernel's batched loop, then (public entries) its guards and first output
+ * checked while they are still in cache. Large batches are split over threads (pthreads;
+ * RCCL_KINEMATICS_THREADS, default the online CPUs, at most MAX_THREADS). */
+#define CHUNK 64
+#define MAX_THREADS 8
+#define ROWS_PER_THREAD 16384
+#if defined(__unix__) || defined(__APPLE__)
+#define RCCL_THREADS 1
+#include <pthread.h>
+#include <unistd.h>
+#endif
+static int n_threads = 1;
+
+typedef struct {
+    const kernel_entry *k;
+    Py_ssize_t r0, r1;
+    const double *ip[MAXIO];
+    Py_ssize_t is[MAXIO];
+    double *op[MAXIO];          /* NULL: a guard, written to per-chunk scratch */
+    Py_ssize_t os[MAXIO];
+    int check;                  /* scan inputs, guards (>= 0) and the first output (finite) */
+    int bad;                    /* a check failed */
+} row_job;
+
+/* 1 when no element is NaN or inf: x - x is 0 for every finite x and NaN otherwise;
+ * two lanes at a time with SSE2 (every x86-64), so the check costs little beside a row */
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+/* four lanes with AVX where the CPU has it (checked at import) */
+__attribute__((target("avx"))) static int all_finite_avx(const double *v, Py_ssize_t len)
+{
+    __m256d bad = _mm256_setzero_pd();
+    Py_ssize_t j = 0;
+    for (; j + 8 <= len; j += 8) {
+        const __m256d a = _mm256_loadu_pd(v + j), b = _mm256_loadu_pd(v + j + 4);
+        const __m256d da = _mm256_sub_pd(a, a), db = _mm256_sub_pd(b, b);
+        bad = _mm256_or_pd(bad, _mm256_or_pd(_mm256_cmp_pd(da, da, _CMP_UNORD_Q), _mm256_cmp_pd(db, db, _CMP_UNORD_Q)));
+    }
+    int ok = _mm256_movemask_pd(bad) == 0;
+    for (const double *e = v + len, *x = v + j; x < e; ++x) ok &= isfinite(*x) != 0;
+    return ok;
+}
+static int have_avx = 0;
+#define FINITE_AVX(v, len) if (have_avx && (len) >= 16) return all_finite_avx(v, len)
+#else
+#define FINITE_AVX(v, len)
+#endif
+#if defined(__SSE2__)
+#include <emmintrin.h>
+static int all_finite(const double *v, Py_ssize_t len)
+{
+    FINITE_AVX(v, len);
+    __m128d bad = _mm_setzero_pd();
+    Py_ssize_t j = 0;
+    for (; j + 4 <= len; j += 4) {
+        const __m128d a = _mm_loadu_pd(v + j), b = _mm_loadu_pd(v + j + 2);
+        const __m128d da = _mm_sub_pd(a, a), db = _mm_sub_pd(b, b);
+        bad = _mm_or_pd(bad, _mm_or_pd(_mm_cmpunord_pd(da, da), _mm_cmpunord_pd(db, db)));
+    }
+    int ok = _mm_movemask_pd(bad) == 0;
+    for (const double *e = v + len, *x = v + j; x < e; ++x) ok &= isfinite(*x) != 0;
+    return ok;
+}
+#else
+static int all_finite(const double *v, Py_ssize_t len)
+{
+    int ok = 1;
+    for (Py_ssize_t j = 0; j < len; ++j) ok &= isfinite(v[j]) != 0;
+    return ok;
+}
+#endif
+
+static void run_job(row_job *j)
+{
+    const kernel_entry *k = j->k;
+    double scratch[MAXIO][CHUNK];
+    const double *ic[MAXIO];
+    double *oc[MAXIO];
+    Py_ssize_t osc[MAXIO];
+    for (Py_ssize_t r = j->r0; r < j->r1; r += CHUNK) {
+        const Py_ssize_t m = j->r1 - r < CHUNK ? j->r1 - r : CHUNK;
+        for (int i = 0; i < k->nin; ++i) {
+            ic[i] = j->ip[i] + r * j->is[i];
+            if (j->check && j->is[i] && !all_finite(ic[i], m * j->is[i])) { j->bad = 1; return; }
+        }
+        for (int o = 0; o < k->nout; ++o) {
+            if (j->op[o]) { oc[o] = j->op[o] + r * j->os[o]; osc[o] = j->os[o]; }
+            else { oc[o] = scratch[o]; osc[o] = 1; }
+        }
+        k->fn(m, ic, j->is, oc, osc);
+        if (j->check) {
+            for (int g = k->nout - k->nguard; g < k->nout; ++g)
+                for (Py_ssize_t t = 0; t < m; ++t)
+                    if (!(oc[g][t * osc[g]] >= 0)) { j->bad = 1; return; }
+            if (!all_finite(oc[0], m * osc[0])) { j->bad = 1; return; }
+        }
+    }
+}
+
+#ifdef RCCL_THREADS
+static void *job_thread(void *arg) { run_job((row_job *)arg); return NULL; }
+#endif
+
+/* n rows of kernel k, split over up to n_threads threads; returns nonzero when a check
+ * failed (check = 1 only). Safe without the GIL: touches no Python object. */
+static int run_rows(const kernel_entry *k, Py_ssize_t n, const double *const *ip, const Py_ssize_t *is,
+                    double *const *op, const Py_ssize_t *os, int check)
+{
+    row_job jobs[MAX_THREADS];
+    int t = 1;
+#ifdef RCCL_THREADS
+    t = n_threads;
+    if (n / ROWS_PER_THREAD < t) t = (int)(n / ROWS_PER_THREAD);
+    if (t < 1) t = 1;
+#endif
+    for (int w = 0; w < t; ++w) {
+        row_job *j = &jobs[w];
+        j->k = k; j->check = check; j->bad = 0;
+        j->r0 = n * w / t; j->r1 = n * (w + 1) / t;
+        for (int i = 0; i < k->nin; ++i) { j->ip[i] = ip[i]; j->is[i] = is[i]; }
+        for (int o = 0; o < k->nout; ++o) { j->op[o] = op[o]; j->os[o] = os[o]; }
+    }
+    if (t == 1) { run_job(&jobs[0]); return jobs[0].bad; }
+    int bad = 0;
+#ifdef RCCL_THREADS
+    pthread_t th[MAX_THREADS];
+    int started[MAX_THREADS] = {0};
+    for (int w = 1; w < t; ++w) started[w] = pthread_create(&th[w], NULL, job_thread, &jobs[w]) == 0;
+    run_job(&jobs[0]);
+    bad = jobs[0].bad;
+    for (int w = 1; w < t; ++w) {
+        if (started[w]) pthread_join(th[w], NULL);
+        else run_job(&jobs[w]);       /* no thread to be had: run it here */
+        bad |= jobs[w].bad;
+    }
+#endif
+    return bad;
+}
+
+static void init_threads(void)
+{
+    long c = 1;
+#ifdef RCCL_THREADS
+    const char *env = getenv("RCCL_KINEMATICS_THREADS");
+    c = (env && *env) ? strtol(env, NULL, 10) : sysconf(_SC_NPROCESSORS_ONLN);
+#endif
+    n_threads = c < 1 ? 1 : c > MAX_THREADS ? MAX_THREADS : (int)c;
+#if defined(__x86_64__) && defined(__GNUC__)
+    __builtin_cpu_init();
+    have_avx = __builtin_cpu_supports("avx");
+#endif
+}
+
+#ifdef RCCL_NUMPY_API
+/* ---------------------------------------------------------------- public fast entries
+ * The public functions of the generated module (rccl.kinematics.backend.public) are these
+ * entries: when every argument is already in the form the C can take directly (float64
+ * C-contiguous numpy arrays of the kernel's shape, one configuration or a batch along a
+ * leading axis; gravity coefficients also as a mapping of floats; a valid pose; a Config)
+ * and every check passes (finite inputs, guards >= 0, finite results), they return the
+ * result. Anything else goes to `fallback`, the Python runtime, which gives the contract's
+ * conversions, messages and exceptions: no error behaviour is lost. With out= the result
+ * is written there; a call that then falls back may have written part of it. */
+
+static PyObject *str_value = NULL, *str_gravity_coeffs = NULL;   /* interned attribute names */
+
+/* a numpy array the entries can read in place: exact ndarray, float64, C-contiguous, aligned */
+static PyArrayObject *plain_array(PyObject *x)
+{
+    if (!PyArray_CheckExact(x)) return NULL;
+    PyArrayObject *a = (PyArrayObject *)x;
+    if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) return NULL;
+    return a;
+}
+
+/* coefficient values by name from a dict, a mappingproxy or a record with gravity_coeffs;
+ * each a float or int, or a record with a float `.value` (rci.robot_model.Value).
+ * 0 on success; -1 (no exception set) when the Python path must decide. */
+static int mapping_values(PyObject *x, PyObject *keys, double *v)
+{
+    PyObject *m = x, *owned = NULL;
+    if (!PyDict_Check(m) && !PyObject_TypeCheck(m, &PyDictProxy_Type)) {
+        owned = PyObject_GetAttr(m, str_gravity_coeffs);
+        if (!owned) { PyErr_Clear(); return -1; }
+        m = owned;
+        if (!PyDict_Check(m) && !PyObject_TypeCheck(m, &PyDictProxy_Type)) { Py_DECREF(owned); return -1; }
+    }
+    int rc = 0;
+    for (Py_ssize_t i = 0; rc == 0 && i < PyTuple_GET_SIZE(keys); ++i) {
+        PyObject *key = PyTuple_GET_ITEM(keys, i), *item;
+        if (PyDict_Check(m)) { item = PyDict_GetItemWithError(m, key); Py_XINCREF(item); }
+        else item = PyObject_GetItem(m, key);
+        if (!item) { PyErr_Clear(); rc = -1; break; }
+        double d = NAN;
+        if (PyFloat_Check(item)) d = PyFloat_AS_DOUBLE(item);
+        else if (PyLong_CheckExact(item)) { d = PyLong_AsDouble(item); if (PyErr_Occurred()) { PyErr_Clear(); d = NAN; } }
+        else {
+            PyObject *val = PyObject_GetAttr(item, str_value);
+            if (!val) PyErr_Clear();
+            else if (PyFloat_Check(val)) d = PyFloat_AS_DOUBLE(val);
+            Py_XDECREF(val);
+        }
+        Py_DECREF(item);
+        if (!isfinite(d)) rc = -1;
+        else v[i] = d;
+    }
+    Py_XDECREF(owned);
+    return rc;
+}
+
+/* the keyword `out` (or none); -1 for any other keyword */
+static int out_keyword(PyObject *kwnames, PyObject *const *args, Py_ssize_t nargs, PyObject **out)
+{
+    *out = NULL;
+    if (!kwnames) return 0;
+    if (PyTuple_GET_SIZE(kwnames) != 1 || PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, 0), "out") != 0)
+        return -1;
+    if (args[nargs] != Py_None) *out = args[nargs];
+    return 0;
+}
+
+static int overlaps(const void *a, Py_ssize_t na, const void *b, Py_ssize_t nb)
+{
+    const char *pa = (const char *)a, *pb = (const char *)b;
+    return pa < pb + nb && pb < pa + na;
+}
+
+/* self = (fallback, coefficient names or None) */
+static PyObject *public_call(const kernel_entry *k, PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                             PyObject *kwnames)
+{
+    PyObject *fallback = PyTuple_GET_ITEM(self, 0), *keys = PyTuple_GET_ITEM(self, 1);
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    Py_ssize_t is[MAXIO], os[MAXIO], ilen[MAXIO];
+    double guard[MAXIO], coeffs[64];
+    PyObject *out, *res;
+    Py_ssize_t n = -1;
+    if (nargs != k->nin || k->nout - k->nguard != 1 || out_keyword(kwnames, args, nargs, &out) < 0) goto slow;
+    for (int i = 0; i < k->nin; ++i) {
+        const arg_shape *s = &k->in[i];
+        PyArrayObject *a = plain_array(args[i]);
+        if (!a) {  /* the last input of gravity may be a mapping of coefficient values */
+            if (keys == Py_None || i != k->nin - 1 || PyArray_Check(args[i]) || s->ndim != 1
+                || s->dim[0] != PyTuple_GET_SIZE(keys) || s->dim[0] > 64 || mapping_values(args[i], keys, coeffs) < 0)
+                goto slow;
+            ip[i] = coeffs; is[i] = 0; ilen[i] = 0;
+            continue;
+        }
+        const int nd = PyArray_NDIM(a), b = nd == s->ndim + 1;
+        if (!(nd == s->ndim || b)) goto slow;
+        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d + b) != s->dim[d]) goto slow;
+        ip[i] = (const double *)PyArray_DATA(a);
+        ilen[i] = PyArray_NBYTES(a);
+        if (b) {
+            const Py_ssize_t rows = PyArray_DIM(a, 0);
+            if (rows == 0 || (n >= 0 && rows != n)) goto slow;
+            n = rows;
+            is[i] = s->size;          /* scanned chunk by chunk in run_rows */
+        } else {
+            if (!all_finite(ip[i], s->size)) goto slow;
+            is[i] = 0;
+        }
+    }
+    const arg_shape *s = &k->out[0];
+    npy_intp dims[3];
+    int nd = 0;
+    if (n >= 0) dims[nd++] = n;
+    for (int d = 0; d < s->ndim; ++d) dims[nd++] = s->dim[d];
+    if (out) {  /* numpy's convention: exactly the result's shape and dtype, writable */
+        PyArrayObject *o = plain_array(out);
+        if (!o || PyArray_NDIM(o) != nd || !PyArray_ISWRITEABLE(o)) goto slow;
+        for (int d = 0; d < nd; ++d) if (PyArray_DIM(o, d) != dims[d]) goto slow;
+        for (int i = 0; i < k->nin; ++i)  /* written while read: the Python path copies */
+            if (ilen[i] && overlaps(ip[i], ilen[i], PyArray_DATA(o), PyArray_NBYTES(o))) goto slow;
+        Py_INCREF(out);
+        res = out;
+    } else {
+        res = PyArray_SimpleNew(nd, dims, NPY_DOUBLE);
+        if (!res) return NULL;
+    }
+    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
+    os[0] = s->size;
+    int bad = 0;
+    if (n < 0) {
+        for (int g = 0; g < k->nguard; ++g) { op[1 + g] = &guard[g]; os[1 + g] = 0; }
+        k->fn(1, ip, is, op, os);
+        for (int g = 0; g < k->nguard; ++g) bad |= !(guard[g] >= 0);
+        bad |= !all_finite(op[0], s->size);
+    } else {
+        for (int g = 0; g < k->nguard; ++g) { op[1 + g] = NULL; os[1 + g] = 1; }
+        if (n > 4096) {
+            Py_BEGIN_ALLOW_THREADS
+            bad = run_rows(k, n, ip, is, op, os, 1);
+            Py_END_ALLOW_THREADS
+        } else {
+            bad = run_rows(k, n, ip, is, op, os, 1);
+        }
+    }
+    if (bad) { Py_DECREF(res); goto slow; }
+    return res;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+/* ---------------------------------------------------------------- ik, ik_all, config_of */
+
+static struct {
+    int ready, ik, ik_all, ind;                 /* kernel indices (-1: absent) */
+    PyObject *config_type, *fields, *configs;   /* Config class, its field names, Config.all() */
+    int nfield, nconf;
+    double revolute[6], lower[6], upper[6];
+    double rigid_tol, same_tol;
+} IK = {0, -1, -1, -1, NULL, NULL, NULL, 0, 0, {0}, {0}, {0}, 0, 0};
+
+static int kernel_index(const char *name)
+{
+    for (int i = 0; i < (int)(sizeof KERNELS / sizeof KERNELS[0]); ++i)
+        if (strcmp(KERNELS[i].name, name) == 0) return i;
+    return -1;
+}
+
+static int six_floats(PyObject *seq, double *v, const char *what)
+{
+    PyObject *f = PySequence_Fast(seq, what);
+    if (!f) return -1;
+    if (PySequence_Fast_GET_SIZE(f) != 6) { Py_DECREF(f); PyErr_Format(PyExc_ValueError, "%s: need 6 values", what); return -1; }
+    for (int j = 0; j < 6; ++j) {
+        v[j] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(f, j));
+        if (v[j] == -1.0 && PyErr_Occurred()) { Py_DECREF(f); return -1; }
+    }
+    Py_DECREF(f);
+    return 0;
+}
+
+/* ik_setup(Config, field names, Config.all(), revolute flags, lower, upper, rigid tol, same-solution tol) */
+static PyObject *ik_setup(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *ct, *fields, *configs, *rev, *lo, *hi;
+    double rigid, same;
+    if (!PyArg_ParseTuple(args, "OO!O!OOOdd:ik_setup", &ct, &PyTuple_Type, &fields, &PyTuple_Type, &configs,
+                          &rev, &lo, &hi, &rigid, &same)) return NULL;
+    IK.ik = kernel_index("ik");
+    IK.ik_all = kernel_index("ik_all");
+    IK.ind = kernel_index("config_indicators");
+    IK.nfield = (int)PyTuple_GET_SIZE(fields);
+    IK.nconf = (int)PyTuple_GET_SIZE(configs);
+    if (IK.nfield < 1 || IK.nfield > 8 || IK.nconf != (1 << IK.nfield)) {
+        PyErr_SetString(PyExc_ValueError, "ik_setup: need 1..8 fields and 2**fields configurations");
+        return NULL;
+    }
+    if (six_floats(rev, IK.revolute, "ik_setup revolute") < 0 || six_floats(lo, IK.lower, "ik_setup lower") < 0
+        || six_floats(hi, IK.upper, "ik_setup upper") < 0) return NULL;
+    /* the kernels must have the layout the entries assume; otherwise they stay unused */
+    if (IK.ik >= 0 && !(KERNELS[IK.ik].nin == 2 && KERNELS[IK.ik].in[0].size == 16 && KERNELS[IK.ik].in[1].size == IK.nfield
+                        && KERNELS[IK.ik].out[0].size == 6 && KERNELS[IK.ik].nout == 1 + KERNELS[IK.ik].nguard)) IK.ik = -1;
+    if (IK.ik_all >= 0 && !(KERNELS[IK.ik_all].nout == 2 && KERNELS[IK.ik_all].out[0].size == 6 * IK.nconf
+                            && KERNELS[IK.ik_all].out[1].size <= 16 * IK.nconf)) IK.ik_all = -1;
+    if (IK.ind >= 0 && !(KERNELS[IK.ind].nin == 1 && KERNELS[IK.ind].in[0].size == 6 && KERNELS[IK.ind].nguard == 0
+                         && KERNELS[IK.ind].nout == 1 && KERNELS[IK.ind].out[0].size == IK.nfield)) IK.ind = -1;
+    Py_XSETREF(IK.config_type, Py_NewRef(ct));
+    Py_XSETREF(IK.fields, Py_NewRef(fields));
+    Py_XSETREF(IK.configs, Py_NewRef(configs));
+    IK.rigid_tol = rigid;
+    IK.same_tol = same;
+    IK.ready = 1;
+    Py_RETURN_NONE;
+}
+
+/* the pose as 16 doubles when it is a plain (4, 4) array and clearly a rigid transform:
+ * finite, last row exactly 0 0 0 1, rotation orthonormal within half the runtime's
+ * tolerance (the borderline band is left to the Python check), determinant > 0 */
+static const double *pose_arg(PyObject *x)
+{
+    PyArrayObject *a = plain_array(x);
+    if (!a || PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4) return NULL;
+    const double *t = (const double *)PyArray_DATA(a);
+    if (!all_finite(t, 16) || t[12] != 0.0 || t[13] != 0.0 || t[14] != 0.0 || t[15] != 1.0) return NULL;
+    double dev = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            const double d = t[i] * t[j] + t[4 + i] * t[4 + j] + t[8 + i] * t[8 + j] - (i == j);
+            dev = fabs(d) > dev ? fabs(d) : dev;
+        }
+    const double det = t[0] * (t[5] * t[10] - t[6] * t[9]) - t[1] * (t[4] * t[10] - t[6] * t[8])
+                     + t[2] * (t[4] * t[9] - t[5] * t[8]);
+    return (dev <= 0.5 * IK.rigid_tol && det > 0) ? t : NULL;
+}
+
+/* q_ref when None (NULL), or a plain finite (6,) array; *ok = 0 when the Python path must decide */
+static const double *ref_arg(PyObject *x, int *ok)
+{
+    *ok = 1;
+    if (!x || x == Py_None) return NULL;
+    PyArrayObject *a = plain_array(x);
+    if (!a || PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != 6 || !all_finite((const double *)PyArray_DATA(a), 6)) {
+        *ok = 0;
+        return NULL;
+    }
+    return (const double *)PyArray_DATA(a);
+}
+
+/* the +-1 signs of a Config instance (exactly the generated module's Config class) */
+static int config_signs(PyObject *c, double *signs)
+{
+    if ((PyObject *)Py_TYPE(c) != IK.config_type) return -1;
+    for (int i = 0; i < IK.nfield; ++i) {
+        PyObject *v = PyObject_GetAttr(c, PyTuple_GET_ITEM(IK.fields, i));
+        if (!v) { PyErr_Clear(); return -1; }
+        const long s = PyLong_CheckExact(v) ? PyLong_AsLong(v) : 0;
+        Py_DECREF(v);
+        if (s != 1 && s != -1) { PyErr_Clear(); return -1; }
+        signs[i] = (double)s;
+    }
+    return 0;
+}
+
+/* (x + pi) mod 2 pi - pi with numpy's floor modulo: runtime._wrap, to the bit */
+static double wrap_angle(double x)
+{
+    double y = fmod(x + M_PI, 2 * M_PI);
+    if (y != 0.0) { if (y < 0) y += 2 * M_PI; }
+    else y = 0.0;
+    return y - M_PI;
+}
+
+/* q_ref's 2 pi branch on revolute joints, then finite and prismatic joints in range;
+ * 0 when all is well */
+static int finish_q(double *q, const double *ref)
+{
+    if (!all_finite(q, 6)) return -1;
+    if (ref)
+        for (int j = 0; j < 6; ++j)
+            if (IK.revolute[j] != 0) q[j] = ref[j] + wrap_angle(q[j] - ref[j]);
+    for (int j = 0; j < 6; ++j)
+        if (IK.revolute[j] == 0 && (q[j] < IK.lower[j] - 1e-12 || q[j] > IK.upper[j] + 1e-12)) return -1;
+    return all_finite(q, 6) ? 0 : -1;
+}
+
+static PyObject *new_vector(const double *v, npy_intp len)
+{
+    PyObject *a = PyArray_SimpleNew(1, &len, NPY_DOUBLE);
+    if (a) memcpy(PyArray_DATA((PyArrayObject *)a), v, (size_t)len * sizeof(double));
+    return a;
+}
+
+/* the q_ref argument of ik(T, config, q_ref=None) / ik_all(T, q_ref=None): position `pos`
+ * or the keyword; *ok = 0 for any other call form */
+static PyObject *q_ref_object(PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames, Py_ssize_t pos, int *ok)
+{
+    const Py_ssize_t nkw = kwnames ? PyTuple_GET_SIZE(kwnames) : 0;
+    *ok = 1;
+    if (nkw == 0 && nargs == pos) return NULL;
+    if (nkw == 0 && nargs == pos + 1) return args[pos];
+    if (nkw == 1 && nargs == pos && PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, 0), "q_ref") == 0)
+        return args[pos];
+    *ok = 0;
+    return NULL;
+}
+
+/* ik(T, config, q_ref=None) for one pose */
+static PyObject *pubfast_ik(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    int ok;
+    if (!IK.ready || IK.ik < 0 || nargs < 2) goto slow;
+    PyObject *ref_obj = q_ref_object(args, nargs, kwnames, 2, &ok);
+    if (!ok) goto slow;
+    const double *ref = ref_arg(ref_obj, &ok), *t = pose_arg(args[0]);
+    double signs[8], q[6], guard[MAXIO];
+    if (!ok || !t || config_signs(args[1], signs) < 0) goto slow;
+    const kernel_entry *k = &KERNELS[IK.ik];
+    const double *ip[2] = {t, signs};
+    double *op[MAXIO];
+    static const Py_ssize_t zero[MAXIO] = {0};
+    op[0] = q;
+    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
+    k->fn(1, ip, zero, op, zero);
+    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) goto slow;  /* unreachable, singular: messages */
+    if (finish_q(q, ref) < 0) goto slow;
+    return new_vector(q, 6);
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+/* ik_all(T, q_ref=None) for one pose: every configuration from the ik_all kernel; the
+ * Python path when any configuration fails a guard (it decides between leaving it out,
+ * the wrist fallback and an error); duplicates (2 pi apart) dropped, first kept */
+static PyObject *pubfast_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    int ok;
+    if (!IK.ready || IK.ik_all < 0 || nargs < 1) goto slow;
+    PyObject *ref_obj = q_ref_object(args, nargs, kwnames, 1, &ok);
+    if (!ok) goto slow;
+    const double *ref = ref_arg(ref_obj, &ok), *t = pose_arg(args[0]);
+    if (!ok || !t) goto slow;
+    const kernel_entry *k = &KERNELS[IK.ik_all];
+    const int nc = IK.nconf, ng = (int)(k->out[1].size / nc);
+    double q[256 * 6], g[256 * 16];
+    int found[256], kept[256], nkept = 0;
+    if (nc > 256) goto slow;
+    const double *ip[1] = {t};
+    double *op[2] = {q, g};
+    static const Py_ssize_t zero[2] = {0, 0};
+    k->fn(1, ip, zero, op, zero);
+    for (int j = 0; j < nc; ++j) {
+        for (int c = 0; c < ng; ++c) if (!(g[j * ng + c] >= 0)) goto slow;
+        if (!all_finite(q + 6 * j, 6)) goto slow;
+        found[j] = finish_q(q + 6 * j, ref) == 0;   /* a prismatic joint out of range: left out */
+    }
+    for (int j = 0; j < nc; ++j) {
+        if (!found[j]) continue;
+        int dup = 0;
+        for (int m = 0; m < nkept && !dup; ++m) {
+            int same = 1;
+            for (int c = 0; c < 6 && same; ++c) {
+                double d = q[6 * j + c] - q[6 * kept[m] + c];
+                if (IK.revolute[c] != 0) d = wrap_angle(d);
+                same = fabs(d) < IK.same_tol;
+            }
+            dup = same;
+        }
+        if (!dup) kept[nkept++] = j;
+    }
+    PyObject *list = PyList_New(nkept);
+    if (!list) return NULL;
+    for (int m = 0; m < nkept; ++m) {
+        PyObject *v = new_vector(q + 6 * kept[m], 6);
+        PyObject *pair = v ? PyTuple_Pack(2, PyTuple_GET_ITEM(IK.configs, kept[m]), v) : NULL;
+        Py_XDECREF(v);
+        if (!pair) { Py_DECREF(list); return NULL; }
+        PyList_SET_ITEM(list, m, pair);
+    }
+    return list;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+/* config_of(q) for one configuration: the Config.all() entry of the indicators' signs */
+static PyObject *pubfast_config_of(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    if (!IK.ready || IK.ind < 0 || nargs != 1 || kwnames) goto slow;
+    PyArrayObject *a = plain_array(args[0]);
+    if (!a || PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != 6) goto slow;
+    const double *q = (const double *)PyArray_DATA(a);
+    if (!all_finite(q, 6)) goto slow;
+    double ind[8];
+    const double *ip[1] = {q};
+    double *op[1] = {ind};
+    static const Py_ssize_t zero[1] = {0};
+    KERNELS[IK.ind].fn(1, ip, zero, op, zero);
+    if (!all_finite(ind, IK.nfield)) goto slow;
+    int idx = 0;
+    for (int i = 0; i < IK.nfield; ++i) idx = 2 * idx + (ind[i] >= 0 ? 0 : 1);  /* product((1, -1)) order */
+    return Py_NewRef(PyTuple_GET_ITEM(IK.configs, idx));
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+static PyMethodDef IK_DEFS[] = {
+    {"ik", (PyCFunction)(void (*)(void))pubfast_ik, METH_FASTCALL | METH_KEYWORDS,
+     "ik(T, config, q_ref=None): fast entry for one float64 pose; anything else, and every error, via the runtime"},
+    {"ik_all", (PyCFunction)(void (*)(void))pubfast_ik_all, METH_FASTCALL | METH_KEYWORDS,
+     "ik_all(T, q_ref=None): fast entry for one float64 pose; anything else, and every error, via the runtime"},
+    {"config_of", (PyCFunction)(void (*)(void))pubfast_config_of, METH_FASTCALL | METH_KEYWORDS,
+     "config_of(q): fast entry for one float64 configuration; anything else via the runtime"},
+};
+#endif
 """
 
 

@@ -298,3 +298,183 @@ def test_ik_all_wrist_singular_and_unreachable():
     far[:3, 3] = [5.0, 0.0, 0.0]
     assert mod.ik_all(far) == []
     assert mod.ik_all(np.stack([far, mod.fk(np.full(6, 0.3))]))[0] == []
+
+
+# -- ik, ik_all, config_of, gravity mappings and batches in the fast entries -------------
+
+def _same_solutions(a, b):
+    assert [c for c, _ in a] == [c for c, _ in b]
+    for (_, x), (_, y) in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_ik_fast_entries_equal_the_python_runtime(robot):
+    import types
+    mod = _mod(robot)
+    _c(robot)
+    for name in ("ik", "ik_all", "config_of"):
+        assert not isinstance(getattr(mod, name), types.FunctionType), f"{name} should be the compiled fast entry"
+    rb = mod._ROBOT
+    for q in _qs(mod, 60, 31):
+        t = mod.fk(q)
+        cfg = mod.config_of(q)
+        assert cfg == rb.config_of(q) and type(cfg) is mod.Config
+        np.testing.assert_array_equal(mod.ik(t, cfg), rb.ik(t, cfg))
+        np.testing.assert_array_equal(mod.ik(t, cfg, q), rb.ik(t, cfg, q))
+        np.testing.assert_array_equal(mod.ik(t, cfg, q_ref=q + 6.0), rb.ik(t, cfg, q + 6.0))
+        _same_solutions(mod.ik_all(t), rb.ik_all(t))
+        _same_solutions(mod.ik_all(t, q_ref=q), rb.ik_all(t, q))
+        _same_solutions(mod.ik_all(t, q), rb.ik_all(t, q))
+    # other call forms still work through the runtime: a config as signs, a list pose
+    q = _qs(mod, 1, 32)[0]
+    t = mod.fk(q)
+    cfg = mod.config_of(q)
+    np.testing.assert_array_equal(mod.ik(t.tolist(), list(cfg.signs)), mod.ik(t, cfg))
+    sols = mod.ik_all(t)
+    assert sols[0][1] is not sols[-1][1] and all(s.flags.writeable for _, s in sols)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_ik_fast_entries_keep_every_error(robot):
+    from rccl.kinematics import errors
+    mod = _mod(robot)
+    q = _qs(mod, 1, 33)[0]
+    t = mod.fk(q)
+    cfg = mod.config_of(q)
+    skew = t.copy()
+    skew[0, 1] += 1e-5  # off orthonormal by more than the tolerance
+    for bad, match in ((skew, "rigid"), (np.full((4, 4), np.nan), "not finite"), (t[:3], "shape")):
+        with pytest.raises(errors.InvalidInput, match=match):
+            mod.ik(bad, cfg)
+        with pytest.raises(errors.InvalidInput, match=match):
+            mod.ik_all(bad)
+    mirrored = t.copy()
+    mirrored[:3, 0] *= -1  # orthonormal but a reflection
+    with pytest.raises(errors.InvalidInput, match="rigid"):
+        mod.ik(mirrored, cfg)
+    bottom = t.copy()
+    bottom[3, 0] = 1e-3
+    with pytest.raises(errors.InvalidInput, match="rigid"):
+        mod.ik(bottom, cfg)
+    with pytest.raises(errors.InvalidInput, match="q_ref"):
+        mod.ik(t, cfg, q_ref=np.full(6, np.nan))
+    with pytest.raises(errors.InvalidInput, match="configuration"):
+        mod.ik(t, "right")
+    far = np.eye(4)
+    far[:3, 3] = [5.0, 0.0, 0.0]
+    with pytest.raises(errors.Unreachable, match="pose T"):
+        mod.ik(far, cfg)
+    assert mod.ik_all(far) == []
+    with pytest.raises(errors.InvalidInput, match="not finite"):
+        mod.config_of(np.full(6, np.inf))
+
+
+def test_ik_fast_entry_wrist_singular_goes_to_the_runtime():
+    from rccl.kinematics import errors
+    mod = _mod("puma260")
+    q = np.array([0.3, -0.5, 0.4, 0.7, 0.0, 0.2])  # theta5 = 0: wrist singular
+    t = mod.fk(q)
+    cfg = mod.config_of(q)
+    with pytest.raises(errors.Singular, match="theta5"):
+        mod.ik(t, cfg)
+    np.testing.assert_allclose(mod.fk(mod.ik(t, mod.config_of(q), q_ref=q)), t, atol=1e-12)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_gravity_takes_mappings_and_records_in_the_fast_entry(robot):
+    from types import MappingProxyType
+
+    from rccl.kinematics import errors
+    from rci.robot_model import load_robot
+    mod = _mod(robot)
+    model = load_robot(robot)
+    c = np.array([model.gravity_coeffs[n].value for n in mod.GRAVITY_COEFFS])
+    for q in _qs(mod, 10, 34):
+        want = mod._ROBOT.call("gravity", q, c)[0]
+        np.testing.assert_array_equal(mod.gravity(q, c), want)
+        np.testing.assert_array_equal(mod.gravity(q, dict(zip(mod.GRAVITY_COEFFS, c))), want)
+        np.testing.assert_array_equal(mod.gravity(q, model.gravity_coeffs), want)          # Value records
+        np.testing.assert_array_equal(mod.gravity(q, MappingProxyType(dict(zip(mod.GRAVITY_COEFFS, c)))), want)
+        np.testing.assert_array_equal(mod.gravity(q, model), want)                           # a RobotModel
+    name = mod.GRAVITY_COEFFS[0]
+    with pytest.raises(errors.InvalidInput, match=name):
+        mod.gravity(np.zeros(6), {n: 1.0 for n in mod.GRAVITY_COEFFS[1:]})
+    with pytest.raises(errors.InvalidInput, match="not finite"):
+        mod.gravity(np.zeros(6), {n: float("nan") for n in mod.GRAVITY_COEFFS})
+    qs = _qs(mod, 5, 35)
+    np.testing.assert_array_equal(mod.gravity(qs, model.gravity_coeffs), mod._ROBOT.call("gravity", qs, c)[0])
+
+
+_BATCHED = {  # public function -> number of vector arguments after q
+    "fk": 0, "jacobian4": 0, "jacobian6": 0, "gravity_regressor": 0,
+    "cartesian_from_joint": 1, "torque_from_force": 1, "joint_from_cartesian": 1, "force_from_torque": 1,
+}
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_batched_public_calls_and_out(robot):
+    mod = _mod(robot)
+    rng = np.random.default_rng(36)
+    qs = _qs(mod, 40_000, 36)  # more rows than one thread takes: the split is exercised
+    v = rng.uniform(-1, 1, (len(qs), 6))
+    for name, extra in _BATCHED.items():
+        fn = getattr(mod, name)
+        args = (qs,) + (v,) * extra
+        kernel = name if name in _SINGLE else f"{name}6"
+        want = mod._ROBOT.call(kernel, *args)[0]
+        got = fn(*args)
+        np.testing.assert_array_equal(got, want)
+        out = np.empty_like(want)
+        assert fn(*args, out=out) is out
+        np.testing.assert_array_equal(out, want)
+        for i in (0, 19_999, 20_000, len(qs) - 1):  # rows on both sides of the thread boundary
+            np.testing.assert_allclose(got[i], fn(*(a[i] for a in args)), rtol=0, atol=1e-12)
+    c = rng.uniform(0.1, 1.0, len(mod.GRAVITY_COEFFS))
+    out = np.empty((len(qs), 6))
+    assert mod.gravity(qs, c, out=out) is out
+    np.testing.assert_array_equal(out, mod._ROBOT.call("gravity", qs, c)[0])
+    single = np.empty((4, 4))
+    assert mod.fk(qs[0], out=single) is single
+    np.testing.assert_array_equal(single, mod.fk(qs[0]))
+    # the Python path honours out= too (a list input)
+    small = np.empty((3, 4, 4))
+    assert mod.fk(qs[:3].tolist(), out=small) is small
+    np.testing.assert_array_equal(small, mod.fk(qs[:3]))
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_batched_public_calls_keep_every_error(robot):
+    from rccl.kinematics import errors
+    mod = _mod(robot)
+    qs = _qs(mod, 50_000, 37)
+    for bad_out, what in ((np.empty((len(qs), 4)), "shape"), (np.empty((len(qs), 4, 4), dtype=np.float32), "float32"),
+                          ([0.0] * 16, "list"), (np.empty((4, 4)), "shape")):
+        with pytest.raises(errors.InvalidInput, match="out must be"):
+            mod.fk(qs, out=bad_out)
+    ro = np.empty((len(qs), 4, 4))
+    ro.flags.writeable = False
+    with pytest.raises(errors.InvalidInput, match="read-only"):
+        mod.fk(qs, out=ro)
+    # a non-contiguous out of the right shape is fine (through the Python path)
+    wide = np.empty((len(qs), 4, 8))[:, :, ::2]
+    np.testing.assert_array_equal(mod.fk(qs, out=wide), mod.fk(qs))
+    # out= sharing memory with the input: the Python path computes first, then writes
+    q6 = qs[:10].copy()
+    want = mod.fk(q6)
+    buf = np.zeros((10, 4, 4))
+    buf.reshape(10, 16)[:, :6] = q6
+    alias = buf.reshape(10, 16)[:, :6]  # q read from the very memory the result goes to
+    assert not alias.flags.c_contiguous
+    np.testing.assert_array_equal(mod.fk(alias, out=buf), want)
+    buf2 = np.zeros(16)
+    buf2[:6] = q6[0]
+    np.testing.assert_array_equal(mod.fk(buf2[:6], out=buf2.reshape(4, 4)), want[0])  # contiguous, overlapping
+    bad = qs.copy()
+    bad[31_234, 2] = np.nan
+    with pytest.raises(errors.InvalidInput, match="not finite .*31234"):
+        mod.fk(bad)
+    sing = qs.copy()
+    sing[45_678] = 0.0  # singular for both arms
+    with pytest.raises(errors.Singular, match="batch row 45678"):
+        mod.joint_from_cartesian(sing, np.ones((len(qs), 6)))

@@ -109,19 +109,50 @@ def accelerate(robot: str, kernels: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def public(robot: str, name: str, fallback: Callable, kernels: dict[str, Any]) -> Callable:
+def _compiled(mod: Any, kernels: dict[str, Any], name: str) -> bool:
+    k = kernels.get(name)
+    return mod is not None and k is not None and hasattr(mod, "public") and k.one is getattr(mod, name, None)
+
+
+def public(robot: str, name: str, fallback: Callable, kernels: dict[str, Any],
+           keys: tuple[str, ...] | None = None) -> Callable:
     """The public function of kernel ``name``: its compiled fast entry, or ``fallback``.
 
     The fast entry (C, built with numpy's headers) runs the kernel directly when every
-    argument is an unbatched float64 numpy array of the kernel's shape with finite values,
-    every guard is >= 0 and the result is finite, and returns the first output; any other
-    call (lists, batches, keywords, bad input, failing guards) is handed to ``fallback``
-    unchanged, so errors and conversions are exactly those of the Python runtime.
-    ``kernels`` are the accelerated KernelFn records: the fast entry is used only when the
-    record's code is this module's compiled kernel (same shapes).
+    argument is a float64 C-contiguous numpy array of the kernel's shape (one configuration)
+    or with a leading batch axis (a batch, split over threads when large), with finite
+    values, every guard >= 0 and a finite result, and returns the first output; the keyword
+    ``out=`` takes an array of exactly the result's shape to write it into. ``keys`` (the
+    coefficient names of gravity) lets the last input also be a mapping of floats (or of
+    records with a float ``.value``). Any other call (lists, keywords, bad input, failing
+    guards, a wrong ``out``) is handed to ``fallback`` unchanged, so errors and conversions
+    are exactly those of the Python runtime. ``kernels`` are the accelerated KernelFn
+    records: the fast entry is used only when the record's code is this module's compiled
+    kernel (same shapes).
     """
     mod = c_module(robot)
-    k = kernels.get(name)
-    if mod is None or k is None or not hasattr(mod, "public") or k.one is not getattr(mod, name, None):
+    if not _compiled(mod, kernels, name):
         return fallback
-    return mod.public(name, fallback)
+    return mod.public(name, fallback, None if keys is None else tuple(str(k) for k in keys))
+
+
+def public_ik(robot: str, fallbacks: dict[str, Callable], kernels: dict[str, Any], config_type: type,
+              revolute: Any, lower: Any, upper: Any, rigid_tol: float, same_tol: float) -> dict[str, Callable]:
+    """Fast entries of ``ik``, ``ik_all`` and ``config_of`` (keys of ``fallbacks``) for one pose
+    or configuration, or the fallbacks themselves without the compiled kernels.
+
+    The C checks the pose (finite, last row 0 0 0 1, rotation orthonormal within half of
+    ``rigid_tol``, determinant > 0), the Config (an instance of ``config_type``), q_ref, the
+    guards and the prismatic joint ranges, applies q_ref's 2 pi branch, and for ``ik_all``
+    drops solutions within ``same_tol`` of an earlier one; whenever anything is off it calls
+    the fallback, which builds the message or takes the wrist-singular path.
+    """
+    mod = c_module(robot)
+    if not (hasattr(mod, "ik_setup") and _compiled(mod, kernels, "ik") and _compiled(mod, kernels, "config_indicators")):
+        return dict(fallbacks)
+    import dataclasses
+
+    fields = tuple(f.name for f in dataclasses.fields(config_type))
+    mod.ik_setup(config_type, fields, tuple(config_type.all()), [float(r) for r in revolute],
+                 [float(x) for x in lower], [float(x) for x in upper], float(rigid_tol), float(same_tol))
+    return {name: mod.public(name, fn) for name, fn in fallbacks.items()}

@@ -2023,115 +2023,21 @@ _KERNELS = _backend.accelerate(ROBOT, {
 })
 
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
-
-
-def fk(q):
-    """T6 (4, 4), link 6 in the base frame (thesis 3.16-3.18); q (6,) or (N, 6) -> (N, 4, 4)."""
-    return _ROBOT.fk(q)
-
-
-def ik(T, config, q_ref=None):
-    """Joint variables for pose T in configuration `config` (thesis 3.19-3.53).
-
-    q_ref (optional current joints) keeps theta4 at a wrist singularity and picks the
-    2 pi branch of each revolute joint nearest to it. Raises errors.Unreachable or
-    errors.Singular with the pose and the reason.
-    """
-    return _ROBOT.ik(T, config, q_ref)
-
-
-def ik_all(T, q_ref=None):
-    """Every distinct solution for one pose T, as a list of (Config, q)."""
-    return _ROBOT.ik_all(T, q_ref)
-
-
-def config_of(q):
-    """The Config of q (a list of Configs for a batch)."""
-    return _ROBOT.config_of(q)
-
-
-def jacobian4(q):
-    """4J (6, 6): link 6's motion observed in frame 4 (thesis 3.54-3.61)."""
-    return _ROBOT.call("jacobian4", q)[0]
-
-
-def jacobian6(q):
-    """6J (6, 6): link 6's motion observed in frame 6 (Pinocchio LOCAL frame Jacobian)."""
-    return _ROBOT.call("jacobian6", q)[0]
-
-
-def cartesian_from_joint(q, dq, frame=6):
-    """dc = J dq observed in frame 4 or 6 (thesis 3.71, 3.75, 3.79)."""
-    fn = _FRAMES["cartesian_from_joint"].get(frame) if frame in (4, 6) else None
-    if fn is None:
-        _rt.frame_kernel("cartesian_from_joint", frame)  # raises InvalidInput naming the bad frame
-    return fn(q, dq)
-
-
-def torque_from_force(q, f, frame=6):
-    """tau = J^T f with f observed in frame 4 or 6 (thesis 3.72, 3.76, 3.79)."""
-    fn = _FRAMES["torque_from_force"].get(frame) if frame in (4, 6) else None
-    if fn is None:
-        _rt.frame_kernel("torque_from_force", frame)  # raises InvalidInput naming the bad frame
-    return fn(q, f)
-
-
-def joint_from_cartesian(q, dc, frame=6):
-    """dq = J^-1 dc with dc observed in frame 4 or 6 (thesis 3.73, 3.77, 3.79); raises Singular."""
-    fn = _FRAMES["joint_from_cartesian"].get(frame) if frame in (4, 6) else None
-    if fn is None:
-        _rt.frame_kernel("joint_from_cartesian", frame)  # raises InvalidInput naming the bad frame
-    return fn(q, dc)
-
-
-def force_from_torque(q, tau, frame=6):
-    """f = J^-T tau observed in frame 4 or 6 (thesis 3.74, 3.78, 3.79); raises Singular."""
-    fn = _FRAMES["force_from_torque"].get(frame) if frame in (4, 6) else None
-    if fn is None:
-        _rt.frame_kernel("force_from_torque", frame)  # raises InvalidInput naming the bad frame
-    return fn(q, tau)
-
-
-def gravity(q, coeffs):
-    """Joint torques holding the arm against gravity (thesis 4.24); coeffs by name or record."""
-    return _ROBOT.call("gravity", q, _ROBOT.coeff_vector(coeffs))[0]
-
-
-def gravity_regressor(q):
-    """(6, k) matrix Y with gravity(q, c) = Y c, columns in GRAVITY_COEFFS order."""
-    return _ROBOT.call("gravity_regressor", q)[0]
-
-
-def gravity_links(q, masses, coms):
-    """Thesis 4.20 from link masses (6,) kg and centres of mass (6, 3) m in frames 1..6."""
-    return _ROBOT.call("gravity_links", q, masses, coms)[0]
-
-
-def coefficients_from_links(masses, coms):
-    """Gravity coefficients (dict, GRAVITY_COEFFS) of link masses (6,) kg and centres of
-    mass (6, 3) m in frames 1..6; components 4.24 neglects (4.21) are ignored."""
-    (c,) = _ROBOT.call("coefficients_from_links", masses, coms)
-    return dict(zip(GRAVITY_COEFFS, (float(x) for x in c))) if c.ndim == 1 else c
-
-
-def tool_load(coeffs, mass, com):
-    """Coefficients with a tool of `mass` kg at `com` on the z6 axis (thesis 4.26)."""
-    return _ROBOT.tool_load(coeffs, mass, com)
-
-
-def _framed(name):
-    def run(q, x):
-        return _ROBOT.call(name, q, x)[0]
-    run.__name__ = name
-    return _backend.public(ROBOT, name, run, _KERNELS)
-
-
-# The compiled fast entries (rccl.kinematics.backend.public) for one configuration given
-# as float64 numpy arrays; every other call, and every error, goes to the Python above.
-_FRAMES = {base: {f: _framed(f"{base}{f}") for f in (4, 6)}
-           for base in ("cartesian_from_joint", "torque_from_force", "joint_from_cartesian", "force_from_torque")}
-fk = _backend.public(ROBOT, "fk", fk, _KERNELS)
-jacobian4 = _backend.public(ROBOT, "jacobian4", jacobian4, _KERNELS)
-jacobian6 = _backend.public(ROBOT, "jacobian6", jacobian6, _KERNELS)
-gravity = _backend.public(ROBOT, "gravity", gravity, _KERNELS)
-gravity_regressor = _backend.public(ROBOT, "gravity_regressor", gravity_regressor, _KERNELS)
+# the contract's public functions (rccl.kinematics.runtime.public_api): the compiled fast
+# entries where the C kernels are built, with the runtime's Python checks behind them
+_API = _rt.public_api(_ROBOT)
+fk = _API.fk
+ik = _API.ik
+ik_all = _API.ik_all
+config_of = _API.config_of
+jacobian4 = _API.jacobian4
+jacobian6 = _API.jacobian6
+cartesian_from_joint = _API.cartesian_from_joint
+torque_from_force = _API.torque_from_force
+joint_from_cartesian = _API.joint_from_cartesian
+force_from_torque = _API.force_from_torque
+gravity = _API.gravity
+gravity_regressor = _API.gravity_regressor
+gravity_links = _API.gravity_links
+coefficients_from_links = _API.coefficients_from_links
+tool_load = _API.tool_load

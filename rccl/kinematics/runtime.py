@@ -5,11 +5,14 @@ module checks their inputs, dispatches one configuration or a batch, turns negat
 guards into ``errors.Unreachable`` / ``errors.Singular`` naming the pose and the reason,
 and implements the parts of the contract that are logic rather than algebra: the
 configuration records, the wrist-singular fallback and 2 pi branch choice of ``ik``,
-``ik_all`` and ``config_of``.
+``ik_all`` and ``config_of``. ``public_api`` builds the contract's public functions of one
+robot, which the generated module binds to its names: the compiled fast entries
+(``rccl.kinematics.backend``) in front of the Python code here.
 """
 from __future__ import annotations
 
 import itertools
+import types
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
@@ -183,12 +186,27 @@ class Robot:
         n_out = len(k.outputs)
         return res[:n_out], res[n_out:], batch
 
-    def call(self, name: str, *args: Any, context: Callable[[int | None], str] | None = None) -> tuple:
-        """Run a kernel; a negative guard raises its error naming the input."""
+    def call(self, name: str, *args: Any, context: Callable[[int | None], str] | None = None,
+             out: np.ndarray | None = None) -> tuple:
+        """Run a kernel; a negative guard raises its error naming the input. With ``out``
+        (numpy's convention) the first output is written into that array, which is returned."""
         outs, guards, batch = self.raw(name, *args)
         self._check(name, guards, batch, args, context)
         self._finite(name, outs, batch, args, context)
+        if out is not None:
+            outs = (self._into(name, out, outs[0]),) + tuple(outs[1:])
         return outs
+
+    def _into(self, name: str, out: Any, value: Any) -> np.ndarray:
+        value = np.asarray(value)
+        if not isinstance(out, np.ndarray) or out.dtype != np.float64 or out.shape != value.shape \
+                or not out.flags.writeable:
+            got = (f"a {'read-only ' if not out.flags.writeable else ''}{out.dtype} array of shape {out.shape}"
+                   if isinstance(out, np.ndarray) else f"{type(out).__name__}")
+            raise errors.InvalidInput(f"{self.name}.{name}: out must be a writable float64 numpy array of "
+                                      f"shape {value.shape}, got {got}")
+        out[...] = value
+        return out
 
     def _finite(self, name, outs, batch, args, context) -> None:
         """Last line of defence: never hand back a silent NaN or inf."""
@@ -424,3 +442,137 @@ class Robot:
             raise errors.InvalidInput(f"{self.name}.tool_load: com must be d_t or (0, 0, d_t), got {com}")
         (out,) = self.call("tool_load", c, [float(mass), float(dist)])
         return dict(zip(self.coeff_names, (float(x) for x in out)))
+
+
+# -- the public functions ------------------------------------------------------------------
+
+#: the contract's public functions, in the order the generated modules bind them
+PUBLIC = ("fk", "ik", "ik_all", "config_of", "jacobian4", "jacobian6", "cartesian_from_joint",
+          "torque_from_force", "joint_from_cartesian", "force_from_torque", "gravity", "gravity_regressor",
+          "gravity_links", "coefficients_from_links", "tool_load")
+
+
+def public_api(robot: Robot) -> types.SimpleNamespace:
+    """The contract's public functions of one robot (``PUBLIC``), over its kernels.
+
+    Each is the compiled fast entry (``rccl.kinematics.backend``) when the C kernels are
+    built: one configuration or a batch of float64 numpy arrays (a pose, a Config, gravity
+    coefficients as an array or a mapping of floats) runs in C with every check there; any
+    other call, and every error, goes to the Python function defined here, so conversions
+    and messages are the runtime's. Batched calls take ``out=`` (numpy's convention: an
+    array of exactly the result's shape, float64, writable; the result is written there
+    and returned).
+    """
+    from rccl.kinematics import backend  # the loader of the compiled kernels
+
+    name, kernels = robot.name, robot.kernels
+
+    def fk(q, out=None):
+        """T6 (4, 4), link 6 in the base frame (thesis 3.16-3.18); q (6,) or (N, 6) -> (N, 4, 4)."""
+        return robot.call("fk", q, out=out)[0]
+
+    def ik(T, config, q_ref=None):
+        """Joint variables for pose T in configuration `config` (thesis 3.19-3.53).
+
+        q_ref (optional current joints) keeps theta4 at a wrist singularity and picks the
+        2 pi branch of each revolute joint nearest to it. Raises errors.Unreachable or
+        errors.Singular with the pose and the reason.
+        """
+        return robot.ik(T, config, q_ref)
+
+    def ik_all(T, q_ref=None):
+        """Every distinct solution for one pose T, as a list of (Config, q)."""
+        return robot.ik_all(T, q_ref)
+
+    def config_of(q):
+        """The Config of q (a list of Configs for a batch)."""
+        return robot.config_of(q)
+
+    def jacobian4(q, out=None):
+        """4J (6, 6): link 6's motion observed in frame 4 (thesis 3.54-3.61)."""
+        return robot.call("jacobian4", q, out=out)[0]
+
+    def jacobian6(q, out=None):
+        """6J (6, 6): link 6's motion observed in frame 6 (Pinocchio LOCAL frame Jacobian)."""
+        return robot.call("jacobian6", q, out=out)[0]
+
+    def framed(base: str) -> dict[int, Callable]:
+        """The frame-4 and frame-6 kernels of one Jacobian computation, as fast entries."""
+        def entry(frame: int) -> Callable:
+            kname = f"{base}{frame}"
+
+            def run(q, x, out=None):
+                return robot.call(kname, q, x, out=out)[0]
+            run.__name__ = kname
+            return backend.public(name, kname, run, kernels)
+        return {4: entry(4), 6: entry(6)}
+
+    def pick(table: dict[int, Callable], base: str, frame) -> Callable:
+        fn = table.get(frame) if frame in (4, 6) else None
+        if fn is None:
+            frame_kernel(base, frame)  # raises InvalidInput naming the bad frame
+        return fn
+
+    c_from_j, t_from_f = framed("cartesian_from_joint"), framed("torque_from_force")
+    j_from_c, f_from_t = framed("joint_from_cartesian"), framed("force_from_torque")
+
+    def cartesian_from_joint(q, dq, frame=6, out=None):
+        """dc = J dq observed in frame 4 or 6 (thesis 3.71, 3.75, 3.79)."""
+        fn = pick(c_from_j, "cartesian_from_joint", frame)
+        return fn(q, dq) if out is None else fn(q, dq, out=out)
+
+    def torque_from_force(q, f, frame=6, out=None):
+        """tau = J^T f with f observed in frame 4 or 6 (thesis 3.72, 3.76, 3.79)."""
+        fn = pick(t_from_f, "torque_from_force", frame)
+        return fn(q, f) if out is None else fn(q, f, out=out)
+
+    def joint_from_cartesian(q, dc, frame=6, out=None):
+        """dq = J^-1 dc with dc observed in frame 4 or 6 (thesis 3.73, 3.77, 3.79); raises Singular."""
+        fn = pick(j_from_c, "joint_from_cartesian", frame)
+        return fn(q, dc) if out is None else fn(q, dc, out=out)
+
+    def force_from_torque(q, tau, frame=6, out=None):
+        """f = J^-T tau observed in frame 4 or 6 (thesis 3.74, 3.78, 3.79); raises Singular."""
+        fn = pick(f_from_t, "force_from_torque", frame)
+        return fn(q, tau) if out is None else fn(q, tau, out=out)
+
+    def gravity(q, coeffs, out=None):
+        """Joint torques holding the arm against gravity (thesis 4.24).
+
+        coeffs: an array in GRAVITY_COEFFS order, a mapping name -> value (floats, or records
+        with a ``.value`` such as ``RobotModel.gravity_coeffs``), or a record with
+        ``gravity_coeffs``; the compiled entry reads all of these directly.
+        """
+        return robot.call("gravity", q, robot.coeff_vector(coeffs), out=out)[0]
+
+    def gravity_regressor(q, out=None):
+        """(6, k) matrix Y with gravity(q, c) = Y c, columns in GRAVITY_COEFFS order."""
+        return robot.call("gravity_regressor", q, out=out)[0]
+
+    def gravity_links(q, masses, coms):
+        """Thesis 4.20 from link masses (6,) kg and centres of mass (6, 3) m in frames 1..6."""
+        return robot.call("gravity_links", q, masses, coms)[0]
+
+    def coefficients_from_links(masses, coms):
+        """Gravity coefficients (dict, GRAVITY_COEFFS) of link masses (6,) kg and centres of
+        mass (6, 3) m in frames 1..6; components 4.24 neglects (4.21) are ignored."""
+        (c,) = robot.call("coefficients_from_links", masses, coms)
+        return dict(zip(robot.coeff_names, (float(x) for x in c))) if c.ndim == 1 else c
+
+    def tool_load(coeffs, mass, com):
+        """Coefficients with a tool of `mass` kg at `com` on the z6 axis (thesis 4.26)."""
+        return robot.tool_load(coeffs, mass, com)
+
+    fast = backend.public_ik(name, {"ik": ik, "ik_all": ik_all, "config_of": config_of}, kernels,
+                             robot.config_type, robot.revolute, robot.lower, robot.upper,
+                             RIGID_TOL, SAME_SOLUTION_TOL)
+    return types.SimpleNamespace(
+        fk=backend.public(name, "fk", fk, kernels),
+        ik=fast["ik"], ik_all=fast["ik_all"], config_of=fast["config_of"],
+        jacobian4=backend.public(name, "jacobian4", jacobian4, kernels),
+        jacobian6=backend.public(name, "jacobian6", jacobian6, kernels),
+        cartesian_from_joint=cartesian_from_joint, torque_from_force=torque_from_force,
+        joint_from_cartesian=joint_from_cartesian, force_from_torque=force_from_torque,
+        gravity=backend.public(name, "gravity", gravity, kernels, keys=robot.coeff_names),
+        gravity_regressor=backend.public(name, "gravity_regressor", gravity_regressor, kernels),
+        gravity_links=gravity_links, coefficients_from_links=coefficients_from_links, tool_load=tool_load)

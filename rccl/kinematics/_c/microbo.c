@@ -8,6 +8,8 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #ifdef RCCL_NUMPY_API
 /* numpy's C API, when setup.py found numpy's headers: the public fast path below */
@@ -41,7 +43,7 @@ VTRIG(cos)
 #endif
 
 #define MAXIO 3
-#define RCCL_SOURCE_HASH "c195315748b2813636eecbe7394dd8e82b682b78ac7d5f690a52dda6522b13ab"
+#define RCCL_SOURCE_HASH "2cb5d851e27be4cf4a99a7ce6f4294dc7e304de85691f31859f7f86eeca82247"
 
 /* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[base]+cse, o=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
@@ -169,23 +171,23 @@ static inline void k_ik(const double *restrict in0, const double *restrict in1, 
 /* BEGIN KERNEL microbo.ik */
     const double t0 = in0[3]*in0[3] + in0[7]*in0[7];
     const double t1 = sqrt(t0);
-    const double t2_n = in0[6]*in0[3] - in0[2]*in0[7];
+    const double t2 = in0[2]*in0[7] - in0[6]*in0[3];
     const double t3 = 1.0/t1;
     const double t4 = t3*in1[0];
     const double t5 = 1.0/fabs(in1[0]);
     const double t6 = in0[10]*in0[10];
     const double t7 = 1.0/t0;
-    const double t8 = t6 + t7*t2_n*t2_n;
+    const double t8 = t6 + t7*t2*t2;
     const double t9 = sqrt(t8);
     const double t10 = in0[2]*in0[3] + in0[6]*in0[7];
     const double t11 = in0[1]*in0[7] - in0[5]*in0[3];
-    const double t12_n = -t4*t5/t9;
+    const double t12 = t4*t5/t9;
     out0[0] = atan2(in0[7], in0[3]);
     out0[1] = in0[11];
     out0[2] = t1;
-    out0[3] = atan2(in0[10]*in1[0], t2_n*t4);
+    out0[3] = atan2(in0[10]*in1[0], -t2*t4);
     out0[4] = atan2(t5*t9*in1[0], -t10*t3);
-    out0[5] = atan2(t12_n*((t6 + t7*t2_n*t2_n)*(in0[1]*in0[3] + in0[5]*in0[7]) + t10*t11*t2_n*t7 - t10*in0[10]*in0[9])/sqrt(t8 + t7*t10*t10), t12_n*(t11*in0[10] + t2_n*in0[9]));
+    out0[5] = atan2(t12*(t10*in0[10]*in0[9] + t10*t11*t2*t7 - (t6 + t7*t2*t2)*(in0[1]*in0[3] + in0[5]*in0[7]))/sqrt(t8 + t7*t10*t10), t12*(t2*in0[9] - t11*in0[10]));
     /* guards: >= 0 where the outputs are valid */
     out1[0] = t1 - 1e-09;
     out2[0] = t9 - 1e-09;
@@ -209,11 +211,11 @@ static inline void k_ik_wrist(const double *restrict in0, const double *restrict
     const double c_1 = cos(in1[0]);
     const double s_2 = sin(in1[3]);
     const double c_3 = cos(in1[3]);
-    const double t0 = s_2*in0[10] - c_3*(s_0*in0[2] - c_1*in0[6]);
+    const double t0 = s_2*in0[10] + c_3*(c_1*in0[6] - s_0*in0[2]);
     const double t1 = c_1*in0[2] + s_0*in0[6];
     const double t2 = c_1*in0[5] - s_0*in0[1];
     out0[0] = atan2(t0, -t1);
-    out0[1] = atan2(-(t0*(c_1*in0[1] + s_0*in0[5]) - t1*(c_3*t2 + s_2*in0[9]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
+    out0[1] = atan2((t1*(c_3*t2 + s_2*in0[9]) - t0*(c_1*in0[1] + s_0*in0[5]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
 /* END KERNEL microbo.ik_wrist */
 }
 
@@ -225,11 +227,11 @@ static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const d
     const double c_1 = tv[1 * ts];
     const double s_2 = tv[2 * ts];
     const double c_3 = tv[3 * ts];
-    const double t0 = s_2*in0[10] - c_3*(s_0*in0[2] - c_1*in0[6]);
+    const double t0 = s_2*in0[10] + c_3*(c_1*in0[6] - s_0*in0[2]);
     const double t1 = c_1*in0[2] + s_0*in0[6];
     const double t2 = c_1*in0[5] - s_0*in0[1];
     out0[0] = atan2(t0, -t1);
-    out0[1] = atan2(-(t0*(c_1*in0[1] + s_0*in0[5]) - t1*(c_3*t2 + s_2*in0[9]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
+    out0[1] = atan2((t1*(c_3*t2 + s_2*in0[9]) - t0*(c_1*in0[1] + s_0*in0[5]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -488,7 +490,7 @@ static void batch_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssiz
         k_jacobian4(in0 + r * is[0], out0 + r * os[0]);
 }
 
-/* microbo.jacobian6: 6J: motion of link 6 observed in frame 6 per unit joint rate (thesis 3.54-3.61; lowering: cse, trig sums collapsed) */
+/* microbo.jacobian6: 6J: motion of link 6 observed in frame 6 per unit joint rate (thesis 3.54-3.61; lowering: cse) */
 static inline void k_jacobian6(const double *restrict in0, double *restrict out0)
 {
 /* BEGIN KERNEL microbo.jacobian6 */
@@ -820,33 +822,32 @@ static void batch_torque_from_force4(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* microbo.joint_from_cartesian4: dq = J^-1 dc with dc observed in frame 4 (thesis 3.73, 3.77; lowering: cse) */
+/* microbo.joint_from_cartesian4: dq = J^-1 dc with dc observed in frame 4 (thesis 3.73, 3.77; lowering: cse, staged (the kernel's structure hint)) */
 static inline void k_joint_from_cartesian4(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
 {
 /* BEGIN KERNEL microbo.joint_from_cartesian4 */
     const double s_0 = sin(in0[3]);
     const double c_1 = cos(in0[3]);
-    const double x_0 = 2.0*in0[3];
-    const double s_2 = sin(x_0);
-    const double s_3 = sin(in0[4]);
-    const double c_4 = cos(in0[4]);
-    const double t0 = 1.0/in0[2];
-    const double t1 = 1.0/s_3;
-    const double t2 = c_4*t1;
-    const double t3 = t0*in1[0];
-    const double t4 = 0.5*s_2;
-    const double t5 = t3*t4;
-    const double t6 = t0*in1[2];
-    const double t7 = t6*s_0*s_0;
-    out0[0] = t0*(c_1*in1[0] + s_0*in1[2]);
-    out0[1] = s_0*in1[0] - c_1*in1[2];
-    out0[2] = in1[1];
-    out0[3] = in1[4] + c_4*t1*in1[3] - t2*t5 - t2*t7;
-    out0[4] = in1[5] + t3*c_1*c_1 + t4*t6;
-    out0[5] = t1*(in1[3] - t5 - t7);
+    const double s_2 = sin(in0[4]);
+    const double c_3 = cos(in0[4]);
+    const double z6 = c_1*in1[0] + s_0*in1[2];
+    const double z7 = s_0*in1[0] - c_1*in1[2];
+    const double z8 = in1[1];
+    const double z9 = z6/in0[2];
+    const double z10 = z7;
+    const double z11 = z8;
+    const double z14 = (in1[3] - s_0*z9)/s_2;
+    const double z12 = in1[4] + c_3*z14;
+    const double z13 = in1[5] + c_1*z9;
+    out0[0] = z9;
+    out0[1] = z10;
+    out0[2] = z11;
+    out0[3] = z12;
+    out0[4] = z13;
+    out0[5] = z14;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 /* END KERNEL microbo.joint_from_cartesian4 */
 }
 
@@ -856,27 +857,26 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
 {
     const double s_0 = tv[0 * ts];
     const double c_1 = tv[1 * ts];
-    const double x_0 = 2.0*in0[3];
     const double s_2 = tv[2 * ts];
-    const double s_3 = tv[3 * ts];
-    const double c_4 = tv[4 * ts];
-    const double t0 = 1.0/in0[2];
-    const double t1 = 1.0/s_3;
-    const double t2 = c_4*t1;
-    const double t3 = t0*in1[0];
-    const double t4 = 0.5*s_2;
-    const double t5 = t3*t4;
-    const double t6 = t0*in1[2];
-    const double t7 = t6*s_0*s_0;
-    out0[0] = t0*(c_1*in1[0] + s_0*in1[2]);
-    out0[1] = s_0*in1[0] - c_1*in1[2];
-    out0[2] = in1[1];
-    out0[3] = in1[4] + c_4*t1*in1[3] - t2*t5 - t2*t7;
-    out0[4] = in1[5] + t3*c_1*c_1 + t4*t6;
-    out0[5] = t1*(in1[3] - t5 - t7);
+    const double c_3 = tv[3 * ts];
+    const double z6 = c_1*in1[0] + s_0*in1[2];
+    const double z7 = s_0*in1[0] - c_1*in1[2];
+    const double z8 = in1[1];
+    const double z9 = z6/in0[2];
+    const double z10 = z7;
+    const double z11 = z8;
+    const double z14 = (in1[3] - s_0*z9)/s_2;
+    const double z12 = in1[4] + c_3*z14;
+    const double z13 = in1[5] + c_1*z9;
+    out0[0] = z9;
+    out0[1] = z10;
+    out0[2] = z11;
+    out0[3] = z12;
+    out0[4] = z13;
+    out0[5] = z14;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -886,30 +886,29 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
         const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[5];
+        double ta[2][1], sv[2], cv[2], tv[4];
         const int r = 0;
-        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2];
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[3][64], tv[5][64];
+    double ta[2][64], tv[4][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
             vtrig_sin(ta[0], tv[0], m);
             vtrig_cos(ta[0], tv[1], m);
             vtrig_sin(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
+            vtrig_cos(ta[1], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -929,28 +928,29 @@ static void batch_joint_from_cartesian4(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2]);
 }
 
-/* microbo.force_from_torque4: f = J^-T tau, observed in frame 4 (thesis 3.74, 3.78; lowering: expand+horner[base]+cse) */
+/* microbo.force_from_torque4: f = J^-T tau, observed in frame 4 (thesis 3.74, 3.78; lowering: cse, staged (the kernel's structure hint)) */
 static inline void k_force_from_torque4(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
 {
 /* BEGIN KERNEL microbo.force_from_torque4 */
     const double s_0 = sin(in0[3]);
     const double c_1 = cos(in0[3]);
-    const double x_0 = 2.0*in0[3];
-    const double s_2 = sin(x_0);
-    const double s_3 = sin(in0[4]);
-    const double c_4 = cos(in0[4]);
-    const double t0 = 1.0/in0[2];
-    const double t1 = (in1[5] + c_4*in1[3])/s_3;
-    const double t2 = 0.5*s_2*t0;
-    out0[0] = s_0*in1[1] + c_1*t0*(in1[0] + c_1*in1[4]) - t1*t2;
-    out0[1] = in1[2];
-    out0[2] = t2*in1[4] + s_0*t0*(in1[0] - s_0*t1) - c_1*in1[1];
-    out0[3] = t1;
-    out0[4] = in1[3];
-    out0[5] = in1[4];
+    const double s_2 = sin(in0[4]);
+    const double c_3 = cos(in0[4]);
+    const double z16 = in1[3];
+    const double z17 = in1[4];
+    const double z15 = (in1[5] + c_3*z16)/s_2;
+    const double z18 = (in1[0] + c_1*z17 - s_0*z15)/in0[2];
+    const double z19 = in1[1];
+    const double z20 = in1[2];
+    out0[0] = c_1*z18 + s_0*z19;
+    out0[1] = z20;
+    out0[2] = s_0*z18 - c_1*z19;
+    out0[3] = z15;
+    out0[4] = z16;
+    out0[5] = z17;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 /* END KERNEL microbo.force_from_torque4 */
 }
 
@@ -960,22 +960,23 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
 {
     const double s_0 = tv[0 * ts];
     const double c_1 = tv[1 * ts];
-    const double x_0 = 2.0*in0[3];
     const double s_2 = tv[2 * ts];
-    const double s_3 = tv[3 * ts];
-    const double c_4 = tv[4 * ts];
-    const double t0 = 1.0/in0[2];
-    const double t1 = (in1[5] + c_4*in1[3])/s_3;
-    const double t2 = 0.5*s_2*t0;
-    out0[0] = s_0*in1[1] + c_1*t0*(in1[0] + c_1*in1[4]) - t1*t2;
-    out0[1] = in1[2];
-    out0[2] = t2*in1[4] + s_0*t0*(in1[0] - s_0*t1) - c_1*in1[1];
-    out0[3] = t1;
-    out0[4] = in1[3];
-    out0[5] = in1[4];
+    const double c_3 = tv[3 * ts];
+    const double z16 = in1[3];
+    const double z17 = in1[4];
+    const double z15 = (in1[5] + c_3*z16)/s_2;
+    const double z18 = (in1[0] + c_1*z17 - s_0*z15)/in0[2];
+    const double z19 = in1[1];
+    const double z20 = in1[2];
+    out0[0] = c_1*z18 + s_0*z19;
+    out0[1] = z20;
+    out0[2] = s_0*z18 - c_1*z19;
+    out0[3] = z15;
+    out0[4] = z16;
+    out0[5] = z17;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -985,30 +986,29 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
         const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[5];
+        double ta[2][1], sv[2], cv[2], tv[4];
         const int r = 0;
-        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2];
+        ta[0][r] = in0[3]; ta[1][r] = in0[4];
+        double a[2];
+        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[3][64], tv[5][64];
+    double ta[2][64], tv[4][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
             vtrig_sin(ta[0], tv[0], m);
             vtrig_cos(ta[0], tv[1], m);
             vtrig_sin(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
+            vtrig_cos(ta[1], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -1028,7 +1028,7 @@ static void batch_force_from_torque4(Py_ssize_t n, const double *const *in, cons
         k_force_from_torque4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2]);
 }
 
-/* microbo.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (frame-4 computation + one map)) */
+/* microbo.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
 static inline void k_cartesian_from_joint6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL microbo.cartesian_from_joint6 */
@@ -1038,21 +1038,23 @@ static inline void k_cartesian_from_joint6(const double *restrict in0, const dou
     const double c_3 = cos(in0[4]);
     const double s_4 = sin(in0[5]);
     const double c_5 = cos(in0[5]);
-    const double u0 = c_1*in1[0];
-    const double w0 = s_0*in1[1] + u0*in0[2];
-    const double w1 = in1[2];
-    const double w2 = s_0*in1[0]*in0[2] - c_1*in1[1];
-    const double w3 = s_0*in1[0] + s_2*in1[5];
-    const double w4 = in1[3] - c_3*in1[5];
-    const double w5 = in1[4] - u0;
-    const double t0 = c_3*w0 + s_2*w1;
-    const double t1 = c_3*w3 + s_2*w4;
-    out0[0] = c_5*t0 + s_4*w2;
-    out0[1] = c_5*w2 - s_4*t0;
-    out0[2] = s_2*w0 - c_3*w1;
-    out0[3] = c_5*t1 + s_4*w5;
-    out0[4] = c_5*w5 - s_4*t1;
-    out0[5] = s_2*w3 - c_3*w4;
+    const double z0 = in1[0]*in0[2];
+    const double z1 = in1[1];
+    const double z2 = in1[2];
+    const double z3 = c_1*z0 + s_0*z1;
+    const double z4 = z2;
+    const double t0 = c_3*z3 + s_2*z4;
+    const double z5 = s_0*z0 - c_1*z1;
+    const double z6 = s_0*in1[0] + s_2*in1[5];
+    const double z7 = in1[3] - c_3*in1[5];
+    const double t1 = c_3*z6 + s_2*z7;
+    const double z8 = in1[4] - c_1*in1[0];
+    out0[0] = c_5*t0 + s_4*z5;
+    out0[1] = c_5*z5 - s_4*t0;
+    out0[2] = s_2*z3 - c_3*z4;
+    out0[3] = c_5*t1 + s_4*z8;
+    out0[4] = c_5*z8 - s_4*t1;
+    out0[5] = s_2*z6 - c_3*z7;
 /* END KERNEL microbo.cartesian_from_joint6 */
 }
 
@@ -1066,21 +1068,23 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     const double c_3 = tv[3 * ts];
     const double s_4 = tv[4 * ts];
     const double c_5 = tv[5 * ts];
-    const double u0 = c_1*in1[0];
-    const double w0 = s_0*in1[1] + u0*in0[2];
-    const double w1 = in1[2];
-    const double w2 = s_0*in1[0]*in0[2] - c_1*in1[1];
-    const double w3 = s_0*in1[0] + s_2*in1[5];
-    const double w4 = in1[3] - c_3*in1[5];
-    const double w5 = in1[4] - u0;
-    const double t0 = c_3*w0 + s_2*w1;
-    const double t1 = c_3*w3 + s_2*w4;
-    out0[0] = c_5*t0 + s_4*w2;
-    out0[1] = c_5*w2 - s_4*t0;
-    out0[2] = s_2*w0 - c_3*w1;
-    out0[3] = c_5*t1 + s_4*w5;
-    out0[4] = c_5*w5 - s_4*t1;
-    out0[5] = s_2*w3 - c_3*w4;
+    const double z0 = in1[0]*in0[2];
+    const double z1 = in1[1];
+    const double z2 = in1[2];
+    const double z3 = c_1*z0 + s_0*z1;
+    const double z4 = z2;
+    const double t0 = c_3*z3 + s_2*z4;
+    const double z5 = s_0*z0 - c_1*z1;
+    const double z6 = s_0*in1[0] + s_2*in1[5];
+    const double z7 = in1[3] - c_3*in1[5];
+    const double t1 = c_3*z6 + s_2*z7;
+    const double z8 = in1[4] - c_1*in1[0];
+    out0[0] = c_5*t0 + s_4*z5;
+    out0[1] = c_5*z5 - s_4*t0;
+    out0[2] = s_2*z3 - c_3*z4;
+    out0[3] = c_5*t1 + s_4*z8;
+    out0[4] = c_5*z8 - s_4*t1;
+    out0[5] = s_2*z6 - c_3*z7;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1134,7 +1138,7 @@ static void batch_cartesian_from_joint6(Py_ssize_t n, const double *const *in, c
         k_cartesian_from_joint6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* microbo.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (frame-4 computation + one map)) */
+/* microbo.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse) */
 static inline void k_torque_from_force6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL microbo.torque_from_force6 */
@@ -1144,20 +1148,17 @@ static inline void k_torque_from_force6(const double *restrict in0, const double
     const double c_3 = cos(in0[4]);
     const double s_4 = sin(in0[5]);
     const double c_5 = cos(in0[5]);
-    const double u0 = c_5*in1[0] - s_4*in1[1];
-    const double u1 = c_5*in1[3] - s_4*in1[4];
-    const double w0 = c_3*u0 + s_2*in1[2];
-    const double w1 = s_2*u0 - c_3*in1[2];
-    const double w2 = c_5*in1[1] + s_4*in1[0];
-    const double w3 = c_3*u1 + s_2*in1[5];
-    const double w4 = s_2*u1 - c_3*in1[5];
-    const double w5 = c_5*in1[4] + s_4*in1[3];
-    out0[0] = c_1*(in0[2]*w0 - w5) + s_0*(w3 + in0[2]*w2);
-    out0[1] = s_0*w0 - c_1*w2;
-    out0[2] = w1;
-    out0[3] = w4;
-    out0[4] = w5;
-    out0[5] = s_2*w3 - c_3*w4;
+    const double t0 = c_5*in1[0] - s_4*in1[1];
+    const double t1 = c_3*t0 + s_2*in1[2];
+    const double t2 = c_5*in1[4] + s_4*in1[3];
+    const double t3 = c_5*in1[1] + s_4*in1[0];
+    const double t4 = c_5*in1[3] - s_4*in1[4];
+    out0[0] = c_1*(t1*in0[2] - t2) + s_0*(c_3*t4 + s_2*in1[5] + t3*in0[2]);
+    out0[1] = s_0*t1 - c_1*t3;
+    out0[2] = s_2*t0 - c_3*in1[2];
+    out0[3] = s_2*t4 - c_3*in1[5];
+    out0[4] = t2;
+    out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
 /* END KERNEL microbo.torque_from_force6 */
 }
 
@@ -1171,20 +1172,17 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     const double c_3 = tv[3 * ts];
     const double s_4 = tv[4 * ts];
     const double c_5 = tv[5 * ts];
-    const double u0 = c_5*in1[0] - s_4*in1[1];
-    const double u1 = c_5*in1[3] - s_4*in1[4];
-    const double w0 = c_3*u0 + s_2*in1[2];
-    const double w1 = s_2*u0 - c_3*in1[2];
-    const double w2 = c_5*in1[1] + s_4*in1[0];
-    const double w3 = c_3*u1 + s_2*in1[5];
-    const double w4 = s_2*u1 - c_3*in1[5];
-    const double w5 = c_5*in1[4] + s_4*in1[3];
-    out0[0] = c_1*(in0[2]*w0 - w5) + s_0*(w3 + in0[2]*w2);
-    out0[1] = s_0*w0 - c_1*w2;
-    out0[2] = w1;
-    out0[3] = w4;
-    out0[4] = w5;
-    out0[5] = s_2*w3 - c_3*w4;
+    const double t0 = c_5*in1[0] - s_4*in1[1];
+    const double t1 = c_3*t0 + s_2*in1[2];
+    const double t2 = c_5*in1[4] + s_4*in1[3];
+    const double t3 = c_5*in1[1] + s_4*in1[0];
+    const double t4 = c_5*in1[3] - s_4*in1[4];
+    out0[0] = c_1*(t1*in0[2] - t2) + s_0*(c_3*t4 + s_2*in1[5] + t3*in0[2]);
+    out0[1] = s_0*t1 - c_1*t3;
+    out0[2] = s_2*t0 - c_3*in1[2];
+    out0[3] = s_2*t4 - c_3*in1[5];
+    out0[4] = t2;
+    out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1238,39 +1236,42 @@ static void batch_torque_from_force6(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* microbo.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse) */
+/* microbo.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
 static inline void k_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
 {
 /* BEGIN KERNEL microbo.joint_from_cartesian6 */
     const double s_0 = sin(in0[3]);
     const double c_1 = cos(in0[3]);
-    const double x_0 = 2.0*in0[3];
-    const double s_2 = sin(x_0);
-    const double s_3 = sin(in0[4]);
-    const double c_4 = cos(in0[4]);
-    const double s_5 = sin(in0[5]);
-    const double c_6 = cos(in0[5]);
-    const double t0 = 1.0/in0[2];
-    const double t1 = c_6*in1[1] + s_5*in1[0];
-    const double t2 = c_6*in1[0] - s_5*in1[1];
-    const double t3 = c_4*t2;
-    const double t4 = t3 + s_3*in1[2];
-    const double t5 = c_6*in1[3] - s_5*in1[4];
-    const double t6 = 1.0/s_3;
-    const double t7 = t5*t6;
-    const double t8 = t0*t1;
-    const double t9 = t6*t8*s_0*s_0;
-    const double t10 = 0.5*s_2;
-    const double t11 = t0*t10*(in1[2] + t3*t6);
-    out0[0] = t0*(c_1*t4 + s_0*t1);
-    out0[1] = s_0*t4 - c_1*t1;
-    out0[2] = s_3*t2 - c_4*in1[2];
-    out0[3] = t7*c_4*c_4 + s_3*t5 - c_4*t11 - c_4*t9;
-    out0[4] = c_6*in1[4] + s_5*in1[3] + t10*t8 + t0*t4*c_1*c_1;
-    out0[5] = in1[5] + c_4*t7 - t11 - t9;
+    const double s_2 = sin(in0[4]);
+    const double c_3 = cos(in0[4]);
+    const double s_4 = sin(in0[5]);
+    const double c_5 = cos(in0[5]);
+    const double t0 = c_5*in1[0] - s_4*in1[1];
+    const double t1 = c_5*in1[3] - s_4*in1[4];
+    const double z18 = c_3*t0 + s_2*in1[2];
+    const double z19 = s_2*t0 - c_3*in1[2];
+    const double z20 = c_5*in1[1] + s_4*in1[0];
+    const double z21 = c_3*t1 + s_2*in1[5];
+    const double z22 = s_2*t1 - c_3*in1[5];
+    const double z23 = c_5*in1[4] + s_4*in1[3];
+    const double z24 = c_1*z18 + s_0*z20;
+    const double z25 = s_0*z18 - c_1*z20;
+    const double z26 = z19;
+    const double z27 = z24/in0[2];
+    const double z28 = z25;
+    const double z29 = z26;
+    const double z32 = (z21 - s_0*z27)/s_2;
+    const double z30 = z22 + c_3*z32;
+    const double z31 = z23 + c_1*z27;
+    out0[0] = z27;
+    out0[1] = z28;
+    out0[2] = z29;
+    out0[3] = z30;
+    out0[4] = z31;
+    out0[5] = z32;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 /* END KERNEL microbo.joint_from_cartesian6 */
 }
 
@@ -1280,33 +1281,36 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
 {
     const double s_0 = tv[0 * ts];
     const double c_1 = tv[1 * ts];
-    const double x_0 = 2.0*in0[3];
     const double s_2 = tv[2 * ts];
-    const double s_3 = tv[3 * ts];
-    const double c_4 = tv[4 * ts];
-    const double s_5 = tv[5 * ts];
-    const double c_6 = tv[6 * ts];
-    const double t0 = 1.0/in0[2];
-    const double t1 = c_6*in1[1] + s_5*in1[0];
-    const double t2 = c_6*in1[0] - s_5*in1[1];
-    const double t3 = c_4*t2;
-    const double t4 = t3 + s_3*in1[2];
-    const double t5 = c_6*in1[3] - s_5*in1[4];
-    const double t6 = 1.0/s_3;
-    const double t7 = t5*t6;
-    const double t8 = t0*t1;
-    const double t9 = t6*t8*s_0*s_0;
-    const double t10 = 0.5*s_2;
-    const double t11 = t0*t10*(in1[2] + t3*t6);
-    out0[0] = t0*(c_1*t4 + s_0*t1);
-    out0[1] = s_0*t4 - c_1*t1;
-    out0[2] = s_3*t2 - c_4*in1[2];
-    out0[3] = t7*c_4*c_4 + s_3*t5 - c_4*t11 - c_4*t9;
-    out0[4] = c_6*in1[4] + s_5*in1[3] + t10*t8 + t0*t4*c_1*c_1;
-    out0[5] = in1[5] + c_4*t7 - t11 - t9;
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double t0 = c_5*in1[0] - s_4*in1[1];
+    const double t1 = c_5*in1[3] - s_4*in1[4];
+    const double z18 = c_3*t0 + s_2*in1[2];
+    const double z19 = s_2*t0 - c_3*in1[2];
+    const double z20 = c_5*in1[1] + s_4*in1[0];
+    const double z21 = c_3*t1 + s_2*in1[5];
+    const double z22 = s_2*t1 - c_3*in1[5];
+    const double z23 = c_5*in1[4] + s_4*in1[3];
+    const double z24 = c_1*z18 + s_0*z20;
+    const double z25 = s_0*z18 - c_1*z20;
+    const double z26 = z19;
+    const double z27 = z24/in0[2];
+    const double z28 = z25;
+    const double z29 = z26;
+    const double z32 = (z21 - s_0*z27)/s_2;
+    const double z30 = z22 + c_3*z32;
+    const double z31 = z23 + c_1*z27;
+    out0[0] = z27;
+    out0[1] = z28;
+    out0[2] = z29;
+    out0[3] = z30;
+    out0[4] = z31;
+    out0[5] = z32;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1316,32 +1320,31 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
         const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[4][1], sv[4], cv[4], tv[7];
+        double ta[3][1], sv[3], cv[3], tv[6];
         const int r = 0;
-        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
-        double a[4];
-        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[4][64], tv[7][64];
+    double ta[3][64], tv[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
             vtrig_sin(ta[0], tv[0], m);
             vtrig_cos(ta[0], tv[1], m);
             vtrig_sin(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -1361,38 +1364,39 @@ static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2]);
 }
 
-/* microbo.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse, staged (frame-4 computation + one map)) */
+/* microbo.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
 static inline void k_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2)
 {
 /* BEGIN KERNEL microbo.force_from_torque6 */
     const double s_0 = sin(in0[3]);
     const double c_1 = cos(in0[3]);
-    const double x_0 = 2.0*in0[3];
-    const double s_2 = sin(x_0);
-    const double s_3 = sin(in0[4]);
-    const double c_4 = cos(in0[4]);
-    const double s_5 = sin(in0[5]);
-    const double c_6 = cos(in0[5]);
-    const double u0 = 1.0/in0[2];
-    const double u1 = (in1[5] + c_4*in1[3])/s_3;
-    const double u2 = 0.5*s_2*u0;
-    const double w0 = s_0*in1[1] + c_1*u0*(in1[0] + c_1*in1[4]) - u1*u2;
-    const double w1 = in1[2];
-    const double w2 = u2*in1[4] + s_0*u0*(in1[0] - s_0*u1) - c_1*in1[1];
-    const double w3 = u1;
-    const double w4 = in1[3];
-    const double w5 = in1[4];
-    const double t0 = c_4*w0 + s_3*w1;
-    const double t1 = c_4*w3 + s_3*w4;
-    out0[0] = c_6*t0 + s_5*w2;
-    out0[1] = c_6*w2 - s_5*t0;
-    out0[2] = s_3*w0 - c_4*w1;
-    out0[3] = c_6*t1 + s_5*w5;
-    out0[4] = c_6*w5 - s_5*t1;
-    out0[5] = s_3*w3 - c_4*w4;
+    const double s_2 = sin(in0[4]);
+    const double c_3 = cos(in0[4]);
+    const double s_4 = sin(in0[5]);
+    const double c_5 = cos(in0[5]);
+    const double z34 = in1[3];
+    const double z35 = in1[4];
+    const double z33 = (in1[5] + c_3*z34)/s_2;
+    const double z36 = (in1[0] + c_1*z35 - s_0*z33)/in0[2];
+    const double z37 = in1[1];
+    const double z38 = in1[2];
+    const double z39 = c_1*z36 + s_0*z37;
+    const double z40 = z38;
+    const double t0 = c_3*z39 + s_2*z40;
+    const double z41 = s_0*z36 - c_1*z37;
+    const double z42 = z33;
+    const double z43 = z34;
+    const double t1 = c_3*z42 + s_2*z43;
+    const double z44 = z35;
+    out0[0] = c_5*t0 + s_4*z41;
+    out0[1] = c_5*z41 - s_4*t0;
+    out0[2] = s_2*z39 - c_3*z40;
+    out0[3] = c_5*t1 + s_4*z44;
+    out0[4] = c_5*z44 - s_4*t1;
+    out0[5] = s_2*z42 - c_3*z43;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 /* END KERNEL microbo.force_from_torque6 */
 }
 
@@ -1402,32 +1406,33 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
 {
     const double s_0 = tv[0 * ts];
     const double c_1 = tv[1 * ts];
-    const double x_0 = 2.0*in0[3];
     const double s_2 = tv[2 * ts];
-    const double s_3 = tv[3 * ts];
-    const double c_4 = tv[4 * ts];
-    const double s_5 = tv[5 * ts];
-    const double c_6 = tv[6 * ts];
-    const double u0 = 1.0/in0[2];
-    const double u1 = (in1[5] + c_4*in1[3])/s_3;
-    const double u2 = 0.5*s_2*u0;
-    const double w0 = s_0*in1[1] + c_1*u0*(in1[0] + c_1*in1[4]) - u1*u2;
-    const double w1 = in1[2];
-    const double w2 = u2*in1[4] + s_0*u0*(in1[0] - s_0*u1) - c_1*in1[1];
-    const double w3 = u1;
-    const double w4 = in1[3];
-    const double w5 = in1[4];
-    const double t0 = c_4*w0 + s_3*w1;
-    const double t1 = c_4*w3 + s_3*w4;
-    out0[0] = c_6*t0 + s_5*w2;
-    out0[1] = c_6*w2 - s_5*t0;
-    out0[2] = s_3*w0 - c_4*w1;
-    out0[3] = c_6*t1 + s_5*w5;
-    out0[4] = c_6*w5 - s_5*t1;
-    out0[5] = s_3*w3 - c_4*w4;
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double z34 = in1[3];
+    const double z35 = in1[4];
+    const double z33 = (in1[5] + c_3*z34)/s_2;
+    const double z36 = (in1[0] + c_1*z35 - s_0*z33)/in0[2];
+    const double z37 = in1[1];
+    const double z38 = in1[2];
+    const double z39 = c_1*z36 + s_0*z37;
+    const double z40 = z38;
+    const double t0 = c_3*z39 + s_2*z40;
+    const double z41 = s_0*z36 - c_1*z37;
+    const double z42 = z33;
+    const double z43 = z34;
+    const double t1 = c_3*z42 + s_2*z43;
+    const double z44 = z35;
+    out0[0] = c_5*t0 + s_4*z41;
+    out0[1] = c_5*z41 - s_4*t0;
+    out0[2] = s_2*z39 - c_3*z40;
+    out0[3] = c_5*t1 + s_4*z44;
+    out0[4] = c_5*z44 - s_4*t1;
+    out0[5] = s_2*z42 - c_3*z43;
     /* guards: >= 0 where the outputs are valid */
     out1[0] = fabs(in0[2]) - 1e-09;
-    out2[0] = fabs(s_3) - 1e-09;
+    out2[0] = fabs(s_2) - 1e-09;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1437,32 +1442,31 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
         const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[4][1], sv[4], cv[4], tv[7];
+        double ta[3][1], sv[3], cv[3], tv[6];
         const int r = 0;
-        const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
-        double a[4];
-        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+        double a[3];
+        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
+        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[4][64], tv[7][64];
+    double ta[3][64], tv[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = 2.0*in0[3]; ta[0][r] = in0[3]; ta[1][r] = x_0; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
             vtrig_sin(ta[0], tv[0], m);
             vtrig_cos(ta[0], tv[1], m);
             vtrig_sin(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
+            vtrig_cos(ta[1], tv[3], m);
+            vtrig_sin(ta[2], tv[4], m);
+            vtrig_cos(ta[2], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -1670,14 +1674,14 @@ static inline void k_gravity_links(const double *restrict in0, const double *res
     const double c_5 = cos(in0[5]);
     const double t0 = c_5*in2[16] + s_4*in2[15];
     const double t1 = in2[14]*in1[4] + in2[17]*in1[5];
-    const double t2 = c_5*in2[15] - s_4*in2[16];
-    const double t3 = in2[12]*in1[4] + t2*in1[5];
+    const double t2_n = s_4*in2[16] - c_5*in2[15];
+    const double t3 = in2[12]*in1[4] - t2_n*in1[5];
     out0[0] = 0.0;
     out0[1] = 9.81*(in1[1] + in1[2] + in1[3] + in1[4] + in1[5]);
     out0[2] = 0.0;
     out0[3] = 9.81*c_1*(c_3*t3 + in2[9]*in1[3] + s_2*t1) + 9.81*s_0*(in2[11]*in1[3] + in2[13]*in1[4] + t0*in1[5]);
     out0[4] = 9.81*s_0*(c_3*t1 - s_2*t3);
-    out0[5] = -9.81*in1[5]*(c_1*t2 + c_3*s_0*t0);
+    out0[5] = 9.81*in1[5]*(c_1*t2_n - c_3*s_0*t0);
 /* END KERNEL microbo.gravity_links */
 }
 
@@ -1693,14 +1697,14 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     const double c_5 = tv[5 * ts];
     const double t0 = c_5*in2[16] + s_4*in2[15];
     const double t1 = in2[14]*in1[4] + in2[17]*in1[5];
-    const double t2 = c_5*in2[15] - s_4*in2[16];
-    const double t3 = in2[12]*in1[4] + t2*in1[5];
+    const double t2_n = s_4*in2[16] - c_5*in2[15];
+    const double t3 = in2[12]*in1[4] - t2_n*in1[5];
     out0[0] = 0.0;
     out0[1] = 9.81*(in1[1] + in1[2] + in1[3] + in1[4] + in1[5]);
     out0[2] = 0.0;
     out0[3] = 9.81*c_1*(c_3*t3 + in2[9]*in1[3] + s_2*t1) + 9.81*s_0*(in2[11]*in1[3] + in2[13]*in1[4] + t0*in1[5]);
     out0[4] = 9.81*s_0*(c_3*t1 - s_2*t3);
-    out0[5] = -9.81*in1[5]*(c_1*t2 + c_3*s_0*t0);
+    out0[5] = 9.81*in1[5]*(c_1*t2_n - c_3*s_0*t0);
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -1813,7 +1817,7 @@ static inline void k_ik_all(const double *restrict in0, double *restrict out0, d
     const double t15 = t3*t7;
     const double t16 = t10*in0[10]*in0[9] + t10*t14*t15;
     const double t17 = t4/t9;
-    const double t18_n = -t17/sqrt(t8 + t7*t10*t10);
+    const double t18 = t17/sqrt(t8 + t7*t10*t10);
     const double t19 = t17*(t14*in0[10] - t3*in0[9]);
     const double t20 = t2 - 1e-09;
     const double t21 = t9 - 1e-09;
@@ -1822,13 +1826,13 @@ static inline void k_ik_all(const double *restrict in0, double *restrict out0, d
     out0[2] = t2;
     out0[3] = atan2(in0[10], -t5);
     out0[4] = atan2(t9, t11);
-    out0[5] = atan2(t18_n*(t12*(t6 + t7*t13_n*t13_n) - t16), -t19);
+    out0[5] = atan2(t18*(t16 - t12*(t6 + t7*t13_n*t13_n)), -t19);
     out0[6] = t0;
     out0[7] = in0[11];
     out0[8] = t2;
     out0[9] = atan2(-in0[10], t5);
     out0[10] = atan2(-t9, t11);
-    out0[11] = atan2(t18_n*(t16 - t12*(t6 + t13_n*t15)), t19);
+    out0[11] = atan2(t18*(t12*(t6 + t13_n*t15) - t16), t19);
     out1[0] = t20;
     out1[1] = t21;
     out1[2] = t20;
@@ -1965,6 +1969,577 @@ static const kernel_entry KERNELS[20] = {
 static PyObject *np_empty = NULL;         /* numpy.empty, to allocate results */
 static PyObject *np_array = NULL;         /* numpy.array, to convert lists and other dtypes */
 static PyObject *np_array_kw = NULL;      /* {"dtype": "float64", "order": "C"} */
+/* ---------------------------------------------------------------- batched rows
+ * Every batched call runs its rows in chunks of CHUNK: inputs of the chunk scanned for
+ * NaN/inf, the kernel's batched loop, then (public entries) its guards and first output
+ * checked while they are still in cache. Large batches are split over threads (pthreads;
+ * RCCL_KINEMATICS_THREADS, default the online CPUs, at most MAX_THREADS). */
+#define CHUNK 64
+#define MAX_THREADS 8
+#define ROWS_PER_THREAD 16384
+#if defined(__unix__) || defined(__APPLE__)
+#define RCCL_THREADS 1
+#include <pthread.h>
+#include <unistd.h>
+#endif
+static int n_threads = 1;
+
+typedef struct {
+    const kernel_entry *k;
+    Py_ssize_t r0, r1;
+    const double *ip[MAXIO];
+    Py_ssize_t is[MAXIO];
+    double *op[MAXIO];          /* NULL: a guard, written to per-chunk scratch */
+    Py_ssize_t os[MAXIO];
+    int check;                  /* scan inputs, guards (>= 0) and the first output (finite) */
+    int bad;                    /* a check failed */
+} row_job;
+
+/* 1 when no element is NaN or inf: x - x is 0 for every finite x and NaN otherwise;
+ * two lanes at a time with SSE2 (every x86-64), so the check costs little beside a row */
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+/* four lanes with AVX where the CPU has it (checked at import) */
+__attribute__((target("avx"))) static int all_finite_avx(const double *v, Py_ssize_t len)
+{
+    __m256d bad = _mm256_setzero_pd();
+    Py_ssize_t j = 0;
+    for (; j + 8 <= len; j += 8) {
+        const __m256d a = _mm256_loadu_pd(v + j), b = _mm256_loadu_pd(v + j + 4);
+        const __m256d da = _mm256_sub_pd(a, a), db = _mm256_sub_pd(b, b);
+        bad = _mm256_or_pd(bad, _mm256_or_pd(_mm256_cmp_pd(da, da, _CMP_UNORD_Q), _mm256_cmp_pd(db, db, _CMP_UNORD_Q)));
+    }
+    int ok = _mm256_movemask_pd(bad) == 0;
+    for (const double *e = v + len, *x = v + j; x < e; ++x) ok &= isfinite(*x) != 0;
+    return ok;
+}
+static int have_avx = 0;
+#define FINITE_AVX(v, len) if (have_avx && (len) >= 16) return all_finite_avx(v, len)
+#else
+#define FINITE_AVX(v, len)
+#endif
+#if defined(__SSE2__)
+#include <emmintrin.h>
+static int all_finite(const double *v, Py_ssize_t len)
+{
+    FINITE_AVX(v, len);
+    __m128d bad = _mm_setzero_pd();
+    Py_ssize_t j = 0;
+    for (; j + 4 <= len; j += 4) {
+        const __m128d a = _mm_loadu_pd(v + j), b = _mm_loadu_pd(v + j + 2);
+        const __m128d da = _mm_sub_pd(a, a), db = _mm_sub_pd(b, b);
+        bad = _mm_or_pd(bad, _mm_or_pd(_mm_cmpunord_pd(da, da), _mm_cmpunord_pd(db, db)));
+    }
+    int ok = _mm_movemask_pd(bad) == 0;
+    for (const double *e = v + len, *x = v + j; x < e; ++x) ok &= isfinite(*x) != 0;
+    return ok;
+}
+#else
+static int all_finite(const double *v, Py_ssize_t len)
+{
+    int ok = 1;
+    for (Py_ssize_t j = 0; j < len; ++j) ok &= isfinite(v[j]) != 0;
+    return ok;
+}
+#endif
+
+static void run_job(row_job *j)
+{
+    const kernel_entry *k = j->k;
+    double scratch[MAXIO][CHUNK];
+    const double *ic[MAXIO];
+    double *oc[MAXIO];
+    Py_ssize_t osc[MAXIO];
+    for (Py_ssize_t r = j->r0; r < j->r1; r += CHUNK) {
+        const Py_ssize_t m = j->r1 - r < CHUNK ? j->r1 - r : CHUNK;
+        for (int i = 0; i < k->nin; ++i) {
+            ic[i] = j->ip[i] + r * j->is[i];
+            if (j->check && j->is[i] && !all_finite(ic[i], m * j->is[i])) { j->bad = 1; return; }
+        }
+        for (int o = 0; o < k->nout; ++o) {
+            if (j->op[o]) { oc[o] = j->op[o] + r * j->os[o]; osc[o] = j->os[o]; }
+            else { oc[o] = scratch[o]; osc[o] = 1; }
+        }
+        k->fn(m, ic, j->is, oc, osc);
+        if (j->check) {
+            for (int g = k->nout - k->nguard; g < k->nout; ++g)
+                for (Py_ssize_t t = 0; t < m; ++t)
+                    if (!(oc[g][t * osc[g]] >= 0)) { j->bad = 1; return; }
+            if (!all_finite(oc[0], m * osc[0])) { j->bad = 1; return; }
+        }
+    }
+}
+
+#ifdef RCCL_THREADS
+static void *job_thread(void *arg) { run_job((row_job *)arg); return NULL; }
+#endif
+
+/* n rows of kernel k, split over up to n_threads threads; returns nonzero when a check
+ * failed (check = 1 only). Safe without the GIL: touches no Python object. */
+static int run_rows(const kernel_entry *k, Py_ssize_t n, const double *const *ip, const Py_ssize_t *is,
+                    double *const *op, const Py_ssize_t *os, int check)
+{
+    row_job jobs[MAX_THREADS];
+    int t = 1;
+#ifdef RCCL_THREADS
+    t = n_threads;
+    if (n / ROWS_PER_THREAD < t) t = (int)(n / ROWS_PER_THREAD);
+    if (t < 1) t = 1;
+#endif
+    for (int w = 0; w < t; ++w) {
+        row_job *j = &jobs[w];
+        j->k = k; j->check = check; j->bad = 0;
+        j->r0 = n * w / t; j->r1 = n * (w + 1) / t;
+        for (int i = 0; i < k->nin; ++i) { j->ip[i] = ip[i]; j->is[i] = is[i]; }
+        for (int o = 0; o < k->nout; ++o) { j->op[o] = op[o]; j->os[o] = os[o]; }
+    }
+    if (t == 1) { run_job(&jobs[0]); return jobs[0].bad; }
+    int bad = 0;
+#ifdef RCCL_THREADS
+    pthread_t th[MAX_THREADS];
+    int started[MAX_THREADS] = {0};
+    for (int w = 1; w < t; ++w) started[w] = pthread_create(&th[w], NULL, job_thread, &jobs[w]) == 0;
+    run_job(&jobs[0]);
+    bad = jobs[0].bad;
+    for (int w = 1; w < t; ++w) {
+        if (started[w]) pthread_join(th[w], NULL);
+        else run_job(&jobs[w]);       /* no thread to be had: run it here */
+        bad |= jobs[w].bad;
+    }
+#endif
+    return bad;
+}
+
+static void init_threads(void)
+{
+    long c = 1;
+#ifdef RCCL_THREADS
+    const char *env = getenv("RCCL_KINEMATICS_THREADS");
+    c = (env && *env) ? strtol(env, NULL, 10) : sysconf(_SC_NPROCESSORS_ONLN);
+#endif
+    n_threads = c < 1 ? 1 : c > MAX_THREADS ? MAX_THREADS : (int)c;
+#if defined(__x86_64__) && defined(__GNUC__)
+    __builtin_cpu_init();
+    have_avx = __builtin_cpu_supports("avx");
+#endif
+}
+
+#ifdef RCCL_NUMPY_API
+/* ---------------------------------------------------------------- public fast entries
+ * The public functions of the generated module (rccl.kinematics.backend.public) are these
+ * entries: when every argument is already in the form the C can take directly (float64
+ * C-contiguous numpy arrays of the kernel's shape, one configuration or a batch along a
+ * leading axis; gravity coefficients also as a mapping of floats; a valid pose; a Config)
+ * and every check passes (finite inputs, guards >= 0, finite results), they return the
+ * result. Anything else goes to `fallback`, the Python runtime, which gives the contract's
+ * conversions, messages and exceptions: no error behaviour is lost. With out= the result
+ * is written there; a call that then falls back may have written part of it. */
+
+static PyObject *str_value = NULL, *str_gravity_coeffs = NULL;   /* interned attribute names */
+
+/* a numpy array the entries can read in place: exact ndarray, float64, C-contiguous, aligned */
+static PyArrayObject *plain_array(PyObject *x)
+{
+    if (!PyArray_CheckExact(x)) return NULL;
+    PyArrayObject *a = (PyArrayObject *)x;
+    if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) return NULL;
+    return a;
+}
+
+/* coefficient values by name from a dict, a mappingproxy or a record with gravity_coeffs;
+ * each a float or int, or a record with a float `.value` (rci.robot_model.Value).
+ * 0 on success; -1 (no exception set) when the Python path must decide. */
+static int mapping_values(PyObject *x, PyObject *keys, double *v)
+{
+    PyObject *m = x, *owned = NULL;
+    if (!PyDict_Check(m) && !PyObject_TypeCheck(m, &PyDictProxy_Type)) {
+        owned = PyObject_GetAttr(m, str_gravity_coeffs);
+        if (!owned) { PyErr_Clear(); return -1; }
+        m = owned;
+        if (!PyDict_Check(m) && !PyObject_TypeCheck(m, &PyDictProxy_Type)) { Py_DECREF(owned); return -1; }
+    }
+    int rc = 0;
+    for (Py_ssize_t i = 0; rc == 0 && i < PyTuple_GET_SIZE(keys); ++i) {
+        PyObject *key = PyTuple_GET_ITEM(keys, i), *item;
+        if (PyDict_Check(m)) { item = PyDict_GetItemWithError(m, key); Py_XINCREF(item); }
+        else item = PyObject_GetItem(m, key);
+        if (!item) { PyErr_Clear(); rc = -1; break; }
+        double d = NAN;
+        if (PyFloat_Check(item)) d = PyFloat_AS_DOUBLE(item);
+        else if (PyLong_CheckExact(item)) { d = PyLong_AsDouble(item); if (PyErr_Occurred()) { PyErr_Clear(); d = NAN; } }
+        else {
+            PyObject *val = PyObject_GetAttr(item, str_value);
+            if (!val) PyErr_Clear();
+            else if (PyFloat_Check(val)) d = PyFloat_AS_DOUBLE(val);
+            Py_XDECREF(val);
+        }
+        Py_DECREF(item);
+        if (!isfinite(d)) rc = -1;
+        else v[i] = d;
+    }
+    Py_XDECREF(owned);
+    return rc;
+}
+
+/* the keyword `out` (or none); -1 for any other keyword */
+static int out_keyword(PyObject *kwnames, PyObject *const *args, Py_ssize_t nargs, PyObject **out)
+{
+    *out = NULL;
+    if (!kwnames) return 0;
+    if (PyTuple_GET_SIZE(kwnames) != 1 || PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, 0), "out") != 0)
+        return -1;
+    if (args[nargs] != Py_None) *out = args[nargs];
+    return 0;
+}
+
+static int overlaps(const void *a, Py_ssize_t na, const void *b, Py_ssize_t nb)
+{
+    const char *pa = (const char *)a, *pb = (const char *)b;
+    return pa < pb + nb && pb < pa + na;
+}
+
+/* self = (fallback, coefficient names or None) */
+static PyObject *public_call(const kernel_entry *k, PyObject *self, PyObject *const *args, Py_ssize_t nargs,
+                             PyObject *kwnames)
+{
+    PyObject *fallback = PyTuple_GET_ITEM(self, 0), *keys = PyTuple_GET_ITEM(self, 1);
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    Py_ssize_t is[MAXIO], os[MAXIO], ilen[MAXIO];
+    double guard[MAXIO], coeffs[64];
+    PyObject *out, *res;
+    Py_ssize_t n = -1;
+    if (nargs != k->nin || k->nout - k->nguard != 1 || out_keyword(kwnames, args, nargs, &out) < 0) goto slow;
+    for (int i = 0; i < k->nin; ++i) {
+        const arg_shape *s = &k->in[i];
+        PyArrayObject *a = plain_array(args[i]);
+        if (!a) {  /* the last input of gravity may be a mapping of coefficient values */
+            if (keys == Py_None || i != k->nin - 1 || PyArray_Check(args[i]) || s->ndim != 1
+                || s->dim[0] != PyTuple_GET_SIZE(keys) || s->dim[0] > 64 || mapping_values(args[i], keys, coeffs) < 0)
+                goto slow;
+            ip[i] = coeffs; is[i] = 0; ilen[i] = 0;
+            continue;
+        }
+        const int nd = PyArray_NDIM(a), b = nd == s->ndim + 1;
+        if (!(nd == s->ndim || b)) goto slow;
+        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d + b) != s->dim[d]) goto slow;
+        ip[i] = (const double *)PyArray_DATA(a);
+        ilen[i] = PyArray_NBYTES(a);
+        if (b) {
+            const Py_ssize_t rows = PyArray_DIM(a, 0);
+            if (rows == 0 || (n >= 0 && rows != n)) goto slow;
+            n = rows;
+            is[i] = s->size;          /* scanned chunk by chunk in run_rows */
+        } else {
+            if (!all_finite(ip[i], s->size)) goto slow;
+            is[i] = 0;
+        }
+    }
+    const arg_shape *s = &k->out[0];
+    npy_intp dims[3];
+    int nd = 0;
+    if (n >= 0) dims[nd++] = n;
+    for (int d = 0; d < s->ndim; ++d) dims[nd++] = s->dim[d];
+    if (out) {  /* numpy's convention: exactly the result's shape and dtype, writable */
+        PyArrayObject *o = plain_array(out);
+        if (!o || PyArray_NDIM(o) != nd || !PyArray_ISWRITEABLE(o)) goto slow;
+        for (int d = 0; d < nd; ++d) if (PyArray_DIM(o, d) != dims[d]) goto slow;
+        for (int i = 0; i < k->nin; ++i)  /* written while read: the Python path copies */
+            if (ilen[i] && overlaps(ip[i], ilen[i], PyArray_DATA(o), PyArray_NBYTES(o))) goto slow;
+        Py_INCREF(out);
+        res = out;
+    } else {
+        res = PyArray_SimpleNew(nd, dims, NPY_DOUBLE);
+        if (!res) return NULL;
+    }
+    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
+    os[0] = s->size;
+    int bad = 0;
+    if (n < 0) {
+        for (int g = 0; g < k->nguard; ++g) { op[1 + g] = &guard[g]; os[1 + g] = 0; }
+        k->fn(1, ip, is, op, os);
+        for (int g = 0; g < k->nguard; ++g) bad |= !(guard[g] >= 0);
+        bad |= !all_finite(op[0], s->size);
+    } else {
+        for (int g = 0; g < k->nguard; ++g) { op[1 + g] = NULL; os[1 + g] = 1; }
+        if (n > 4096) {
+            Py_BEGIN_ALLOW_THREADS
+            bad = run_rows(k, n, ip, is, op, os, 1);
+            Py_END_ALLOW_THREADS
+        } else {
+            bad = run_rows(k, n, ip, is, op, os, 1);
+        }
+    }
+    if (bad) { Py_DECREF(res); goto slow; }
+    return res;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+/* ---------------------------------------------------------------- ik, ik_all, config_of */
+
+static struct {
+    int ready, ik, ik_all, ind;                 /* kernel indices (-1: absent) */
+    PyObject *config_type, *fields, *configs;   /* Config class, its field names, Config.all() */
+    int nfield, nconf;
+    double revolute[6], lower[6], upper[6];
+    double rigid_tol, same_tol;
+} IK = {0, -1, -1, -1, NULL, NULL, NULL, 0, 0, {0}, {0}, {0}, 0, 0};
+
+static int kernel_index(const char *name)
+{
+    for (int i = 0; i < (int)(sizeof KERNELS / sizeof KERNELS[0]); ++i)
+        if (strcmp(KERNELS[i].name, name) == 0) return i;
+    return -1;
+}
+
+static int six_floats(PyObject *seq, double *v, const char *what)
+{
+    PyObject *f = PySequence_Fast(seq, what);
+    if (!f) return -1;
+    if (PySequence_Fast_GET_SIZE(f) != 6) { Py_DECREF(f); PyErr_Format(PyExc_ValueError, "%s: need 6 values", what); return -1; }
+    for (int j = 0; j < 6; ++j) {
+        v[j] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(f, j));
+        if (v[j] == -1.0 && PyErr_Occurred()) { Py_DECREF(f); return -1; }
+    }
+    Py_DECREF(f);
+    return 0;
+}
+
+/* ik_setup(Config, field names, Config.all(), revolute flags, lower, upper, rigid tol, same-solution tol) */
+static PyObject *ik_setup(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *ct, *fields, *configs, *rev, *lo, *hi;
+    double rigid, same;
+    if (!PyArg_ParseTuple(args, "OO!O!OOOdd:ik_setup", &ct, &PyTuple_Type, &fields, &PyTuple_Type, &configs,
+                          &rev, &lo, &hi, &rigid, &same)) return NULL;
+    IK.ik = kernel_index("ik");
+    IK.ik_all = kernel_index("ik_all");
+    IK.ind = kernel_index("config_indicators");
+    IK.nfield = (int)PyTuple_GET_SIZE(fields);
+    IK.nconf = (int)PyTuple_GET_SIZE(configs);
+    if (IK.nfield < 1 || IK.nfield > 8 || IK.nconf != (1 << IK.nfield)) {
+        PyErr_SetString(PyExc_ValueError, "ik_setup: need 1..8 fields and 2**fields configurations");
+        return NULL;
+    }
+    if (six_floats(rev, IK.revolute, "ik_setup revolute") < 0 || six_floats(lo, IK.lower, "ik_setup lower") < 0
+        || six_floats(hi, IK.upper, "ik_setup upper") < 0) return NULL;
+    /* the kernels must have the layout the entries assume; otherwise they stay unused */
+    if (IK.ik >= 0 && !(KERNELS[IK.ik].nin == 2 && KERNELS[IK.ik].in[0].size == 16 && KERNELS[IK.ik].in[1].size == IK.nfield
+                        && KERNELS[IK.ik].out[0].size == 6 && KERNELS[IK.ik].nout == 1 + KERNELS[IK.ik].nguard)) IK.ik = -1;
+    if (IK.ik_all >= 0 && !(KERNELS[IK.ik_all].nout == 2 && KERNELS[IK.ik_all].out[0].size == 6 * IK.nconf
+                            && KERNELS[IK.ik_all].out[1].size <= 16 * IK.nconf)) IK.ik_all = -1;
+    if (IK.ind >= 0 && !(KERNELS[IK.ind].nin == 1 && KERNELS[IK.ind].in[0].size == 6 && KERNELS[IK.ind].nguard == 0
+                         && KERNELS[IK.ind].nout == 1 && KERNELS[IK.ind].out[0].size == IK.nfield)) IK.ind = -1;
+    Py_XSETREF(IK.config_type, Py_NewRef(ct));
+    Py_XSETREF(IK.fields, Py_NewRef(fields));
+    Py_XSETREF(IK.configs, Py_NewRef(configs));
+    IK.rigid_tol = rigid;
+    IK.same_tol = same;
+    IK.ready = 1;
+    Py_RETURN_NONE;
+}
+
+/* the pose as 16 doubles when it is a plain (4, 4) array and clearly a rigid transform:
+ * finite, last row exactly 0 0 0 1, rotation orthonormal within half the runtime's
+ * tolerance (the borderline band is left to the Python check), determinant > 0 */
+static const double *pose_arg(PyObject *x)
+{
+    PyArrayObject *a = plain_array(x);
+    if (!a || PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4) return NULL;
+    const double *t = (const double *)PyArray_DATA(a);
+    if (!all_finite(t, 16) || t[12] != 0.0 || t[13] != 0.0 || t[14] != 0.0 || t[15] != 1.0) return NULL;
+    double dev = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            const double d = t[i] * t[j] + t[4 + i] * t[4 + j] + t[8 + i] * t[8 + j] - (i == j);
+            dev = fabs(d) > dev ? fabs(d) : dev;
+        }
+    const double det = t[0] * (t[5] * t[10] - t[6] * t[9]) - t[1] * (t[4] * t[10] - t[6] * t[8])
+                     + t[2] * (t[4] * t[9] - t[5] * t[8]);
+    return (dev <= 0.5 * IK.rigid_tol && det > 0) ? t : NULL;
+}
+
+/* q_ref when None (NULL), or a plain finite (6,) array; *ok = 0 when the Python path must decide */
+static const double *ref_arg(PyObject *x, int *ok)
+{
+    *ok = 1;
+    if (!x || x == Py_None) return NULL;
+    PyArrayObject *a = plain_array(x);
+    if (!a || PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != 6 || !all_finite((const double *)PyArray_DATA(a), 6)) {
+        *ok = 0;
+        return NULL;
+    }
+    return (const double *)PyArray_DATA(a);
+}
+
+/* the +-1 signs of a Config instance (exactly the generated module's Config class) */
+static int config_signs(PyObject *c, double *signs)
+{
+    if ((PyObject *)Py_TYPE(c) != IK.config_type) return -1;
+    for (int i = 0; i < IK.nfield; ++i) {
+        PyObject *v = PyObject_GetAttr(c, PyTuple_GET_ITEM(IK.fields, i));
+        if (!v) { PyErr_Clear(); return -1; }
+        const long s = PyLong_CheckExact(v) ? PyLong_AsLong(v) : 0;
+        Py_DECREF(v);
+        if (s != 1 && s != -1) { PyErr_Clear(); return -1; }
+        signs[i] = (double)s;
+    }
+    return 0;
+}
+
+/* (x + pi) mod 2 pi - pi with numpy's floor modulo: runtime._wrap, to the bit */
+static double wrap_angle(double x)
+{
+    double y = fmod(x + M_PI, 2 * M_PI);
+    if (y != 0.0) { if (y < 0) y += 2 * M_PI; }
+    else y = 0.0;
+    return y - M_PI;
+}
+
+/* q_ref's 2 pi branch on revolute joints, then finite and prismatic joints in range;
+ * 0 when all is well */
+static int finish_q(double *q, const double *ref)
+{
+    if (!all_finite(q, 6)) return -1;
+    if (ref)
+        for (int j = 0; j < 6; ++j)
+            if (IK.revolute[j] != 0) q[j] = ref[j] + wrap_angle(q[j] - ref[j]);
+    for (int j = 0; j < 6; ++j)
+        if (IK.revolute[j] == 0 && (q[j] < IK.lower[j] - 1e-12 || q[j] > IK.upper[j] + 1e-12)) return -1;
+    return all_finite(q, 6) ? 0 : -1;
+}
+
+static PyObject *new_vector(const double *v, npy_intp len)
+{
+    PyObject *a = PyArray_SimpleNew(1, &len, NPY_DOUBLE);
+    if (a) memcpy(PyArray_DATA((PyArrayObject *)a), v, (size_t)len * sizeof(double));
+    return a;
+}
+
+/* the q_ref argument of ik(T, config, q_ref=None) / ik_all(T, q_ref=None): position `pos`
+ * or the keyword; *ok = 0 for any other call form */
+static PyObject *q_ref_object(PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames, Py_ssize_t pos, int *ok)
+{
+    const Py_ssize_t nkw = kwnames ? PyTuple_GET_SIZE(kwnames) : 0;
+    *ok = 1;
+    if (nkw == 0 && nargs == pos) return NULL;
+    if (nkw == 0 && nargs == pos + 1) return args[pos];
+    if (nkw == 1 && nargs == pos && PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, 0), "q_ref") == 0)
+        return args[pos];
+    *ok = 0;
+    return NULL;
+}
+
+/* ik(T, config, q_ref=None) for one pose */
+static PyObject *pubfast_ik(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    int ok;
+    if (!IK.ready || IK.ik < 0 || nargs < 2) goto slow;
+    PyObject *ref_obj = q_ref_object(args, nargs, kwnames, 2, &ok);
+    if (!ok) goto slow;
+    const double *ref = ref_arg(ref_obj, &ok), *t = pose_arg(args[0]);
+    double signs[8], q[6], guard[MAXIO];
+    if (!ok || !t || config_signs(args[1], signs) < 0) goto slow;
+    const kernel_entry *k = &KERNELS[IK.ik];
+    const double *ip[2] = {t, signs};
+    double *op[MAXIO];
+    static const Py_ssize_t zero[MAXIO] = {0};
+    op[0] = q;
+    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
+    k->fn(1, ip, zero, op, zero);
+    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) goto slow;  /* unreachable, singular: messages */
+    if (finish_q(q, ref) < 0) goto slow;
+    return new_vector(q, 6);
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+/* ik_all(T, q_ref=None) for one pose: every configuration from the ik_all kernel; the
+ * Python path when any configuration fails a guard (it decides between leaving it out,
+ * the wrist fallback and an error); duplicates (2 pi apart) dropped, first kept */
+static PyObject *pubfast_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    int ok;
+    if (!IK.ready || IK.ik_all < 0 || nargs < 1) goto slow;
+    PyObject *ref_obj = q_ref_object(args, nargs, kwnames, 1, &ok);
+    if (!ok) goto slow;
+    const double *ref = ref_arg(ref_obj, &ok), *t = pose_arg(args[0]);
+    if (!ok || !t) goto slow;
+    const kernel_entry *k = &KERNELS[IK.ik_all];
+    const int nc = IK.nconf, ng = (int)(k->out[1].size / nc);
+    double q[256 * 6], g[256 * 16];
+    int found[256], kept[256], nkept = 0;
+    if (nc > 256) goto slow;
+    const double *ip[1] = {t};
+    double *op[2] = {q, g};
+    static const Py_ssize_t zero[2] = {0, 0};
+    k->fn(1, ip, zero, op, zero);
+    for (int j = 0; j < nc; ++j) {
+        for (int c = 0; c < ng; ++c) if (!(g[j * ng + c] >= 0)) goto slow;
+        if (!all_finite(q + 6 * j, 6)) goto slow;
+        found[j] = finish_q(q + 6 * j, ref) == 0;   /* a prismatic joint out of range: left out */
+    }
+    for (int j = 0; j < nc; ++j) {
+        if (!found[j]) continue;
+        int dup = 0;
+        for (int m = 0; m < nkept && !dup; ++m) {
+            int same = 1;
+            for (int c = 0; c < 6 && same; ++c) {
+                double d = q[6 * j + c] - q[6 * kept[m] + c];
+                if (IK.revolute[c] != 0) d = wrap_angle(d);
+                same = fabs(d) < IK.same_tol;
+            }
+            dup = same;
+        }
+        if (!dup) kept[nkept++] = j;
+    }
+    PyObject *list = PyList_New(nkept);
+    if (!list) return NULL;
+    for (int m = 0; m < nkept; ++m) {
+        PyObject *v = new_vector(q + 6 * kept[m], 6);
+        PyObject *pair = v ? PyTuple_Pack(2, PyTuple_GET_ITEM(IK.configs, kept[m]), v) : NULL;
+        Py_XDECREF(v);
+        if (!pair) { Py_DECREF(list); return NULL; }
+        PyList_SET_ITEM(list, m, pair);
+    }
+    return list;
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+/* config_of(q) for one configuration: the Config.all() entry of the indicators' signs */
+static PyObject *pubfast_config_of(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    if (!IK.ready || IK.ind < 0 || nargs != 1 || kwnames) goto slow;
+    PyArrayObject *a = plain_array(args[0]);
+    if (!a || PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != 6) goto slow;
+    const double *q = (const double *)PyArray_DATA(a);
+    if (!all_finite(q, 6)) goto slow;
+    double ind[8];
+    const double *ip[1] = {q};
+    double *op[1] = {ind};
+    static const Py_ssize_t zero[1] = {0};
+    KERNELS[IK.ind].fn(1, ip, zero, op, zero);
+    if (!all_finite(ind, IK.nfield)) goto slow;
+    int idx = 0;
+    for (int i = 0; i < IK.nfield; ++i) idx = 2 * idx + (ind[i] >= 0 ? 0 : 1);  /* product((1, -1)) order */
+    return Py_NewRef(PyTuple_GET_ITEM(IK.configs, idx));
+slow:
+    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
+}
+
+static PyMethodDef IK_DEFS[] = {
+    {"ik", (PyCFunction)(void (*)(void))pubfast_ik, METH_FASTCALL | METH_KEYWORDS,
+     "ik(T, config, q_ref=None): fast entry for one float64 pose; anything else, and every error, via the runtime"},
+    {"ik_all", (PyCFunction)(void (*)(void))pubfast_ik_all, METH_FASTCALL | METH_KEYWORDS,
+     "ik_all(T, q_ref=None): fast entry for one float64 pose; anything else, and every error, via the runtime"},
+    {"config_of", (PyCFunction)(void (*)(void))pubfast_config_of, METH_FASTCALL | METH_KEYWORDS,
+     "config_of(q): fast entry for one float64 configuration; anything else via the runtime"},
+};
+#endif
+
 
 /* Shape tuple of one unbatched output (new reference); small shapes are cached so the
  * common single call builds no tuple. */
@@ -2090,7 +2665,7 @@ static PyObject *call_kernel(const kernel_entry *k, PyObject *const *args, Py_ss
     }
     if (rows > 4096) {
         Py_BEGIN_ALLOW_THREADS
-        k->fn(rows, ip, is, op, os);
+        run_rows(k, rows, ip, is, op, os, 0);
         Py_END_ALLOW_THREADS
     } else {
         k->fn(rows, ip, is, op, os);
@@ -2112,186 +2687,145 @@ done:
     return result;
 }
 
-#ifdef RCCL_NUMPY_API
-/* The public entry of a kernel (rccl.kinematics.backend.public): when every argument is
- * already an unbatched float64 C-contiguous numpy array of the kernel's shape with finite
- * values, run the row function, and when every guard is >= 0 and the first output is
- * finite return that output (a new array). Anything else (lists, batches, keywords, NaN,
- * a failing guard, a non-finite result) goes to `fallback`, the Python code that gives
- * the contract's conversions, messages and exceptions: no error behaviour is lost. */
-static PyObject *public_call(const kernel_entry *k, PyObject *fallback, PyObject *const *args, Py_ssize_t nargs,
-                             PyObject *kwnames)
-{
-    const double *ip[MAXIO];
-    double *op[MAXIO];
-    double guard[MAXIO];
-    static const Py_ssize_t zero[MAXIO] = {0};
-    if (kwnames || nargs != k->nin || k->nout - k->nguard != 1) goto slow;
-    for (int i = 0; i < k->nin; ++i) {
-        PyObject *x = args[i];
-        if (!PyArray_CheckExact(x)) goto slow;
-        PyArrayObject *a = (PyArrayObject *)x;
-        const arg_shape *s = &k->in[i];
-        if (PyArray_TYPE(a) != NPY_DOUBLE || PyArray_NDIM(a) != s->ndim
-            || !PyArray_CHKFLAGS(a, NPY_ARRAY_C_CONTIGUOUS | NPY_ARRAY_ALIGNED)) goto slow;
-        for (int d = 0; d < s->ndim; ++d) if (PyArray_DIM(a, d) != s->dim[d]) goto slow;
-        const double *v = (const double *)PyArray_DATA(a);
-        for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(v[j])) goto slow;
-        ip[i] = v;
-    }
-    const arg_shape *s = &k->out[0];
-    npy_intp dims[2] = {s->dim[0], s->dim[1]};
-    PyObject *res = PyArray_SimpleNew(s->ndim, dims, NPY_DOUBLE);
-    if (!res) return NULL;
-    op[0] = (double *)PyArray_DATA((PyArrayObject *)res);
-    for (int g = 0; g < k->nguard; ++g) op[1 + g] = &guard[g];
-    k->fn(1, ip, zero, op, zero);
-    for (int g = 0; g < k->nguard; ++g) if (!(guard[g] >= 0)) { Py_DECREF(res); goto slow; }
-    for (Py_ssize_t j = 0; j < s->size; ++j) if (!isfinite(op[0][j])) { Py_DECREF(res); goto slow; }
-    return res;
-slow:
-    return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
-}
-#endif
 
 static PyObject *py_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[0], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_fk(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[0], fallback, args, nargs, kwnames); }
+static PyObject *pub_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[0], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_ik(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[1], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_ik(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[1], fallback, args, nargs, kwnames); }
+static PyObject *pub_ik(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[1], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_ik_wrist(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[2], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_ik_wrist(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[2], fallback, args, nargs, kwnames); }
+static PyObject *pub_ik_wrist(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[2], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_config_indicators(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[3], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_config_indicators(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[3], fallback, args, nargs, kwnames); }
+static PyObject *pub_config_indicators(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[3], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_jacobian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[4], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_jacobian4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[4], fallback, args, nargs, kwnames); }
+static PyObject *pub_jacobian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[4], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_jacobian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[5], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_jacobian6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[5], fallback, args, nargs, kwnames); }
+static PyObject *pub_jacobian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[5], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_cartesian_from_joint4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[6], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_cartesian_from_joint4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[6], fallback, args, nargs, kwnames); }
+static PyObject *pub_cartesian_from_joint4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[6], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_torque_from_force4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[7], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_torque_from_force4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[7], fallback, args, nargs, kwnames); }
+static PyObject *pub_torque_from_force4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[7], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_joint_from_cartesian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[8], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_joint_from_cartesian4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[8], fallback, args, nargs, kwnames); }
+static PyObject *pub_joint_from_cartesian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[8], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_force_from_torque4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[9], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_force_from_torque4(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[9], fallback, args, nargs, kwnames); }
+static PyObject *pub_force_from_torque4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[9], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_cartesian_from_joint6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[10], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_cartesian_from_joint6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[10], fallback, args, nargs, kwnames); }
+static PyObject *pub_cartesian_from_joint6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[10], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_torque_from_force6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[11], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_torque_from_force6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[11], fallback, args, nargs, kwnames); }
+static PyObject *pub_torque_from_force6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[11], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_joint_from_cartesian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[12], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_joint_from_cartesian6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[12], fallback, args, nargs, kwnames); }
+static PyObject *pub_joint_from_cartesian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[12], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_force_from_torque6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[13], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_force_from_torque6(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[13], fallback, args, nargs, kwnames); }
+static PyObject *pub_force_from_torque6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[13], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[14], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_gravity(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[14], fallback, args, nargs, kwnames); }
+static PyObject *pub_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[14], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_gravity_regressor(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[15], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_gravity_regressor(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[15], fallback, args, nargs, kwnames); }
+static PyObject *pub_gravity_regressor(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[15], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_gravity_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[16], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_gravity_links(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[16], fallback, args, nargs, kwnames); }
+static PyObject *pub_gravity_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[16], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_coefficients_from_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[17], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_coefficients_from_links(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[17], fallback, args, nargs, kwnames); }
+static PyObject *pub_coefficients_from_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[17], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_tool_load(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[18], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_tool_load(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[18], fallback, args, nargs, kwnames); }
+static PyObject *pub_tool_load(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[18], self, args, nargs, kwnames); }
 #endif
 
 static PyObject *py_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 { (void)self; return call_kernel(&KERNELS[19], args, nargs); }
 #ifdef RCCL_NUMPY_API
-static PyObject *pub_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[19], fallback, args, nargs, kwnames); }
+static PyObject *pub_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{ return public_call(&KERNELS[19], self, args, nargs, kwnames); }
 #endif
 
 #ifdef RCCL_NUMPY_API
@@ -2318,17 +2852,32 @@ static PyMethodDef PUBLIC_DEFS[] = {
     {"ik_all", (PyCFunction)(void (*)(void))pub_ik_all, METH_FASTCALL | METH_KEYWORDS, "ik_all(T[4, 4]) -> (q[2, 6], guards[2, 2]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
 };
 
-/* public(name, fallback): the kernel's fast public entry, falling back to `fallback`. */
+/* public(name, fallback, keys=None): the fast public entry of a single-output kernel
+ * (keys: names of the coefficients its last input may also be given by, as a mapping), or
+ * of "ik", "ik_all", "config_of" (after ik_setup), falling back to `fallback`. */
 static PyObject *public(PyObject *self, PyObject *args)
 {
     const char *name;
-    PyObject *fallback;
-    if (!PyArg_ParseTuple(args, "sO:public", &name, &fallback)) return NULL;
+    PyObject *fallback, *keys = Py_None;
+    if (!PyArg_ParseTuple(args, "sO|O:public", &name, &fallback, &keys)) return NULL;
     if (!PyCallable_Check(fallback)) { PyErr_SetString(PyExc_TypeError, "public: fallback must be callable"); return NULL; }
+    if (keys != Py_None && !PyTuple_Check(keys)) { PyErr_SetString(PyExc_TypeError, "public: keys must be a tuple"); return NULL; }
+    for (int i = 0; i < (int)(sizeof IK_DEFS / sizeof IK_DEFS[0]); ++i)
+        if (strcmp(IK_DEFS[i].ml_name, name) == 0) {
+            if (!IK.ready) { PyErr_SetString(PyExc_RuntimeError, "public: call ik_setup first"); return NULL; }
+            return PyCFunction_NewEx(&IK_DEFS[i], fallback, NULL);
+        }
     for (int i = 0; i < 20; ++i)
         if (strcmp(KERNELS[i].name, name) == 0) {
             if (KERNELS[i].nout - KERNELS[i].nguard != 1) break;
-            return PyCFunction_NewEx(&PUBLIC_DEFS[i], fallback, NULL);
+            if (keys != Py_None) {
+                for (Py_ssize_t j = 0; j < PyTuple_GET_SIZE(keys); ++j) PyUnicode_InternInPlace(&PyTuple_GET_ITEM(keys, j));
+            }
+            PyObject *data = PyTuple_Pack(2, fallback, keys);
+            if (!data) return NULL;
+            PyObject *fn = PyCFunction_NewEx(&PUBLIC_DEFS[i], data, NULL);
+            Py_DECREF(data);
+            return fn;
         }
     PyErr_Format(PyExc_KeyError, "microbo: no single-output kernel %s", name);
     return NULL;
@@ -2360,6 +2909,12 @@ static PyObject *kernels(PyObject *self, PyObject *noargs)
     return d;
 }
 
+static PyObject *threads(PyObject *self, PyObject *noargs)
+{
+    (void)self; (void)noargs;
+    return PyLong_FromLong(n_threads);
+}
+
 static PyObject *source_hash(PyObject *self, PyObject *noargs)
 {
     (void)self; (void)noargs;
@@ -2389,8 +2944,10 @@ static PyMethodDef methods[] = {
     {"ik_all", (PyCFunction)(void (*)(void))py_ik_all, METH_FASTCALL, "ik_all(T[4, 4]) -> (q[2, 6], guards[2, 2]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"kernels", kernels, METH_NOARGS, "kernels() -> {name: (input shapes, output shapes)}"},
     {"source_hash", source_hash, METH_NOARGS, "sha256 of the generated C this module was built from"},
+    {"threads", threads, METH_NOARGS, "threads() -> the most threads a large batch is split over (RCCL_KINEMATICS_THREADS)"},
 #ifdef RCCL_NUMPY_API
-    {"public", public, METH_VARARGS, "public(name, fallback) -> fast public entry of a kernel (see public_call)"},
+    {"public", public, METH_VARARGS, "public(name, fallback, keys=None) -> fast public entry of a kernel (see public_call)"},
+    {"ik_setup", ik_setup, METH_VARARGS, "ik_setup(Config, fields, configs, revolute, lower, upper, rigid_tol, same_tol): data of the ik/ik_all/config_of entries"},
 #endif
     {NULL, NULL, 0, NULL}
 };
@@ -2403,7 +2960,11 @@ PyMODINIT_FUNC PyInit_microbo(void)
 {
 #ifdef RCCL_NUMPY_API
     import_array();
+    str_value = PyUnicode_InternFromString("value");
+    str_gravity_coeffs = PyUnicode_InternFromString("gravity_coeffs");
+    if (!str_value || !str_gravity_coeffs) return NULL;
 #endif
+    init_threads();
 #ifdef RCCL_VECTOR_TRIG
     __builtin_cpu_init();
     have_vector_trig = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
