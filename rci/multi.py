@@ -213,7 +213,13 @@ class Channel:
         return len(self._items) + len(self._pending)
 
     def send(self, message: Any, timeout: float | None = None, *, stamp: int | None = None) -> None:
-        """Queue ``message`` (a copy of its arrays). Never blocks in a control task."""
+        """Queue ``message`` (a copy of its arrays). Never blocks in a control task.
+
+        None cannot be sent: ``receive()`` returns None for "no message".
+        """
+        if message is None:
+            raise MultiError(f"channel {self.sender}->{self.receiver}: None cannot be sent "
+                             "(receive() returns None for 'no message')")
         item = (next(self._stamp) if stamp is None else stamp, snapshot(message))
         with self._cond:
             if len(self) >= self.capacity:
@@ -366,7 +372,15 @@ class Workcell:
                 for s in done:
                     s._close_quietly(power_off=False)
                 name = next(n for n, s in self.sessions.items() if s not in done)
-                raise type(e)(f"arm {name!r}: {e}") if isinstance(e, RCIError) and e.args else e
+                if isinstance(e, RCIError):
+                    try:       # the same error type, its message naming the arm
+                        named = type(e)(f"arm {name!r}: {e}")
+                    except TypeError:
+                        named = None
+                    if named is not None:
+                        raise named from e
+                    e.add_note(f"while opening arm {name!r}")
+                raise
             lock_memory(self.rt_status)
             self._install_signals()
             return self
@@ -613,8 +627,9 @@ class Workcell:
             if stamped:
                 c = min(stamped, key=lambda x: x[0])[1]
                 msg = c.receive()
-                if msg is not None or c.peek_stamp() is not None:
+                if msg is not None:
                     return c.sender, msg
+                continue            # taken meanwhile by another receiver of the same task: look again
             left = deadline - time.monotonic()
             if left <= 0:
                 return None

@@ -109,6 +109,23 @@ def test_stop_flag_halts_a_running_motion_and_the_next_one_runs(arms):
     assert abs(q_far[0] - q0[0]) == pytest.approx(0.6)
 
 
+def test_stop_ev_stops_two_arms_together(arms):
+    puma, mic = arms
+    fa, qa = waist(puma, 0.6, "fa")
+    fb, qb = waist(mic, 0.6, "fb")
+    puma.settime(0.2, 20.0)
+    mic.settime(0.2, 20.0)
+    a, b = ev.move_ev(puma, fa), ev.move_ev(mic, fb)
+    ev.wait_ev(a, started=True, timeout=10)
+    ev.wait_ev(b, started=True, timeout=10)
+    ev.stop_ev(-4, a, b)
+    assert ev.wait_ev(a, timeout=10) == -4 and ev.wait_ev(b, timeout=10) == -4
+    assert abs(a.t_ended - b.t_ended) < 0.05
+    assert a.request.hooks["finished_t"] < 10.0 and b.request.hooks["finished_t"] < 10.0   # halfway at most
+    time.sleep(0.05)
+    assert abs(puma.q[0] - qa[0]) > 0.2 and abs(mic.q[0] - qb[0]) > 0.2
+
+
 def test_stop_before_start_deletes_the_motion_from_the_queue(arms):
     puma, _ = arms
     never, q_never = waist(puma, 0.5, "never")

@@ -228,3 +228,25 @@ def test_rccl_arms_in_a_workcell_a_dead_link_names_the_arm_and_releases_the_othe
         assert e.termination.severe and e.arm_termination.released == ["puma"]
         assert not puma.rci.in_control and req.status in ("running", "queued")   # stopped mid-motion
         assert not running(p)
+
+
+def test_opening_names_the_arm_whose_link_fails_and_closes_the_others(sims):
+    cell = Workcell({"puma": (sims[0].url, "puma260"), "microbo": ("socket://127.0.0.1:1", "microbo")})
+    with pytest.raises(Exception, match="arm 'microbo'"):
+        cell.open()
+    assert not cell["puma"].is_open
+
+
+def test_none_is_not_a_message():
+    with pytest.raises(MultiError, match="None cannot be sent"):
+        Channel("a", "b").send(None)
+
+
+def test_example_default_handler_prints_the_arm_and_exits_1():
+    import subprocess
+    r = subprocess.run([sys.executable, str(Path(two_arms.__file__)), "--simula", "--seconds", "2",
+                        "--fail-at", "10"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1
+    line = next(x for x in r.stderr.splitlines() if x.startswith("TERMINATE/"))
+    assert "arm 'microbo' (microbo)" in line and "sample 10" in line and "released puma" in line
+    assert line.endswith("/ user control function raised an exception")
