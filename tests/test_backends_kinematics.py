@@ -326,6 +326,16 @@ def test_ik_fast_entries_equal_the_python_runtime(robot):
         _same_solutions(mod.ik_all(t), rb.ik_all(t))
         _same_solutions(mod.ik_all(t, q_ref=q), rb.ik_all(t, q))
         _same_solutions(mod.ik_all(t, q), rb.ik_all(t, q))
+    qs = _qs(mod, 50, 38)
+    poses = mod.fk(qs)
+    for got, want in zip(mod.ik_all(poses, q_ref=qs), rb.ik_all(poses, qs)):
+        _same_solutions(got, want)
+    for got, want in zip(mod.ik_all(poses), rb.ik_all(poses)):
+        _same_solutions(got, want)
+    far = np.eye(4)
+    far[:3, 3] = [5.0, 0.0, 0.0]
+    mixed = mod.ik_all(np.concatenate([poses[:3], far[None]]))  # one pose for the Python path: all of them go
+    assert mixed[3] == [] and all(len(m) > 0 for m in mixed[:3])
     # other call forms still work through the runtime: a config as signs, a list pose
     q = _qs(mod, 1, 32)[0]
     t = mod.fk(q)

@@ -43,9 +43,9 @@ VTRIG(cos)
 #endif
 
 #define MAXIO 5
-#define RCCL_SOURCE_HASH "393cb9e9744b9cff771ea329c4135781f703718559110f9b916bc7ff45975fa6"
+#define RCCL_SOURCE_HASH "2c58899ee42fdc125ece2d8c23bc7442403ad60ffa264b575e481c6fac38e22e"
 
-/* puma260.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: expand+horner[count]+cse, n=cross) */
+/* puma260.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: cse, staged (the kernel's structure hint), o=cross) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
 {
 /* BEGIN KERNEL puma260.fk */
@@ -62,30 +62,40 @@ static inline void k_fk(const double *restrict in0, double *restrict out0)
     const double x_0 = in0[1] + in0[2];
     const double s_10 = sin(x_0);
     const double c_11 = cos(x_0);
-    const double t0 = c_7*s_8;
-    const double t1 = c_5*c_9 - s_4*t0;
-    const double t2 = s_6*s_8;
-    const double t3 = c_5*t0 + c_9*s_4;
-    const double t4_n = s_10*t2 - c_11*t3;
-    const double t5 = c_5*s_6;
-    const double t6 = c_11*t5 + c_7*s_10;
-    const double t7 = c_3 - s_10;
-    out0[1] = c_1*t4_n - s_0*t1;
-    out0[2] = s_0*s_4*s_6 - c_1*t6;
-    out0[3] = 0.12624*s_0 + 0.2032*c_1*t7;
-    out0[5] = c_1*t1 + s_0*t4_n;
-    out0[6] = -s_0*t6 - c_1*s_4*s_6;
-    out0[7] = 0.2032*s_0*t7 - 0.12624*c_1;
-    out0[9] = -c_11*t2 - s_10*t3;
-    out0[10] = c_11*c_7 - s_10*t5;
-    out0[11] = 0.2032*(c_11 + s_2);
+    const double t0 = s_4*s_8;
+    const double t1 = c_5*c_9;
+    const double t2 = c_9*s_4;
+    const double t3 = c_5*s_8;
+    const double k0 = c_7*t1 - t0;
+    const double k2 = -c_5*s_6;
+    const double k3 = t3 + c_7*t2;
+    const double k5_n = s_4*s_6;
+    const double k6 = c_9*s_6;
+    const double k8 = c_7;
+    const double k9 = c_11*k0 - s_10*k6;
+    const double k11 = c_11*k2 - s_10*k8;
+    const double k12 = 0.2032*(c_3 - s_10);
+    const double k13 = c_11*k6 + s_10*k0;
+    const double k15 = c_11*k8 + s_10*k2;
+    const double k16 = 0.2032*(c_11 + s_2);
+    const double k17_n = k3;
+    const double k19 = k5_n;
+    out0[0] = c_1*k9 - k17_n*s_0;
+    out0[2] = c_1*k11 + s_0*k19;
+    out0[3] = 0.12624*s_0 + c_1*k12;
+    out0[4] = c_1*k17_n + s_0*k9;
+    out0[6] = s_0*k11 - c_1*k19;
+    out0[7] = s_0*k12 - 0.12624*c_1;
+    out0[8] = k13;
+    out0[10] = k15;
+    out0[11] = k16;
     out0[12] = 0.0;
     out0[13] = 0.0;
     out0[14] = 0.0;
     out0[15] = 1.0;
-    out0[0] = out0[10]*out0[5] - out0[6]*out0[9];
-    out0[4] = out0[2]*out0[9] - out0[10]*out0[1];
-    out0[8] = out0[1]*out0[6] - out0[2]*out0[5];
+    out0[1] = out0[6]*out0[8] - out0[10]*out0[4];
+    out0[5] = out0[0]*out0[10] - out0[2]*out0[8];
+    out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
 /* END KERNEL puma260.fk */
 }
 
@@ -106,30 +116,40 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     const double x_0 = in0[1] + in0[2];
     const double s_10 = tv[10 * ts];
     const double c_11 = tv[11 * ts];
-    const double t0 = c_7*s_8;
-    const double t1 = c_5*c_9 - s_4*t0;
-    const double t2 = s_6*s_8;
-    const double t3 = c_5*t0 + c_9*s_4;
-    const double t4_n = s_10*t2 - c_11*t3;
-    const double t5 = c_5*s_6;
-    const double t6 = c_11*t5 + c_7*s_10;
-    const double t7 = c_3 - s_10;
-    out0[1] = c_1*t4_n - s_0*t1;
-    out0[2] = s_0*s_4*s_6 - c_1*t6;
-    out0[3] = 0.12624*s_0 + 0.2032*c_1*t7;
-    out0[5] = c_1*t1 + s_0*t4_n;
-    out0[6] = -s_0*t6 - c_1*s_4*s_6;
-    out0[7] = 0.2032*s_0*t7 - 0.12624*c_1;
-    out0[9] = -c_11*t2 - s_10*t3;
-    out0[10] = c_11*c_7 - s_10*t5;
-    out0[11] = 0.2032*(c_11 + s_2);
+    const double t0 = s_4*s_8;
+    const double t1 = c_5*c_9;
+    const double t2 = c_9*s_4;
+    const double t3 = c_5*s_8;
+    const double k0 = c_7*t1 - t0;
+    const double k2 = -c_5*s_6;
+    const double k3 = t3 + c_7*t2;
+    const double k5_n = s_4*s_6;
+    const double k6 = c_9*s_6;
+    const double k8 = c_7;
+    const double k9 = c_11*k0 - s_10*k6;
+    const double k11 = c_11*k2 - s_10*k8;
+    const double k12 = 0.2032*(c_3 - s_10);
+    const double k13 = c_11*k6 + s_10*k0;
+    const double k15 = c_11*k8 + s_10*k2;
+    const double k16 = 0.2032*(c_11 + s_2);
+    const double k17_n = k3;
+    const double k19 = k5_n;
+    out0[0] = c_1*k9 - k17_n*s_0;
+    out0[2] = c_1*k11 + s_0*k19;
+    out0[3] = 0.12624*s_0 + c_1*k12;
+    out0[4] = c_1*k17_n + s_0*k9;
+    out0[6] = s_0*k11 - c_1*k19;
+    out0[7] = s_0*k12 - 0.12624*c_1;
+    out0[8] = k13;
+    out0[10] = k15;
+    out0[11] = k16;
     out0[12] = 0.0;
     out0[13] = 0.0;
     out0[14] = 0.0;
     out0[15] = 1.0;
-    out0[0] = out0[10]*out0[5] - out0[6]*out0[9];
-    out0[4] = out0[2]*out0[9] - out0[10]*out0[1];
-    out0[8] = out0[1]*out0[6] - out0[2]*out0[5];
+    out0[1] = out0[6]*out0[8] - out0[10]*out0[4];
+    out0[5] = out0[0]*out0[10] - out0[2]*out0[8];
+    out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
@@ -257,7 +277,7 @@ static inline void k_ik(const double *restrict in0, const double *restrict in1, 
     /* guards: >= 0 where the outputs are valid */
     out1[0] = 1.000000000001*t0 + 1.000000000001*t1 - 0.015936537599984063;
     out2[0] = 6.819535677030399e-15 + t7;
-    out3[0] = t4 - 2.837053696e-19;
+    out3[0] = t4;
     out4[0] = sqrt(t31 + t32) - 1e-09;
 /* END KERNEL puma260.ik */
 }
@@ -330,7 +350,7 @@ static inline void kv_ik(const double *restrict tv, Py_ssize_t ts, const double 
     /* guards: >= 0 where the outputs are valid */
     out1[0] = 1.000000000001*t0 + 1.000000000001*t1 - 0.015936537599984063;
     out2[0] = 6.819535677030399e-15 + t7;
-    out3[0] = t4 - 2.837053696e-19;
+    out3[0] = t4;
     out4[0] = sqrt(t31 + t32) - 1e-09;
 }
 
@@ -1188,7 +1208,7 @@ static inline void k_joint_from_cartesian4(const double *restrict in0, const dou
     const double t1 = s_7*z9;
     const double t2 = c_8*z9;
     const double z10 = 4.921259842519685*(0.12624*t1 + z8)/c_2;
-    const double z11 = 0.621259842519685*t2 + 1.0*s_1*z10 - 4.921259842519685*z6;
+    const double z11 = 0.621259842519685*t2 + s_1*z10 - 4.921259842519685*z6;
     const double z14 = (c_4*t1 - in1[3] - s_3*z11)/s_5;
     const double z12 = in1[4] - t2 - c_6*z14;
     const double z13 = in1[5] - c_4*z11 - s_3*t1;
@@ -1227,7 +1247,7 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
     const double t1 = s_7*z9;
     const double t2 = c_8*z9;
     const double z10 = 4.921259842519685*(0.12624*t1 + z8)/c_2;
-    const double z11 = 0.621259842519685*t2 + 1.0*s_1*z10 - 4.921259842519685*z6;
+    const double z11 = 0.621259842519685*t2 + s_1*z10 - 4.921259842519685*z6;
     const double z14 = (c_4*t1 - in1[3] - s_3*z11)/s_5;
     const double z12 = in1[4] - t2 - c_6*z14;
     const double z13 = in1[5] - c_4*z11 - s_3*t1;
@@ -1718,7 +1738,7 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
     const double t3 = s_9*z27;
     const double t4 = c_10*z27;
     const double z28 = 4.921259842519685*(0.12624*t3 + z26)/c_2;
-    const double z29 = 0.621259842519685*t4 + 1.0*s_1*z28 - 4.921259842519685*z24;
+    const double z29 = 0.621259842519685*t4 + s_1*z28 - 4.921259842519685*z24;
     const double z32 = (c_4*t3 - z21 - s_3*z29)/s_5;
     const double z30 = z22 - t4 - c_6*z32;
     const double z31 = z23 - c_4*z29 - s_3*t3;
@@ -1767,7 +1787,7 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     const double t3 = s_9*z27;
     const double t4 = c_10*z27;
     const double z28 = 4.921259842519685*(0.12624*t3 + z26)/c_2;
-    const double z29 = 0.621259842519685*t4 + 1.0*s_1*z28 - 4.921259842519685*z24;
+    const double z29 = 0.621259842519685*t4 + s_1*z28 - 4.921259842519685*z24;
     const double z32 = (c_4*t3 - z21 - s_3*z29)/s_5;
     const double z30 = z22 - t4 - c_6*z32;
     const double z31 = z23 - c_4*z29 - s_3*t3;
@@ -2587,13 +2607,11 @@ static inline void k_ik_all(const double *restrict in0, double *restrict out0, d
     const double t200 = t191*t199;
     const double t201 = 1.000000000001*t1 + 1.000000000001*t2 - 0.015936537599984063;
     const double t202 = 6.819535677030399e-15 + t11;
-    const double t203 = t8 - 2.837053696e-19;
-    const double t204 = t41 - 1e-09;
-    const double t205 = t80 - 1e-09;
-    const double t206 = 6.819535677030399e-15 + t110;
-    const double t207 = t107 - 2.837053696e-19;
-    const double t208 = t139 - 1e-09;
-    const double t209 = t177 - 1e-09;
+    const double t203 = t41 - 1e-09;
+    const double t204 = t80 - 1e-09;
+    const double t205 = 6.819535677030399e-15 + t110;
+    const double t206 = t139 - 1e-09;
+    const double t207 = t177 - 1e-09;
     out0[0] = t4;
     out0[1] = t27;
     out0[2] = t14;
@@ -2644,36 +2662,36 @@ static inline void k_ik_all(const double *restrict in0, double *restrict out0, d
     out0[47] = atan2(c_1*t168*t171*t198*t199*in0[1] + s_0*t137*t178*t183*t199*in0[1] + s_0*t168*t171*t198*t199*in0[5] - t155*t200 - t158*t200 - t190*t199 - t146*t186*t199 - t195*t198*t199, -t197);
     out1[0] = t201;
     out1[1] = t202;
-    out1[2] = t203;
-    out1[3] = t204;
+    out1[2] = t8;
+    out1[3] = t203;
     out1[4] = t201;
     out1[5] = t202;
-    out1[6] = t203;
-    out1[7] = t204;
+    out1[6] = t8;
+    out1[7] = t203;
     out1[8] = t201;
     out1[9] = t202;
-    out1[10] = t203;
-    out1[11] = t205;
+    out1[10] = t8;
+    out1[11] = t204;
     out1[12] = t201;
     out1[13] = t202;
-    out1[14] = t203;
-    out1[15] = t205;
+    out1[14] = t8;
+    out1[15] = t204;
     out1[16] = t201;
-    out1[17] = t206;
-    out1[18] = t207;
-    out1[19] = t208;
+    out1[17] = t205;
+    out1[18] = t107;
+    out1[19] = t206;
     out1[20] = t201;
-    out1[21] = t206;
-    out1[22] = t207;
-    out1[23] = t208;
+    out1[21] = t205;
+    out1[22] = t107;
+    out1[23] = t206;
     out1[24] = t201;
-    out1[25] = t206;
-    out1[26] = t207;
-    out1[27] = t209;
+    out1[25] = t205;
+    out1[26] = t107;
+    out1[27] = t207;
     out1[28] = t201;
-    out1[29] = t206;
-    out1[30] = t207;
-    out1[31] = t209;
+    out1[29] = t205;
+    out1[30] = t107;
+    out1[31] = t207;
 /* END KERNEL puma260.ik_all */
 }
 
@@ -2890,13 +2908,11 @@ static inline void kv_ik_all(const double *restrict tv, Py_ssize_t ts, const dou
     const double t200 = t191*t199;
     const double t201 = 1.000000000001*t1 + 1.000000000001*t2 - 0.015936537599984063;
     const double t202 = 6.819535677030399e-15 + t11;
-    const double t203 = t8 - 2.837053696e-19;
-    const double t204 = t41 - 1e-09;
-    const double t205 = t80 - 1e-09;
-    const double t206 = 6.819535677030399e-15 + t110;
-    const double t207 = t107 - 2.837053696e-19;
-    const double t208 = t139 - 1e-09;
-    const double t209 = t177 - 1e-09;
+    const double t203 = t41 - 1e-09;
+    const double t204 = t80 - 1e-09;
+    const double t205 = 6.819535677030399e-15 + t110;
+    const double t206 = t139 - 1e-09;
+    const double t207 = t177 - 1e-09;
     out0[0] = t4;
     out0[1] = t27;
     out0[2] = t14;
@@ -2947,36 +2963,36 @@ static inline void kv_ik_all(const double *restrict tv, Py_ssize_t ts, const dou
     out0[47] = atan2(c_1*t168*t171*t198*t199*in0[1] + s_0*t137*t178*t183*t199*in0[1] + s_0*t168*t171*t198*t199*in0[5] - t155*t200 - t158*t200 - t190*t199 - t146*t186*t199 - t195*t198*t199, -t197);
     out1[0] = t201;
     out1[1] = t202;
-    out1[2] = t203;
-    out1[3] = t204;
+    out1[2] = t8;
+    out1[3] = t203;
     out1[4] = t201;
     out1[5] = t202;
-    out1[6] = t203;
-    out1[7] = t204;
+    out1[6] = t8;
+    out1[7] = t203;
     out1[8] = t201;
     out1[9] = t202;
-    out1[10] = t203;
-    out1[11] = t205;
+    out1[10] = t8;
+    out1[11] = t204;
     out1[12] = t201;
     out1[13] = t202;
-    out1[14] = t203;
-    out1[15] = t205;
+    out1[14] = t8;
+    out1[15] = t204;
     out1[16] = t201;
-    out1[17] = t206;
-    out1[18] = t207;
-    out1[19] = t208;
+    out1[17] = t205;
+    out1[18] = t107;
+    out1[19] = t206;
     out1[20] = t201;
-    out1[21] = t206;
-    out1[22] = t207;
-    out1[23] = t208;
+    out1[21] = t205;
+    out1[22] = t107;
+    out1[23] = t206;
     out1[24] = t201;
-    out1[25] = t206;
-    out1[26] = t207;
-    out1[27] = t209;
+    out1[25] = t205;
+    out1[26] = t107;
+    out1[27] = t207;
     out1[28] = t201;
-    out1[29] = t206;
-    out1[30] = t207;
-    out1[31] = t209;
+    out1[29] = t205;
+    out1[30] = t107;
+    out1[31] = t207;
 }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
