@@ -85,6 +85,8 @@ class EFT:
         self._followers: list[EFT] = []
         self.t_started: float | None = None   # time.monotonic() when the trajectory level began it (s)
         self.t_ended: float | None = None     # ... and when it ended (s): for ordering across arms
+        self.traj_started: float | None = None  # the arm's trajectory time (s) of the sample it began in
+        self.traj_ended: float | None = None    # ... and ended in (comparable across arms of a lockstep Workcell)
 
     @property
     def start(self) -> int:
@@ -208,6 +210,7 @@ class EventQueue(HookQueue):
             with _lock:
                 eft._status = eft._start     # the motion begins: start code -> status
                 eft.t_started = time.monotonic()
+                eft.traj_started = self.events.arm.gen.t
                 _changed.notify_all()
         for r in to_drop:
             r.finish(MotionError(f"{r.position.name}: deleted from the queue by its stop flag "
@@ -475,6 +478,8 @@ def _finished(eft: EFT, req: Request) -> None:
                 eft._stop = FAULT
         eft._status = eft._stop
         eft.t_ended = time.monotonic()
+        if ae is not None:
+            eft.traj_ended = ae.arm.gen.t
         for f in eft._followers:
             _fire(eft, f)
         _changed.notify_all()

@@ -274,8 +274,8 @@ class Workcell:
 
     ``arms`` maps a name to a ``(url, robot)`` pair or an unopened ``rci.Session``. A layer
     above may open and control the sessions itself (RCCL: ``Workcell({"puma": arm.rci, ...})``,
-    then ``arm.open()``, then ``with cell:``): the workcell still names the arm in errors and
-    releases the others (free sync; the lockstep barrier needs ``cell.control``).
+    then ``cell.start(arm.open, ...)``, then ``with cell:``): the workcell still names the arm
+    in errors, releases the others, and in lockstep puts its barrier around their functions.
     ``sync`` is ``"free"`` or ``"lockstep"`` (module docstring); ``sync_timeout`` (s) how long
     an arm waits at a lockstep barrier for the others (default 1 s against lockstep
     simulas, else two periods of the slowest arm). ``on_error``: None (print and exit 1),
@@ -316,6 +316,7 @@ class Workcell:
         self._lock = threading.RLock()
         self._term_event = threading.Event()
         self._barrier: threading.Barrier | None = None
+        self._armed: set[str] = set()
         self._arrived: dict[str, int] = {}
         self._threads: dict[int, str] = {}
         self._stamp = itertools.count()
@@ -339,6 +340,9 @@ class Workcell:
             s = Session(url, robot, **opts)
         s.on_error = lambda _t, _name=name: self._deliver()
         s.termination_listeners.append(lambda t, _name=name: self._arm_terminated(_name, t))
+        # whoever starts the control (cell.control, or RCCL's Arm.open under cell.start), the
+        # functions pass through the workcell: thread registration, and the lockstep barrier
+        s.control_wrapper = lambda f1, f2, _name=name: self._wrap(_name, f1, f2)
         return s
 
     # --- access -----------------------------------------------------------------------
@@ -420,7 +424,7 @@ class Workcell:
             started: list[str] = []
             try:
                 for name, (f1, f2) in pairs.items():
-                    self.sessions[name].control(*self._wrap(name, f1, f2))
+                    self.sessions[name].control(f1, f2)          # through _wrap (control_wrapper)
                     started.append(name)
             except BaseException:
                 if self._barrier is not None:
@@ -444,6 +448,47 @@ class Workcell:
             self.sample += 1
 
         self._barrier = threading.Barrier(len(self.sessions), action=commit)
+        self._armed = set(self.sessions)        # each arm's next control joins this barrier, once
+
+    def start(self, *openers: Callable[[], Any], timeout: float = 15.0) -> None:
+        """Run openers that start the arms' controls themselves, all at once (RCCL arms).
+
+        For sessions a layer above opens and controls (``Workcell({"puma": arm.rci, ...})``):
+        ``cell.start(puma.open, microbo.open)`` calls each opener in its own thread, so in
+        lockstep their first samples meet at the barrier. Any failure closes every arm and
+        is raised here.
+        """
+        with self._primitive():
+            if self.sync == "lockstep":
+                if any(s.in_control for s in self.sessions.values()):
+                    raise MultiError("start(): release the workcell before starting a lockstep control again")
+                self._prepare_lockstep()
+            self.termination = None
+            self._delivered = None
+            self._term_event.clear()
+            errors: list[BaseException] = []
+
+            def run(f: Callable[[], Any]) -> None:
+                try:
+                    f()
+                except BaseException as e:      # re-raised in the caller's thread
+                    errors.append(e)
+                    if self._barrier is not None:
+                        self._barrier.abort()
+
+            threads = [threading.Thread(target=run, args=(f,), name=f"rci-multi-start-{i}", daemon=True)
+                       for i, f in enumerate(openers)]
+            for t in threads:
+                t.start()
+            deadline = time.monotonic() + timeout
+            for t in threads:
+                t.join(max(0.0, deadline - time.monotonic()))
+            if any(t.is_alive() for t in threads):
+                errors.append(MultiError(f"start(): the openers did not return within {timeout} s"))
+            if errors:
+                self._close_all(power_off=False)
+                raise errors[0]
+            self._install_signals()
 
     def _timeout(self) -> float:
         if self.sync_timeout is not None:
@@ -470,6 +515,10 @@ class Workcell:
                     f1()
             return g1, f2
 
+        if self._barrier is None or name not in self._armed:
+            raise MultiError(f"arm {name!r}: a lockstep workcell starts its arms together, through "
+                             "cell.control(...) or cell.start(...)")
+        self._armed.discard(name)
         every = self._every[name]
         rate0 = self._rates[name]
         barrier = self._barrier
@@ -723,7 +772,7 @@ class Workcell:
 
     # --- signals ---------------------------------------------------------------------------
     def _install_signals(self) -> None:
-        if not self.use_signals or threading.current_thread() is not threading.main_thread():
+        if self._old_handlers or not self.use_signals or threading.current_thread() is not threading.main_thread():
             return
         self._main_ident = threading.main_thread().ident
         self._old_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, lambda *_: self._deliver())

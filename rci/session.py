@@ -112,6 +112,9 @@ class Session:
         # called with the Termination in the control thread, after the implicit release (rci.multi
         # uses it to release the other arms of a workcell at once); must be quick, must not raise
         self.termination_listeners: list[Callable[[codes.Termination], Any]] = []
+        # (f1, f2) -> (f1, f2) applied by control(): lets rci.multi put its sample barrier around the
+        # functions a layer above (RCCL's Arm) gives to control()
+        self.control_wrapper: Callable[[Any, Any], tuple[Any, Any]] | None = None
         self._delivered: codes.Termination | None = None
         self._busy = 0
         self._pending_interrupt = False
@@ -233,6 +236,8 @@ class Session:
             for name, f in (("f1", f1), ("f2", f2)):
                 if f is not None and not callable(f):
                     raise BadFunction(f"control(): {name} = {f!r} is not callable")
+            if self.control_wrapper is not None:
+                f1, f2 = self.control_wrapper(f1, f2)
             self.terminate = 0
             self.termination = None
             self._delivered = None

@@ -239,3 +239,40 @@ def test_plain_arm_is_refused(sims):
     with rccl.open(sims[0].url, "puma260") as arm:
         with pytest.raises(EventError, match="need an arm from rccl.adaptive.open"):
             ev.attach(arm, "plain")
+
+
+# --- two RCCL arms as the lockstep control tasks of one Workcell (thesis 5.6.2 + 2.4) -----------
+def test_in_a_lockstep_workcell_the_follower_starts_within_one_hold_segment_of_the_leaders_end():
+    from rccl.adaptive.session import AdaptiveArm
+    from rccl.motion import DEFAULT_TRANSITION
+    from rci.multi import Workcell
+
+    with SimulaProcess("-p", robot="puma260", lockstep=True) as sp, \
+            SimulaProcess("-p", robot="microbo", lockstep=True) as sm:
+        puma, mic = AdaptiveArm(sp.url, "puma260"), AdaptiveArm(sm.url, "microbo")
+        cell = Workcell({"puma": puma.rci, "microbo": mic.rci}, sync="lockstep", on_error="raise")
+        cell.start(puma.open, mic.open)          # both generators' first samples meet at the barrier
+        dt = puma.gen.dt
+        with cell:
+            ev.attach(puma, "puma")
+            ev.attach(mic, "microbo")
+            try:
+                lags = []
+                for i in range(3):
+                    pa, _ = waist(puma, 0.3, f"pa{i}")
+                    pb, qb = waist(mic, 0.3, f"pb{i}")
+                    a = ev.move_ev(puma, pa)
+                    b = ev.move_ev(mic, pb, start=a)
+                    assert ev.wait_ev(b, timeout=20) == DONE
+                    lags.append(b.traj_started - a.traj_ended)      # both arms' trajectory clocks
+                    np.testing.assert_allclose(mic.q, qb, atol=END_TOL)
+                # the arms' trajectory clocks stay together (one sync sample per cycle at 36 Hz)
+                assert abs(puma.gen.t - mic.gen.t) <= 1.5 * dt
+                assert cell.sample >= int(puma.gen.t / dt)
+            finally:
+                ev.detach(puma)
+                ev.detach(mic)
+                puma.close()
+                mic.close()
+    # after the leader's end the follower starts at the end of the hold segment it is in
+    assert all(0.0 < lag <= DEFAULT_TRANSITION + 2 * dt for lag in lags), lags
