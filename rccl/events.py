@@ -14,7 +14,8 @@ An ``EFT`` belongs to one motion request (``eft = move_ev(arm, position)``):
 
 Across arms, ``move_ev(arm_b, q, start=eft_a)`` makes B's motion wait for A's: the trajectory
 level that ends A's motion sets B's start flag in the same sample, with no round trip
-through the planning level. ``start_ev(code, e1, e2)`` sets several flags at once (each arm's
+through the planning level; B's generator takes the motion when it next looks at its queue
+(the end of the hold segment it is in, within the transition time). ``start_ev(code, e1, e2)`` sets several flags at once (each arm's
 generator sees them at its next sample), so motions of different arms start (or, with
 ``stop_ev``, stop) together. Conditional motions (5.6.1) inherit the EFT of the nominal
 motion they replace.
