@@ -51,7 +51,10 @@ START = 1          # the default start code, set by move_ev unless postponed
 DONE = -1          # the motion ended naturally (set by the trajectory level)
 FAULT = -2         # the trajectory level refused or stopped it (an error: see the request's .error)
 ABORTED = -3       # stop_abort flushed it, or a conditional motion replaced it (5.6.1)
-_RESERVED_NAMES = {NULL: "NULL", START: "START", DONE: "DONE", FAULT: "FAULT", ABORTED: "ABORTED"}
+LIMIT = -4         # a force or deviation limit ended it (5.4.1; request.hooks["ended"] says which)
+MONITOR = -5       # a monitor function ended it (5.4.2; its code is in request.hooks["ended"])
+_RESERVED_NAMES = {NULL: "NULL", START: "START", DONE: "DONE", FAULT: "FAULT", ABORTED: "ABORTED",
+                   LIMIT: "LIMIT", MONITOR: "MONITOR"}
 
 
 class EventError(RCCLError):
@@ -471,7 +474,10 @@ def _finished(eft: EFT, req: Request) -> None:
                 _changed.notify_all()
                 return
         if eft._stop == NULL:
-            if req.error is None:
+            ended = req.hooks.get("ended")
+            if req.error is None and ended is not None and ended.reason in ("limit", "monitor"):
+                eft._stop = LIMIT if ended.reason == "limit" else MONITOR
+            elif req.error is None:
                 eft._stop = DONE
             elif dropper is not None:
                 eft._stop = ABORTED

@@ -276,3 +276,14 @@ def test_in_a_lockstep_workcell_the_follower_starts_within_one_hold_segment_of_t
                 mic.close()
     # after the leader's end the follower starts at the end of the hold segment it is in
     assert all(0.0 < lag <= DEFAULT_TRANSITION + 2 * dt for lag in lags), lags
+
+
+def test_a_users_monitor_still_ends_a_motion_that_has_an_eft(arms):
+    puma, _ = arms
+    far, q_far = waist(puma, 0.6, "far")
+    puma.settime(0.2, 20.0)
+    puma.evalfn(lambda s: 42 if s.t > 1.0 else None)      # 5.4.2: ends the motion after 1 s
+    a = ev.move_ev(puma, far)
+    assert ev.wait_ev(a, timeout=10) == ev.MONITOR         # ended by its monitor, not naturally
+    end = a.request.hooks["ended"]
+    assert (end.reason, end.code) == ("monitor", 42) and end.t < 1.2

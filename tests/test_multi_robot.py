@@ -250,3 +250,20 @@ def test_example_default_handler_prints_the_arm_and_exits_1():
     line = next(x for x in r.stderr.splitlines() if x.startswith("TERMINATE/"))
     assert "arm 'microbo' (microbo)" in line and "sample 10" in line and "released puma" in line
     assert line.endswith("/ user control function raised an exception")
+
+
+def test_ctrl_c_releases_every_arm_and_exits_130():
+    import signal
+    import subprocess
+    proc = subprocess.Popen([sys.executable, str(Path(two_arms.__file__)), "--simula", "--seconds", "600"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = proc.stdout.readline()            # the first report: both arms are under control
+        assert first.startswith("microbo: sample")
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert any(x.startswith("TERMINATE/ interrupt (every arm released, power off)") for x in err.splitlines())
