@@ -10,6 +10,7 @@ Thesis -> Python:
 * ``RCIload(image, processor_id)``   -> ``Workcell({"puma": (url, "puma260"), ...}).open()``
 * ``RCIcontrol(event_id, function)`` -> ``cell.control(puma=f, microbo=(f1, f2))``
 * ``RCIrelease(event_id)``           -> ``cell.release("puma")`` or ``cell.release()`` (all)
+* multi-robot RCCL on this (5.6.2)     -> ``Workcell({"puma": arm.rci, ...})``, ``cell.start(arm.open, ...)``
 * shared memory (c1, c2, t1)          -> ``cell.shared`` (``Shared``: latest value per name)
 * channels (t2, t3)                   -> ``cell.channel(sender, receiver, capacity, overflow)``
 * ``send(receiver_id, buf, size)``    -> ``cell.send(receiver, message)``
