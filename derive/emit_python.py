@@ -220,12 +220,11 @@ CONFIGS = Config.all()
         lowered = _lower(k)
         funcs.append(_function(k, lowered, many=False))
         funcs.append(_function(k, lowered, many=True))
-    binds = "\n".join(f"{n} = _API.{n}" for n in _rt.PUBLIC)
+    names = list(_rt.PUBLIC)
+    binds = "(" + ", ".join(names[:8]) + ",\n " + ", ".join(names[8:]) + ") = _API"
     api = f'''
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
-# the contract's public functions (rccl.kinematics.runtime.public_api): the compiled fast
-# entries where the C kernels are built, with the runtime's Python checks behind them
-_API = _rt.public_api(_ROBOT)
+_API = _rt.public_api(_ROBOT)  # the contract's functions: compiled fast entries, runtime checks behind
 {binds}
 '''
     return head + "\n\n" + "\n\n\n".join(funcs) + "\n\n\n" + _kernel_table(kernels) + "\n" + api

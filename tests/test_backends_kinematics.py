@@ -488,3 +488,17 @@ def test_batched_public_calls_keep_every_error(robot):
     sing[45_678] = 0.0  # singular for both arms
     with pytest.raises(errors.Singular, match="batch row 45678"):
         mod.joint_from_cartesian(sing, np.ones((len(qs), 6)))
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_generated_module_holds_kernels_and_binds_the_runtime_api(robot):
+    """The public functions live in rccl.kinematics.runtime; the generated module only binds them."""
+    import ast
+
+    from rccl.kinematics import runtime
+    mod = _mod(robot)
+    tree = ast.parse(Path(mod.__file__).read_text())
+    funcs = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
+    assert funcs and all(f.startswith("_") and f.endswith(("_one", "_many")) for f in funcs), funcs
+    for name in runtime.PUBLIC:
+        assert getattr(mod, name) is getattr(mod._API, name)

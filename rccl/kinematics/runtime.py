@@ -12,9 +12,8 @@ robot, which the generated module binds to its names: the compiled fast entries
 from __future__ import annotations
 
 import itertools
-import types
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -452,7 +451,11 @@ PUBLIC = ("fk", "ik", "ik_all", "config_of", "jacobian4", "jacobian6", "cartesia
           "gravity_links", "coefficients_from_links", "tool_load")
 
 
-def public_api(robot: Robot) -> types.SimpleNamespace:
+PublicAPI = NamedTuple("PublicAPI", [(n, Callable) for n in PUBLIC])
+PublicAPI.__doc__ = "The contract's public functions of one robot, by name, in the order of PUBLIC."
+
+
+def public_api(robot: Robot) -> PublicAPI:
     """The contract's public functions of one robot (``PUBLIC``), over its kernels.
 
     Each is the compiled fast entry (``rccl.kinematics.backend``) when the C kernels are
@@ -566,7 +569,7 @@ def public_api(robot: Robot) -> types.SimpleNamespace:
     fast = backend.public_ik(name, {"ik": ik, "ik_all": ik_all, "config_of": config_of}, kernels,
                              robot.config_type, robot.revolute, robot.lower, robot.upper,
                              RIGID_TOL, SAME_SOLUTION_TOL)
-    return types.SimpleNamespace(
+    return PublicAPI(
         fk=backend.public(name, "fk", fk, kernels),
         ik=fast["ik"], ik_all=fast["ik_all"], config_of=fast["config_of"],
         jacobian4=backend.public(name, "jacobian4", jacobian4, kernels),
