@@ -116,16 +116,22 @@ class Compliance:
 
 
 def servo_dac(model: JointModel, joints: list[int], t_a: np.ndarray, t_g: np.ndarray, qd: np.ndarray,
-              qd_path: np.ndarray | None = None, rest_speed: float = 1e-3) -> np.ndarray:
+              qd_path: np.ndarray | None = None, rest_speed: float = 1e-3,
+              correction: dict[int, float] | None = None) -> np.ndarray:
     """DAC values (float) of 4.38 for the force-servoed ``joints``: K_dac G^-T (t_a + t_g) + f_dac.
 
     Only the entries of ``joints`` are meaningful; t_a elsewhere is taken as 0 (those joints
     are position servoed, their torque is the servo's business). Friction (4.27) is
     compensated in the direction the joint moves; at rest, in the direction the path asks it
     to move (``qd_path``), or, if the path stands still too, the direction of the torque.
+    A joint in ``correction`` gets that friction term instead (the static-friction
+    correction of thesis 4.6, ``rccl.adaptive.stiction``).
     """
     u = np.array(t_g, dtype=float)           # t_a + t_g + f, only the chosen joints get t_a and f
     for j in joints:
+        if correction is not None and j in correction:
+            u[j] += t_a[j] + correction[j]
+            continue
         v = float(qd[j])
         moving = abs(v) > rest_speed
         if moving:

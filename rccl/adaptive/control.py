@@ -23,6 +23,7 @@ from .force import ForceEstimator, JointModel
 from .generator import AdaptiveGenerator
 from .limit import Limit
 from .monitor import Monitor, Sample
+from .stiction import Dither
 
 # estimate: keep the force-servoed joint unless another does 1.5x better, so a joint does not
 # flip between current and position mode from one sample to the next near a tie
@@ -58,6 +59,7 @@ class AdaptiveControl:
         self._maps = ToolMaps()
         self._q_nom_prev: np.ndarray | None = None
         self.damping = COMPLY_DAMPING
+        self.dither: Dither | None = None        # static-friction correction (4.6), made at the first comply sample
 
     def before(self, gen: AdaptiveGenerator, q: np.ndarray, qd: np.ndarray, v_adc: np.ndarray, how=None) -> None:
         """Measure and check, before ``gen.step()``; may call ``gen.abort``."""
@@ -151,7 +153,16 @@ class AdaptiveControl:
             t_a[j] -= self.damping * jt[i, j] ** 2 * (self._qd[j] - qd_path[j])
         t_g = self.kin.gravity(self._q, self.model.gravity_coeffs)
         joints = sorted(chosen.values())
-        dac = servo_dac(self.model, joints, t_a, t_g, self._qd, qd_path)
+        if self.dither is None or self.dither.dt != self.dt:
+            self.dither = Dither(self.model, self.dt)
+        dither = self.dither
+        dither.tick()
+        correction = {}
+        for j in joints:
+            f = dither.correction(j, float(self._qd[j]), float(qd_path[j]))
+            if f is not None:
+                correction[j] = f
+        dac = servo_dac(self.model, joints, t_a, t_g, self._qd, qd_path, correction=correction)
         lim = np.minimum(self.model.max_dac, DAC_MAX)    # the motor current limit (A.5.1 would refuse more)
         current = {j: int(np.clip(np.rint(dac[j]), -lim[j], lim[j])) for j in joints}
         return Command(q_cmd, current)
