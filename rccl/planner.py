@@ -24,7 +24,7 @@ from .motion import MotionParams, Request
 from .position import Position
 from .queue import MotionQueue
 from .sync import Event
-from .trajectory import Kinematics, TrajectoryGenerator, plan_segment, resolve_config
+from .trajectory import Kinematics, TrajectoryGenerator, plan_path, resolve_config
 
 _CONF_LETTERS = {"l": ("arm", -1), "r": ("arm", 1), "u": ("elbow", 1), "d": ("elbow", -1),
                  "f": ("wrist", -1), "n": ("wrist", 1)}
@@ -172,9 +172,12 @@ class Planner:
                 raise ConfigurationChange(
                     f"move({req.position.name}): Cartesian mode cannot change the arm configuration; "
                     "use setmod('joint') with setconf()")
-        seg = plan_segment(self.kin, self.limits, self.gen.dt, req, self._pred_t6, self._pred_q, 0.0, None)
-        self._pred_t6 = seg.dest_t6()
-        self._pred_q = seg.q_dest.copy()
+        # the path check (reach, joint ranges, singularities along a Cartesian line), done once here;
+        # the generator reuses it when the request starts from this corner (see plan_segment)
+        plan = plan_path(self.kin, self.limits, self.gen.dt, req, self._pred_t6, self._pred_q)
+        req.profile = plan
+        self._pred_t6 = plan.t6_c
+        self._pred_q = plan.q_dest
 
     @property
     def running(self) -> bool:

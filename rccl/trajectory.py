@@ -54,14 +54,23 @@ STEP_MARGIN = 1.25       # a commanded step may exceed v_max * dt by this factor
 SINGULAR_SLOWDOWN = 10.0  # a Cartesian path needing > 10x its requested time for joint speed is singular
 MIN_BLEND_SCALE = 0.5    # below this speed factor a corner is taken by stopping at it instead (see plan_segment)
 MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked by move() before its motion starts
-CONTROL_CHECK_POINTS = 12  # the control level's re-check when the planning level's no longer applies
+# the control level's re-check of a Cartesian path, when the arm or the target is no longer where
+# move() checked it from (a variable or functional target, a refused request before it): one
+# batched inverse kinematics call, so its cost is nearly independent of the count
+CONTROL_CHECK_POINTS = 48
+SAME_CORNER_TOL = 1e-12  # joints (rad or m) within this of the checked corner: move()'s path check still applies
 
 
 # --------------------------------------------------------------------------------------
 # kinematics wrapper: the generated module's errors become RCCL errors naming the position
 # --------------------------------------------------------------------------------------
 class Kinematics:
-    """The contract's kinematics module with RCCL error wrapping and configuration helpers."""
+    """The contract's kinematics module with RCCL error wrapping, configuration and path helpers.
+
+    ``ik`` calls the module's public ``ik`` directly (for the generated modules that is the
+    compiled fast entry, which checks the pose, the guards and the prismatic ranges and
+    never returns NaN); only a failure takes the slow path that builds the RCCL error.
+    """
 
     def __init__(self, module) -> None:
         self.module = module
@@ -70,33 +79,92 @@ class Kinematics:
         self.config_of = module.config_of
         self.Config = getattr(module, "Config", None)
         self.name = getattr(module, "ROBOT", getattr(module, "__name__", "robot"))
+        kinds = getattr(module, "JOINT_KINDS", ("revolute",) * 6)
+        self.revolute = np.array([k == "revolute" for k in kinds])
+        self.units = tuple("rad" if r else "m" for r in self.revolute)
+        self.batched = True   # the module takes a batch of poses (the contract); cleared if it does not
 
     def ik(self, base_to_t6: np.ndarray, config, q_ref: np.ndarray, where: str) -> np.ndarray:
+        """Joint angles (rad; m for prismatic joints) of T6 (base to link 6) in ``config``, branch nearest ``q_ref``."""
         try:
-            q = self._ik(base_to_t6, config, q_ref=q_ref)
+            return self._ik(base_to_t6, config, q_ref)
         except ValueError as exc:  # KinematicsError subclasses ValueError
-            cls = SingularPath if "singular" in type(exc).__name__.lower() else Unreachable
-            p = base_to_t6[:3, 3]
-            raise cls(f"{where}: no joint solution in configuration {config} for T6 at "
-                      f"({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m: {exc}") from exc
-        q = np.asarray(q, dtype=float)
-        if not np.all(np.isfinite(q)):
-            raise Unreachable(f"{where}: inverse kinematics returned {q}")
-        return q
+            raise self._error(exc, base_to_t6, config, where) from exc
+
+    @staticmethod
+    def _error(exc: ValueError, base_to_t6: np.ndarray, config, where: str) -> MotionError:
+        cls = SingularPath if "singular" in type(exc).__name__.lower() else Unreachable
+        p = base_to_t6[:3, 3]
+        return cls(f"{where}: no joint solution in configuration {config} for T6 at "
+                   f"({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m: {exc}")
+
+    def ik_path(self, poses: np.ndarray, config, q_start: np.ndarray, where: str, lams: np.ndarray,
+                limits: Limits | None = None) -> np.ndarray:
+        """Joints along a path of T6 poses (N, 4, 4), continuous from ``q_start``: (N + 1, 6) with q_start first.
+
+        One batched inverse kinematics call (every pose against ``q_start``), then each revolute
+        joint is unwrapped along the path. When the batch fails, the points are solved one by
+        one from the start, so the error names the first point that fails (its ``lams``).
+        """
+        n = poses.shape[0]
+        q = None
+        if self.batched:
+            ref = np.empty((n, 6))
+            ref[:] = q_start
+            try:
+                q = np.asarray(self._ik(poses, config, ref), dtype=float)
+                if q.shape != (n, 6):
+                    self.batched, q = False, None
+            except ValueError:
+                q = None
+            except Exception:   # a module without batches (a stand-in): go one by one from now on
+                self.batched = False
+        path = np.empty((n + 1, 6))
+        path[0] = q_start
+        if q is None:
+            prev = q_start
+            for j in range(n):
+                at = f"{where} at {100 * (1 - lams[j]):.0f}% of the path"
+                prev = path[j + 1] = self.ik(poses[j], config, prev, at)
+                if limits is not None:
+                    _check_range(limits, prev, at, "path point", self.units)
+            return path
+        path[1:] = q
+        rev = self.revolute
+        if rev.any():
+            step = np.diff(path[:, rev], axis=0)
+            step -= (2.0 * math.pi) * np.round(step / (2.0 * math.pi))
+            path[1:, rev] = q_start[rev] + np.cumsum(step, axis=0)
+        return path
+
+
+def drive_basis(d: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Drive(lam) = Trans(lam d) Rot(k, lam theta) (E.3-E.5) as [1, cos(lam theta), sin(lam theta), lam] @ basis.
+
+    Rodrigues: Rot(k, a) = k k^T + cos a (I - k k^T) + sin a [k]x, so the drive transform is
+    linear in those four numbers; returns the (4, 16) basis (four flattened 4x4 matrices).
+    """
+    kx, ky, kz = (float(x) for x in k)
+    kk = np.outer(k, k)
+    e = np.zeros((4, 4, 4))
+    e[0, :3, :3] = kk
+    e[0, 3, 3] = 1.0
+    e[1, :3, :3] = np.eye(3) - kk
+    e[2, :3, :3] = ((0.0, -kz, ky), (kz, 0.0, -kx), (-ky, kx, 0.0))
+    e[3, :3, 3] = d
+    return e.reshape(4, 16)
 
 
 def drive(d: np.ndarray, k: np.ndarray, theta: float, lam: float) -> np.ndarray:
     """Drive transform Trans(lam d) Rot(k, lam theta) (E.3-E.5), 4x4."""
-    kx, ky, kz = k
     a = lam * theta
-    c, s = math.cos(a), math.sin(a)
-    v = 1.0 - c
-    return np.array([
-        [kx * kx * v + c, kx * ky * v - kz * s, kx * kz * v + ky * s, lam * d[0]],
-        [kx * ky * v + kz * s, ky * ky * v + c, ky * kz * v - kx * s, lam * d[1]],
-        [kx * kz * v - ky * s, ky * kz * v + kx * s, kz * kz * v + c, lam * d[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ])
+    return (np.array([1.0, math.cos(a), math.sin(a), lam]) @ drive_basis(d, k)).reshape(4, 4)
+
+
+def _coefficients(theta: float, lams: np.ndarray) -> np.ndarray:
+    """Rows [1, cos(lam theta), sin(lam theta), lam] for each lam (N, 4)."""
+    a = lams * theta
+    return np.stack([np.ones_like(lams), np.cos(a), np.sin(a), lams], axis=1)
 
 
 def resolve_config(kin: Kinematics, current, wanted):
@@ -104,6 +172,12 @@ def resolve_config(kin: Kinematics, current, wanted):
     if wanted is None:
         return current
     if isinstance(wanted, dict):
+        fields = getattr(current, "_fields", None) or getattr(current, "__dataclass_fields__", {})
+        unknown = sorted(set(wanted) - set(fields))
+        if unknown:
+            from .exceptions import BadRequest
+            raise BadRequest(f"setconf: the {kin.name} has no {'/'.join(unknown)} configuration choice "
+                             f"(its configuration is {type(current).__name__}({', '.join(fields)}))")
         if hasattr(current, "_replace"):
             return current._replace(**wanted)
         return replace(current, **wanted)
@@ -111,21 +185,54 @@ def resolve_config(kin: Kinematics, current, wanted):
 
 
 # --------------------------------------------------------------------------------------
-# segments
+# plans and segments
 # --------------------------------------------------------------------------------------
+class Plan:
+    """The time-independent part of a motion from a corner: geometry, destination joints, checked path.
+
+    Built once per request by ``plan_path`` (by ``move()`` at the planning level, where the
+    Cartesian path is checked point by point for reach, joint ranges and singularities) and
+    reused by the generator when the request starts from the corner it was checked from.
+    ``basis`` (Cartesian, (4, 16)) gives T6(lam) = [1, cos(lam theta), sin(lam theta), lam] @ basis
+    for a static destination (every transform const or hold).
+    """
+
+    __slots__ = ("mode", "t6_b", "q_b", "t6_c", "x_c", "tool", "tool_inv", "d", "k", "theta", "dist", "config",
+                 "dq", "q_dest", "t_lim", "v_start_dir", "v_end_dir", "static", "drive", "basis", "vt_dir", "vr_dir")
+
+    def fits(self, req: Request, t6_b: np.ndarray, q_b: np.ndarray) -> bool:
+        """Whether this plan still holds for ``req`` starting at (``t6_b``, ``q_b``)."""
+        if self.mode != req.mode or not (t6_b is self.t6_b or np.array_equal(t6_b, self.t6_b)):
+            return False
+        if float(np.max(np.abs(q_b - self.q_b))) > SAME_CORNER_TOL:
+            return False
+        if self.static and _static(req):
+            return True
+        return np.array_equal(req.position.solve(req.snap), self.t6_c)
+
+
+def _static(req: Request) -> bool:
+    return all(t.kind in ("const", "hold") for t in req.position.transforms())
+
+
 class Segment:
     """One planned motion: linear in joint space or along a drive transform, lam from 1 to 0 over T seconds."""
 
     __slots__ = ("req", "mode", "t0", "T", "tau_in", "tau_out", "stationary", "scale", "tool", "tool_inv", "config", "d", "k", "theta",
-                 "dq", "q_dest", "static", "x_dest", "v_end", "v_cart", "kin", "where")
+                 "dq", "q_dest", "static", "x_dest", "v_end", "v_cart", "kin", "where", "plan", "_drive", "_basis",
+                 "_residual", "_coef", "_buf")
 
     def __init__(self, req: Request, kin: Kinematics) -> None:
         self.req = req
         self.kin = kin
         self.mode = req.mode
         self.where = f"move({req.position.name})"
-        self.static = all(t.kind in ("const", "hold") for t in req.position.transforms())
+        self.static = _static(req)
         self.x_dest = None
+        self.plan: Plan | None = None
+        self._drive = self._basis = self._residual = None
+        self._coef = np.ones(4)
+        self._buf = np.empty(16)
 
     # the destination, re-solved at every sample unless every component is const/hold
     def dest_t6(self) -> np.ndarray:
@@ -142,10 +249,26 @@ class Segment:
         self.q_dest = self.kin.ik(self.dest_t6(), self.config, self.q_dest, self.where)
         return self.q_dest
 
+    def _coefficients(self, lam: float) -> np.ndarray:
+        c = self._coef
+        a = lam * self.theta
+        c[1] = math.cos(a)
+        c[2] = math.sin(a)
+        c[3] = lam
+        return c
+
     def t6_at(self, lam: float) -> np.ndarray:
-        """Cartesian mode: T6 at lam (tool frame on the drive path, back to link 6)."""
-        x = self.dest_t6() @ self.tool @ drive(self.d, self.k, self.theta, lam)
-        return x @ self.tool_inv
+        """Cartesian mode: T6 at lam (tool frame on the drive path, back to link 6); valid until the next call."""
+        if self._drive is None:
+            self._drive = drive_basis(self.d, self.k)
+        c = self._coefficients(lam)
+        if self.static:
+            if self._basis is None:
+                x = self.dest_t6() @ self.tool
+                self._basis = (x @ self._drive.reshape(4, 4, 4) @ self.tool_inv).reshape(4, 16)
+            return np.dot(c, self._basis, out=self._buf).reshape(4, 4)
+        drv = np.dot(c, self._drive, out=self._buf).reshape(4, 4)
+        return self.dest_t6() @ self.tool @ drv @ self.tool_inv
 
     def q_at(self, lam: float, q_ref: np.ndarray) -> np.ndarray:
         if self.mode == "joint":
@@ -154,8 +277,16 @@ class Segment:
 
     def residual(self, mu: float) -> np.ndarray:
         """Cartesian mode: the base-frame rigid motion X_C Drive(mu) X_C^-1 still to be covered at lam = mu."""
+        if self._drive is None:
+            self._drive = drive_basis(self.d, self.k)
+        c = self._coefficients(mu)
+        if self.static:
+            if self._residual is None:
+                x = self.dest_t6() @ self.tool
+                self._residual = (x @ self._drive.reshape(4, 4, 4) @ inverse(x)).reshape(4, 16)
+            return (c @ self._residual).reshape(4, 4)
         x = self.dest_t6() @ self.tool
-        return x @ drive(self.d, self.k, self.theta, mu) @ inverse(x)
+        return x @ (c @ self._drive).reshape(4, 4) @ inverse(x)
 
 
 @dataclass
@@ -174,7 +305,7 @@ class Transition:
 def _scale_for(v1: np.ndarray, v2: np.ndarray, c: np.ndarray) -> float:
     """Largest s in (0, 1] with |s v2_i - v1_i| <= c_i for all i (s = 0 is assumed feasible)."""
     s = 1.0
-    for a, b, lim in zip(v2, v1, c):
+    for a, b, lim in zip(v2.tolist(), v1.tolist(), c.tolist()):
         if abs(a) < 1e-15:
             continue
         lo, hi = (b - lim) / a, (b + lim) / a
@@ -197,14 +328,119 @@ def _scale_norm(v1: np.ndarray, v2: np.ndarray, c: float) -> float:
 
 
 # --------------------------------------------------------------------------------------
-# planning one segment (used by the control level, and by the planning level to check early)
+# planning one segment: the path (planning level, once per request) and its timing (per start)
 # --------------------------------------------------------------------------------------
+def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np.ndarray, q_b: np.ndarray,
+              check_points: int = MAX_CHECK_POINTS) -> Plan:
+    """The geometry of ``req`` from the corner (T6 ``t6_b``, joints ``q_b``), its path checked; raises a MotionError.
+
+    Cartesian mode samples the straight line at the sample rate (at most ``check_points``
+    points) with the inverse kinematics in the arm's configuration: a point out of reach or
+    outside a joint range raises ``Unreachable``; a joint that would have to turn more than
+    ``SINGULAR_SLOWDOWN`` times faster than its limit allows at the asked speed (the path
+    passes through or near a singularity, e.g. the wrist's) raises ``SingularPath``.
+    """
+    params: MotionParams = req.params
+    pos = req.position
+    where = f"move({pos.name})"
+    p = Plan()
+    p.mode, p.t6_b, p.q_b, p.static = req.mode, t6_b, q_b.copy(), _static(req)
+    p.tool = pos.tool_from_t6(req.snap)
+    p.tool_inv = inverse(p.tool)
+    t6_c = p.t6_c = pos.solve(req.snap)
+    x_b, x_c = t6_b @ p.tool, t6_c @ p.tool
+    p.x_c = x_c
+    rel = inverse(x_c) @ x_b
+    d = p.d = rel[:3, 3].copy()
+    p.k, p.theta = axis_angle(rel)
+    dist = p.dist = float(np.linalg.norm(d))
+    cfg_b = kin.config_of(q_b)
+    p.config = resolve_config(kin, cfg_b, params.config)
+    p.drive = drive_basis(d, p.k)
+    p.basis = (x_c @ p.drive.reshape(4, 4, 4) @ p.tool_inv).reshape(4, 16)
+    r = x_c[:3, :3]
+    p.vt_dir, p.vr_dir = -(r @ d), -(r @ p.k) * p.theta   # tool velocity * T (base frame)
+    # Cartesian speed limits bind the tool only where its path is the straight line (Cartesian mode);
+    # in joint mode the chord length with the requested speeds sets the pace, the joint limits bound it
+    t_vel = 0.0
+    if p.mode == "cartesian":
+        t_vel = max(dist / limits.translational_velocity, p.theta / limits.rotational_velocity)
+    if params.travel_time is None:  # settime's travel time replaces the requested speeds (not the limits)
+        t_vel = max(t_vel, dist / params.translational_velocity, p.theta / params.rotational_velocity)
+    vmax = limits.joint_velocity
+    units = kin.units
+    if p.mode == "joint":
+        q_c = getattr(pos, "joints", None)
+        if q_c is not None and p.static and params.config is None:
+            p.config = kin.config_of(q_c)      # a joint-defined position (park): go to its joints
+        else:
+            q_c = _fit_range(limits, kin.ik(t6_c, p.config, q_b, where), kin.revolute)
+        _check_range(limits, q_c, where, "destination", units)
+        p.dq = q_b - q_c
+        p.q_dest = q_c
+        p.t_lim = max(t_vel, float(np.max(np.abs(p.dq) / vmax)))
+        p.v_start_dir = p.v_end_dir = -p.dq          # joint velocity * T at the start (and at the end)
+        return p
+    if p.config != cfg_b:
+        raise ConfigurationChange(
+            f"{where}: Cartesian mode cannot change the arm configuration from {cfg_b} to {p.config}; "
+            "use setmod('joint') for this move")
+    p.dq = np.zeros(6)
+    if dist < 1e-12 and p.theta < 1e-12:
+        same = float(np.max(np.abs(t6_b - t6_c))) <= 1e-12
+        p.q_dest = q_b.copy() if same else kin.ik(t6_c, p.config, q_b, where)
+        p.t_lim = 0.0
+        p.v_start_dir = p.v_end_dir = np.zeros(6)
+        return p
+    n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
+    lams = 1.0 - np.arange(1, n + 1) / n
+    poses = (_coefficients(p.theta, lams) @ p.basis).reshape(n, 4, 4)
+    path = kin.ik_path(poses, p.config, q_b, where, lams, limits)
+    bad = (path[1:] < limits.lower - 1e-9) | (path[1:] > limits.upper + 1e-9)
+    if bad.any():
+        j, i = np.argwhere(bad)[0]
+        _check_range(limits, path[j + 1], where, f"path point at {100 * (1 - lams[j]):.0f}%", units)
+    steps = np.abs(np.diff(path, axis=0)) * n  # |dq/dlam| per joint
+    t_joint = float(np.max(steps / vmax))
+    if t_joint > SINGULAR_SLOWDOWN * max(t_vel, 0.05):
+        j, i = np.unravel_index(int(np.argmax(steps / vmax)), steps.shape)
+        raise SingularPath(
+            f"{where}: the straight-line path passes through or too near a singularity: joint {i + 1} "
+            f"would have to move {steps[j, i] / n:.3f} {units[i]} between {100 * j / n:.0f}% and "
+            f"{100 * (j + 1) / n:.0f}% of the path (joint speed {t_joint / max(t_vel, 1e-9):.0f}x its limit "
+            "at the requested speed); choose another path or use joint mode")
+    p.q_dest = path[-1].copy()
+    p.t_lim = max(t_vel, t_joint)
+    p.v_start_dir = (path[1] - path[0]) * n
+    p.v_end_dir = (path[-1] - path[-2]) * n
+    return p
+
+
+def _hold_plan(prev: Segment, req: Request, t6_b: np.ndarray, q_b: np.ndarray) -> Plan:
+    """The plan of holding at the corner of a static segment (the repeated request of an empty queue)."""
+    p = Plan()
+    p.mode, p.t6_b, p.q_b, p.static = req.mode, t6_b, q_b.copy(), True
+    p.t6_c, p.tool, p.tool_inv, p.config = t6_b, prev.tool, prev.tool_inv, prev.config
+    p.x_c = t6_b @ p.tool
+    p.d, p.k, p.theta, p.dist = np.zeros(3), np.array([0.0, 0.0, 1.0]), 0.0, 0.0
+    p.drive = drive_basis(p.d, p.k)
+    p.basis = (p.x_c @ p.drive.reshape(4, 4, 4) @ p.tool_inv).reshape(4, 16)
+    p.vt_dir = p.vr_dir = np.zeros(3)
+    p.dq = np.zeros(6)
+    p.q_dest = q_b.copy()
+    p.t_lim = 0.0
+    p.v_start_dir = p.v_end_dir = np.zeros(6)
+    return p
+
+
 def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np.ndarray,
                  q_b: np.ndarray, t0: float, tau_in: float | None, v1: np.ndarray | None = None,
                  v1_cart: tuple[np.ndarray, np.ndarray] | None = None,
                  check_points: int = MAX_CHECK_POINTS) -> Segment:
     """Plan ``req`` from the corner (T6 ``t6_b``, joints ``q_b``); raise an RCCL MotionError if it cannot run.
 
+    The path comes from ``req.profile`` (the ``Plan`` that ``move()`` checked) when it still
+    fits this corner and destination, else from ``plan_path`` (``check_points`` points).
     ``v1`` (rad/s) and ``v1_cart`` ((m/s, rad/s) in the base frame) are the velocities the
     previous segment ends with; the new segment is slowed if needed so the transition of
     half-width ``tau_in`` stays within the acceleration limits. ``tau_in=None`` means the
@@ -212,152 +448,93 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
     within the acceleration limits (read it back from ``seg.tau_in``); ``t0`` is then the
     transition's start and ``seg.t0`` is set to ``t0 + seg.tau_in``.
     """
+    plan = req.profile
+    if not (isinstance(plan, Plan) and plan.fits(req, t6_b, q_b)):
+        plan = req.profile = plan_path(kin, limits, dt, req, t6_b, q_b, check_points)
+    return time_segment(kin, limits, dt, req, plan, t0, tau_in, v1, v1_cart)
+
+
+def time_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, plan: Plan, t0: float,
+                 tau_in: float | None, v1: np.ndarray | None = None,
+                 v1_cart: tuple[np.ndarray, np.ndarray] | None = None) -> Segment:
+    """The segment of ``plan`` in time: travel time, transitions and speed scale within the limits (no kinematics)."""
     seg = Segment(req, kin)
-    params: MotionParams = req.params
-    pos = req.position
-    where = seg.where
+    params = req.params
+    seg.plan = plan
     seg.t0 = t0
-    seg.tool = pos.tool_from_t6(req.snap)
-    seg.tool_inv = inverse(seg.tool)
-    t6_c = pos.solve(req.snap)
-    x_b, x_c = t6_b @ seg.tool, t6_c @ seg.tool
-    rel = inverse(x_c) @ x_b
-    seg.d = rel[:3, 3].copy()
-    seg.k, seg.theta = axis_angle(rel)
-    dist = float(np.linalg.norm(seg.d))
-    cfg_b = kin.config_of(q_b)
-    seg.config = resolve_config(kin, cfg_b, params.config)
-    # Cartesian speed limits bind the tool only where its path is the straight line (Cartesian mode);
-    # in joint mode the chord length with the requested speeds sets the pace, the joint limits bound it
-    t_vel = 0.0
-    if seg.mode == "cartesian":
-        t_vel = max(dist / limits.translational_velocity, seg.theta / limits.rotational_velocity)
-    if params.travel_time is None:  # settime's travel time replaces the requested speeds (not the limits)
-        t_vel = max(t_vel, dist / params.translational_velocity, seg.theta / params.rotational_velocity)
-    vmax = limits.joint_velocity
-    if seg.mode == "joint":
-        q_c = getattr(pos, "joints", None)
-        if q_c is not None and seg.static and params.config is None:
-            seg.config = kin.config_of(q_c)      # a joint-defined position (park): go to its joints
-        else:
-            q_c = _fit_range(limits, kin.ik(t6_c, seg.config, q_b, where))
-        _check_range(limits, q_c, where, "destination")
-        seg.dq = q_b - q_c
-        seg.q_dest = q_c
-        t_lim = max(t_vel, float(np.max(np.abs(seg.dq) / vmax)))
-        v_start_dir = -seg.dq          # joint velocity * T at the start (and at the end)
-        v_end_dir = -seg.dq
-    else:
-        if seg.config != cfg_b:
-            raise ConfigurationChange(
-                f"{where}: Cartesian mode cannot change the arm configuration from {cfg_b} to {seg.config}; "
-                "use setmod('joint') for this move")
-        seg.dq = np.zeros(6)
-        if dist < 1e-12 and seg.theta < 1e-12:
-            q_c = kin.ik(t6_c, seg.config, q_b, where) if not np.allclose(t6_b, t6_c, atol=1e-12) else q_b
-            seg.q_dest = q_c
-            t_lim = 0.0
-            v_start_dir = v_end_dir = np.zeros(6)
-        elif (req.profile is not None and np.array_equal(req.profile[0], t6_b)
-              and np.array_equal(req.profile[3], t6_c)
-              and np.allclose(req.profile[1], q_b, rtol=0.0, atol=1e-12)):
-            # move() already checked this very path (same corner, same destination): reuse its results
-            t_joint, v_start_dir, v_end_dir, seg.q_dest = req.profile[2]
-            t_lim = max(t_vel, t_joint)
-        else:
-            n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
-            q_prev = q_b
-            path = [q_b]
-            for j in range(1, n + 1):
-                lam = 1.0 - j / n
-                t6 = x_c @ drive(seg.d, seg.k, seg.theta, lam) @ seg.tool_inv
-                q = kin.ik(t6, seg.config, q_prev, f"{where} at {100 * (1 - lam):.0f}% of the path")
-                _check_range(limits, q, where, f"path point at {100 * (1 - lam):.0f}%")
-                path.append(q)
-                q_prev = q
-            steps = np.abs(np.diff(np.array(path), axis=0)) * n  # |dq/dlam| per joint
-            t_joint = float(np.max(steps / vmax))
-            if t_joint > SINGULAR_SLOWDOWN * max(t_vel, 0.05):
-                j, i = np.unravel_index(int(np.argmax(steps / vmax)), steps.shape)
-                raise SingularPath(
-                    f"{where}: the straight-line path passes through or too near a singularity: joint {i + 1} "
-                    f"would have to turn {steps[j, i] / n:.3f} rad between {100 * j / n:.0f}% and "
-                    f"{100 * (j + 1) / n:.0f}% of the path (joint speed {t_joint / max(t_vel, 1e-9):.0f}x its limit "
-                    "at the requested speed); choose another path or use joint mode")
-            seg.q_dest = path[-1]
-            t_lim = max(t_vel, t_joint)
-            v_start_dir = (path[1] - path[0]) * n
-            v_end_dir = (path[-1] - path[-2]) * n
-            req.profile = (t6_b.copy(), q_b.copy(), (t_joint, v_start_dir, v_end_dir, seg.q_dest), t6_c.copy())
+    seg.tool, seg.tool_inv, seg.config = plan.tool, plan.tool_inv, plan.config
+    seg.d, seg.k, seg.theta = plan.d, plan.k, plan.theta
+    seg.dq, seg.q_dest = plan.dq, plan.q_dest
+    seg._drive = plan.drive
+    if seg.static:
+        seg.x_dest = plan.t6_c
+        seg._basis = plan.basis
+    v_start_dir, v_end_dir = plan.v_start_dir, plan.v_end_dir
+    t_lim = plan.t_lim
     travel = params.travel_time
     T = max(t_lim, travel) if travel is not None else t_lim
     tau_req = params.transition_time / 2.0
+    cart = seg.mode == "cartesian"
     if tau_in is None:  # from rest: a transition long enough to reach the segment's speed
         T = max(T, 2.0 * tau_req, 2.0 * dt)
-        tau_in = max(tau_req, _tau_for(limits, v_start_dir / T, x_c, seg, T))
+        tau_in = max(tau_req, _tau_for(limits, v_start_dir, plan, cart, T))
         t0 = t0 + tau_in
         v1 = v1_cart = None
         seg.t0 = t0
     seg.tau_in = tau_in
-    seg.stationary = dist < 1e-12 and seg.theta < 1e-12 and float(np.max(np.abs(seg.dq))) < 1e-12
+    seg.stationary = plan.dist < 1e-12 and plan.theta < 1e-12 and not np.any(np.abs(plan.dq) >= 1e-12)
     T = max(T, tau_in + tau_req, 2.0 * dt)
     # keep the incoming transition within the acceleration limits (peak ACC_PEAK |dv| / tau);
     # seg.scale < 1 is how much the new segment had to be slowed for it (the generator stops at
     # the corner instead when that is below MIN_BLEND_SCALE, e.g. for a sharp reversal)
     seg.scale = 1.0
     if v1 is not None and tau_in > 0:
-        s = _scale_for(v1, v_start_dir / T, limits.joint_acceleration * tau_in / ACC_PEAK)
-        if v1_cart is not None and seg.mode == "cartesian":
-            vt2, vr2 = _cart_velocity(x_c, seg, T)
-            s = min(s, _scale_norm(v1_cart[0], vt2, limits.translational_acceleration * tau_in / ACC_PEAK),
-                    _scale_norm(v1_cart[1], vr2, limits.rotational_acceleration * tau_in / ACC_PEAK))
+        s = _scale_for(v1, v_start_dir / T, limits.joint_acceleration * (tau_in / ACC_PEAK))
+        if v1_cart is not None and cart:
+            s = min(s, _scale_norm(v1_cart[0], plan.vt_dir / T, limits.translational_acceleration * tau_in / ACC_PEAK),
+                    _scale_norm(v1_cart[1], plan.vr_dir / T, limits.rotational_acceleration * tau_in / ACC_PEAK))
         T /= s
         seg.scale = s
-    tau_out = max(tau_req, _tau_for(limits, v_end_dir / T, x_c, seg, T))
+    tau_out = max(tau_req, _tau_for(limits, v_end_dir, plan, cart, T))
     seg.T = max(T, tau_in + tau_out)
     seg.tau_out = tau_out
     seg.v_end = v_end_dir / seg.T
-    seg.v_cart = _cart_velocity(x_c, seg, seg.T)
-    if seg.static:
-        seg.x_dest = t6_c
+    seg.v_cart = (plan.vt_dir / seg.T, plan.vr_dir / seg.T)
     return seg
 
 
-def _tau_for(limits: Limits, v_joint: np.ndarray, x_c: np.ndarray, seg: Segment, T: float) -> float:
-    """Half-width of a transition that brings the segment's velocities to rest within every acceleration limit."""
-    tau = float(np.max(ACC_PEAK * np.abs(v_joint) / limits.joint_acceleration))
-    if seg.mode != "cartesian":
+def _tau_for(limits: Limits, v_dir: np.ndarray, plan: Plan, cart: bool, T: float) -> float:
+    """Half-width of a transition that brings the segment's velocities (``v_dir`` / T) to rest within every limit."""
+    tau = float(np.max(np.abs(v_dir) / limits.joint_acceleration)) * (ACC_PEAK / T)
+    if not cart:
         return tau
-    vt, vr = _cart_velocity(x_c, seg, T)
-    return max(tau, ACC_PEAK * float(np.linalg.norm(vt)) / limits.translational_acceleration,
-               ACC_PEAK * float(np.linalg.norm(vr)) / limits.rotational_acceleration)
+    return max(tau, ACC_PEAK * float(np.linalg.norm(plan.vt_dir)) / T / limits.translational_acceleration,
+               ACC_PEAK * float(np.linalg.norm(plan.vr_dir)) / T / limits.rotational_acceleration)
 
 
-def _cart_velocity(x_c: np.ndarray, seg: Segment, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """Tool velocity (m/s) and angular velocity (rad/s) in the base frame along a Cartesian segment."""
-    r = x_c[:3, :3]
-    return -(r @ seg.d) / T, -(r @ seg.k) * seg.theta / T
-
-
-def _fit_range(limits: Limits, q: np.ndarray) -> np.ndarray:
+def _fit_range(limits: Limits, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
     """Joint-mode destinations: move a revolute joint outside its range by +-2 pi when that brings it inside.
 
     Inverse kinematics picks the 2 pi branch nearest the start; a joint whose range spans
-    more than one side of +-pi (the PUMA waist) may need the other branch.
+    more than one side of +-pi (the PUMA waist) may need the other branch. Prismatic joints
+    (``revolute`` False) are left alone.
     """
     q = q.copy()
     for i in range(q.size):
+        if revolute is not None and not revolute[i]:
+            continue
         for shift in (2 * math.pi, -2 * math.pi):
             if not (limits.lower[i] <= q[i] <= limits.upper[i]) and limits.lower[i] <= q[i] + shift <= limits.upper[i]:
                 q[i] += shift
     return q
 
 
-def _check_range(limits: Limits, q: np.ndarray, where: str, what: str) -> None:
+def _check_range(limits: Limits, q: np.ndarray, where: str, what: str, units=None) -> None:
     i = limits.out_of_range(q)
     if i is not None:
-        raise Unreachable(f"{where}: {what} needs joint {i + 1} at {q[i]:.4f} rad, outside its range "
-                          f"[{limits.lower[i]:.4f}, {limits.upper[i]:.4f}] rad")
+        u = units[i] if units is not None else "rad"
+        raise Unreachable(f"{where}: {what} needs joint {i + 1} at {q[i]:.4f} {u}, outside its range "
+                          f"[{limits.lower[i]:.4f}, {limits.upper[i]:.4f}] {u}")
 
 
 # --------------------------------------------------------------------------------------
@@ -368,6 +545,11 @@ class TrajectoryGenerator:
 
     ``queue`` is shared with the planning level. ``errors`` collects refused requests and
     faults for the planning level; ``faulted`` freezes the arm at the last command.
+
+    Work per sample: one inverse kinematics call in Cartesian mode (two in the transition
+    from a Cartesian into a joint-mode segment), a few products of small preallocated
+    arrays, and the step and range check. A segment start adds the timing of the next
+    request (no kinematics when ``move()``'s checked path still applies, see ``plan_segment``).
     """
 
     def __init__(self, kin: Kinematics, limits: Limits, dt: float, q0: np.ndarray,
@@ -383,6 +565,9 @@ class TrajectoryGenerator:
         self.faulted: TrajectoryFault | None = None
         self.trans: Transition | None = None
         self.samples = 0
+        self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
+        self._lo = limits.lower - 1e-9
+        self._hi = limits.upper + 1e-9
         self._hold_here(0.0)
 
     def _hold_here(self, t: float) -> None:
@@ -406,8 +591,9 @@ class TrajectoryGenerator:
             return self.q
         t = self.t + self.dt
         try:
-            if self.trans is not None and t >= self.trans.t_end:
-                self.trans.prev.req.finish()
+            tr = self.trans
+            if tr is not None and t >= tr.t_start + 2.0 * tr.tau:
+                tr.prev.req.finish()
                 self.trans = None
             seg = self.seg
             if self.trans is None and t >= seg.t0 + seg.T - seg.tau_out:
@@ -425,20 +611,21 @@ class TrajectoryGenerator:
 
     # -- internals ----------------------------------------------------------------------
     def _update_functional(self) -> None:
-        positions = [self.seg.req.position]
-        if self.trans is not None and self.trans.prev.req.position is not positions[0]:
-            positions.append(self.trans.prev.req.position)
-        for p in positions:
-            p.update_functional()
+        pos = self.seg.req.position
+        pos.update_functional()
+        tr = self.trans
+        if tr is not None and tr.prev.req.position is not pos:
+            tr.prev.req.position.update_functional()
 
     def _evaluate(self, t: float) -> np.ndarray:
         seg = self.seg
         tr = self.trans
         if tr is None:
-            lam = max(0.0, 1.0 - (t - seg.t0) / seg.T)
-            return seg.q_at(lam, self.q)
-        h = min(1.0, max(0.0, (t - tr.t_start) / (2.0 * tr.tau)))
-        poly = (2.0 - h) * h ** 3
+            lam = 1.0 - (t - seg.t0) / seg.T
+            return seg.q_at(lam if lam > 0.0 else 0.0, self.q)
+        h = (t - tr.t_start) / (2.0 * tr.tau)
+        h = 0.0 if h < 0.0 else (1.0 if h > 1.0 else h)
+        poly = (2.0 - h) * h * h * h
         alpha = poly - 2.0 * h + 1.0
         lam2 = 1.0 - (tr.tau / seg.T) * poly
         prev = tr.prev
@@ -459,7 +646,10 @@ class TrajectoryGenerator:
         tau = prev.tau_out
         t_b = prev.t0 + prev.T
         t6_b = prev.dest_t6()
-        q_b = prev.dest_q() if prev.mode == "joint" else self.kin.ik(t6_b, prev.config, self.q, prev.where)
+        if prev.mode == "joint" or (prev.static and prev.q_dest is not None):
+            q_b = prev.dest_q()   # a static Cartesian segment's end joints are known from its checked path
+        else:
+            q_b = self.kin.ik(t6_b, prev.config, self.q, prev.where)
         req = self.queue.get()
         seg = None
         at_rest = prev.req.repeat and prev.stationary
@@ -487,21 +677,30 @@ class TrajectoryGenerator:
                     dropped.finish(MotionError(f"{dropped.position.name}: not run, an earlier request failed"))
         if seg is None:
             hold = prev.req if prev.req.repeat else prev.req.repeated()
+            if prev.static and _static(hold) and not isinstance(hold.profile, Plan):
+                hold.profile = _hold_plan(prev, hold, t6_b, q_b)   # holding still at a fixed corner
             seg = plan_segment(self.kin, self.limits, self.dt, hold, t6_b, q_b, t_b, tau, prev.v_end,
                                prev.v_cart if prev.mode == "cartesian" else None)
         self.trans = Transition(prev, t_b - tau, tau, q_b, self.q.copy())
         self.seg = seg
 
     def _check_step(self, q: np.ndarray) -> None:
+        """Refuse a commanded step above the joint velocity limit, outside a joint range, or not finite."""
+        if ((np.abs(q - self.q) <= self._step_bound) & (q >= self._lo) & (q <= self._hi)).all():
+            return   # (NaN fails every comparison, so it takes the path below)
+        units = self.kin.units
+        if not np.all(np.isfinite(q)):
+            raise Unreachable(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
+                              "arm stopped")
         step = np.abs(q - self.q)
-        bound = self.limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
-        bad = np.nonzero(step > bound)[0]
+        bound = self._step_bound
+        bad = np.nonzero(~(step <= bound))[0]
         if bad.size:
             i = int(bad[0])
-            raise SingularPath(f"{self.seg.where}: joint {i + 1} would move {step[i]:.4f} rad in one sample "
-                               f"(limit {bound[i]:.4f} rad at {1 / self.dt:.0f} Hz): a singularity or a target "
+            raise SingularPath(f"{self.seg.where}: joint {i + 1} would move {step[i]:.4f} {units[i]} in one sample "
+                               f"(limit {bound[i]:.4f} {units[i]} at {1 / self.dt:.0f} Hz): a singularity or a target "
                                "moving too fast; arm stopped")
-        _check_range(self.limits, q, self.seg.where, "the commanded point")
+        _check_range(self.limits, q, self.seg.where, "the commanded point", units)
 
     def _freeze(self, exc: BaseException) -> None:
         fault = TrajectoryFault(f"trajectory generator stopped the arm at t = {self.t:.3f} s: {exc}", exc)
