@@ -113,7 +113,14 @@ class Planner:
 
     def setconf(self, spec=None) -> None:
         """Arm configuration for the next joint-mode moves (e.g. "ru", "flip", a Config); None keeps the current."""
-        self.params.config = parse_config(spec)
+        wanted = parse_config(spec)
+        fields = getattr(self.kin.Config, "_fields", None) or getattr(self.kin.Config, "__dataclass_fields__", None)
+        if isinstance(wanted, dict) and fields is not None:
+            unknown = sorted(set(wanted) - set(fields))
+            if unknown:
+                raise BadRequest(f"setconf({spec!r}): the {self.kin.name} has no {'/'.join(unknown)} configuration "
+                                 f"choice (its configuration has {', '.join(fields)})")
+        self.params.config = wanted
 
     # -- motion requests ---------------------------------------------------------------
     def move(self, position: Position) -> Request:

@@ -122,6 +122,7 @@ class Kinematics:
         path = np.empty((n + 1, 6))
         path[0] = q_start
         if q is None:
+            self.ik(poses[-1], config, q_start, f"{where}, its destination")  # the usual cause, named as such
             prev = q_start
             for j in range(n):
                 at = f"{where} at {100 * (1 - lams[j]):.0f}% of the path"
