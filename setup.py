@@ -17,6 +17,15 @@ HERE = Path(__file__).parent
 C_DIR = Path("rccl", "kinematics", "_c")
 
 
+def _source_hash(c_file: Path) -> str:
+    """rccl.kinematics.backend.source_hash, loaded by path (the package need not import here)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("_rccl_kin_backend", HERE / "rccl" / "kinematics" / "backend.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.source_hash(c_file)
+
+
 def _numpy_include() -> str | None:
     """numpy's C headers, for the public fast path of the kernels; None without numpy."""
     try:
@@ -36,6 +45,8 @@ class OptionalBuildExt(build_ext):
                   "their fast public entry (calls go through the Python checks).", file=sys.stderr)
         mvec = ctypes.util.find_library("mvec") if sys.platform.startswith("linux") else None
         for ext in self.extensions:
+            # the identity of the sources (the .c and the runtime headers), checked at import
+            ext.define_macros.append(("RCCL_SOURCE_HASH", '"%s"' % _source_hash(HERE / ext.sources[0])))
             if mvec:  # glibc's vector sin/cos for the batched loops (emit_c.py: RCCL_LIBMVEC)
                 ext.define_macros.append(("RCCL_LIBMVEC", "1"))
                 ext.libraries.append("mvec")
@@ -66,7 +77,8 @@ class OptionalBuildExt(build_ext):
 
 
 extensions = [
-    Extension(f"rccl.kinematics._c.{src.stem}", [str(src)], optional=True)
+    Extension(f"rccl.kinematics._c.{src.stem}", [str(src)], optional=True,
+              depends=[str(C_DIR / h) for h in ("kin_prelude.h", "kin_runtime.h")])
     for src in sorted((HERE / C_DIR).glob("*.c"))
     for src in [src.relative_to(HERE)]
 ]
@@ -75,5 +87,5 @@ setup(
     ext_modules=extensions,
     cmdclass={"build_ext": OptionalBuildExt},
     # the generated C (for rebuilds and the staleness check) and the CasADi Function files
-    package_data={"rccl.kinematics": ["_c/*.c", "casadi/*/*.casadi"]},
+    package_data={"rccl.kinematics": ["_c/*.c", "_c/*.h", "casadi/*/*.casadi"]},
 )

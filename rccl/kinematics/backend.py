@@ -32,10 +32,17 @@ def _warn_once(message: str) -> None:
         warnings.warn(message, RuntimeWarning, stacklevel=3)
 
 
-def _source_hash(text: str) -> str:
-    """Same digest as derive.emit_c.source_hash (the file minus its hash line)."""
-    body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#define RCCL_SOURCE_HASH"))
-    return hashlib.sha256(body.encode()).hexdigest()
+#: the hand-written runtime every generated ``_c/<robot>.c`` includes
+RUNTIME_HEADERS = ("kin_prelude.h", "kin_runtime.h")
+
+
+def source_hash(c_file: Path) -> str:
+    """sha256 of a generated C file and the runtime headers beside it: what setup.py compiles
+    into the extension (RCCL_SOURCE_HASH), so a stale build is recognised at import."""
+    digest = hashlib.sha256()
+    for path in (c_file, *(c_file.with_name(h) for h in RUNTIME_HEADERS)):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def enabled() -> bool:
@@ -57,9 +64,10 @@ def c_module(robot: str) -> Any | None:
                 "slower generated Python code. Install a C compiler and reinstall (pip install -e .) to build them.")
         else:
             source = Path(__file__).with_name("_c") / f"{robot}.c"
-            if source.exists() and _source_hash(source.read_text()) != mod.source_hash():
+            if source.exists() and source_hash(source) != mod.source_hash():
                 _warn_once(
-                    f"rccl.kinematics: the compiled {robot} kernels were built from an older {source}; using the "
+                    f"rccl.kinematics: the compiled {robot} kernels were built from an older {source} (or "
+                    f"runtime headers {', '.join(RUNTIME_HEADERS)}); using the "
                     "generated Python code. Rebuild with `pip install -e .` (or `python setup.py build_ext --inplace`).")
                 mod = None
     _modules[robot] = mod

@@ -1250,21 +1250,6 @@ _KERNELS = _backend.accelerate(ROBOT, {
 })
 
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
-# the contract's public functions (rccl.kinematics.runtime.public_api): the compiled fast
-# entries where the C kernels are built, with the runtime's Python checks behind them
-_API = _rt.public_api(_ROBOT)
-fk = _API.fk
-ik = _API.ik
-ik_all = _API.ik_all
-config_of = _API.config_of
-jacobian4 = _API.jacobian4
-jacobian6 = _API.jacobian6
-cartesian_from_joint = _API.cartesian_from_joint
-torque_from_force = _API.torque_from_force
-joint_from_cartesian = _API.joint_from_cartesian
-force_from_torque = _API.force_from_torque
-gravity = _API.gravity
-gravity_regressor = _API.gravity_regressor
-gravity_links = _API.gravity_links
-coefficients_from_links = _API.coefficients_from_links
-tool_load = _API.tool_load
+_API = _rt.public_api(_ROBOT)  # the contract's functions: compiled fast entries, runtime checks behind
+(fk, ik, ik_all, config_of, jacobian4, jacobian6, cartesian_from_joint, torque_from_force,
+ joint_from_cartesian, force_from_torque, gravity, gravity_regressor, gravity_links, coefficients_from_links, tool_load) = _API

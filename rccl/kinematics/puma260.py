@@ -211,7 +211,7 @@ def _ik_one(T, config):
     q_ = numpy.array([x3, -x20 + math.atan2(x24, x25), x20, math.atan2(-x28, -x37), math.atan2(x44, x46), math.atan2(-oz*x31*x57 + x47*x50 - x50*x51 + x52*x53 + x54*x55 + x54*x58 + x55*x56 + x56*x58, x42*x52 - x43*x47 + x43*x51 + x54*x59 + x56*x59)], dtype=float)
     guard_arm_reach = float(-0.999999999999*x0 + 1.000000000001*x1 + 1.000000000001*x2)
     guard_elbow_reach = float(x17 + 4.0e-12*x4*x5)
-    guard_folded = float(x14 - 1.0e-18*(D3 + x13)**2)
+    guard_folded = float(x14 - 1.0e-12*(D3 + x13)**2)
     guard_wrist = float(math.sqrt(x39 + x40) - 1.0e-9)
     return (q_, guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist,)
 
@@ -299,7 +299,7 @@ def _ik_many(T, config):
     q_[:, 5] = numpy.arctan2(-oz*x31*x57 + x47*x50 - x50*x51 + x52*x53 + x54*x55 + x54*x58 + x55*x56 + x56*x58, x42*x52 - x43*x47 + x43*x51 + x54*x59 + x56*x59)
     guard_arm_reach = numpy.broadcast_to(numpy.asarray(-0.999999999999*x0 + 1.000000000001*x1 + 1.000000000001*x2, dtype=float), (T.shape[0],))
     guard_elbow_reach = numpy.broadcast_to(numpy.asarray(x17 + 4.0e-12*x4*x5, dtype=float), (T.shape[0],))
-    guard_folded = numpy.broadcast_to(numpy.asarray(x14 - 1.0e-18*(D3 + x13)**2, dtype=float), (T.shape[0],))
+    guard_folded = numpy.broadcast_to(numpy.asarray(x14 - 1.0e-12*(D3 + x13)**2, dtype=float), (T.shape[0],))
     guard_wrist = numpy.broadcast_to(numpy.asarray(numpy.sqrt(x39 + x40) - 1.0e-9, dtype=float), (T.shape[0],))
     return (q_, guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist,)
 
@@ -2023,21 +2023,6 @@ _KERNELS = _backend.accelerate(ROBOT, {
 })
 
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
-# the contract's public functions (rccl.kinematics.runtime.public_api): the compiled fast
-# entries where the C kernels are built, with the runtime's Python checks behind them
-_API = _rt.public_api(_ROBOT)
-fk = _API.fk
-ik = _API.ik
-ik_all = _API.ik_all
-config_of = _API.config_of
-jacobian4 = _API.jacobian4
-jacobian6 = _API.jacobian6
-cartesian_from_joint = _API.cartesian_from_joint
-torque_from_force = _API.torque_from_force
-joint_from_cartesian = _API.joint_from_cartesian
-force_from_torque = _API.force_from_torque
-gravity = _API.gravity
-gravity_regressor = _API.gravity_regressor
-gravity_links = _API.gravity_links
-coefficients_from_links = _API.coefficients_from_links
-tool_load = _API.tool_load
+_API = _rt.public_api(_ROBOT)  # the contract's functions: compiled fast entries, runtime checks behind
+(fk, ik, ik_all, config_of, jacobian4, jacobian6, cartesian_from_joint, torque_from_force,
+ joint_from_cartesian, force_from_torque, gravity, gravity_regressor, gravity_links, coefficients_from_links, tool_load) = _API
