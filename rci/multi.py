@@ -51,7 +51,7 @@ import numpy as np
 
 from . import codes
 from .exceptions import ControlTerminated, NoControl, NotOpen, RCIError
-from .realtime import RealtimeStatus, lock_memory, unlock_memory
+from .realtime import GCControl, RealtimeStatus, lock_memory, unlock_memory
 from .session import TERM_SIGNAL, Session
 
 PLANNING = "planning"      # the planning level's name as a sender/receiver
@@ -303,6 +303,14 @@ class Workcell:
         self.on_error = on_error
         self.on_interrupt = on_interrupt
         self.use_signals = signals
+        # process-wide real-time settings are the workcell's, once for all arms: one arm's task
+        # starting (gc.collect() of the whole heap) or ending (unfreeze, switch interval back)
+        # must not stall or unprotect another arm's running control
+        self._gc = GCControl(session_options.pop("gc", "freeze"))
+        self._switch_interval = session_options.pop("switch_interval", 2e-4)
+        self._saved_interval: float | None = None
+        self._gc_applied = False
+        self._rt_lock = threading.Lock()
         self.sessions: dict[str, Session] = {}
         for name, spec in arms.items():
             self.sessions[name] = self._make_session(name, spec, (rates or {}).get(name), session_options)
@@ -331,6 +339,7 @@ class Workcell:
                 raise MultiError(f"arm {name!r}: give the Workcell an unopened Session (it opens it)")
             s = spec
             s.use_signals = False
+            s.gc_mode, s.switch_interval = "leave", None     # the workcell's (see __init__)
         else:
             url, robot = (spec, "puma260") if isinstance(spec, str) else spec
             opts = dict(options)
@@ -338,6 +347,7 @@ class Workcell:
                 opts["rate_hz"] = rate
             opts["signals"] = False          # the workcell owns the signals: one handler for every arm
             opts["lock_memory"] = False      # mlockall is process-wide: the workcell takes it once
+            opts["gc"], opts["switch_interval"] = "leave", None
             s = Session(url, robot, **opts)
         s.on_error = lambda _t, _name=name: self._deliver()
         s.termination_listeners.append(lambda t, _name=name: self._arm_terminated(_name, t))
@@ -422,6 +432,7 @@ class Workcell:
                 pairs[name] = (f1, f2)
             if self.sync == "lockstep":
                 self._prepare_lockstep()
+            self._realtime_on()
             started: list[str] = []
             try:
                 for name, (f1, f2) in pairs.items():
@@ -432,6 +443,7 @@ class Workcell:
                     self._barrier.abort()
                 for n in started:
                     self._release_quietly(n)
+                self._flush()
                 raise
 
     def _prepare_lockstep(self) -> None:
@@ -467,6 +479,7 @@ class Workcell:
             self.termination = None
             self._delivered = None
             self._term_event.clear()
+            self._realtime_on()
             errors: list[BaseException] = []
 
             def run(f: Callable[[], Any]) -> None:
@@ -501,6 +514,7 @@ class Workcell:
     def _wrap(self, name: str, f1, f2) -> tuple:
         """The functions given to the arm's Session: register the thread; in lockstep, the barrier."""
         session = self.sessions[name]
+        self._realtime_on()            # also when a layer above starts the control (RCCL's Arm.open)
         state = {"cycle": 0, "skip": False}
         threads = self._threads
 
@@ -579,11 +593,39 @@ class Workcell:
             self._flush()
 
     def _flush(self) -> None:
-        """Make deferred writes and sends visible once the tasks are gone, so nothing sent is lost."""
+        """Once no arm is under control: make deferred writes and sends visible (nothing sent is
+        lost) and give back the process-wide real-time settings."""
         if not any(s.in_control for s in self.sessions.values()):
             self.shared.commit()
             for ch in list(self.channels.values()):
                 ch.commit()
+            self._realtime_off()
+
+    def _realtime_on(self) -> None:
+        with self._rt_lock:
+            if not self._gc_applied:
+                self._realtime_apply()
+
+    def _realtime_apply(self) -> None:
+        self._gc.apply(self.rt_status)
+        self._gc_applied = True
+        self._saved_interval = sys.getswitchinterval()
+        if self._switch_interval:
+            sys.setswitchinterval(self._switch_interval)
+        self.rt_status.switch_interval = sys.getswitchinterval()
+
+    def _realtime_off(self) -> None:
+        with self._rt_lock:
+            if not self._gc_applied:
+                return
+            for s in self.sessions.values():     # let finished control threads leave first
+                if s._task is not None:
+                    s._task.finished.wait(0.5)
+            self._gc.restore()
+            self._gc_applied = False
+            if self._saved_interval is not None:
+                sys.setswitchinterval(self._saved_interval)
+                self._saved_interval = None
 
     def _release_quietly(self, name: str) -> None:
         try:

@@ -267,3 +267,18 @@ def test_ctrl_c_releases_every_arm_and_exits_130():
             proc.kill()
     assert proc.returncode == 130
     assert any(x.startswith("TERMINATE/ interrupt (every arm released, power off)") for x in err.splitlines())
+
+
+def test_process_wide_realtime_settings_are_taken_once_for_all_arms(sims):
+    """One arm's task starting (a full gc.collect) or ending (unfreeze) must not touch the other's control."""
+    import gc
+    th0, si0 = gc.get_threshold(), sys.getswitchinterval()
+    with Workcell(arms(sims), on_error="raise") as cell:
+        cell.control(puma=lambda: None, microbo=lambda: None)
+        assert gc.get_threshold()[0] == 50_000 and gc.get_freeze_count() > 0
+        assert sys.getswitchinterval() == pytest.approx(2e-4)
+        assert cell["puma"].rt_status.gc == "left as is" == cell["microbo"].rt_status.gc
+        cell.release("puma")                     # one arm ends: the other is still protected
+        assert gc.get_threshold()[0] == 50_000
+        cell.release()
+    assert gc.get_threshold() == th0 and sys.getswitchinterval() == pytest.approx(si0)
