@@ -47,7 +47,7 @@ from .limits import Limits
 from .motion import MotionParams, Request
 from .position import joint_position
 from .queue import MotionQueue
-from .transform import axis_angle, inverse
+from .transform import T6, axis_angle, inverse
 
 ACC_PEAK = 0.75          # peak of the quartic's acceleration: ACC_PEAK * |v2 - v1| / tau
 STEP_MARGIN = 1.25       # a commanded step may exceed v_max * dt by this factor before it is a fault
@@ -55,9 +55,9 @@ SINGULAR_SLOWDOWN = 10.0  # a Cartesian path needing > 10x its requested time fo
 MIN_BLEND_SCALE = 0.5    # below this speed factor a corner is taken by stopping at it instead (see plan_segment)
 MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked by move() before its motion starts
 # the control level's re-check of a Cartesian path, when the arm or the target is no longer where
-# move() checked it from (a variable or functional target, a refused request before it): one
-# batched inverse kinematics call, so its cost is nearly independent of the count
-CONTROL_CHECK_POINTS = 48
+# move() checked it from (a variable or functional target, a refused request before it): about
+# 0.6 us per point with the compiled kinematics, so 24 points stay within a few percent of a cycle
+CONTROL_CHECK_POINTS = 24
 SAME_CORNER_TOL = 1e-12  # joints (rad or m) within this of the checked corner: move()'s path check still applies
 
 
@@ -82,7 +82,6 @@ class Kinematics:
         kinds = getattr(module, "JOINT_KINDS", ("revolute",) * 6)
         self.revolute = np.array([k == "revolute" for k in kinds])
         self.units = tuple("rad" if r else "m" for r in self.revolute)
-        self.batched = True   # the module takes a batch of poses (the contract); cleared if it does not
 
     def ik(self, base_to_t6: np.ndarray, config, q_ref: np.ndarray, where: str) -> np.ndarray:
         """Joint angles (rad; m for prismatic joints) of T6 (base to link 6) in ``config``, branch nearest ``q_ref``."""
@@ -100,42 +99,30 @@ class Kinematics:
 
     def ik_path(self, poses: np.ndarray, config, q_start: np.ndarray, where: str, lams: np.ndarray,
                 limits: Limits | None = None) -> np.ndarray:
-        """Joints along a path of T6 poses (N, 4, 4), continuous from ``q_start``: (N + 1, 6) with q_start first.
+        """Joints along a path of T6 poses (N, 4, 4), each solved from the one before: (N + 1, 6), q_start first.
 
-        One batched inverse kinematics call (every pose against ``q_start``), then each revolute
-        joint is unwrapped along the path. When the batch fails, the points are solved one by
-        one from the start, so the error names the first point that fails (its ``lams``).
+        One fast-entry inverse kinematics call per point (about half a microsecond each with
+        the compiled kernels). When a point fails, the destination is tried first (the usual
+        cause, named as such), then the points one by one from the start with their joint
+        ranges (``limits``), so the error names the first point that fails (from ``lams``).
         """
         n = poses.shape[0]
-        q = None
-        if self.batched:
-            ref = np.empty((n, 6))
-            ref[:] = q_start
-            try:
-                q = np.asarray(self._ik(poses, config, ref), dtype=float)
-                if q.shape != (n, 6):
-                    self.batched, q = False, None
-            except ValueError:
-                q = None
-            except Exception:   # a module without batches (a stand-in): go one by one from now on
-                self.batched = False
         path = np.empty((n + 1, 6))
-        path[0] = q_start
-        if q is None:
-            self.ik(poses[-1], config, q_start, f"{where}, its destination")  # the usual cause, named as such
-            prev = q_start
+        path[0] = prev = q_start
+        ik = self._ik
+        try:
             for j in range(n):
-                at = f"{where} at {100 * (1 - lams[j]):.0f}% of the path"
-                prev = path[j + 1] = self.ik(poses[j], config, prev, at)
-                if limits is not None:
-                    _check_range(limits, prev, at, "path point", self.units)
+                prev = path[j + 1] = ik(poses[j], config, prev)
             return path
-        path[1:] = q
-        rev = self.revolute
-        if rev.any():
-            step = np.diff(path[:, rev], axis=0)
-            step -= (2.0 * math.pi) * np.round(step / (2.0 * math.pi))
-            path[1:, rev] = q_start[rev] + np.cumsum(step, axis=0)
+        except ValueError:
+            pass
+        self.ik(poses[-1], config, q_start, f"{where}, its destination")
+        prev = q_start
+        for j in range(n):
+            at = f"{where} at {100 * (1 - lams[j]):.0f}% of the path"
+            prev = path[j + 1] = self.ik(poses[j], config, prev, at)
+            if limits is not None:
+                _check_range(limits, prev, at, "path point", self.units)
         return path
 
 
@@ -145,15 +132,14 @@ def drive_basis(d: np.ndarray, k: np.ndarray) -> np.ndarray:
     Rodrigues: Rot(k, a) = k k^T + cos a (I - k k^T) + sin a [k]x, so the drive transform is
     linear in those four numbers; returns the (4, 16) basis (four flattened 4x4 matrices).
     """
-    kx, ky, kz = (float(x) for x in k)
-    kk = np.outer(k, k)
-    e = np.zeros((4, 4, 4))
-    e[0, :3, :3] = kk
-    e[0, 3, 3] = 1.0
-    e[1, :3, :3] = np.eye(3) - kk
-    e[2, :3, :3] = ((0.0, -kz, ky), (kz, 0.0, -kx), (-ky, kx, 0.0))
-    e[3, :3, 3] = d
-    return e.reshape(4, 16)
+    kx, ky, kz = k.tolist()
+    dx, dy, dz = d.tolist()
+    xx, xy, xz, yy, yz, zz = kx * kx, kx * ky, kx * kz, ky * ky, ky * kz, kz * kz
+    return np.array([
+        [xx, xy, xz, 0.0, xy, yy, yz, 0.0, xz, yz, zz, 0.0, 0.0, 0.0, 0.0, 1.0],                   # k k^T (+ the 1)
+        [1.0 - xx, -xy, -xz, 0.0, -xy, 1.0 - yy, -yz, 0.0, -xz, -yz, 1.0 - zz, 0.0, 0.0, 0.0, 0.0, 0.0],  # I - k k^T
+        [0.0, -kz, ky, 0.0, kz, 0.0, -kx, 0.0, -ky, kx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],              # [k]x
+        [0.0, 0.0, 0.0, dx, 0.0, 0.0, 0.0, dy, 0.0, 0.0, 0.0, dz, 0.0, 0.0, 0.0, 0.0]])             # d
 
 
 def drive(d: np.ndarray, k: np.ndarray, theta: float, lam: float) -> np.ndarray:
@@ -164,8 +150,13 @@ def drive(d: np.ndarray, k: np.ndarray, theta: float, lam: float) -> np.ndarray:
 
 def _coefficients(theta: float, lams: np.ndarray) -> np.ndarray:
     """Rows [1, cos(lam theta), sin(lam theta), lam] for each lam (N, 4)."""
+    out = np.empty((lams.size, 4))
+    out[:, 0] = 1.0
     a = lams * theta
-    return np.stack([np.ones_like(lams), np.cos(a), np.sin(a), lams], axis=1)
+    np.cos(a, out=out[:, 1])
+    np.sin(a, out=out[:, 2])
+    out[:, 3] = lams
+    return out
 
 
 def resolve_config(kin: Kinematics, current, wanted):
@@ -199,7 +190,19 @@ class Plan:
     """
 
     __slots__ = ("mode", "t6_b", "q_b", "t6_c", "x_c", "tool", "tool_inv", "d", "k", "theta", "dist", "config",
-                 "dq", "q_dest", "t_lim", "v_start_dir", "v_end_dir", "static", "drive", "basis", "vt_dir", "vr_dir")
+                 "dq", "q_dest", "t_lim", "v_start_dir", "v_end_dir", "static", "drive", "basis", "vt_dir", "vr_dir",
+                 "v_start_list", "acc_start", "acc_end", "vt_list", "vr_list", "vt_norm", "vr_norm", "stationary")
+
+    def finish(self, limits: Limits) -> "Plan":
+        """Precompute the floats ``time_segment`` needs, so timing a segment is plain float arithmetic."""
+        jacc = limits.joint_acceleration
+        self.v_start_list = self.v_start_dir.tolist()
+        self.acc_start = float(np.max(np.abs(self.v_start_dir) / jacc))   # joint accel. * T^2 / ... (see _tau)
+        self.acc_end = float(np.max(np.abs(self.v_end_dir) / jacc))
+        self.vt_list, self.vr_list = self.vt_dir.tolist(), self.vr_dir.tolist()
+        self.vt_norm, self.vr_norm = math.hypot(*self.vt_list), math.hypot(*self.vr_list)
+        self.stationary = self.dist < 1e-12 and self.theta < 1e-12 and not np.any(np.abs(self.dq) >= 1e-12)
+        return self
 
     def fits(self, req: Request, t6_b: np.ndarray, q_b: np.ndarray) -> bool:
         """Whether this plan still holds for ``req`` starting at (``t6_b``, ``q_b``)."""
@@ -303,10 +306,11 @@ class Transition:
         return self.t_start + 2.0 * self.tau
 
 
-def _scale_for(v1: np.ndarray, v2: np.ndarray, c: np.ndarray) -> float:
-    """Largest s in (0, 1] with |s v2_i - v1_i| <= c_i for all i (s = 0 is assumed feasible)."""
+def _scale_for(v1: list[float], v2_dir: list[float], T: float, c: list[float]) -> float:
+    """Largest s in (0, 1] with |s v2_i - v1_i| <= c_i for all i, v2 = v2_dir / T (s = 0 is assumed feasible)."""
     s = 1.0
-    for a, b, lim in zip(v2.tolist(), v1.tolist(), c.tolist()):
+    for a, b, lim in zip(v2_dir, v1, c):
+        a /= T
         if abs(a) < 1e-15:
             continue
         lo, hi = (b - lim) / a, (b + lim) / a
@@ -316,13 +320,14 @@ def _scale_for(v1: np.ndarray, v2: np.ndarray, c: np.ndarray) -> float:
     return max(s, 1e-3)
 
 
-def _scale_norm(v1: np.ndarray, v2: np.ndarray, c: float) -> float:
-    """Largest s in (0, 1] with |s v2 - v1| <= c (Euclidean), assuming |v1| <= c."""
-    a = float(v2 @ v2)
+def _scale_norm(v1: list[float], v2_dir: list[float], T: float, c: float) -> float:
+    """Largest s in (0, 1] with |s v2 - v1| <= c (Euclidean), v2 = v2_dir / T, assuming |v1| <= c."""
+    v2 = [x / T for x in v2_dir]
+    a = v2[0] * v2[0] + v2[1] * v2[1] + v2[2] * v2[2]
     if a < 1e-30:
         return 1.0
-    b = float(v1 @ v2)
-    disc = b * b - a * (float(v1 @ v1) - c * c)
+    b = v1[0] * v2[0] + v1[1] * v2[1] + v1[2] * v2[2]
+    disc = b * b - a * (v1[0] * v1[0] + v1[1] * v1[1] + v1[2] * v1[2] - c * c)
     if disc < 0:
         return 1e-3
     return max(1e-3, min(1.0, (b + math.sqrt(disc)) / a))
@@ -354,11 +359,11 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
     rel = inverse(x_c) @ x_b
     d = p.d = rel[:3, 3].copy()
     p.k, p.theta = axis_angle(rel)
-    dist = p.dist = float(np.linalg.norm(d))
+    dist = p.dist = math.hypot(*d.tolist())
     cfg_b = kin.config_of(q_b)
     p.config = resolve_config(kin, cfg_b, params.config)
     p.drive = drive_basis(d, p.k)
-    p.basis = (x_c @ p.drive.reshape(4, 4, 4) @ p.tool_inv).reshape(4, 16)
+    p.basis = _t6_basis(x_c, p.drive, p.tool_inv, pos.tool is T6)
     r = x_c[:3, :3]
     p.vt_dir, p.vr_dir = -(r @ d), -(r @ p.k) * p.theta   # tool velocity * T (base frame)
     # Cartesian speed limits bind the tool only where its path is the straight line (Cartesian mode);
@@ -381,7 +386,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         p.q_dest = q_c
         p.t_lim = max(t_vel, float(np.max(np.abs(p.dq) / vmax)))
         p.v_start_dir = p.v_end_dir = -p.dq          # joint velocity * T at the start (and at the end)
-        return p
+        return p.finish(limits)
     if p.config != cfg_b:
         raise ConfigurationChange(
             f"{where}: Cartesian mode cannot change the arm configuration from {cfg_b} to {p.config}; "
@@ -392,7 +397,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         p.q_dest = q_b.copy() if same else kin.ik(t6_c, p.config, q_b, where)
         p.t_lim = 0.0
         p.v_start_dir = p.v_end_dir = np.zeros(6)
-        return p
+        return p.finish(limits)
     n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
     lams = 1.0 - np.arange(1, n + 1) / n
     poses = (_coefficients(p.theta, lams) @ p.basis).reshape(n, 4, 4)
@@ -401,7 +406,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
     if bad.any():
         j, i = np.argwhere(bad)[0]
         _check_range(limits, path[j + 1], where, f"path point at {100 * (1 - lams[j]):.0f}%", units)
-    steps = np.abs(np.diff(path, axis=0)) * n  # |dq/dlam| per joint
+    steps = np.abs(path[1:] - path[:-1]) * n  # |dq/dlam| per joint
     t_joint = float(np.max(steps / vmax))
     if t_joint > SINGULAR_SLOWDOWN * max(t_vel, 0.05):
         j, i = np.unravel_index(int(np.argmax(steps / vmax)), steps.shape)
@@ -414,10 +419,16 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
     p.t_lim = max(t_vel, t_joint)
     p.v_start_dir = (path[1] - path[0]) * n
     p.v_end_dir = (path[-1] - path[-2]) * n
-    return p
+    return p.finish(limits)
 
 
-def _hold_plan(prev: Segment, req: Request, t6_b: np.ndarray, q_b: np.ndarray) -> Plan:
+def _t6_basis(x_c: np.ndarray, drive4: np.ndarray, tool_inv: np.ndarray, no_tool: bool) -> np.ndarray:
+    """T6(lam) = X_C Drive(lam) Tool^-1 as [1, cos, sin, lam] @ basis: the drive basis taken to link 6 in the base frame."""
+    b = x_c @ drive4.reshape(4, 4, 4)
+    return (b if no_tool else b @ tool_inv).reshape(4, 16)
+
+
+def _hold_plan(prev: Segment, req: Request, t6_b: np.ndarray, q_b: np.ndarray, limits: Limits) -> Plan:
     """The plan of holding at the corner of a static segment (the repeated request of an empty queue)."""
     p = Plan()
     p.mode, p.t6_b, p.q_b, p.static = req.mode, t6_b, q_b.copy(), True
@@ -425,13 +436,13 @@ def _hold_plan(prev: Segment, req: Request, t6_b: np.ndarray, q_b: np.ndarray) -
     p.x_c = t6_b @ p.tool
     p.d, p.k, p.theta, p.dist = np.zeros(3), np.array([0.0, 0.0, 1.0]), 0.0, 0.0
     p.drive = drive_basis(p.d, p.k)
-    p.basis = (p.x_c @ p.drive.reshape(4, 4, 4) @ p.tool_inv).reshape(4, 16)
+    p.basis = _t6_basis(p.x_c, p.drive, p.tool_inv, False)
     p.vt_dir = p.vr_dir = np.zeros(3)
     p.dq = np.zeros(6)
     p.q_dest = q_b.copy()
     p.t_lim = 0.0
     p.v_start_dir = p.v_end_dir = np.zeros(6)
-    return p
+    return p.finish(limits)
 
 
 def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np.ndarray,
@@ -458,7 +469,10 @@ def plan_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b:
 def time_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, plan: Plan, t0: float,
                  tau_in: float | None, v1: np.ndarray | None = None,
                  v1_cart: tuple[np.ndarray, np.ndarray] | None = None) -> Segment:
-    """The segment of ``plan`` in time: travel time, transitions and speed scale within the limits (no kinematics)."""
+    """The segment of ``plan`` in time: travel time, transitions and speed scale within the limits.
+
+    No kinematics and (almost) no arrays: this runs in the control cycle that starts the segment.
+    """
     seg = Segment(req, kin)
     params = req.params
     seg.plan = plan
@@ -470,47 +484,47 @@ def time_segment(kin: Kinematics, limits: Limits, dt: float, req: Request, plan:
     if seg.static:
         seg.x_dest = plan.t6_c
         seg._basis = plan.basis
-    v_start_dir, v_end_dir = plan.v_start_dir, plan.v_end_dir
-    t_lim = plan.t_lim
     travel = params.travel_time
-    T = max(t_lim, travel) if travel is not None else t_lim
+    T = plan.t_lim if travel is None or travel < plan.t_lim else travel
     tau_req = params.transition_time / 2.0
     cart = seg.mode == "cartesian"
     if tau_in is None:  # from rest: a transition long enough to reach the segment's speed
         T = max(T, 2.0 * tau_req, 2.0 * dt)
-        tau_in = max(tau_req, _tau_for(limits, v_start_dir, plan, cart, T))
+        tau_in = max(tau_req, _tau(limits, plan, plan.acc_start, cart, T))
         t0 = t0 + tau_in
         v1 = v1_cart = None
         seg.t0 = t0
     seg.tau_in = tau_in
-    seg.stationary = plan.dist < 1e-12 and plan.theta < 1e-12 and not np.any(np.abs(plan.dq) >= 1e-12)
+    seg.stationary = plan.stationary
     T = max(T, tau_in + tau_req, 2.0 * dt)
     # keep the incoming transition within the acceleration limits (peak ACC_PEAK |dv| / tau);
     # seg.scale < 1 is how much the new segment had to be slowed for it (the generator stops at
     # the corner instead when that is below MIN_BLEND_SCALE, e.g. for a sharp reversal)
     seg.scale = 1.0
     if v1 is not None and tau_in > 0:
-        s = _scale_for(v1, v_start_dir / T, limits.joint_acceleration * (tau_in / ACC_PEAK))
+        f = tau_in / ACC_PEAK
+        s = _scale_for(v1.tolist(), plan.v_start_list, T, [a * f for a in limits.joint_acceleration.tolist()])
         if v1_cart is not None and cart:
-            s = min(s, _scale_norm(v1_cart[0], plan.vt_dir / T, limits.translational_acceleration * tau_in / ACC_PEAK),
-                    _scale_norm(v1_cart[1], plan.vr_dir / T, limits.rotational_acceleration * tau_in / ACC_PEAK))
+            s = min(s, _scale_norm(v1_cart[0].tolist(), plan.vt_list, T, limits.translational_acceleration * f),
+                    _scale_norm(v1_cart[1].tolist(), plan.vr_list, T, limits.rotational_acceleration * f))
         T /= s
         seg.scale = s
-    tau_out = max(tau_req, _tau_for(limits, v_end_dir, plan, cart, T))
-    seg.T = max(T, tau_in + tau_out)
+    tau_out = max(tau_req, _tau(limits, plan, plan.acc_end, cart, T))
+    seg.T = T = max(T, tau_in + tau_out)
     seg.tau_out = tau_out
-    seg.v_end = v_end_dir / seg.T
-    seg.v_cart = (plan.vt_dir / seg.T, plan.vr_dir / seg.T)
+    seg.v_end = plan.v_end_dir / T
+    seg.v_cart = (plan.vt_dir / T, plan.vr_dir / T)
     return seg
 
 
-def _tau_for(limits: Limits, v_dir: np.ndarray, plan: Plan, cart: bool, T: float) -> float:
-    """Half-width of a transition that brings the segment's velocities (``v_dir`` / T) to rest within every limit."""
-    tau = float(np.max(np.abs(v_dir) / limits.joint_acceleration)) * (ACC_PEAK / T)
-    if not cart:
-        return tau
-    return max(tau, ACC_PEAK * float(np.linalg.norm(plan.vt_dir)) / T / limits.translational_acceleration,
-               ACC_PEAK * float(np.linalg.norm(plan.vr_dir)) / T / limits.rotational_acceleration)
+def _tau(limits: Limits, plan: Plan, acc: float, cart: bool, T: float) -> float:
+    """Half-width of a transition that brings the segment's velocities (its path's at speed 1/T) to rest within every limit.
+
+    ``acc`` is max_i |v_dir_i| / a_max_i of the joint velocities times T at that end of the path.
+    """
+    if cart:
+        acc = max(acc, plan.vt_norm / limits.translational_acceleration, plan.vr_norm / limits.rotational_acceleration)
+    return ACC_PEAK * acc / T
 
 
 def _fit_range(limits: Limits, q: np.ndarray, revolute: np.ndarray | None = None) -> np.ndarray:
@@ -679,7 +693,7 @@ class TrajectoryGenerator:
         if seg is None:
             hold = prev.req if prev.req.repeat else prev.req.repeated()
             if prev.static and _static(hold) and not isinstance(hold.profile, Plan):
-                hold.profile = _hold_plan(prev, hold, t6_b, q_b)   # holding still at a fixed corner
+                hold.profile = _hold_plan(prev, hold, t6_b, q_b, self.limits)   # holding still at a fixed corner
             seg = plan_segment(self.kin, self.limits, self.dt, hold, t6_b, q_b, t_b, tau, prev.v_end,
                                prev.v_cart if prev.mode == "cartesian" else None)
         self.trans = Transition(prev, t_b - tau, tau, q_b, self.q.copy())

@@ -115,10 +115,10 @@ def check_rigid(t: np.ndarray, where: str, tol: float = 1e-6) -> None:
 
 def inverse(t: np.ndarray) -> np.ndarray:
     """Inverse of a rigid transform: (R, p)^-1 = (R^T, -R^T p)."""
-    out = np.eye(4)
-    rt = t[:3, :3].T
-    out[:3, :3] = rt
-    out[:3, 3] = -rt @ t[:3, 3]
+    out = np.empty((4, 4))
+    rt = out[:3, :3] = t[:3, :3].T
+    out[:3, 3] = -(rt @ t[:3, 3])
+    out[3] = (0.0, 0.0, 0.0, 1.0)
     return out
 
 
@@ -153,14 +153,16 @@ def axis_angle(r: np.ndarray) -> tuple[np.ndarray, float]:
     symmetric part, which is well conditioned there.
     """
     r = np.asarray(r)[:3, :3]
-    c = max(-1.0, min(1.0, (r[0, 0] + r[1, 1] + r[2, 2] - 1.0) / 2.0))
-    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    s = 0.5 * float(np.linalg.norm(w))
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist()   # floats: this runs at segment starts
+    c = max(-1.0, min(1.0, (r00 + r11 + r22 - 1.0) / 2.0))
+    wx, wy, wz = r21 - r12, r02 - r20, r10 - r01
+    s = 0.5 * math.sqrt(wx * wx + wy * wy + wz * wz)
     angle = math.atan2(s, c)
     if angle < 1e-12:
         return zunit.copy(), 0.0
     if angle < math.pi - 1e-4:
-        return w / (2.0 * s), angle
+        return np.array([wx, wy, wz]) / (2.0 * s), angle
+    w = np.array([wx, wy, wz])
     # near pi: R ~ 2kk^T - I; take the best-conditioned column of (R + I) / 2
     b = (r + np.eye(3)) / 2.0
     i = int(np.argmax(np.diag(b)))
