@@ -1,8 +1,8 @@
 """Helper of the adaptive examples: a simula process inside an environment (plane, box, conveyor).
 
 ``environment_simula("plane:z=0.12", "tool:z=0.05")`` is ``SimulaProcess`` started as
-``python -m rci.simula.environment --env plane:z=0.12 --env tool:z=0.05 -p --power-on
---lockstep --port 0``: simula's own command line plus the environment words.
+``python -m rci.simula --env plane:z=0.12 --env tool:z=0.05 -p --power-on --warm
+--lockstep --port 0``: simula's own command line with its ``--env`` option.
 """
 from __future__ import annotations
 
@@ -13,14 +13,11 @@ from rci.simula.process import SimulaProcess
 
 
 class EnvironmentSimula(SimulaProcess):
-    """SimulaProcess running ``rci.simula.environment`` with ``--env`` words."""
+    """SimulaProcess (``python -m rci.simula``) with one ``--env`` option per environment word."""
 
     def __init__(self, *env: str, args: tuple[str, ...] = ("-p", "--power-on", "--warm"), **kw) -> None:
-        super().__init__(*args, **kw)
-        i = self.argv.index("rci.simula")
-        self.argv[i] = "rci.simula.environment"
-        for word in env:
-            self.argv += ["--env", word]
+        words = [a for w in env for a in ("--env", w)]
+        super().__init__(*args, *words, **kw)
 
 
 def environment_simula(*env: str, **kw) -> EnvironmentSimula:

@@ -336,3 +336,59 @@ def test_functional_jump_is_spread_with_bounded_acceleration():
     dv = np.abs(np.diff(np.vstack([np.zeros(6), steps]), axis=0))
     ratio = dv / (0.5 * amax * dt ** 2)
     assert ratio.max() <= 1.1, ratio.max(axis=1)   # share of the acceleration limit (E.8 is first order)
+
+
+def test_functional_refuses_a_non_finite_value_set_behind_the_setters():
+    t = Trsf("T", trsl(0.1, 0.0, 0.0), kind="variable")
+    pos = makeposition("P", T6, EQ, t, Trsf("X", trsl(0.2, 0.0, 0.3)), TL, T6)
+
+    def sneaky(tr):
+        m = np.eye(4)
+        m[0, 3] = np.nan
+        tr._m = m                      # bypasses Trsf.set's checks
+
+    t.bind(sneaky)
+    q = np.radians([10.0, 80.0, -170.0, 10.0, -60.0, 5.0])
+    for jac in (None, kin.jacobian6(q)):
+        with pytest.raises(FunctionalError, match="'T'.*non-finite"):
+            FunctionalUpdater(np.full(6, 2.0), 1 / 36).update([pos], jac)
+        t._m = trsl(0.1, 0.0, 0.0)
+
+
+def test_control_fast_path_matches_the_reference_force_estimate_and_condition():
+    """AdaptiveControl's per-sample path (kernel inverse, 1-norm condition, J^-T through it) gives the
+    force ForceEstimator.tool_force gives, and its condition is cond_1 by numpy."""
+    from rccl.adaptive.control import AdaptiveControl
+    from rccl.adaptive.force import condition_1
+    from rccl.adaptive.generator import AdaptiveGenerator
+    from rccl.limits import load_limits
+    from rccl.planner import Planner
+    from rccl.session import load_kinematics
+
+    k = load_kinematics("puma260")
+    q0 = np.radians([10.0, 80.0, -170.0, 10.0, -60.0, 5.0])
+    gen = AdaptiveGenerator(k, load_limits("puma260"), 1 / 36, q0)
+    ctl = AdaptiveControl(k.module, MODEL)
+    arm = Planner(k, load_limits("puma260"), gen)
+    tool = Trsf("TOOL", TOOL)
+    target = kin.fk(q0) @ TOOL
+    target[0, 3] += 0.03
+    seen = []
+    gen.queue.pending["limit"] = Limit.parse("fz", 1e6)
+    gen.queue.pending["evalfn"] = Monitor(lambda s: seen.append(s) and None, ("force",))
+    arm.setmod("cartesian")
+    arm.move(makeposition("P", T6, tool, EQ, Trsf("X", target), TL, tool))
+    est = ForceEstimator(kin, MODEL)
+    for _ in range(20):
+        q = gen.q + RNG.normal(0, 1e-4, 6)
+        adc = MODEL.conv.joint_torques_to_adc(kin.gravity(q, MODEL.gravity_coeffs) + RNG.normal(0, 0.3, 6))
+        ctl.before(gen, q, np.zeros(6), adc)
+        gen.step()
+        ctl.after(gen.q)
+    assert len(seen) >= 15
+    for s in seen[-5:]:
+        ref = est.tool_force(s.q, s.torque, TOOL)
+        np.testing.assert_allclose(s.force, ref, atol=1e-9)
+    j = kin.jacobian6(seen[-1].q)
+    assert ctl.condition == pytest.approx(float(np.linalg.norm(j, 1) * np.linalg.norm(np.linalg.inv(j), 1)))
+    assert condition_1(j, np.linalg.inv(j)) == pytest.approx(ctl.condition)

@@ -40,12 +40,14 @@ def select_joints(jac_tool: np.ndarray, axes: list[int], jinv: np.ndarray | None
     """The joint (0-based) best placed for each compliant tool axis (0-5), each joint used at most once.
 
     Score of joint j for axis i: |J_T[i, j] (J_T^-1)[j, i]|, the share of a unit motion
-    along axis i that joint j provides. Raises SpecError if the Jacobian is singular.
+    along axis i that joint j provides. ``jinv`` is J_T^-1 if the caller has it. Raises
+    SpecError if the Jacobian is singular.
     """
-    try:
-        jinv = np.linalg.inv(jac_tool)
-    except np.linalg.LinAlgError:
-        raise SpecError("comply: the Jacobian is singular here; no joint can be chosen for compliance") from None
+    if jinv is None:
+        try:
+            jinv = np.linalg.inv(jac_tool)
+        except np.linalg.LinAlgError:
+            raise SpecError("comply: the Jacobian is singular here; no joint can be chosen for compliance") from None
     taken: set[int] = set()
     out: dict[int, int] = {}
     for i in axes:
@@ -66,6 +68,7 @@ class Compliance:
     forces: dict[int, float] = field(default_factory=dict)   # axis 0-5 -> N or N*m exerted by the tool
     offset: np.ndarray = field(default_factory=lambda: np.zeros(6))   # C_comply (m, rad), tool frame
     joints: dict[int, int] = field(default_factory=dict)     # axis -> force-servoed joint (last choice)
+    free: np.ndarray = field(default_factory=lambda: np.ones(6))   # 1.0 on the non-compliant axes
 
     @property
     def active(self) -> bool:
@@ -76,6 +79,7 @@ class Compliance:
         items = specmod.parse(spec, values, f"comply({spec!r})", allow_dev=False, positive=False)
         for (_, i), v in items.items():
             self.forces[i] = v
+            self.free[i] = 0.0
 
     def lock(self, spec: str) -> None:
         """Take the named components out of compliance (``lock("fz")``); the offset then returns to 0 (``release``)."""
@@ -84,18 +88,23 @@ class Compliance:
             _, i = specmod.component(tok, where, allow_dev=False)
             self.forces.pop(i, None)
             self.joints.pop(i, None)
+            self.free[i] = 1.0
 
     def release(self, dt: float) -> None:
         """Move the offsets of non-compliant axes towards zero by at most RETURN_SPEED x dt (one sample)."""
-        for i in range(6):
-            if i not in self.forces and self.offset[i] != 0.0:
-                step = RETURN_SPEED[i] * dt
-                self.offset[i] = 0.0 if abs(self.offset[i]) <= step else self.offset[i] - step * np.sign(self.offset[i])
+        off = self.offset
+        if not (off * self.free).any():
+            return
+        for i, x in enumerate(off.tolist()):
+            if x != 0.0 and i not in self.forces:
+                step = float(RETURN_SPEED[i]) * dt
+                off[i] = 0.0 if abs(x) <= step else (x - step if x > 0 else x + step)
 
     def absorb(self, dev_tool: np.ndarray) -> None:
         """Take the observed tool-frame deviation along the compliant axes into the comply transform (E.6)."""
+        off = self.offset
         for i in self.forces:
-            self.offset[i] = dev_tool[i]
+            off[i] = dev_tool[i]
 
     def joint_offsets(self, jac6: np.ndarray, tool_to_6: np.ndarray) -> np.ndarray:
         """Joint displacement (rad) realising the comply offset: J6^-1 D^-1 offset (E.8 for small changes)."""

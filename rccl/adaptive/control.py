@@ -16,10 +16,12 @@ import numpy as np
 
 from rci.conversions import DAC_MAX
 
+from rccl.kinematics.errors import KinematicsError
+
 from .comply import Compliance, select_joints, servo_dac
 from .deviation import ToolMaps
 from .exceptions import ForceEstimateError
-from .force import ForceEstimator, JointModel
+from .force import ForceEstimator, JointModel, condition_1, gravity_vector
 from .generator import AdaptiveGenerator
 from .limit import Limit
 from .monitor import Monitor, Sample
@@ -43,7 +45,15 @@ class Command:
 
 
 class AdaptiveControl:
-    """Limits, monitors and compliance for one arm (``kin`` the generated kinematics module)."""
+    """Limits, monitors and compliance for one arm (``kin`` the generated kinematics module).
+
+    The per-sample work avoids what costs tens of microseconds in numpy at this size: the
+    Jacobian and its inverse come from the generated kernels' fast entries into arrays
+    kept from sample to sample (``jacobian6(q, out=)``, and ``joint_from_cartesian`` of the
+    six unit differentials, the analytic J^-1 of 3.73/3.77, instead of an LU inverse), the
+    condition check of 4.57 uses the 1-norm (``force.condition_1``, no SVD), forces are
+    J^-T t_a through that inverse, and the scalar bookkeeping is done on Python floats.
+    """
 
     def __init__(self, kin, model: JointModel) -> None:
         self.kin = kin
@@ -60,6 +70,27 @@ class AdaptiveControl:
         self._q_nom_prev: np.ndarray | None = None
         self.damping = COMPLY_DAMPING
         self.dither: Dither | None = None        # static-friction correction (4.6), made at the first comply sample
+        self.condition = np.inf                  # cond_1 of the Jacobian at the last sample that needed it
+        n = model.conv.n
+        self._J = np.empty((n, n))               # frame-6 Jacobian, reused every sample
+        self._J_inv_t = np.empty((n, n))         # (J^-1)^T: row k is J^-1 e_k
+        self._unit = np.eye(n)
+        self._work = np.empty((n, n))
+        self._gravity_coeffs = gravity_vector(kin, model.gravity_coeffs)
+        self._dac_limit = np.minimum(model.max_dac, DAC_MAX).tolist()   # the motor current limit (A.5.1)
+
+    def _inverse(self, q: np.ndarray, jac6: np.ndarray) -> np.ndarray | None:
+        """J6^-1 at q (a transposed view of a kept array), or None where J6 is singular."""
+        try:
+            self.kin.joint_from_cartesian(q, self._unit, frame=6, out=self._J_inv_t)
+        except KinematicsError:
+            return None
+        except (AttributeError, TypeError):      # kinematics without the batched differential kernel
+            try:
+                self._J_inv_t[:] = np.linalg.inv(jac6).T
+            except np.linalg.LinAlgError:
+                return None
+        return self._J_inv_t.T
 
     def before(self, gen: AdaptiveGenerator, q: np.ndarray, qd: np.ndarray, v_adc: np.ndarray, how=None) -> None:
         """Measure and check, before ``gen.step()``; may call ``gen.abort``."""
@@ -69,40 +100,43 @@ class AdaptiveControl:
         hooks = req.hooks
         lim: Limit | None = hooks.get("limit")
         mon: Monitor | None = hooks.get("evalfn")
-        comply = self.compliance.active or bool(np.any(self.compliance.offset))
+        c = self.compliance
+        comply = bool(c.forces) or c.offset.any()
         functional = hooks.get("has_functional")
         if functional is None:      # once per request: whether its position has a functional transform
             functional = hooks["has_functional"] = any(t.kind == "functional" for t in req.position.transforms())
         running = req.status == "running" and not req.repeat
         if not (comply or functional or (running and (lim is not None or mon is not None))):
             gen.jac6 = self._jac6 = gen.jac6_inv = self._jac6_inv = None
+            gen.jac6_cond = None
             return
-        jac6 = self.kin.jacobian6(q)
+        q = np.ascontiguousarray(q, dtype=float)
+        jac6 = self.kin.jacobian6(q, out=self._J)
         gen.jac6 = self._jac6 = jac6
-        gen.jac6_inv = self._jac6_inv = None
-        if comply or functional:      # one inverse per sample, shared by E.8 limiting and the comply law
-            try:
-                gen.jac6_inv = self._jac6_inv = np.linalg.inv(jac6)
-            except np.linalg.LinAlgError:
-                pass
-        self._tool = seg.tool
         want_force = (running and ((lim is not None and lim.needs_force) or (mon is not None and "force" in mon.needs)))
+        jinv = None
+        if comply or functional or want_force:     # one inverse per sample: E.8, the comply law, 4.56
+            jinv = self._inverse(q, jac6)
+            self.condition = condition_1(jac6, jinv, self._work) if jinv is not None else np.inf
+        gen.jac6_inv = self._jac6_inv = jinv
+        gen.jac6_cond = self.condition if jinv is not None else None
+        self._tool = seg.tool
+        maps = self._maps.of(seg.tool)
         want_dev = comply or (running and ((lim is not None and lim.needs_deviation) or (mon is not None and "deviation" in mon.needs)))
         t_a = force = dev = None
         if want_force or mon is not None:
             t_a = self.estimator.net_torques(q, qd, v_adc)
         if want_force:
-            force = self.estimator.tool_force(q, t_a, seg.tool, jac6, check=True)
+            self.estimator.check_condition(q, self.condition if jinv is not None else np.inf)
+            force = maps.f @ (t_a @ jinv)            # F(T6->tool) J6^-T t_a (4.56, 1.22)
         if want_dev:
             # measured minus planned (nominal) path: along compliant axes this is what the comply
             # transform absorbs and what reveals a slip; along the others the command also carried
             # the comply offset still being released, which is not a deviation
-            dev = self._maps.of(seg.tool).d @ (jac6 @ (q - gen.q))
+            dev = maps.d @ (jac6 @ (q - gen.q))
             if comply:
-                c = self.compliance
-                free = np.array([i not in c.forces for i in range(6)])
                 nominal = dev
-                dev = np.where(free, nominal - c.offset, nominal)
+                dev = nominal - c.offset * c.free
                 c.absorb(nominal)
         if not running:
             return
@@ -118,13 +152,14 @@ class AdaptiveControl:
         """After a fault: every joint position servoed where it is (compliance off)."""
         self.compliance.forces.clear()
         self.compliance.joints.clear()
+        self.compliance.free[:] = 1.0
         return Command(self._q.copy() if self._q is not None else q)
 
     def after(self, q_nominal: np.ndarray) -> Command:
         """The command for this sample from the generator's joint angles."""
         c = self.compliance
         q_nom_prev, self._q_nom_prev = self._q_nom_prev, q_nominal.copy()
-        if self._jac6 is None or not (c.active or np.any(c.offset)):
+        if self._jac6 is None or not (c.forces or c.offset.any()):
             return Command(q_nominal)
         jac6 = self._jac6
         maps = self._maps.of(self._tool)
@@ -132,14 +167,14 @@ class AdaptiveControl:
         if j6inv is None:
             raise ForceEstimateError("comply: the Jacobian is singular here; no joint can be chosen")
         c.release(self.dt)
-        q_cmd = q_nominal + j6inv @ (maps.d_inv @ c.offset) if np.any(c.offset) else q_nominal
-        if not c.active:
+        jinv = j6inv @ maps.d_inv                     # (D J6)^-1: tool-frame differential -> joints
+        q_cmd = q_nominal + jinv @ c.offset if c.offset.any() else q_nominal
+        if not c.forces:
             c.joints = {}
             return Command(q_cmd)
         jt = maps.d @ jac6
-        jinv = j6inv @ maps.d_inv                     # (D J6)^-1
-        forces = dict(c.forces)
-        chosen = select_joints(jt, sorted(forces), jinv)
+        axes = sorted(c.forces)
+        chosen = select_joints(jt, axes, jinv)
         if c.joints:   # hysteresis: keep the previous joint unless clearly beaten
             for i, j in list(chosen.items()):
                 old = c.joints.get(i)
@@ -147,22 +182,30 @@ class AdaptiveControl:
                     if abs(jt[i, j] * jinv[j, i]) < SWITCH_RATIO * abs(jt[i, old] * jinv[old, i]):
                         chosen[i] = old
         c.joints = chosen
-        t_a = c.net_torques(jt)
-        qd_path = np.zeros_like(q_nominal) if q_nom_prev is None else (q_nominal - q_nom_prev) / self.dt
-        for i, j in chosen.items():      # damping relative to the path's own motion of that joint
-            t_a[j] -= self.damping * jt[i, j] ** 2 * (self._qd[j] - qd_path[j])
-        t_g = self.kin.gravity(self._q, self.model.gravity_coeffs)
+        # t_a = J_T^T q (4.52) for the force-servoed joints, damped relative to the path's own motion
+        jt_rows = jt.tolist()
+        qd = self._qd.tolist()
+        dt = self.dt
+        first = q_nom_prev is None
+        t_a = np.zeros(len(qd))
+        qd_path = [0.0] * len(qd)
+        for i, j in chosen.items():
+            if not first:
+                qd_path[j] = (float(q_nominal[j]) - float(q_nom_prev[j])) / dt
+            t_a[j] = sum(jt_rows[a][j] * c.forces[a] for a in axes) \
+                - self.damping * jt_rows[i][j] ** 2 * (qd[j] - qd_path[j])
+        t_g = self.kin.gravity(self._q, self._gravity_coeffs)
         joints = sorted(chosen.values())
-        if self.dither is None or self.dither.dt != self.dt:
-            self.dither = Dither(self.model, self.dt)
         dither = self.dither
+        if dither is None or dither.dt != dt:
+            dither = self.dither = Dither(self.model, dt)
         dither.tick()
         correction = {}
         for j in joints:
-            f = dither.correction(j, float(self._qd[j]), float(qd_path[j]))
+            f = dither.correction(j, qd[j], qd_path[j])
             if f is not None:
                 correction[j] = f
-        dac = servo_dac(self.model, joints, t_a, t_g, self._qd, qd_path, correction=correction)
-        lim = np.minimum(self.model.max_dac, DAC_MAX)    # the motor current limit (A.5.1 would refuse more)
-        current = {j: int(np.clip(np.rint(dac[j]), -lim[j], lim[j])) for j in joints}
+        dac = servo_dac(self.model, joints, t_a, t_g, self._qd, qd_path, correction=correction).tolist()
+        lim = self._dac_limit
+        current = {j: int(round(min(max(dac[j], -lim[j]), lim[j]))) for j in joints}
         return Command(q_cmd, current)

@@ -37,19 +37,21 @@ def diff_map_inverse(t6_to_tool: np.ndarray) -> np.ndarray:
 
 
 class ToolMaps:
-    """D and D^-1 of the current tool transform, recomputed only when the tool matrix object changes."""
+    """D, D^-1 and F = D^-T (1.22) of the current tool transform, recomputed only when the tool matrix
+    object changes (transforms are replaced, never mutated, so identity is enough)."""
 
-    __slots__ = ("_key", "d", "d_inv")
+    __slots__ = ("_key", "d", "d_inv", "f")
 
     def __init__(self) -> None:
         self._key = None
-        self.d = self.d_inv = np.eye(6)
+        self.d = self.d_inv = self.f = np.eye(6)
 
     def of(self, t6_to_tool: np.ndarray) -> "ToolMaps":
         if self._key is not t6_to_tool:
             self._key = t6_to_tool
             self.d = diff_map_fast(t6_to_tool)
             self.d_inv = diff_map_inverse(t6_to_tool)
+            self.f = np.ascontiguousarray(self.d_inv.T)
         return self
 
 

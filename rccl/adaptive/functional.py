@@ -30,11 +30,19 @@ DEFAULT_MAX_CONDITION = 1.0e3
 
 def differential(t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
     """dC seen in the frame of ``t_from``: (dx, dy, dz, rx, ry, rz) with t_to ~ t_from (I + Delta) (1.7)."""
-    r0t = t_from[:3, :3].T
-    p = r0t @ (t_to[:3, 3] - t_from[:3, 3])
-    r = r0t @ t_to[:3, :3]
-    return np.array([p[0], p[1], p[2], 0.5 * (r[2, 1] - r[1, 2]), 0.5 * (r[0, 2] - r[2, 0]),
-                     0.5 * (r[1, 0] - r[0, 1])])
+    # on Python floats: a dozen 3-vector products cost less than numpy's per-call overhead at this size
+    (a00, a01, a02, ax), (a10, a11, a12, ay), (a20, a21, a22, az), _ = t_from.tolist()
+    (b00, b01, b02, bx), (b10, b11, b12, by), (b20, b21, b22, bz), _ = t_to.tolist()
+    px, py, pz = bx - ax, by - ay, bz - az
+    # r = R_from^T R_to; only its off-diagonal terms are needed
+    r21 = a02 * b01 + a12 * b11 + a22 * b21
+    r12 = a01 * b02 + a11 * b12 + a21 * b22
+    r02 = a00 * b02 + a10 * b12 + a20 * b22
+    r20 = a02 * b00 + a12 * b10 + a22 * b20
+    r10 = a01 * b00 + a11 * b10 + a21 * b20
+    r01 = a00 * b01 + a10 * b11 + a20 * b21
+    return np.array([a00 * px + a10 * py + a20 * pz, a01 * px + a11 * py + a21 * pz, a02 * px + a12 * py + a22 * pz,
+                     0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)])
 
 
 def interpolate(m0: np.ndarray, m1: np.ndarray, s: float) -> np.ndarray:
@@ -77,13 +85,20 @@ class FunctionalUpdater:
         self.max_step_change = (None if qdd_max is None
                                 else np.asarray(qdd_max, dtype=float) * float(dt) ** 2 * float(share))
         self.prev_dtheta = np.zeros_like(self.max_step)
+        self._max_step = self.max_step.tolist()
+        self._max_step_change = None if self.max_step_change is None else self.max_step_change.tolist()
         self._cache = None        # (position, snapshot, its transforms' arrays, their T6) after the last update
+        self._trs_key: tuple = ()
+        self._trs_all: list = []  # every distinct transform of the positions of _trs_key
+        self._first_key = None
+        self._first_ids: frozenset = frozenset()
         self.max_condition = float(max_condition)
         self.last = UpdateInfo()
         self.limited = 0           # samples in which a change was scaled down
 
     @staticmethod
     def functional_transforms(positions) -> list:
+        """The distinct transforms of ``positions`` that are functional now (each once)."""
         seen: dict[int, object] = {}
         for p in positions:
             for t in p.transforms():
@@ -91,15 +106,34 @@ class FunctionalUpdater:
                     seen.setdefault(id(t), t)
         return list(seen.values())
 
-    def update(self, positions, jac6, snap=None, jac6_inv: np.ndarray | None = None) -> UpdateInfo:
+    def _functional_now(self, positions) -> list:
+        """``functional_transforms`` with the equations' distinct transforms kept while the same positions
+        are in play (an equation never changes; a transform's kind may, so that is read every sample)."""
+        key = tuple(map(id, positions))
+        if key != self._trs_key:
+            seen: dict[int, object] = {}
+            for p in positions:
+                for t in p.transforms():
+                    seen.setdefault(id(t), t)
+            self._trs_key, self._trs_all = key, list(seen.values())
+        return [t for t in self._trs_all if t._kind == "functional" and t.fn is not None]
+
+    def _trs_first(self, position) -> frozenset:
+        """ids of the transforms of ``position`` (kept per position)."""
+        if self._first_key is not position:
+            self._first_key, self._first_ids = position, frozenset(map(id, position.transforms()))
+        return self._first_ids
+
+    def update(self, positions, jac6, snap=None, jac6_inv: np.ndarray | None = None,
+               condition: float | None = None) -> UpdateInfo:
         """Call each functional transform of ``positions`` once; limit the change of positions[0]'s T6.
 
         ``jac6`` is the frame-6 Jacobian where the arm is, or a function returning it (called
         only if there is a functional transform), or None (no limiting). Raises
         FunctionalError if a function leaves a non-rigid or non-finite transform. ``jac6_inv``
-        (optional) is its inverse, if the caller already has it.
+        (optional) is its inverse, if the caller already has it, and ``condition`` its cond_1.
         """
-        trs = self.functional_transforms(positions)
+        trs = self._functional_now(positions)
         info = UpdateInfo(called=len(trs))
         self.last = info
         if not trs:
@@ -119,7 +153,7 @@ class FunctionalUpdater:
                 t6_0 = c[3]
             else:
                 t6_0 = pos.solve(snap)
-        for t in trs:
+        for t, m0 in zip(trs, before):
             try:
                 t.fn(t)
             except FunctionalError:
@@ -127,11 +161,17 @@ class FunctionalUpdater:
             except Exception as exc:  # the user's function: stop, saying which transform
                 raise FunctionalError(f"functional transform {t.name!r}: its function raised "
                                       f"{type(exc).__name__}: {exc}") from exc
-            if not math.isfinite(float(t._m.sum())):
+        # Trsf's setters refuse non-finite values; this catches a function that bypassed them: through
+        # the solved T6 for the transforms of positions[0], one by one for the others (or without T6)
+        t6_1 = positions[0].solve(snap) if jac6 is not None else None
+        in_first = self._trs_first(positions[0])
+        if t6_1 is None or not math.isfinite(float(t6_1.sum())):
+            in_first = ()
+        for t, m0 in zip(trs, before):
+            if t._m is not m0 and id(t) not in in_first and not math.isfinite(float(t._m.sum())):
                 raise FunctionalError(f"functional transform {t.name!r}: its function left a non-finite value")
         if jac6 is None:
             return info
-        t6_1 = positions[0].solve(snap)
         self._cache = (positions[0], snap, [t._m for t in positions[0].transforms()], t6_1)
         dc = differential(t6_0, t6_1)
         if not dc.any():
@@ -140,23 +180,30 @@ class FunctionalUpdater:
         try:
             jinv = np.linalg.inv(jac6) if jac6_inv is None else jac6_inv
             # the 1-norm condition number: as good a bound in E.8 as the 2-norm one and far cheaper
-            info.condition = float(np.abs(jac6).sum(axis=0).max() * np.abs(jinv).sum(axis=0).max())
+            info.condition = (float(np.abs(jac6).sum(axis=0).max() * np.abs(jinv).sum(axis=0).max())
+                              if condition is None or jac6_inv is None else float(condition))
         except np.linalg.LinAlgError:
             info.condition = math.inf
         if not info.condition <= self.max_condition:
             s, dtheta = 0.0, np.zeros_like(self.max_step)
         else:
             dtheta = jinv @ dc
-            allowed = self.max_step
-            if self.max_step_change is not None:
-                # speed up by at most one acceleration step a, and brake in time: with d still to go,
-                # a step v is allowed if v + (v - a) + (v - 2a) + ... can stop within d, i.e.
-                # v (v + a) / (2a) <= d: v <= (sqrt(a^2 + 8 a d) - a) / 2 (discrete braking)
-                a = self.max_step_change
-                brake = 0.5 * (np.sqrt(a * a + 8.0 * a * np.abs(dtheta)) - a)
-                allowed = np.minimum(allowed, np.minimum(np.abs(self.prev_dtheta) + a, brake) + 1e-300)
-            worst = float(np.max(np.abs(dtheta) / allowed))
-            s = 1.0 if worst <= 1.0 else 1.0 / worst
+            s = 1.0
+            steps = self._max_step
+            prev = self.prev_dtheta.tolist()
+            change = self._max_step_change
+            for i, d in enumerate(dtheta.tolist()):
+                d = abs(d)
+                allowed = steps[i]
+                if change is not None:
+                    # speed up by at most one acceleration step a, and brake in time: with d still to
+                    # go, a step v is allowed if v + (v - a) + (v - 2a) + ... can stop within d, i.e.
+                    # v (v + a) / (2a) <= d: v <= (sqrt(a^2 + 8 a d) - a) / 2 (discrete braking)
+                    a = change[i]
+                    brake = 0.5 * (math.sqrt(a * a + 8.0 * a * d) - a)
+                    allowed = min(allowed, min(abs(prev[i]) + a, brake) + 1e-300)
+                if d * s > allowed:
+                    s = allowed / d
         self.prev_dtheta = s * dtheta
         if s < 1.0:
             self.limited += 1

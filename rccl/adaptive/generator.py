@@ -53,6 +53,7 @@ class AdaptiveGenerator(TrajectoryGenerator):
         self.functional = FunctionalUpdater(limits.joint_velocity, dt, qdd_max=limits.joint_acceleration)
         self.jac6: np.ndarray | None = None     # frame-6 Jacobian where the arm is; set per sample by the caller
         self.jac6_inv: np.ndarray | None = None  # its inverse, if the caller has it
+        self.jac6_cond: float | None = None      # cond_1 of jac6, if the caller has it (with jac6_inv)
         self.ended: list[tuple[Request, MotionEnd]] = []
         self._abort: MotionEnd | None = None
 
@@ -118,7 +119,9 @@ class AdaptiveGenerator(TrajectoryGenerator):
         if self.trans is not None:
             positions.append(self.trans.prev.req.position)
         jac6 = self.jac6 if self.jac6 is not None else (lambda: self.kin.module.jacobian6(self.q))
-        self.functional.update(positions, jac6, self.seg.req.snap, self.jac6_inv if self.jac6 is not None else None)
+        have = self.jac6 is not None
+        self.functional.update(positions, jac6, self.seg.req.snap, self.jac6_inv if have else None,
+                               self.jac6_cond if have else None)
 
     def _begin_transition(self) -> None:
         seg = self.seg

@@ -33,22 +33,29 @@ class Limit:
             (force if kind == "force" else dev)[i] = v
         return cls(force, dev, spec)
 
+    def __post_init__(self) -> None:
+        # the limited components as plain (index, bound, name) triples: checked every sample
+        for attr, arr, names in (("_force_items", self.force, specmod.FORCE_NAMES),
+                                 ("_dev_items", self.dev, specmod.DEV_NAMES)):
+            items = tuple((i, float(b), names[i]) for i, b in enumerate(np.asarray(arr, float).tolist()) if b == b)
+            object.__setattr__(self, attr, items)
+
     @property
     def needs_force(self) -> bool:
-        return bool(np.any(np.isfinite(self.force)))
+        return bool(self._force_items)
 
     @property
     def needs_deviation(self) -> bool:
-        return bool(np.any(np.isfinite(self.dev)))
+        return bool(self._dev_items)
 
     def check(self, force: np.ndarray | None, dev: np.ndarray | None, t: float = 0.0,
               sample: int = 0) -> MotionEnd | None:
         """The first exceeded component (forces first), or None. NaN observations count as exceeded."""
-        for obs, bound, names in ((force, self.force, specmod.FORCE_NAMES), (dev, self.dev, specmod.DEV_NAMES)):
-            if obs is None:
+        for obs, items in ((force, self._force_items), (dev, self._dev_items)):
+            if obs is None or not items:
                 continue
-            for i in range(6):
-                b = bound[i]
-                if b == b and not abs(obs[i]) <= b:     # b == b: limited; "not <=" catches NaN
-                    return MotionEnd("limit", names[i], float(obs[i]), float(b), t=t, sample=sample)
+            values = obs.tolist()
+            for i, b, name in items:
+                if not abs(values[i]) <= b:       # "not <=" catches NaN
+                    return MotionEnd("limit", name, float(values[i]), b, t=t, sample=sample)
         return None

@@ -15,12 +15,14 @@ the joints, tau = J_tool^T F (J_tool the tool point's base-frame Jacobian from P
 the simulator's own model), which ``EnvironmentArm`` adds to the arm's external torque
 every servo substep. Stiffness and damping are ``estimate``s: a steel probe on an
 aluminium fixture through a light wrist, compliant at about 2e4 N/m.
+
+simula builds it from its command line: ``python -m rci.simula --env plane:z=0.12 --env
+tool:z=0.05 -p --power-on`` (``parse_environment`` reads the words; docs/simula.md).
 """
 from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
-from functools import partial
 
 import numpy as np
 import pinocchio as pin
@@ -234,31 +236,11 @@ class EnvironmentArm(Arm):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m rci.simula.environment --env WORD [--env WORD ...] [simula options]``: simula in an environment.
+    """``python -m rci.simula.environment ...``: an alias of ``python -m rci.simula ...``, whose own
+    ``--env`` option builds the environment (kept so that older command lines still work)."""
+    from .__main__ import main as simula_main
 
-    Every ``--env`` word is parsed by ``parse_environment``; the rest goes to simula's own
-    command line unchanged (``-p``, ``--lockstep``, ``--port``, ...).
-    """
-    from . import __main__ as simula_main
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    words: list[str] = []
-    rest: list[str] = []
-    it = iter(argv)
-    for a in it:
-        if a == "--env":
-            words.append(next(it, ""))
-        elif a.startswith("--env="):
-            words.append(a.split("=", 1)[1])
-        else:
-            rest.append(a)
-    try:
-        env = parse_environment(words)
-    except ValueError as exc:
-        print(f"simula: {exc}", file=sys.stderr)
-        return 2
-    simula_main.Arm = partial(EnvironmentArm, environment=env)   # simula builds its arm through this name
-    return simula_main.main(rest)
+    return simula_main(argv)
 
 
 if __name__ == "__main__":
