@@ -442,3 +442,62 @@ def test_sharp_reversal_stops_at_the_corner_instead_of_crawling():
     assert len(q) * gen.dt < 2.5                                  # and went back at speed
     v = np.diff(q, axis=0) / gen.dt
     assert np.all(np.abs(np.diff(v, axis=0)) <= LIM.joint_acceleration * gen.dt * 1.05)
+
+
+class _CountingKinematics:
+    """The stand-in's functions, counting the inverse kinematics calls (one pose each)."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+        self.fk, self.config_of, self.Config, self.ROBOT = K.fk, K.config_of, K.Config, K.ROBOT
+
+    def ik(self, T, config, q_ref=None):
+        self.calls += 1
+        return K.ik(T, config, q_ref)
+
+
+def test_path_checked_once_at_move_and_each_cycle_solves_one_pose():
+    counting = _CountingKinematics()
+    kin = Kinematics(counting)
+    gen = TrajectoryGenerator(kin, LIM, 1.0 / 36.0, Q0.copy())
+    arm = Planner(kin, LIM, gen)
+    arm.setmod("cartesian")
+    arm.setvel(0.1, 1.0)
+    tour = [at(o, f"p{i}")[0] for i, o in enumerate(
+        [trsl(0.05, 0.0, 0.0), trsl(0.05, 0.05, 0.02) @ rot("z", 0.2), trsl(0.0, 0.05, 0.0) @ rot("x", 0.1), np.eye(4)])]
+    before = counting.calls
+    reqs = [arm.move(p) for p in tour]
+    assert counting.calls - before >= 4 * 8          # move() solved every path at >= 8 points
+    per_cycle, starts = [], 0
+    while not reqs[-1].status == "done":
+        seg, n = gen.seg, counting.calls
+        gen.step()
+        per_cycle.append(counting.calls - n)
+        starts += gen.seg is not seg
+        assert len(per_cycle) < 2000
+    assert not gen.errors and starts >= 4
+    assert max(per_cycle) == 1                        # segment starts included: the checked path is reused
+
+
+def test_variable_target_made_singular_after_move_is_refused_before_its_motion():
+    q_a = np.array([0.0, math.radians(80), math.radians(-170), 0.0, -0.3, 0.0])
+    gen, arm = make(q0=q_a)
+    q_c = q_a.copy()
+    q_c[4] = -0.6                                     # first target: further from theta5 = 0
+    q_flip = q_a.copy()
+    q_flip[4] = 0.3                                   # the other side of the wrist singularity
+    pa = makeposition("pa", T6, EQ, Trsf("A", K.fk(q_c)), TL, T6)
+    tb = Trsf("B", K.fk(q_a), kind="variable")
+    pb = makeposition("pb", T6, EQ, tb, TL, T6)
+    arm.setmod("cartesian")
+    ra, rb = arm.move(pa), arm.move(pb)               # pb (back to the start) is a fine path when queued
+    tb.set(K.fk(q_flip))                              # now the line from pa to pb crosses theta5 = 0
+    q = run_until(gen, lambda: rb.status not in ("queued", "running"))
+    q = np.concatenate([q, run(gen, 1.0)])
+    assert ra.status == "done" and rb.status == "failed" and isinstance(rb.error, SingularPath)
+    assert "singularity" in str(rb.error)
+    assert gen.faulted is None                        # refused before it started: the arm holds at pa
+    assert np.allclose(K.fk(q[-1]), pa.solve(), atol=1e-9)
+    assert np.all(np.abs(np.diff(q, axis=0)) <= LIM.joint_velocity * gen.dt * 1.001)
+    with pytest.raises(TrajectoryFault, match="singularity"):
+        arm.move(pa)
