@@ -98,11 +98,15 @@ def build(cell: Workcell, log: Log, fail_at: int | None = None):
 
 def main(url_puma: str, url_microbo: str, seconds: float = 2.0, *, sync: str = "lockstep",
          rates: tuple[int, int] = (36, 36), fail_at: int | None = None, on_error="raise",
-         quiet: bool = True) -> tuple[Workcell, Log]:
-    """Run the program for ``seconds`` of robot time; return the (closed) workcell and its log."""
+         quiet: bool = True, **session_options) -> tuple[Workcell, Log]:
+    """Run the program for ``seconds`` of robot time; return the (closed) workcell and its log.
+
+    ``session_options`` go to each arm's ``rci.Session`` (e.g. ``lockstep_timeout=``).
+    """
     log = Log()
     arms = {"puma": (url_puma, "puma260"), "microbo": (url_microbo, "microbo")}
-    with Workcell(arms, sync=sync, rates={"puma": rates[0], "microbo": rates[1]}, on_error=on_error) as cell:
+    with Workcell(arms, sync=sync, rates={"puma": rates[0], "microbo": rates[1]}, on_error=on_error,
+                  **session_options) as cell:
         f_puma, f_microbo = build(cell, log, fail_at)
         cell.control(puma=f_puma, microbo=f_microbo)                     # RCIcontrol for each arm
         n_cycles = int(round(seconds * cell["microbo"].rate_hz))

@@ -20,6 +20,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples"))
 import two_arms  # noqa: E402
 
 
+# the machine is shared (2 cores, load up to 6 seen): a lockstep simula may be descheduled for
+# longer than RCI's 0.25 s default before sending its next HOW; these tests are not about that
+SLACK = {"lockstep_timeout": 2.0}
+
+
 @pytest.fixture(scope="module")
 def sims():
     with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
@@ -38,7 +43,7 @@ def running(sim) -> bool:
 
 # --- both arms, data between their control functions ----------------------------------------
 def test_lockstep_two_arms_each_sample_sees_the_other_arms_previous_sample(sims):
-    cell, log = two_arms.main(sims[0].url, sims[1].url, seconds=1.5)
+    cell, log = two_arms.main(sims[0].url, sims[1].url, seconds=1.5, **SLACK)
     n = len(log.microbo_q)
     assert n >= 54 and abs(len(log.puma_q) - n) <= 1          # one cycle each per sync sample
     assert log.microbo_seen[0] is None                         # nothing published before sample 0's barrier
@@ -58,7 +63,7 @@ def test_lockstep_two_arms_each_sample_sees_the_other_arms_previous_sample(sims)
 
 def test_lockstep_at_different_rates_meets_every_slow_sample(sims):
     t0 = [s.command("state")["state"]["t"] for s in sims]
-    cell, log = two_arms.main(sims[0].url, sims[1].url, seconds=1.0, rates=(72, 36))
+    cell, log = two_arms.main(sims[0].url, sims[1].url, seconds=1.0, rates=(72, 36), **SLACK)
     n = len(log.microbo_q)
     assert abs(len(log.puma_q) - 2 * n) <= 2                   # 72 Hz runs two cycles per 36 Hz cycle
     for k in range(1, n):                                      # the last PUMA cycle of the previous sync sample
@@ -72,7 +77,8 @@ def test_free_mode_readers_see_whole_values_never_torn():
     # would each run as fast as it is answered, and the mirror would step too fast)
     with SimulaProcess("-p", robot="puma260", lockstep=False) as p, \
             SimulaProcess("-p", robot="microbo", lockstep=False) as m:
-        cell, log = two_arms.main(p.url, m.url, seconds=1.0, sync="free")
+        # overruns counted, not errors: this test is about the data, on a shared, loaded machine
+        cell, log = two_arms.main(p.url, m.url, seconds=1.0, sync="free", overrun="count")
     published = {arr.tobytes() for arr in log.puma_q}
     seen = [s for s in log.microbo_seen if s is not None]
     assert len(seen) > len(log.microbo_seen) // 2
@@ -81,7 +87,7 @@ def test_free_mode_readers_see_whole_values_never_torn():
 
 def test_planning_level_directives_and_replies_through_send_receive(sims):
     """c1/c2 through the thesis's send/receive: the planner sends goals, the PUMA acknowledges each."""
-    with Workcell(arms(sims), sync="lockstep", on_error="raise") as cell:
+    with Workcell(arms(sims), sync="lockstep", on_error="raise", **SLACK) as cell:
         got = []
 
         def puma_f() -> None:
@@ -104,7 +110,7 @@ def test_planning_level_directives_and_replies_through_send_receive(sims):
 # --- errors -------------------------------------------------------------------------------------
 def test_error_on_one_arm_names_it_and_releases_both(sims):
     with pytest.raises(ArmTerminated) as ei:
-        two_arms.main(sims[0].url, sims[1].url, seconds=3.0, fail_at=20)
+        two_arms.main(sims[0].url, sims[1].url, seconds=3.0, fail_at=20, **SLACK)
     e = ei.value
     assert e.arm == "microbo"
     assert e.termination.number == codes.R_USERFUNC
@@ -118,7 +124,7 @@ def test_error_on_one_arm_names_it_and_releases_both(sims):
 
 
 def test_lockstep_barrier_timeout_names_the_late_arm(sims):
-    with Workcell(arms(sims), sync="lockstep", sync_timeout=0.3, on_error="raise") as cell:
+    with Workcell(arms(sims), sync="lockstep", sync_timeout=0.3, on_error="raise", **SLACK) as cell:
         k = [0]
 
         def slow() -> None:
@@ -135,7 +141,7 @@ def test_lockstep_barrier_timeout_names_the_late_arm(sims):
 
 
 def test_control_function_may_not_wait_in_receive(sims):
-    with Workcell(arms(sims), on_error="raise") as cell:
+    with Workcell(arms(sims), on_error="raise", **SLACK) as cell:
         with pytest.raises(ArmTerminated) as ei:     # delivered as soon as it happens, maybe within control()
             cell.control(puma=lambda: cell.receive(timeout=0.1), microbo=lambda: None)
             cell.wait(3.0)
@@ -209,8 +215,8 @@ def test_rccl_arms_in_a_workcell_a_dead_link_names_the_arm_and_releases_the_othe
 
     with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
             SimulaProcess("-p", robot="microbo", lockstep=True) as m:
-        puma = AdaptiveArm(p.url, "puma260")
-        mic = Arm(m.url, "microbo")
+        puma = AdaptiveArm(p.url, "puma260", **SLACK)
+        mic = Arm(m.url, "microbo", **SLACK)
         cell = Workcell({"puma": puma.rci, "microbo": mic.rci}, on_error="raise")
         puma.open()
         mic.open()
@@ -273,7 +279,7 @@ def test_process_wide_realtime_settings_are_taken_once_for_all_arms(sims):
     """One arm's task starting (a full gc.collect) or ending (unfreeze) must not touch the other's control."""
     import gc
     th0, si0 = gc.get_threshold(), sys.getswitchinterval()
-    with Workcell(arms(sims), on_error="raise") as cell:
+    with Workcell(arms(sims), on_error="raise", **SLACK) as cell:
         cell.control(puma=lambda: None, microbo=lambda: None)
         assert gc.get_threshold()[0] == 50_000 and gc.get_freeze_count() > 0
         assert sys.getswitchinterval() == pytest.approx(2e-4)
