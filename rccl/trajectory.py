@@ -229,7 +229,7 @@ class Segment:
 
     __slots__ = ("req", "mode", "t0", "T", "tau_in", "tau_out", "stationary", "scale", "tool", "tool_inv", "config", "d", "k", "theta",
                  "dq", "q_dest", "static", "x_dest", "v_end", "v_cart", "kin", "where", "plan", "_drive", "_basis",
-                 "_residual", "_coef", "_buf")
+                 "_residual", "_coef", "_buf", "_buf44")
 
     def __init__(self, req: Request, kin: Kinematics) -> None:
         self.req = req
@@ -242,6 +242,7 @@ class Segment:
         self._drive = self._basis = self._residual = None
         self._coef = np.ones(4)
         self._buf = np.empty(16)
+        self._buf44 = self._buf.reshape(4, 4)   # the same memory as a 4x4 view: T6 of the current sample
 
     # the destination, re-solved at every sample unless every component is const/hold
     def dest_t6(self) -> np.ndarray:
@@ -275,7 +276,8 @@ class Segment:
             if self._basis is None:
                 x = self.dest_t6() @ self.tool
                 self._basis = (x @ self._drive.reshape(4, 4, 4) @ self.tool_inv).reshape(4, 16)
-            return np.dot(c, self._basis, out=self._buf).reshape(4, 4)
+            np.dot(c, self._basis, out=self._buf)
+            return self._buf44
         drv = np.dot(c, self._drive, out=self._buf).reshape(4, 4)
         return self.dest_t6() @ self.tool @ drv @ self.tool_inv
 
@@ -613,6 +615,7 @@ class TrajectoryGenerator:
         self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
         self._lo = limits.lower - 1e-9
         self._hi = limits.upper + 1e-9
+        self._step_list, self._lo_list, self._hi_list = self._step_bound.tolist(), self._lo.tolist(), self._hi.tolist()
         self._hold_here(0.0)
 
     def _hold_here(self, t: float) -> None:
@@ -731,8 +734,12 @@ class TrajectoryGenerator:
 
     def _check_step(self, q: np.ndarray) -> None:
         """Refuse a commanded step above the joint velocity limit, outside a joint range, or not finite."""
-        if ((np.abs(q - self.q) <= self._step_bound) & (q >= self._lo) & (q <= self._hi)).all():
-            return   # (NaN fails every comparison, so it takes the path below)
+        # plain floats: on six numbers this is several times cheaper than numpy's temporaries
+        for a, b, lim, lo, hi in zip(q.tolist(), self.q.tolist(), self._step_list, self._lo_list, self._hi_list):
+            if not (abs(a - b) <= lim and lo <= a <= hi):
+                break    # (NaN fails every comparison, so it is diagnosed below)
+        else:
+            return
         units = self.kin.units
         if not np.all(np.isfinite(q)):
             raise Unreachable(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
