@@ -1,6 +1,8 @@
 """Pressing on a table at rest with a compliant axis (thesis 5.4.3 with the static-friction correction of 4.6).
 
     .venv/bin/python examples/adaptive_press.py [--rate HZ] [--force N] [--dx M] [--seed S] [--cold]
+        [--correction dither|breakaway|none] [--half-period S]
+    .venv/bin/python examples/adaptive_press.py --table     # the measurements of docs/adaptive.md
 
 A 5 cm probe pointing down is moved to 2 mm above a table (z = 0.12 m), then
 ``comply("fz", F)`` and ``stop``: the arm stands still on the path while the joint chosen
@@ -35,15 +37,17 @@ ENV = (f"plane:z={TABLE_Z}", f"tool:z={PROBE}")
 
 
 def main(url: str, *, force: float = 10.0, dx: float = 0.0, hold: float = 2.0, rate: int = 500,
-         state: Callable[[], dict] | None = None, n_truth: int = 20):
+         state: Callable[[], dict] | None = None, n_truth: int = 20, correction: dict | None = None):
     """Press with ``force`` N at ``dx`` m from ready along x for ``hold`` s at ``rate`` Hz.
 
     Returns (arm, truth): ``truth`` the ``n_truth`` simula state snapshots taken (through
     ``state()``, e.g. ``SimulaProcess.command("state")["state"]``) while the arm, still
-    complying, stands at rest after the hold; empty without ``state``.
+    complying, stands at rest after the hold; empty without ``state``. ``correction``:
+    keyword arguments of ``rccl.adaptive.stiction.Dither`` (default: its estimates).
     """
     truth: list[dict] = []
     with rccl.adaptive.open(url, robot="puma260", record=True, timeout=5.0, rate_hz=rate) as arm:
+        arm.adaptive.dither_options = dict(correction or {})
         tool = Trsf("PROBE", trsl(0.0, 0.0, PROBE))
         x0 = arm.t6 @ tool.matrix                          # probe at ready, pointing down
         above = x0.copy()
@@ -67,25 +71,69 @@ def held_force(truth: list[dict]) -> np.ndarray:
     return np.array([s["contact_force"][2] for s in truth])
 
 
-def _cli(argv: list[str]) -> int:
+def run(rate: int, force: float = 10.0, dx: float = 0.0, seed: int = 0, cold: bool = False,
+        correction: dict | None = None) -> tuple[np.ndarray, bool]:
+    """One press in its own lockstep simula: (held forces N, whether the correction was on)."""
     from adaptive_sim import environment_simula
 
+    args = ("-p", "--power-on") + (() if cold else ("--warm",))
+    with environment_simula(*ENV, seed=seed, args=args) as sim:
+        arm, truth = main(sim.url, force=force, dx=dx, rate=rate, correction=correction,
+                          state=lambda: sim.command("state")["state"])
+    d = arm.adaptive.dither
+    return held_force(truth), bool(d is not None and d.enabled)
+
+
+# (label, rate Hz, Dither options): the rows of docs/adaptive.md's table
+TABLE = [
+    ("no correction", 36, {"max_half_period": 0.0}),
+    ("no correction", 500, {"max_half_period": 0.0}),
+    ("breakaway in the direction of t_a (4.6 read literally)", 36, {"mode": "breakaway"}),
+    ("dither, 28 ms halves", 36, {"max_half_period": 1.0}),
+    ("dither, 4 ms halves", 250, {"max_half_period": 1.0}),
+    ("dither, 4 ms halves", 1000, {"half_period": 0.004, "max_half_period": 1.0}),
+    ("dither, 2.5 ms halves", 400, {}),
+    ("dither, 2 ms halves (default)", 500, {}),
+    ("dither, 2 ms halves (default)", 1000, {}),
+]
+
+
+def table() -> str:
+    """Run TABLE at two landing points (dx 0 and -2 cm, 10 N, seed 0) and return it as markdown."""
+    lines = ["| correction | rate (Hz) | dx 0: held force min-max (N) | dx -2 cm: held force min-max (N) |",
+             "|---|---:|---:|---:|"]
+    for label, rate, opts in TABLE:
+        cells = []
+        for dx in (0.0, -0.02):
+            f, _ = run(rate, 10.0, dx, 0, False, opts)
+            cells.append(f"{f.min():.2f}-{f.max():.2f}")
+        lines.append(f"| {label} | {rate} | {cells[0]} | {cells[1]} |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
+def _cli(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rate", type=int, default=500, help="sample rate, Hz (the dither needs >= 400)")
     ap.add_argument("--force", type=float, default=10.0, help="force asked along the probe, N")
     ap.add_argument("--dx", type=float, default=0.0, help="offset from ready along x, m")
     ap.add_argument("--seed", type=int, default=0, help="simula's seed (friction pattern)")
     ap.add_argument("--cold", action="store_true", help="cold joints (up to 20%% more friction, 4.5.3)")
+    ap.add_argument("--correction", choices=("dither", "breakaway", "none"), default="dither",
+                    help="static-friction correction at rest (default: the dither, where the rate allows)")
+    ap.add_argument("--half-period", type=float, help="dither half period, s (default 0.002; forces it on)")
+    ap.add_argument("--table", action="store_true", help="run the comparison table of docs/adaptive.md")
     a = ap.parse_args(argv)
-    args = ("-p", "--power-on") + (() if a.cold else ("--warm",))
-    with environment_simula(*ENV, seed=a.seed, args=args) as sim:
-        arm, truth = main(sim.url, force=a.force, dx=a.dx, rate=a.rate,
-                          state=lambda: sim.command("state")["state"])
-    f = held_force(truth)
-    d = arm.adaptive.dither
-    print(f"rate {a.rate} Hz, dither {'on' if d is not None and d.enabled else 'off'}; "
-          f"force asked {a.force:g} N; held at rest (simula's contact model, {len(f)} snapshots over "
-          f"{truth[-1]['t'] - truth[0]['t']:.2f} s): mean {f.mean():.3f} N, min {f.min():.3f}, max {f.max():.3f}")
+    if a.table:
+        table()
+        return 0
+    opts: dict = {"none": {"max_half_period": 0.0}, "breakaway": {"mode": "breakaway"}}.get(a.correction, {})
+    if a.half_period is not None and a.correction == "dither":
+        opts = {"half_period": a.half_period, "max_half_period": 1.0}
+    f, on = run(a.rate, a.force, a.dx, a.seed, a.cold, opts)
+    print(f"rate {a.rate} Hz, correction {a.correction} {'on' if on else 'off'}; force asked {a.force:g} N; "
+          f"held at rest (simula's contact model, {len(f)} snapshots): mean {f.mean():.3f} N, "
+          f"min {f.min():.3f}, max {f.max():.3f}")
     return 0
 
 

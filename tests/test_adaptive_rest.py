@@ -92,3 +92,9 @@ def test_dither_amplitudes_break_static_friction_and_cancel_the_coulomb_asymmetr
     assert d1k.enabled and d1k.half == 2
     assert not Dither(MODEL, 1 / 36).enabled and not Dither(MODEL, 1 / 250).enabled
     assert Dither(MODEL, 1 / 36).correction(2, 0.0, 0.0) is None
+    forced = Dither(MODEL, 1 / 36, max_half_period=1.0)             # what the measurements force on
+    assert forced.enabled and forced.half == 1
+    lit = Dither(MODEL, 1 / 36, mode="breakaway")                  # 4.6 read literally
+    assert lit.correction(2, 0.0, 0.0, 1.5) == d.amp_pos[2] and lit.correction(2, 0.0, 0.0, -1.5) == -d.amp_neg[2]
+    with pytest.raises(ValueError, match="mode"):
+        Dither(MODEL, 1 / 500, mode="wiggle")

@@ -70,6 +70,7 @@ class AdaptiveControl:
         self._q_nom_prev: np.ndarray | None = None
         self.damping = COMPLY_DAMPING
         self.dither: Dither | None = None        # static-friction correction (4.6), made at the first comply sample
+        self.dither_options: dict = {}           # keyword arguments of Dither (measurements vary them)
         self.condition = np.inf                  # cond_1 of the Jacobian at the last sample that needed it
         n = model.conv.n
         self._J = np.empty((n, n))               # frame-6 Jacobian, reused every sample
@@ -198,11 +199,11 @@ class AdaptiveControl:
         joints = sorted(chosen.values())
         dither = self.dither
         if dither is None or dither.dt != dt:
-            dither = self.dither = Dither(self.model, dt)
+            dither = self.dither = Dither(self.model, dt, **self.dither_options)
         dither.tick()
         correction = {}
         for j in joints:
-            f = dither.correction(j, qd[j], qd_path[j])
+            f = dither.correction(j, qd[j], qd_path[j], float(t_a[j]))
             if f is not None:
                 correction[j] = f
         dac = servo_dac(self.model, joints, t_a, t_g, self._qd, qd_path, correction=correction).tolist()

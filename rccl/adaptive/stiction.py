@@ -45,23 +45,34 @@ MOVING_SPEED = 0.02
 class Dither:
     """Square-wave static-friction correction for a control of period ``dt`` s; ``model`` the controller's joints.
 
-    ``correction(j, qd_j, qd_path_j)`` is called once per sample for each force-servoed
-    joint j: the friction term (N*m, joint level) that replaces the Coulomb compensation of
-    4.27, or None when the joint should keep that compensation (it slides, the path moves
-    it, or the sample rate is too low to dither).
+    ``correction(j, qd_j, qd_path_j, t_a_j)`` is called once per sample for each
+    force-servoed joint j: the friction term (N*m, joint level) that replaces the Coulomb
+    compensation of 4.27, or None when the joint should keep that compensation (it slides,
+    the path moves it, or the sample rate is too low to dither).
+
+    ``half_period`` and ``max_half_period`` (s) override the estimates above (the
+    measurements of docs/adaptive.md vary them). ``mode="breakaway"`` is the thesis's
+    sentence read literally, for comparison: at rest, +-A (the Table 4.5 value with
+    ``MARGIN``) in the direction of the requested torque t_a_j, at any sample rate.
     """
 
-    def __init__(self, model: JointModel, dt: float) -> None:
+    MODES = ("dither", "breakaway")
+
+    def __init__(self, model: JointModel, dt: float, *, half_period: float = HALF_PERIOD,
+                 max_half_period: float = MAX_HALF_PERIOD, mode: str = "dither") -> None:
+        if mode not in self.MODES:
+            raise ValueError(f"static-friction correction mode {mode!r} is not one of {self.MODES}")
         self.dt = float(dt)
-        self.half = max(1, int(round(HALF_PERIOD / self.dt)))
-        self.enabled = self.half * self.dt <= MAX_HALF_PERIOD * (1 + 1e-9)
+        self.mode = mode
+        self.half = max(1, int(round(half_period / self.dt)))
+        self.enabled = mode == "breakaway" or self.half * self.dt <= max_half_period * (1 + 1e-9)
         fs = MARGIN * np.maximum(model.static_pos, model.static_neg)
         d = np.maximum(fs - np.minimum(model.coulomb_pos, model.coulomb_neg), 0.0)
         self.amp_pos = (model.coulomb_pos + d).tolist()       # A+ (N*m)
         self.amp_neg = (model.coulomb_neg + d).tolist()       # A- (N*m)
         self.rest_speed = 1e-3
         self._k = 0                                           # sample counter of the square wave
-        self.active: set[int] = set()                         # joints dithered in the last sample
+        self.active: set[int] = set()                         # joints corrected in the last sample
 
     def tick(self) -> None:
         """Advance the square wave by one sample (once per control cycle)."""
@@ -71,10 +82,11 @@ class Dither:
         """+1 in the pushing-positive half of the period, -1 in the other."""
         return 1.0 if (self._k // self.half) % 2 == 0 else -1.0
 
-    def correction(self, j: int, qd_j: float, qd_path_j: float) -> float | None:
+    def correction(self, j: int, qd_j: float, qd_path_j: float, t_a_j: float = 0.0) -> float | None:
         """The static-friction correction of joint j this sample (N*m), or None (keep 4.27's Coulomb term)."""
         if not self.enabled or abs(qd_j) > MOVING_SPEED or abs(qd_path_j) > self.rest_speed:
             self.active.discard(j)
             return None
         self.active.add(j)
-        return self.amp_pos[j] if self.sign() > 0 else -self.amp_neg[j]
+        sign = self.sign() if self.mode == "dither" else (1.0 if t_a_j >= 0.0 else -1.0)
+        return self.amp_pos[j] if sign > 0 else -self.amp_neg[j]
