@@ -10,6 +10,7 @@ before and after, and the ratio to the VAX 750 of Table 5.1 (joint 12.0 ms, Cart
 
     .venv/bin/python bench/rccl_cycle.py            # writes reports/bench-rccl.md
     .venv/bin/python bench/rccl_cycle.py --cycles 20000 --out -   # print only
+    .venv/bin/python bench/rccl_cycle.py --profile                # where a Cartesian cycle's time goes
 """
 from __future__ import annotations
 
@@ -125,12 +126,54 @@ def run(robot: str, mode: str, cycles: int, targets: str) -> dict:
             "move_us": plan_ns / 1e3 / max(n_moves, 1)}
 
 
+def profile(cycles: int) -> int:
+    """cProfile of ``step()`` on the PUMA 260's Cartesian const tour: all cycles, then only the segment starts."""
+    import cProfile
+    import pstats
+
+    kin, limits = load_kinematics("puma260"), load_limits("puma260")
+    gen = TrajectoryGenerator(kin, limits, 1.0 / RATE_HZ, START["puma260"])
+    arm = Planner(kin, limits, gen)
+    arm.setmod("cartesian")
+    arm.setvel(0.1, 1.0)
+    positions = tour(kin, "puma260", "const")
+    every, starts = cProfile.Profile(), cProfile.Profile()
+    begin = gen._begin_transition
+
+    def timed_begin() -> None:
+        starts.enable()
+        try:
+            begin()
+        finally:
+            starts.disable()
+    gen._begin_transition = timed_begin
+    gc.disable()   # as in the timed runs
+    try:
+        for _ in range(cycles):
+            if len(arm.queue) < 2:
+                for p in positions:
+                    arm.move(p)
+            every.enable()
+            gen.step()
+            every.disable()
+    finally:
+        gc.enable()
+    for title, prof in (("every cycle", every), ("segment starts (_begin_transition) only", starts)):
+        print(f"== {title}, {cycles} cycles")
+        pstats.Stats(prof).sort_stats("tottime").print_stats(14)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=5000, help="cycles per run")
     ap.add_argument("--repeats", type=int, default=5, help="runs per row; the lowest mean is reported")
     ap.add_argument("--out", default=str(ROOT / "reports" / "bench-rccl.md"), help="'-' to print only")
+    ap.add_argument("--profile", action="store_true",
+                    help="print a cProfile of the PUMA 260's Cartesian const run (every cycle, then segment starts) and stop")
     args = ap.parse_args(argv)
+    if args.profile:
+        return profile(args.cycles)
     from rccl.kinematics import backend as kb
     backend = {r: ("compiled C kernels" if kb.c_module(r) is not None else "generated Python code (C kernels NOT built)")
                for r in ("puma260", "microbo")}

@@ -95,6 +95,8 @@ def test_cartesian_straight_line_and_arrival_on_the_microbo(sim, world):
         pts = np.array([world(x)[:3, 3] for x in q])
         r = pts - a
         dev = np.linalg.norm(r - np.outer(r @ u, u), axis=1)
+        print(f"microbo {what}: max deviation from the line {dev.max() * 1e3:.4f} mm, end point "
+              f"{np.linalg.norm(pts[-1] - b) * 1e3:.4f} mm from the goal, {len(q)} samples")
         assert dev.max() <= 1e-4, f"{what} path deviates {dev.max() * 1e3:.4f} mm from the line"
         assert np.linalg.norm(pts[-1] - b) <= 1e-4, f"{what} end point misses by {np.linalg.norm(pts[-1] - b) * 1e3} mm"
     # the tool turned about a fixed axis to the goal orientation
