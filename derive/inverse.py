@@ -29,6 +29,11 @@ arm, elbow, wrist = sp.symbols("arm elbow wrist", real=True)
 REACH_RTOL = 1e-12
 #: |sin theta5| (or a normalised distance) below which the solution is not unique
 SINGULAR_TOL = 1e-9
+#: relative tolerance on the squared distance of the wrist centre from the shoulder
+#: (PUMA folded elbow, a2 = d4): that pose is also on the d3 cylinder, where theta1 comes
+#: from a square root of a radicand that is 0 up to rounding, so the computed distance^2
+#: carries about r^2 * eps (~1e-17 scale) of noise; 1e-12 (0.5 um) stays clear of it
+FOLD_RTOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -192,7 +197,7 @@ def puma_ik() -> IKSolution:
          "the wrist centre lies inside the cylinder of radius d3 about the joint-1 axis"),
         ("guard_elbow_reach", radicand3 + REACH_RTOL * f**2, "Unreachable",
          "the wrist centre is farther from the shoulder than a2 + d4 (beyond the stretched elbow)"),
-        ("guard_folded", fold - SINGULAR_TOL**2 * scale, "Singular",
+        ("guard_folded", fold - FOLD_RTOL * scale, "Singular",
          "the wrist centre is at the shoulder (elbow fully folded): theta2 is undetermined"),
         ("guard_wrist", wrist_norm - SINGULAR_TOL, "Singular",
          "sin(theta5) = 0: joints 4 and 6 are aligned and only theta4 + theta6 is determined"),

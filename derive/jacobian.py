@@ -139,3 +139,66 @@ def differential(robot: DHRobot, reduce_23: bool) -> Differential:
                 dens.add(base)
     return Differential(robot, j4, j6, j4r, j4r_inv, y, b, d46, f46,
                         tuple(sorted(dens, key=sp.default_sort_key)))
+
+
+def triangular_pivots(m: sp.Matrix) -> list[tuple[int, int]] | None:
+    """(row, column) pivots that make square ``m`` triangular once rows and columns are
+    permuted, in the order a substitution solves them; None if there is no such order.
+
+    Each pivot row has exactly one non-zero among the columns not yet solved.
+    """
+    rows, cols = list(range(m.shape[0])), set(range(m.shape[1]))
+    order: list[tuple[int, int]] = []
+    while rows:
+        for r in rows:
+            nz = [c for c in sorted(cols) if m[r, c] != 0]
+            if len(nz) == 1:
+                order.append((r, nz[0]))
+                rows.remove(r)
+                cols.discard(nz[0])
+                break
+        else:
+            return None
+    return order
+
+
+def substitute(m: sp.Matrix, rhs: list[sp.Expr], unknowns: list[sp.Symbol]) -> list[tuple[sp.Symbol, sp.Expr]]:
+    """Definitions that solve ``m x = rhs`` by substitution (m triangular up to a permutation).
+
+    ``unknowns[c]`` names x_c; each definition uses only the rhs and unknowns defined before
+    it. This is how 3.73 and 3.74 are written: dtheta1 first, then dtheta2 from it, ...
+    """
+    pivots = triangular_pivots(m)
+    if pivots is None:
+        raise ValueError("matrix is not triangular under any permutation")
+    defs = []
+    for r, c in pivots:
+        known = sum((m[r, k] * unknowns[k] for k in range(m.shape[1]) if k != c), sp.Integer(0))
+        defs.append((unknowns[c], (rhs[r] - known) / m[r, c]))
+    return defs
+
+
+@dataclass(frozen=True)
+class TriangularForm:
+    """4J' = [[R^T M, 0], [J21, J22]] (3.67, 3.69): R rotates frame 4 to frame 3 (A4's
+    rotation), M is the wrist-centre Jacobian observed in frame 3 and, like J22, is
+    triangular up to a permutation; so J' and J'^T are solved by substitution, as 3.73
+    and 3.74 are, instead of multiplying by the expanded inverse 3.68."""
+
+    r: sp.Matrix
+    m: sp.Matrix
+    j21: sp.Matrix
+    j22: sp.Matrix
+
+
+def triangular_form(diff: Differential) -> TriangularForm | None:
+    """The block-triangular structure of diff's 4J', or None where it does not hold."""
+    j = diff.j4_reduced
+    r = link_to_link(diff.robot, 3, 4)[:3, :3]
+    m = tidy_matrix(r * j[:3, :3])
+    if j[:3, 3:] != sp.zeros(3, 3) or triangular_pivots(m) is None or triangular_pivots(m.T) is None:
+        return None
+    j22 = j[3:, 3:]
+    if triangular_pivots(j22) is None or triangular_pivots(j22.T) is None:
+        return None
+    return TriangularForm(r, m, j[3:, :3], j22)

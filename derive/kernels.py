@@ -10,10 +10,10 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.dh import Q, a2, d4
-from derive.forward import t6, tidy
+from derive.forward import t6, t6_chained, tidy
 from derive.gravity import COM, MASSES, GravityModel, d_t, g0, m_t, gravity_general
 from derive.inverse import POSE_INPUT, IKSolution, SINGULAR_TOL
-from derive.jacobian import Differential
+from derive.jacobian import Differential, TriangularForm, substitute, triangular_form
 from derive.kernel import Arg, Guard, Kernel
 from derive.robots import RobotSpec
 
@@ -59,8 +59,10 @@ def build_kernels(d: Derivation) -> list[Kernel]:
                          tuple(stages), tuple(staged)))
 
     # -- forward kinematics ------------------------------------------------------------
+    chain_defs, chain_t6 = t6_chained(spec.dh)  # structure hint: one run of A matrices at a time
     kernel("fk", "T6: link 6 in the base frame (4x4 homogeneous transform, m)",
-           [qarg], [Arg("T", d.t6, "base_to_link6")], source="3.16-3.18")
+           [qarg], [Arg("T", d.t6, "base_to_link6")], source="3.16-3.18",
+           stages=tuple(chain_defs), staged=(chain_t6,))
 
     # -- inverse kinematics ------------------------------------------------------------
     cfg = sp.Matrix(d.ik.config)
@@ -103,20 +105,9 @@ def build_kernels(d: Derivation) -> list[Kernel]:
     y_inv = y.inv()
     dc4 = j4 * dq
     inv_guards = _jacobian_guards(robot)
-    w = sp.Matrix(sp.symbols("w0:6", real=True))  # the frame-4 side of one map of (3.79)
+    tri = triangular_form(d.diff)
     for frame in (4, 6):
-        st: dict[str, tuple] = {}
-        if frame == 6:
-            # the same computations kept as "frame-4 computation + one map of (3.79)" for
-            # the C lowering, which otherwise sees the map multiplied in and expanded
-            fwd4 = (jr * (y * dq)).applyfunc(sp.expand)
-            force4 = (jr_inv.T * (y_inv.T * tau)).applyfunc(sp.expand)
-            st = {
-                "fwd": (tuple(zip(w, fwd4)), (bb * w,)),
-                "torque": (tuple(zip(w, bbt * f)), ((y.T * (jr.T * w)).applyfunc(sp.expand),)),
-                "joint": (tuple(zip(w, bbt * dc)), ((y_inv * (jr_inv * w)).applyfunc(sp.expand),)),
-                "force": (tuple(zip(w, force4)), (bb * w,)),
-            }
+        st = _structure_hints(tri, y, bb, bbt, frame, dq, dc, f, tau) if tri is not None else {}
         if frame == 4:
             fwd = (jr * (y * dq)).applyfunc(sp.expand)
             torque = (y.T * (jr.T * f)).applyfunc(sp.expand)
@@ -196,3 +187,62 @@ def _jacobian_guards(robot: str) -> list[Guard]:
                "d3 = 0: the wrist centre is on the joint-1 axis"),
         wrist,
     ]
+
+
+def _structure_hints(tri: TriangularForm, y: sp.Matrix, bb: sp.Matrix, bbt: sp.Matrix, frame: int,
+                     dq: sp.Matrix, dc: sp.Matrix, f: sp.Matrix, tau: sp.Matrix) -> dict[str, tuple]:
+    """The four Jacobian computations written the way 3.71-3.78 are: with the block-
+    triangular form of 4J' (substitution instead of the expanded inverse 3.68), and in
+    frame 6 as one map of (3.79) before or after the frame-4 computation.
+
+    Returns {computation: (stage definitions, (outputs in the stage symbols,))}: a
+    structure hint for the C lowering, which keeps it only where it counts fewer
+    operations; the kernels' outputs stay the authoritative values.
+    """
+    names = sp.numbered_symbols("z", real=True)
+
+    def define(exprs, defs):
+        syms = [next(names) for _ in exprs]
+        defs.extend(zip(syms, exprs))
+        return syms
+
+    r, m, j21, j22 = tri.r, tri.m, tri.j21, tri.j22
+    hints = {}
+    # forward: dc = [R^T M x_a; J21 x_a + J22 x_b], x = Y dq
+    defs: list = []
+    x = list(y * dq)
+    v = define(list(m * sp.Matrix(x[:3])), defs)
+    out = list(r.T * sp.Matrix(v)) + list(j21 * sp.Matrix(x[:3]) + j22 * sp.Matrix(x[3:]))
+    if frame == 6:
+        out = list(bb * sp.Matrix(define(out, defs)))
+    hints["fwd"] = (tuple(defs), (sp.Matrix(out),))
+    # torque: tau = Y^T [M^T R f_a + J21^T f_b; J22^T f_b]
+    defs = []
+    fv = list(f) if frame == 4 else define(list(bbt * f), defs)
+    g = define(list(r * sp.Matrix(fv[:3])), defs)
+    fa, fb = sp.Matrix(g), sp.Matrix(fv[3:])
+    out = y.T * sp.Matrix(list(m.T * fa + j21.T * fb) + list(j22.T * fb))
+    hints["torque"] = (tuple(defs), (out,))
+    # joint: M x_a = R dc_a, J22 x_b = dc_b - J21 x_a, dq = Y^-1 x
+    defs = []
+    cv = list(dc) if frame == 4 else define(list(bbt * dc), defs)
+    g = define(list(r * sp.Matrix(cv[:3])), defs)
+    xa = [next(names) for _ in range(3)]
+    defs.extend(substitute(m, g, xa))
+    rb = list(sp.Matrix(cv[3:]) - j21 * sp.Matrix(xa))
+    xb = [next(names) for _ in range(3)]
+    defs.extend(substitute(j22, rb, xb))
+    hints["joint"] = (tuple(defs), (y.inv() * sp.Matrix(xa + xb),))
+    # force: J22^T f_b = tau'_b, M^T g = tau'_a - J21^T f_b, f_a = R^T g, tau' = Y^-T tau
+    defs = []
+    tp = list(y.inv().T * tau)
+    fb = [next(names) for _ in range(3)]
+    defs.extend(substitute(j22.T, tp[3:], fb))
+    ra = list(sp.Matrix(tp[:3]) - j21.T * sp.Matrix(fb))
+    g = [next(names) for _ in range(3)]
+    defs.extend(substitute(m.T, ra, g))
+    out = list(r.T * sp.Matrix(g)) + fb
+    if frame == 6:
+        out = list(bb * sp.Matrix(define(out, defs)))
+    hints["force"] = (tuple(defs), (sp.Matrix(out),))
+    return hints

@@ -108,21 +108,44 @@ def test_thesis_report_names_command_and_errata():
 
 
 @pytest.mark.slow  # derives both arms (~1 min); the C-vs-Python back-end tests check the same on every run
-def test_staged_frame6_kernels_equal_their_outputs():
-    """The structure hint of the frame-6 Jacobian computations (frame-4 computation + one
-    map of 3.79, used by the C lowering) has the values of the kernels' outputs."""
+def test_structure_hints_equal_their_outputs():
+    """The structure hints the C lowering may use (T6 one run of A matrices at a time, the
+    Jacobian computations by substitution in 4J' and, in frame 6, one map of 3.79) have
+    the values of the kernels' outputs; a stage may use the stages before it."""
     from derive.derivation import derive_robot
     from derive.kernels import build_kernels
 
     rng = np.random.default_rng(5)
     for robot in ("microbo", "puma260"):
         kernels = [k for k in build_kernels(derive_robot(robot)) if k.stages]
-        assert {k.name for k in kernels} >= {f"{b}6" for b in ("cartesian_from_joint", "torque_from_force")}
+        assert {k.name for k in kernels} >= {"fk"} | {f"{b}{f}" for f in (4, 6) for b in (
+            "cartesian_from_joint", "torque_from_force", "joint_from_cartesian", "force_from_torque")}
         for k in kernels:
-            subs = {s: float(rng.uniform(0.2, 1.2)) for a in k.inputs for s in a.value.free_symbols}
-            subs.update({s: float(v) for s, v in k.params.items()})
-            stage = {sym: float(sp.sympify(v).xreplace(subs)) for sym, v in k.stages}
-            for staged, out in zip(k.staged, k.outputs):
-                got = np.array(staged.xreplace(subs).xreplace(stage), dtype=float)
-                want = np.array(out.value.xreplace(subs), dtype=float)
-                np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12, err_msg=f"{robot}.{k.name}")
+            for _ in range(3):
+                subs = {s: float(rng.uniform(0.2, 1.2)) for a in k.inputs for s in a.value.free_symbols}
+                subs.update({s: float(v) for s, v in k.params.items()})
+                stage: dict = {}
+                for sym, v in k.stages:  # in order: later stages use earlier ones
+                    stage[sym] = float(sp.sympify(v).xreplace({**subs, **stage}))
+                for staged, out in zip(k.staged, k.outputs):
+                    got = np.array(staged.xreplace({**subs, **stage}), dtype=float)
+                    want = np.array(out.value.xreplace(subs), dtype=float)
+                    np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12, err_msg=f"{robot}.{k.name}")
+
+
+def test_substitution_solves_triangular_systems():
+    """derive.jacobian.substitute: definitions in solving order that satisfy m x = rhs."""
+    from derive.jacobian import substitute, triangular_pivots
+
+    a, b, c = sp.symbols("a b c", positive=True)
+    m = sp.Matrix([[1, c, 3], [0, a, 0], [b, 2, 0]])  # triangular after permuting
+    rhs = list(sp.symbols("r0:3"))
+    x = list(sp.symbols("x0:3"))
+    assert triangular_pivots(m) == [(1, 1), (2, 0), (0, 2)]
+    defs = substitute(m, rhs, x)
+    sol: dict = {}
+    for sym, v in defs:
+        assert v.free_symbols & set(x) <= set(sol), "a definition uses an unknown not yet defined"
+        sol[sym] = v.xreplace(sol)
+    assert sp.simplify(m * sp.Matrix([sol[s] for s in x]) - sp.Matrix(rhs)) == sp.zeros(3, 1)
+    assert triangular_pivots(sp.Matrix([[1, 1], [1, 1]])) is None
