@@ -756,8 +756,8 @@ def _shape_c(shape: tuple[int, ...]) -> str:
 
 def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> str:
     kernels = "".join(kernel_c(p, b) for p, b in programs)
-    table, methods, pubdefs = [], [], []
-    for i, (p, _) in enumerate(programs):
+    table = []
+    for p, _ in programs:
         k = p.kernel
         ins = [_shape(a) for a in k.inputs]
         outs = [_shape(a) for a in k.outputs] + [()] * len(k.guards)
@@ -767,25 +767,12 @@ def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> s
             f"     {{{', '.join(_shape_c(s) for s in ins)}}},\n"
             f"     {{{', '.join(_shape_c(s) for s in outs)}}},\n"
             f"     {{{', '.join(_c_string(a.name) for a in k.inputs)}}},\n"
-            f"     {{{', '.join(_c_string(n) for n in onames)}}}}},")
-        methods.append(
-            f"static PyObject *py_{k.name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs)\n"
-            f"{{ (void)self; return call_kernel(&KERNELS[{i}], args, nargs); }}\n"
-            f"#ifdef RCCL_NUMPY_API\n"
-            f"static PyObject *pub_{k.name}(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)\n"
-            f"{{ return public_call(&KERNELS[{i}], self, args, nargs, kwnames); }}\n"
-            f"#endif\n")
-        pubdefs.append(
-            f"    {{{_c_string(k.name)}, (PyCFunction)(void (*)(void))pub_{k.name}, METH_FASTCALL | METH_KEYWORDS, "
-            f"{_c_string(_method_doc(k))}}},")
-    defs = "\n".join(
-        f"    {{{_c_string(p.kernel.name)}, (PyCFunction)(void (*)(void))py_{p.kernel.name}, METH_FASTCALL, "
-        f"{_c_string(_method_doc(p.kernel))}}}," for p, _ in programs)
+            f"     {{{', '.join(_c_string(n) for n in onames)}}},\n"
+            f"     {_c_string(_method_doc(k))}}},")
     maxio = max([len(p.kernel.inputs) for p, _ in programs]
                 + [len(p.kernel.outputs) + len(p.kernel.guards) for p, _ in programs] + [1])
-    return RUNTIME.format(
-        robot=robot, command=command, kernels=kernels, table="\n".join(table), nk=len(programs), maxio=maxio,
-        methods="\n".join(methods), defs=defs, pubdefs="\n".join(pubdefs))
+    return RUNTIME.format(robot=robot, command=command, kernels=kernels, table="\n".join(table),
+                          nk=len(programs), maxio=maxio)
 
 
 def _method_doc(k: Kernel) -> str:
@@ -810,18 +797,6 @@ RUNTIME = r"""/* Kinematics kernels of the {robot}, as a CPython extension modul
 static const kernel_entry KERNELS[{nk}] = {{
 {table}
 }};
-
-{methods}
-static PyMethodDef KERNEL_DEFS[] = {{
-{defs}
-    {{NULL, NULL, 0, NULL}}
-}};
-
-#ifdef RCCL_NUMPY_API
-static PyMethodDef PUBLIC_DEFS[] = {{
-{pubdefs}
-}};
-#endif
 
 #include "kin_runtime.h"
 

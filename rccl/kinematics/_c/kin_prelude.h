@@ -1,7 +1,7 @@
 /* The shared prelude of the generated kinematics extensions (rccl/kinematics/_c/<robot>.c):
  * headers, the vector sine/cosine of libmvec, and the kernel table's types. Hand-written;
- * a generated file defines RCCL_ROBOT and MAXIO, includes this, then its kernels, its
- * table KERNELS and method tables, then kin_runtime.h. */
+ * a generated file defines RCCL_ROBOT and MAXIO, includes this, then its kernels and
+ * their table KERNELS, then kin_runtime.h. */
 #ifndef RCCL_KIN_PRELUDE_H
 #define RCCL_KIN_PRELUDE_H
 #define PY_SSIZE_T_CLEAN
@@ -53,13 +53,7 @@ typedef struct {
     arg_shape out[MAXIO];
     const char *in_name[MAXIO];
     const char *out_name[MAXIO];
+    const char *doc;            /* the docstring of the kernel's Python-callable entry */
 } kernel_entry;
-
-/* defined in kin_runtime.h; the generated per-kernel entries call them */
-static PyObject *call_kernel(const kernel_entry *k, PyObject *const *args, Py_ssize_t nargs);
-#ifdef RCCL_NUMPY_API
-static PyObject *public_call(const kernel_entry *k, PyObject *self, PyObject *const *args, Py_ssize_t nargs,
-                             PyObject *kwnames);
-#endif
 
 #endif

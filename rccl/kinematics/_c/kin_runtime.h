@@ -3,8 +3,8 @@
  * allocated through numpy, batches in chunks and over threads), the public fast entries
  * behind rccl.kinematics.backend.public (single configurations and batches, out=, gravity
  * coefficient mappings, ik / ik_all / config_of with the pose checks), and the module's
- * init. A generated file includes it after its kernels, KERNELS, KERNEL_DEFS and
- * PUBLIC_DEFS, and ends with RCCL_MODULE_INIT(<robot>). setup.py defines RCCL_SOURCE_HASH
+ * init, which adds one function per entry of KERNELS. A generated file includes it after
+ * its kernels and their table KERNELS, and ends with RCCL_MODULE_INIT(<robot>). setup.py defines RCCL_SOURCE_HASH
  * (rccl.kinematics.backend.source_hash of the .c and both headers) for the staleness check. */
 #ifndef RCCL_KIN_RUNTIME_H
 #define RCCL_KIN_RUNTIME_H
@@ -13,6 +13,23 @@
 #define RCCL_SOURCE_HASH ""   /* built outside setup.py: the loader treats it as stale */
 #endif
 #define NKERNELS ((int)(sizeof KERNELS / sizeof KERNELS[0]))
+
+static PyObject *call_kernel(const kernel_entry *k, PyObject *const *args, Py_ssize_t nargs);
+
+/* One Python function per kernel, made at import from KERNELS: the entry's self is a
+ * capsule holding the kernel's table row. */
+static PyObject *kernel_capsule[NKERNELS];
+static PyMethodDef kernel_def[NKERNELS];
+
+static const kernel_entry *entry_of(PyObject *capsule)
+{
+    return (const kernel_entry *)PyCapsule_GetPointer(capsule, NULL);
+}
+
+static PyObject *py_kernel(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    return call_kernel(entry_of(self), args, nargs);
+}
 
 static PyObject *np_empty = NULL;         /* numpy.empty, to allocate results */
 static PyObject *np_array = NULL;         /* numpy.array, to convert lists and other dtypes */
@@ -246,11 +263,11 @@ static int overlaps(const void *a, Py_ssize_t na, const void *b, Py_ssize_t nb)
     return pa < pb + nb && pb < pa + na;
 }
 
-/* self = (fallback, coefficient names or None) */
-static PyObject *public_call(const kernel_entry *k, PyObject *self, PyObject *const *args, Py_ssize_t nargs,
-                             PyObject *kwnames)
+/* the public entry of a kernel: self = (fallback, coefficient names or None, kernel capsule) */
+static PyObject *public_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
 {
     PyObject *fallback = PyTuple_GET_ITEM(self, 0), *keys = PyTuple_GET_ITEM(self, 1);
+    const kernel_entry *k = entry_of(PyTuple_GET_ITEM(self, 2));
     const double *ip[MAXIO];
     double *op[MAXIO];
     Py_ssize_t is[MAXIO], os[MAXIO], ilen[MAXIO];
@@ -737,6 +754,8 @@ done:
 
 
 #ifdef RCCL_NUMPY_API
+static PyMethodDef public_def[NKERNELS];   /* the public entries, made at import like kernel_def */
+
 /* public(name, fallback, keys=None): the fast public entry of a single-output kernel
  * (keys: names of the coefficients its last input may also be given by, as a mapping), or
  * of "ik", "ik_all", "config_of" (after ik_setup), falling back to `fallback`. */
@@ -758,9 +777,9 @@ static PyObject *public(PyObject *self, PyObject *args)
             if (keys != Py_None) {
                 for (Py_ssize_t j = 0; j < PyTuple_GET_SIZE(keys); ++j) PyUnicode_InternInPlace(&PyTuple_GET_ITEM(keys, j));
             }
-            PyObject *data = PyTuple_Pack(2, fallback, keys);
+            PyObject *data = PyTuple_Pack(3, fallback, keys, kernel_capsule[i]);
             if (!data) return NULL;
-            PyObject *fn = PyCFunction_NewEx(&PUBLIC_DEFS[i], data, NULL);
+            PyObject *fn = PyCFunction_NewEx(&public_def[i], data, NULL);
             Py_DECREF(data);
             return fn;
         }
@@ -822,7 +841,7 @@ static struct PyModuleDef moduledef = {
     " (derive/emit_c.py; shared runtime rccl/kinematics/_c/kin_runtime.h).", -1, methods
 };
 
-/* the module: the runtime's functions above plus the generated file's KERNEL_DEFS */
+/* the module: the runtime's functions above plus one function per kernel */
 static PyObject *module_init(void)
 {
 #ifdef RCCL_NUMPY_API
@@ -844,7 +863,17 @@ static PyObject *module_init(void)
     np_array_kw = Py_BuildValue("{ssss}", "dtype", "float64", "order", "C");
     if (!np_empty || !np_array || !np_array_kw) return NULL;
     PyObject *m = PyModule_Create(&moduledef);
-    if (m && PyModule_AddFunctions(m, KERNEL_DEFS) < 0) Py_CLEAR(m);
+    for (int i = 0; m && i < NKERNELS; ++i) {
+        const kernel_entry *k = &KERNELS[i];
+        kernel_def[i] = (PyMethodDef){k->name, (PyCFunction)(void (*)(void))py_kernel, METH_FASTCALL, k->doc};
+#ifdef RCCL_NUMPY_API
+        public_def[i] = (PyMethodDef){k->name, (PyCFunction)(void (*)(void))public_call,
+                                      METH_FASTCALL | METH_KEYWORDS, k->doc};
+#endif
+        kernel_capsule[i] = PyCapsule_New((void *)k, NULL, NULL);   /* kept for the process */
+        PyObject *fn = kernel_capsule[i] ? PyCFunction_NewEx(&kernel_def[i], kernel_capsule[i], NULL) : NULL;
+        if (!fn || PyModule_AddObject(m, k->name, fn) < 0) { Py_XDECREF(fn); Py_CLEAR(m); }
+    }
     return m;
 }
 

@@ -3017,292 +3017,123 @@ static const kernel_entry KERNELS[20] = {
      {{1, {6, 0}, 6}},
      {{2, {4, 4}, 16}},
      {"q"},
-     {"T"}},
+     {"T"},
+     "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"ik", batch_ik, 2, 5, 4,
      {{2, {4, 4}, 16}, {1, {3, 0}, 3}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"T", "config"},
-     {"q", "guard_arm_reach", "guard_elbow_reach", "guard_folded", "guard_wrist"}},
+     {"q", "guard_arm_reach", "guard_elbow_reach", "guard_folded", "guard_wrist"},
+     "ik(T[4, 4], config[3]) -> (q[6], guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist): joint variables for pose T in one configuration (signs +-1: arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"ik_wrist", batch_ik_wrist, 2, 1, 0,
      {{2, {4, 4}, 16}, {1, {6, 0}, 6}},
      {{1, {2, 0}, 2}},
      {"T", "q"},
-     {"q56"}},
+     {"q56"},
+     "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"config_indicators", batch_config_indicators, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{1, {3, 0}, 3}},
      {"q"},
-     {"indicator"}},
+     {"indicator"},
+     "config_indicators(q[6]) -> (indicator[3]): values whose signs are the configuration of q (arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"jacobian4", batch_jacobian4, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
-     {"J"}},
+     {"J"},
+     "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"jacobian6", batch_jacobian6, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
-     {"J"}},
+     {"J"},
+     "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
-     {"dc"}},
+     {"dc"},
+     "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"torque_from_force4", batch_torque_from_force4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
-     {"tau"}},
+     {"tau"},
+     "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
-     {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"}},
+     {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"},
+     "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"force_from_torque4", batch_force_from_torque4, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
-     {"f", "guard_shoulder", "guard_elbow", "guard_wrist"}},
+     {"f", "guard_shoulder", "guard_elbow", "guard_wrist"},
+     "force_from_torque4(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
-     {"dc"}},
+     {"dc"},
+     "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"torque_from_force6", batch_torque_from_force6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
-     {"tau"}},
+     {"tau"},
+     "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
-     {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"}},
+     {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"},
+     "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"force_from_torque6", batch_force_from_torque6, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
-     {"f", "guard_shoulder", "guard_elbow", "guard_wrist"}},
+     {"f", "guard_shoulder", "guard_elbow", "guard_wrist"},
+     "force_from_torque6(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"gravity", batch_gravity, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {3, 0}, 3}},
      {{1, {6, 0}, 6}},
      {"q", "c"},
-     {"tau"}},
+     {"tau"},
+     "gravity(q[6], c[3]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"gravity_regressor", batch_gravity_regressor, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 3}, 18}},
      {"q"},
-     {"Y"}},
+     {"Y"},
+     "gravity_regressor(q[6]) -> (Y[6, 3]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"gravity_links", batch_gravity_links, 3, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {6, 0}, 6}},
      {"q", "m", "com"},
-     {"tau"}},
+     {"tau"},
+     "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"coefficients_from_links", batch_coefficients_from_links, 2, 1, 0,
      {{1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {3, 0}, 3}},
      {"m", "com"},
-     {"c"}},
+     {"c"},
+     "coefficients_from_links(m[6], com[6, 3]) -> (c[3]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"tool_load", batch_tool_load, 2, 1, 0,
      {{1, {3, 0}, 3}, {1, {2, 0}, 2}},
      {{1, {3, 0}, 3}},
      {"c", "load"},
-     {"c_loaded"}},
+     {"c_loaded"},
+     "tool_load(c[3], load[2]) -> (c_loaded[3]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
     {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {8, 6}, 48}, {2, {8, 4}, 32}},
      {"T"},
-     {"q", "guards"}},
+     {"q", "guards"},
+     "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
 };
-
-static PyObject *py_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[0], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_fk(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[0], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_ik(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[1], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_ik(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[1], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_ik_wrist(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[2], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_ik_wrist(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[2], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_config_indicators(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[3], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_config_indicators(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[3], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_jacobian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[4], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_jacobian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[4], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_jacobian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[5], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_jacobian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[5], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_cartesian_from_joint4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[6], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_cartesian_from_joint4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[6], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_torque_from_force4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[7], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_torque_from_force4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[7], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_joint_from_cartesian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[8], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_joint_from_cartesian4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[8], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_force_from_torque4(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[9], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_force_from_torque4(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[9], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_cartesian_from_joint6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[10], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_cartesian_from_joint6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[10], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_torque_from_force6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[11], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_torque_from_force6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[11], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_joint_from_cartesian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[12], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_joint_from_cartesian6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[12], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_force_from_torque6(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[13], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_force_from_torque6(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[13], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[14], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_gravity(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[14], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_gravity_regressor(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[15], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_gravity_regressor(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[15], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_gravity_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[16], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_gravity_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[16], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_coefficients_from_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[17], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_coefficients_from_links(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[17], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_tool_load(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[18], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_tool_load(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[18], self, args, nargs, kwnames); }
-#endif
-
-static PyObject *py_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{ (void)self; return call_kernel(&KERNELS[19], args, nargs); }
-#ifdef RCCL_NUMPY_API
-static PyObject *pub_ik_all(PyObject *self, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
-{ return public_call(&KERNELS[19], self, args, nargs, kwnames); }
-#endif
-
-static PyMethodDef KERNEL_DEFS[] = {
-    {"fk", (PyCFunction)(void (*)(void))py_fk, METH_FASTCALL, "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"ik", (PyCFunction)(void (*)(void))py_ik, METH_FASTCALL, "ik(T[4, 4], config[3]) -> (q[6], guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist): joint variables for pose T in one configuration (signs +-1: arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"ik_wrist", (PyCFunction)(void (*)(void))py_ik_wrist, METH_FASTCALL, "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"config_indicators", (PyCFunction)(void (*)(void))py_config_indicators, METH_FASTCALL, "config_indicators(q[6]) -> (indicator[3]): values whose signs are the configuration of q (arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"jacobian4", (PyCFunction)(void (*)(void))py_jacobian4, METH_FASTCALL, "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"jacobian6", (PyCFunction)(void (*)(void))py_jacobian6, METH_FASTCALL, "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"cartesian_from_joint4", (PyCFunction)(void (*)(void))py_cartesian_from_joint4, METH_FASTCALL, "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"torque_from_force4", (PyCFunction)(void (*)(void))py_torque_from_force4, METH_FASTCALL, "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"joint_from_cartesian4", (PyCFunction)(void (*)(void))py_joint_from_cartesian4, METH_FASTCALL, "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"force_from_torque4", (PyCFunction)(void (*)(void))py_force_from_torque4, METH_FASTCALL, "force_from_torque4(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"cartesian_from_joint6", (PyCFunction)(void (*)(void))py_cartesian_from_joint6, METH_FASTCALL, "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"torque_from_force6", (PyCFunction)(void (*)(void))py_torque_from_force6, METH_FASTCALL, "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"joint_from_cartesian6", (PyCFunction)(void (*)(void))py_joint_from_cartesian6, METH_FASTCALL, "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"force_from_torque6", (PyCFunction)(void (*)(void))py_force_from_torque6, METH_FASTCALL, "force_from_torque6(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"gravity", (PyCFunction)(void (*)(void))py_gravity, METH_FASTCALL, "gravity(q[6], c[3]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"gravity_regressor", (PyCFunction)(void (*)(void))py_gravity_regressor, METH_FASTCALL, "gravity_regressor(q[6]) -> (Y[6, 3]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"gravity_links", (PyCFunction)(void (*)(void))py_gravity_links, METH_FASTCALL, "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"coefficients_from_links", (PyCFunction)(void (*)(void))py_coefficients_from_links, METH_FASTCALL, "coefficients_from_links(m[6], com[6, 3]) -> (c[3]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"tool_load", (PyCFunction)(void (*)(void))py_tool_load, METH_FASTCALL, "tool_load(c[3], load[2]) -> (c_loaded[3]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"ik_all", (PyCFunction)(void (*)(void))py_ik_all, METH_FASTCALL, "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {NULL, NULL, 0, NULL}
-};
-
-#ifdef RCCL_NUMPY_API
-static PyMethodDef PUBLIC_DEFS[] = {
-    {"fk", (PyCFunction)(void (*)(void))pub_fk, METH_FASTCALL | METH_KEYWORDS, "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"ik", (PyCFunction)(void (*)(void))pub_ik, METH_FASTCALL | METH_KEYWORDS, "ik(T[4, 4], config[3]) -> (q[6], guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist): joint variables for pose T in one configuration (signs +-1: arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"ik_wrist", (PyCFunction)(void (*)(void))pub_ik_wrist, METH_FASTCALL | METH_KEYWORDS, "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"config_indicators", (PyCFunction)(void (*)(void))pub_config_indicators, METH_FASTCALL | METH_KEYWORDS, "config_indicators(q[6]) -> (indicator[3]): values whose signs are the configuration of q (arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"jacobian4", (PyCFunction)(void (*)(void))pub_jacobian4, METH_FASTCALL | METH_KEYWORDS, "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"jacobian6", (PyCFunction)(void (*)(void))pub_jacobian6, METH_FASTCALL | METH_KEYWORDS, "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"cartesian_from_joint4", (PyCFunction)(void (*)(void))pub_cartesian_from_joint4, METH_FASTCALL | METH_KEYWORDS, "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"torque_from_force4", (PyCFunction)(void (*)(void))pub_torque_from_force4, METH_FASTCALL | METH_KEYWORDS, "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"joint_from_cartesian4", (PyCFunction)(void (*)(void))pub_joint_from_cartesian4, METH_FASTCALL | METH_KEYWORDS, "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"force_from_torque4", (PyCFunction)(void (*)(void))pub_force_from_torque4, METH_FASTCALL | METH_KEYWORDS, "force_from_torque4(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"cartesian_from_joint6", (PyCFunction)(void (*)(void))pub_cartesian_from_joint6, METH_FASTCALL | METH_KEYWORDS, "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"torque_from_force6", (PyCFunction)(void (*)(void))pub_torque_from_force6, METH_FASTCALL | METH_KEYWORDS, "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"joint_from_cartesian6", (PyCFunction)(void (*)(void))pub_joint_from_cartesian6, METH_FASTCALL | METH_KEYWORDS, "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"force_from_torque6", (PyCFunction)(void (*)(void))pub_force_from_torque6, METH_FASTCALL | METH_KEYWORDS, "force_from_torque6(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"gravity", (PyCFunction)(void (*)(void))pub_gravity, METH_FASTCALL | METH_KEYWORDS, "gravity(q[6], c[3]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"gravity_regressor", (PyCFunction)(void (*)(void))pub_gravity_regressor, METH_FASTCALL | METH_KEYWORDS, "gravity_regressor(q[6]) -> (Y[6, 3]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"gravity_links", (PyCFunction)(void (*)(void))pub_gravity_links, METH_FASTCALL | METH_KEYWORDS, "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"coefficients_from_links", (PyCFunction)(void (*)(void))pub_coefficients_from_links, METH_FASTCALL | METH_KEYWORDS, "coefficients_from_links(m[6], com[6, 3]) -> (c[3]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"tool_load", (PyCFunction)(void (*)(void))pub_tool_load, METH_FASTCALL | METH_KEYWORDS, "tool_load(c[3], load[2]) -> (c_loaded[3]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-    {"ik_all", (PyCFunction)(void (*)(void))pub_ik_all, METH_FASTCALL | METH_KEYWORDS, "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
-};
-#endif
 
 #include "kin_runtime.h"
 
