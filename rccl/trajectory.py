@@ -118,7 +118,8 @@ class Kinematics:
         try:
             for j in range(n):
                 prev = path[j + 1] = ik(poses[j], config, prev)
-            return path
+            if np.isfinite(path).all():   # (the contract's modules never return NaN; others might)
+                return path
         except ValueError:
             pass
         self.ik(poses[-1], config, q_start, f"{where}, its destination")
@@ -577,6 +578,8 @@ def _fit_range(limits: Limits, q: np.ndarray, revolute: np.ndarray | None = None
 
 
 def _check_range(limits: Limits, q: np.ndarray, where: str, what: str, units=None) -> None:
+    if not np.isfinite(q).all():
+        raise Unreachable(f"{where}: {what}: the kinematics returned joint values that are not finite ({q})")
     i = limits.out_of_range(q)
     if i is not None:
         u = units[i] if units is not None else "rad"
