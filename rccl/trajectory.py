@@ -201,13 +201,15 @@ class Plan:
 
     def finish(self, limits: Limits) -> "Plan":
         """Precompute the floats ``time_segment`` needs, so timing a segment is plain float arithmetic."""
-        jacc = limits.joint_acceleration
-        self.v_start_list = self.v_start_dir.tolist()
-        self.acc_start = float(np.max(np.abs(self.v_start_dir) / jacc))   # joint accel. * T^2 / ... (see _tau)
-        self.acc_end = float(np.max(np.abs(self.v_end_dir) / jacc))
+        jacc = limits.joint_acceleration.tolist()
+        self.v_start_list = v0 = self.v_start_dir.tolist()
+        v1 = self.v_end_dir.tolist()
+        # max_i |v_i| / a_max_i of the path's joint velocities times T at each end (see _tau)
+        self.acc_start = max(abs(v) / a for v, a in zip(v0, jacc))
+        self.acc_end = max(abs(v) / a for v, a in zip(v1, jacc))
         self.vt_list, self.vr_list = self.vt_dir.tolist(), self.vr_dir.tolist()
         self.vt_norm, self.vr_norm = math.hypot(*self.vt_list), math.hypot(*self.vr_list)
-        self.stationary = self.dist < 1e-12 and self.theta < 1e-12 and not np.any(np.abs(self.dq) >= 1e-12)
+        self.stationary = self.dist < 1e-12 and self.theta < 1e-12 and max(map(abs, self.dq.tolist())) < 1e-12
         return self
 
     def fits(self, req: Request, t6_b: np.ndarray, q_b: np.ndarray) -> bool:
@@ -419,7 +421,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
     j, i = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
     # the coarse samples hide how fast a joint really turns near a singularity (and a jump of pi
     # between two samples looks like a fast turn): refine the worst interval, REFINE_LEVELS times
-    t_joint = max(float(ratio[j, i]), _refine(kin, limits, p, path[j], 1.0 - j / n, 1.0 / n, where))
+    t_joint = _refine(kin, limits, p, path[j], 1.0 - j / n, 1.0 / n, float(ratio[j, i]), where)
     if t_joint > SINGULAR_SLOWDOWN * max(t_vel, 0.05):
         raise SingularPath(
             f"{where}: the straight-line path passes through or too near a singularity: joint {i + 1} "
@@ -434,15 +436,17 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
 
 
 def _refine(kin: Kinematics, limits: Limits, p: Plan, q_lo: np.ndarray, lam_lo: float, width: float,
-            where: str) -> float:
-    """max |dq/dlam| / v_max over the lam interval [lam_lo - width, lam_lo], sampled REFINE_POINTS^REFINE_LEVELS finer.
+            coarse: float, where: str) -> float:
+    """max |dq/dlam| / v_max over the lam interval [lam_lo - width, lam_lo], sampled up to REFINE_POINTS^REFINE_LEVELS finer.
 
-    Each level samples the interval at REFINE_POINTS points (from ``q_lo``, the joints at
-    ``lam_lo``) and descends into its worst sub-interval. A smooth path gives the same value
-    as the coarse samples; a branch jump stays one step and so grows with the resolution.
+    ``coarse`` is the interval's value from its two ends. Each level samples the interval at
+    REFINE_POINTS points (from ``q_lo``, the joints at ``lam_lo``) and descends into its worst
+    sub-interval. A smooth path gives about the same value as the coarser samples, and the
+    descent stops there; a branch jump stays one step, so its value grows REFINE_POINTS times
+    per level.
     """
     vmax = limits.joint_velocity
-    worst = 0.0
+    worst = coarse
     m = REFINE_POINTS
     for _ in range(REFINE_LEVELS):
         lams = lam_lo - width * np.arange(1, m + 1) / m
@@ -450,7 +454,11 @@ def _refine(kin: Kinematics, limits: Limits, p: Plan, q_lo: np.ndarray, lam_lo: 
         sub = kin.ik_path(poses, p.config, q_lo, where, lams, limits)
         ratio = (np.abs(sub[1:] - sub[:-1]) / vmax).max(axis=1)
         k = int(np.argmax(ratio))
-        worst = max(worst, float(ratio[k]) * m / width)
+        value = float(ratio[k]) * m / width
+        converged = value < 1.5 * worst
+        worst = max(worst, value)
+        if converged:
+            break
         lam_lo, q_lo, width = lam_lo - width * k / m, sub[k], width / m
     return worst
 
