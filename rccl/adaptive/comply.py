@@ -138,24 +138,26 @@ def servo_dac(model: JointModel, joints: list[int], t_a: np.ndarray, t_g: np.nda
     """
     u = np.array(t_g, dtype=float)           # t_a + t_g + f, only the chosen joints get t_a and f
     for j in joints:
+        ta = float(t_a[j])
         if correction is not None and j in correction:
-            u[j] += t_a[j] + correction[j]
+            u[j] += ta + correction[j]
             continue
         v = float(qd[j])
         moving = abs(v) > rest_speed
+        vp = 0.0 if qd_path is None else float(qd_path[j])
         if moving:
             sign = 1.0 if v > 0 else -1.0
-        elif qd_path is not None and abs(float(qd_path[j])) > rest_speed:
-            sign = 1.0 if qd_path[j] > 0 else -1.0
+        elif abs(vp) > rest_speed:
+            sign = 1.0 if vp > 0 else -1.0
         else:
-            sign = float(np.sign(t_a[j]))
+            sign = 1.0 if ta > 0 else (-1.0 if ta < 0 else 0.0)
         speed = abs(v) if moving else 0.0
         if sign > 0:
-            f = model.coulomb_pos[j] + model.viscous_pos[j] * speed
+            f = float(model.coulomb_pos[j]) + float(model.viscous_pos[j]) * speed
         elif sign < 0:
-            f = -model.coulomb_neg[j] - model.viscous_neg[j] * speed
+            f = -float(model.coulomb_neg[j]) - float(model.viscous_neg[j]) * speed
         else:
             f = 0.0
-        u[j] += t_a[j] + f
+        u[j] += ta + f
     # 4.38 with f_dac = K_dac G^-T f: v_dac = K_dac G^-T (t_a + t_g + f)
     return model.dac_per_joint_torque @ u
