@@ -80,10 +80,14 @@ class Position:
         """Freeze the current values of the ``hold`` transforms (done when a motion is queued)."""
         return Snapshot({id(t): t._m for t in self.transforms() if t.kind == "hold"})
 
-    def update_functional(self) -> None:
-        """Call each functional transform's function once (the generator does this every sample)."""
+    def update_functional(self, skip: tuple[Trsf, ...] = ()) -> None:
+        """Call each functional transform's function once (the generator does this every sample).
+
+        ``skip``: transforms already updated this sample (those of another position in play
+        during a transition), so a transform shared by both is still called once per sample.
+        """
         for t in self._unique:
-            if t.fn is not None and t.kind == "functional":
+            if t.fn is not None and t.kind == "functional" and not any(t is u for u in skip):
                 t.fn(t)
 
     def _value(self, t: Trsf, snap: Snapshot | None) -> np.ndarray:

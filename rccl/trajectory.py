@@ -674,7 +674,7 @@ class TrajectoryGenerator:
         pos.update_functional()
         tr = self.trans
         if tr is not None and tr.prev.req.position is not pos:
-            tr.prev.req.position.update_functional()
+            tr.prev.req.position.update_functional(skip=pos.transforms())   # once per sample if shared
 
     def _evaluate(self, t: float) -> np.ndarray:
         seg = self.seg

@@ -501,3 +501,23 @@ def test_variable_target_made_singular_after_move_is_refused_before_its_motion()
     assert np.all(np.abs(np.diff(q, axis=0)) <= LIM.joint_velocity * gen.dt * 1.001)
     with pytest.raises(TrajectoryFault, match="singularity"):
         arm.move(pa)
+
+
+def test_functional_transform_shared_by_two_positions_runs_once_per_sample():
+    gen, arm = make(36.0)
+    arm.setmod("cartesian")
+    calls = []
+    w = Trsf("W", kind="variable")
+    w.bind(lambda t: calls.append(gen.samples))
+    base = K.fk(Q0)
+    pa = makeposition("pa", T6, EQ, w, Trsf("A", trsl(0.03, 0.0, 0.0) @ base), TL, T6)
+    pb = makeposition("pb", T6, EQ, w, Trsf("B", trsl(0.03, 0.03, 0.0) @ base), TL, T6)
+    ra, rb = arm.move(pa), arm.move(pb)
+    n = 0
+    while rb.status != "done":
+        gen.step()
+        n += 1
+        assert n < 2000
+    assert ra.status == "done"
+    assert len(calls) == len(set(calls))          # never twice in one sample, transitions included
+    assert len(calls) >= n - 2
