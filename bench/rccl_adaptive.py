@@ -5,9 +5,12 @@ CPU time of the trajectory computation per cycle): ``AdaptiveControl.before`` (J
 4.37 net torques, 4.56 tool-frame force with its condition check, E.2 deviation, limit
 checks, comply absorption), ``AdaptiveGenerator.step`` (Cartesian mode; functional
 transforms called and limited through E.8) and ``AdaptiveControl.after`` (comply
-transform, joint selection, 4.38 DAC), on the generated PUMA 260 kinematics. The how
-values are synthesised each cycle: joint angles = last command + 0.1 mrad noise, motor
-ADC = gravity torques + noise. Writes ``reports/bench-adaptive.md``.
+transform, joint selection, 4.38 DAC, static-friction dither), on the generated PUMA 260
+kinematics. The how values are synthesised each cycle: joint angles = last command + 0.1
+mrad noise, motor ADC = gravity torques + noise. Writes ``reports/bench-adaptive.md``:
+mean, median, p99 and max per mode, the mean split over the three calls, the ratios to
+Table 5.1's VAX times (19.0 ms force-limit, 28.0 ms compliance) and the load average at
+start and end (figures from a loaded machine, load > 1, are inflated).
 
     .venv/bin/python bench/rccl_adaptive.py              # writes reports/bench-adaptive.md
     .venv/bin/python bench/rccl_adaptive.py --cycles 2000 --out -
