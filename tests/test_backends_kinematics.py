@@ -502,3 +502,29 @@ def test_generated_module_holds_kernels_and_binds_the_runtime_api(robot):
     assert funcs and all(f.startswith("_") and f.endswith(("_one", "_many")) for f in funcs), funcs
     for name in runtime.PUBLIC:
         assert getattr(mod, name) is getattr(mod._API, name)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_fast_entries_take_good_input_without_the_runtime(robot):
+    """Well-formed calls stay in C: the fallback (here a recorder) is never called."""
+    cm, mod = _c(robot), _mod(robot)
+    calls = []
+
+    def record(*args, **kwargs):
+        calls.append(args)
+
+    qs = _qs(mod, 50, 39)
+    poses = mod.fk(qs)
+    cm.public("ik_all", record)(poses)
+    cm.public("ik_all", record)(poses, q_ref=qs)
+    cm.public("ik_all", record)(poses[0], qs[0])
+    for q, t in zip(qs, poses):
+        cm.public("ik", record)(t, mod.config_of(q), q_ref=q)
+        cm.public("config_of", record)(q)
+    cm.public("fk", record)(qs)
+    cm.public("fk", record)(qs, out=np.empty((len(qs), 4, 4)))
+    cm.public("fk", record)(qs[0], out=np.empty((4, 4)))
+    c = dict(zip(mod.GRAVITY_COEFFS, np.linspace(0.1, 0.5, len(mod.GRAVITY_COEFFS))))
+    cm.public("gravity", record, mod.GRAVITY_COEFFS)(qs[0], c)
+    cm.public("gravity", record, mod.GRAVITY_COEFFS)(qs, c, out=np.empty((len(qs), 6)))
+    assert calls == []

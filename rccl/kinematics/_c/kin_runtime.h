@@ -406,15 +406,12 @@ static PyObject *ik_setup(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
-/* the pose as 16 doubles when it is a plain (4, 4) array and clearly a rigid transform:
- * finite, last row exactly 0 0 0 1, rotation orthonormal within half the runtime's
- * tolerance (the borderline band is left to the Python check), determinant > 0 */
-static const double *pose_arg(PyObject *x)
+/* 1 when the 16 doubles are clearly a rigid transform: finite, last row exactly 0 0 0 1,
+ * rotation orthonormal within half the runtime's tolerance (the borderline band is left to
+ * the Python check), determinant > 0 */
+static int pose_ok(const double *t)
 {
-    PyArrayObject *a = plain_array(x);
-    if (!a || PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4) return NULL;
-    const double *t = (const double *)PyArray_DATA(a);
-    if (!all_finite(t, 16) || t[12] != 0.0 || t[13] != 0.0 || t[14] != 0.0 || t[15] != 1.0) return NULL;
+    if (!all_finite(t, 16) || t[12] != 0.0 || t[13] != 0.0 || t[14] != 0.0 || t[15] != 1.0) return 0;
     double dev = 0.0;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
@@ -423,7 +420,16 @@ static const double *pose_arg(PyObject *x)
         }
     const double det = t[0] * (t[5] * t[10] - t[6] * t[9]) - t[1] * (t[4] * t[10] - t[6] * t[8])
                      + t[2] * (t[4] * t[9] - t[5] * t[8]);
-    return (dev <= 0.5 * IK.rigid_tol && det > 0) ? t : NULL;
+    return dev <= 0.5 * IK.rigid_tol && det > 0;
+}
+
+/* the pose as 16 doubles when it is a plain (4, 4) array and pose_ok */
+static const double *pose_arg(PyObject *x)
+{
+    PyArrayObject *a = plain_array(x);
+    if (!a || PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4) return NULL;
+    const double *t = (const double *)PyArray_DATA(a);
+    return pose_ok(t) ? t : NULL;
 }
 
 /* q_ref when None (NULL), or a plain finite (6,) array; *ok = 0 when the Python path must decide */
@@ -521,29 +527,24 @@ slow:
     return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
 }
 
-/* ik_all(T, q_ref=None) for one pose: every configuration from the ik_all kernel; the
- * Python path when any configuration fails a guard (it decides between leaving it out,
- * the wrist fallback and an error); duplicates (2 pi apart) dropped, first kept */
-static PyObject *pubfast_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+/* every configuration of one pose from the ik_all kernel, duplicates (2 pi apart) dropped
+ * with the first kept: a new list of (Config, q), NULL with *slow = 1 when the Python path
+ * must decide (a configuration failing a guard: left out, wrist fallback or an error) */
+static PyObject *ik_all_one(const double *t, const double *ref, int *slow)
 {
-    int ok;
-    if (!IK.ready || IK.ik_all < 0 || nargs < 1) goto slow;
-    PyObject *ref_obj = q_ref_object(args, nargs, kwnames, 1, &ok);
-    if (!ok) goto slow;
-    const double *ref = ref_arg(ref_obj, &ok), *t = pose_arg(args[0]);
-    if (!ok || !t) goto slow;
     const kernel_entry *k = &KERNELS[IK.ik_all];
     const int nc = IK.nconf, ng = (int)(k->out[1].size / nc);
     double q[256 * 6], g[256 * 16];
     int found[256], kept[256], nkept = 0;
-    if (nc > 256) goto slow;
+    *slow = 1;
+    if (nc > 256 || !pose_ok(t)) return NULL;
     const double *ip[1] = {t};
     double *op[2] = {q, g};
     static const Py_ssize_t zero[2] = {0, 0};
     k->fn(1, ip, zero, op, zero);
     for (int j = 0; j < nc; ++j) {
-        for (int c = 0; c < ng; ++c) if (!(g[j * ng + c] >= 0)) goto slow;
-        if (!all_finite(q + 6 * j, 6)) goto slow;
+        for (int c = 0; c < ng; ++c) if (!(g[j * ng + c] >= 0)) return NULL;
+        if (!all_finite(q + 6 * j, 6)) return NULL;
         found[j] = finish_q(q + 6 * j, ref) == 0;   /* a prismatic joint out of range: left out */
     }
     for (int j = 0; j < nc; ++j) {
@@ -560,6 +561,7 @@ static PyObject *pubfast_ik_all(PyObject *fallback, PyObject *const *args, Py_ss
         }
         if (!dup) kept[nkept++] = j;
     }
+    *slow = 0;
     PyObject *list = PyList_New(nkept);
     if (!list) return NULL;
     for (int m = 0; m < nkept; ++m) {
@@ -570,6 +572,47 @@ static PyObject *pubfast_ik_all(PyObject *fallback, PyObject *const *args, Py_ss
         PyList_SET_ITEM(list, m, pair);
     }
     return list;
+}
+
+/* ik_all(T, q_ref=None) for one pose (4, 4) or a batch (N, 4, 4) (q_ref then (N, 6)); a
+ * batch goes to the Python path as a whole when any of its poses must */
+static PyObject *pubfast_ik_all(PyObject *fallback, PyObject *const *args, Py_ssize_t nargs, PyObject *kwnames)
+{
+    int ok, slow;
+    if (!IK.ready || IK.ik_all < 0 || nargs < 1) goto slow;
+    PyObject *ref_obj = q_ref_object(args, nargs, kwnames, 1, &ok);
+    if (!ok) goto slow;
+    PyArrayObject *a = plain_array(args[0]);
+    if (!a || PyArray_DIM(a, PyArray_NDIM(a) - 1) != 4) goto slow;
+    if (PyArray_NDIM(a) == 2) {
+        const double *ref = ref_arg(ref_obj, &ok), *t = pose_arg(args[0]);
+        if (!ok || !t) goto slow;
+        PyObject *res = ik_all_one(t, ref, &slow);
+        if (slow) goto slow;
+        return res;
+    }
+    if (PyArray_NDIM(a) != 3 || PyArray_DIM(a, 1) != 4 || PyArray_DIM(a, 0) == 0) goto slow;
+    const Py_ssize_t n = PyArray_DIM(a, 0);
+    const double *refs = NULL;
+    if (ref_obj && ref_obj != Py_None) {
+        PyArrayObject *r = plain_array(ref_obj);
+        if (!r || PyArray_NDIM(r) != 2 || PyArray_DIM(r, 0) != n || PyArray_DIM(r, 1) != 6) goto slow;
+        refs = (const double *)PyArray_DATA(r);
+        if (!all_finite(refs, 6 * n)) goto slow;
+    }
+    const double *ts = (const double *)PyArray_DATA(a);
+    PyObject *out = PyList_New(n);
+    if (!out) return NULL;
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        PyObject *res = ik_all_one(ts + 16 * i, refs ? refs + 6 * i : NULL, &slow);
+        if (!res) {
+            Py_DECREF(out);
+            if (slow) goto slow;
+            return NULL;
+        }
+        PyList_SET_ITEM(out, i, res);
+    }
+    return out;
 slow:
     return PyObject_Vectorcall(fallback, args, (size_t)nargs, kwnames);
 }
@@ -599,7 +642,7 @@ static PyMethodDef IK_DEFS[] = {
     {"ik", (PyCFunction)(void (*)(void))pubfast_ik, METH_FASTCALL | METH_KEYWORDS,
      "ik(T, config, q_ref=None): fast entry for one float64 pose; anything else, and every error, via the runtime"},
     {"ik_all", (PyCFunction)(void (*)(void))pubfast_ik_all, METH_FASTCALL | METH_KEYWORDS,
-     "ik_all(T, q_ref=None): fast entry for one float64 pose; anything else, and every error, via the runtime"},
+     "ik_all(T, q_ref=None): fast entry for float64 poses (one or a batch); anything else, and every error, via the runtime"},
     {"config_of", (PyCFunction)(void (*)(void))pubfast_config_of, METH_FASTCALL | METH_KEYWORDS,
      "config_of(q): fast entry for one float64 configuration; anything else via the runtime"},
 };
