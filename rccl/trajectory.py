@@ -28,6 +28,14 @@ every joint within its acceleration limit. An empty queue makes the generator re
 last request with zero displacement: the arm decelerates along the same quartic and holds
 (stopping is moving to the same point twice).
 
+Planning and control: ``plan_path`` (called by ``move()`` at the planning level) computes a
+request's ``Plan`` once: its geometry, the destination's joints and, in Cartesian mode, the
+path sampled and checked for reach, joint ranges and singularities. The generator only
+times a segment when it starts (``time_segment``), reusing the plan when the request
+starts from the corner it was checked from; otherwise (a target that moved, an earlier
+request refused) it re-checks the path from the actual corner first. A sample then costs
+one T6 from a precomputed basis, one inverse kinematics call and the step check.
+
 Errors: a request that cannot be planned (unreachable, outside a joint range, through a
 singularity, needing a configuration change in Cartesian mode) is refused before its
 motion starts, the arm holds at the previous destination and the error is reported to the
