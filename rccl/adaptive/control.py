@@ -103,7 +103,7 @@ class AdaptiveControl:
         """Measure and check, before ``gen.step()``; may call ``gen.abort``."""
         self._q, self._qd, self.dt = q, qd, gen.dt
         hist = self._q_hist
-        hist.append(q)
+        hist.append(np.array(q, dtype=float))     # a copy: a caller may reuse its array
         if len(hist) > max(1, int(round(SPEED_WINDOW / gen.dt))) + 1:
             hist.popleft()
         seg = gen.seg
