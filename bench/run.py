@@ -354,7 +354,9 @@ def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[in
           f"Memory bandwidth of this machine, measured in this run (400 MB arrays, best of 3): copy "
           f"{bw['copy'] / 1e9:.1f} GB/s (read + written), writes to warm memory {bw['write'] / 1e9:.1f} GB/s, "
           f"writes to freshly allocated memory {bw['first_touch'] / 1e9:.2f} GB/s (first touch: the page faults "
-          "of new memory). The memory floor of a row is its bytes (inputs read + result written) at the copy "
+          "of new memory; measured at the end of the run, on pages the VM has backed before; memory the VM has not "
+          "touched yet is far slower, so the first large results of a run, e.g. the first `C kernel` row, can cost "
+          "several times more than the kernel). The memory floor of a row is its bytes (inputs read + result written) at the copy "
           f"bandwidth. Threads: large batches are split over {public['_threads']} thread(s) "
           "(`RCCL_KINEMATICS_THREADS`, default the online CPUs).", "",
           "Columns: `C kernel` the bare kernel (`_c.<robot>.<kernel>`, fresh results); `public` the public call "

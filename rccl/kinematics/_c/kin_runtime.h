@@ -4,8 +4,9 @@
  * behind rccl.kinematics.backend.public (single configurations and batches, out=, gravity
  * coefficient mappings, ik / ik_all / config_of with the pose checks), and the module's
  * init, which adds one function per entry of KERNELS. A generated file includes it after
- * its kernels and their table KERNELS, and ends with RCCL_MODULE_INIT(<robot>). setup.py defines RCCL_SOURCE_HASH
- * (rccl.kinematics.backend.source_hash of the .c and both headers) for the staleness check. */
+ * its kernels and their table KERNELS, and ends with RCCL_MODULE_INIT(<robot>). setup.py
+ * defines RCCL_SOURCE_HASH (rccl.kinematics.backend.source_hash of the .c and both
+ * headers) for the staleness check. */
 #ifndef RCCL_KIN_RUNTIME_H
 #define RCCL_KIN_RUNTIME_H
 
