@@ -3,6 +3,7 @@
     .venv/bin/python examples/adaptive_press.py [--rate HZ] [--force N] [--dx M] [--seed S] [--cold]
         [--correction dither|breakaway|none] [--half-period S]
     .venv/bin/python examples/adaptive_press.py --table     # the measurements of docs/adaptive.md
+    .venv/bin/python examples/adaptive_press.py --plot      # reports/adaptive-press.png
 
 A 5 cm probe pointing down is moved to 2 mm above a table (z = 0.12 m), then
 ``comply("fz", F)`` and ``stop``: the arm stands still on the path while the joint chosen
@@ -72,8 +73,8 @@ def held_force(truth: list[dict]) -> np.ndarray:
 
 
 def run(rate: int, force: float = 10.0, dx: float = 0.0, seed: int = 0, cold: bool = False,
-        correction: dict | None = None) -> tuple[np.ndarray, bool]:
-    """One press in its own lockstep simula: (held forces N, whether the correction was on)."""
+        correction: dict | None = None, with_arm: bool = False):
+    """One press in its own lockstep simula: (held forces N, whether the correction was on[, arm])."""
     from adaptive_sim import environment_simula
 
     args = ("-p", "--power-on") + (() if cold else ("--warm",))
@@ -81,7 +82,53 @@ def run(rate: int, force: float = 10.0, dx: float = 0.0, seed: int = 0, cold: bo
         arm, truth = main(sim.url, force=force, dx=dx, rate=rate, correction=correction,
                           state=lambda: sim.command("state")["state"])
     d = arm.adaptive.dither
-    return held_force(truth), bool(d is not None and d.enabled)
+    out = (held_force(truth), bool(d is not None and d.enabled))
+    return out + (arm, truth) if with_arm else out
+
+
+def probe_force(arm) -> tuple[np.ndarray, np.ndarray]:
+    """(t s, contact force N) from the joint angles the encoders reported (Pinocchio, simula's contact
+    model): quantised by the encoders (~0.6 N per count of joint 3 on this contact)."""
+    import pinocchio as pin
+    from rci.robot_model import load_robot
+    from rci.simula.environment import parse_environment
+
+    pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))
+    pd = pm.createData()
+    env = parse_environment(list(ENV))
+    t = np.array([x[0] for x in arm.adaptive_trace])
+    z = np.array([env.tool_point(pm, pd, x[3])[0][2] for x in arm.adaptive_trace])
+    return t, env.boxes[0].stiffness * np.maximum(0.0, TABLE_Z - z)
+
+
+def plot(out: Path | None = None) -> Path:
+    """reports/adaptive-press.png: 10 N asked at rest, 36 Hz without correction against 500 Hz with the dither."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = out or Path(__file__).resolve().parent.parent / "reports" / "adaptive-press.png"
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    for rate, opts, colour, label in ((36, {}, "tab:red", "36 Hz: no correction possible (dither off)"),
+                                      (500, {}, "tab:blue", "500 Hz: static-friction dither (4.6)")):
+        f_true, on, arm, truth = run(rate, 10.0, 0.0, 0, False, opts, with_arm=True)
+        t, f = probe_force(arm)
+        ax.plot(t, f, color=colour, lw=0.8, label=f"{label}, from the encoders")
+        ax.plot([s["t"] for s in truth], f_true, "o", ms=3, color=colour,
+                label=f"held at rest, simula's contact force: {f_true.min():.2f}-{f_true.max():.2f} N")
+    ax.axhline(10.0, color="k", lw=0.6, ls="--")
+    ax.axhspan(10.0 - 0.46, 10.0 + 0.46, color="0.85", label="Table 4.4 band (joint 3, +-0.46 N)")
+    ax.set_xlabel("t (s): the probe moves to 2 mm above the table, then comply(\"fz\", 10) and stands still")
+    ax.set_ylabel("contact force (N)")
+    ax.set_ylim(0, 25)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.suptitle("Force held at rest along a compliant axis (5.4.3, 4.6) in simula\n"
+                 "rebuilt by: .venv/bin/python examples/adaptive_press.py --plot", fontsize=9)
+    fig.tight_layout()
+    out.parent.mkdir(exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
 
 
 # (label, rate Hz, Dither options): the rows of docs/adaptive.md's table
@@ -123,9 +170,13 @@ def _cli(argv: list[str]) -> int:
                     help="static-friction correction at rest (default: the dither, where the rate allows)")
     ap.add_argument("--half-period", type=float, help="dither half period, s (default 0.002; forces it on)")
     ap.add_argument("--table", action="store_true", help="run the comparison table of docs/adaptive.md")
+    ap.add_argument("--plot", action="store_true", help="write reports/adaptive-press.png (36 vs 500 Hz)")
     a = ap.parse_args(argv)
     if a.table:
         table()
+        return 0
+    if a.plot:
+        print("wrote", plot())
         return 0
     opts: dict = {"none": {"max_half_period": 0.0}, "breakaway": {"mode": "breakaway"}}.get(a.correction, {})
     if a.half_period is not None and a.correction == "dither":
