@@ -41,6 +41,7 @@ demo: derive-if-needed
 	$(VENV)/bin/calib report
 	$(PY) examples/zero_gravity.py --simula "-c --warm" --cycles 180
 	$(PY) examples/adaptive_circle.py --plot
+	$(PY) examples/adaptive_press.py --plot
 
 bench: $(STAMP)
 	$(PY) bench/rci_loop.py
