@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{os.cpu_count()} cores. **Load average** (1, 5, 15 min) before: "
         f"{load_before[0]:.2f}, {load_before[1]:.2f}, {load_before[2]:.2f}; after: "
         f"{load_after[0]:.2f}, {load_after[1]:.2f}, {load_after[2]:.2f}"
-        + (" (a quiet machine)." if max(load_before[0], load_after[0]) < 1.0 else
+        + (" (quiet before the run; the run itself keeps one core busy)." if load_before[0] < 1.0 else
            " (**not quiet**: other work shared the cores, figures are indicative)."),
         "",
         "Targets: *const* positions are solved once per segment; *variable* ones re-solve the position",

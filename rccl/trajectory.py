@@ -64,14 +64,20 @@ MIN_BLEND_SCALE = 0.5    # below this speed factor a corner is taken by stopping
 MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked by move() before its motion starts
 # the control level's re-check of a Cartesian path, when the arm or the target is no longer where
 # move() checked it from (a variable or functional target, a refused request before it): about
-# 0.6 us per point with the compiled kinematics, so 24 points stay within a few percent of a cycle
-CONTROL_CHECK_POINTS = 24
+# 0.7 us per point with the compiled kinematics; with the fixed cost of planning, well under 100 us
+CONTROL_CHECK_POINTS = 16
 # the worst interval of a sampled Cartesian path is refined REFINE_LEVELS times at REFINE_POINTS
 # points (64x finer, 16 more inverse kinematics calls): a branch jump at a singularity crossing
 # then shows as the speed it would really need, whatever the coarse sampling
 REFINE_POINTS = 8
 REFINE_LEVELS = 2
-SAME_CORNER_TOL = 1e-12  # joints (rad or m) within this of the checked corner: move()'s path check still applies
+# ... when a joint moves more in the worst coarse interval than this many seconds at its top
+# speed: a branch jump of pi does on every joint (top speeds are far below 60 rad/s), while a
+# path whose joints all move less than that between samples has no large step to hide
+REFINE_TRIGGER_S = 0.05
+SAME_CORNER_TOL = 1e-12
+_EYE4 = np.eye(4)
+_EYE4.flags.writeable = False   # shared by every plan whose tool is T6  # joints (rad or m) within this of the checked corner: move()'s path check still applies
 
 
 # --------------------------------------------------------------------------------------
@@ -369,10 +375,14 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
     where = f"move({pos.name})"
     p = Plan()
     p.mode, p.t6_b, p.q_b, p.static = req.mode, t6_b, q_b.copy(), _static(req)
-    p.tool = pos.tool_from_t6(req.snap)
-    p.tool_inv = inverse(p.tool)
     t6_c = p.t6_c = pos.solve(req.snap)
-    x_b, x_c = t6_b @ p.tool, t6_c @ p.tool
+    if pos.tool is T6:   # the tool frame is link 6 (the usual case): no tool products
+        p.tool = p.tool_inv = _EYE4
+        x_b, x_c = t6_b, t6_c
+    else:
+        p.tool = pos.tool_from_t6(req.snap)
+        p.tool_inv = inverse(p.tool)
+        x_b, x_c = t6_b @ p.tool, t6_c @ p.tool
     p.x_c = x_c
     rel = inverse(x_c) @ x_b
     d = p.d = rel[:3, 3].copy()
@@ -428,8 +438,11 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
     ratio = steps / vmax
     j, i = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
     # the coarse samples hide how fast a joint really turns near a singularity (and a jump of pi
-    # between two samples looks like a fast turn): refine the worst interval, REFINE_LEVELS times
-    t_joint = _refine(kin, limits, p, path[j], 1.0 - j / n, 1.0 / n, float(ratio[j, i]), where)
+    # between two samples looks like a fast turn): refine the worst interval when some joint moves
+    # more in it than REFINE_TRIGGER_S seconds at its top speed (any branch jump does)
+    t_joint = float(ratio[j, i])
+    if t_joint / n > REFINE_TRIGGER_S:
+        t_joint = _refine(kin, limits, p, path[j], 1.0 - j / n, 1.0 / n, t_joint, where)
     if t_joint > SINGULAR_SLOWDOWN * max(t_vel, 0.05):
         raise SingularPath(
             f"{where}: the straight-line path passes through or too near a singularity: joint {i + 1} "
