@@ -4,7 +4,8 @@ Run:  .venv/bin/python bench/calib_fit.py [--minutes 10] [--rate 36]
 
 Writes 10-minute friction and static-friction logs (36 Hz, real recorder files) from the
 measurement programs' own paths with the thesis's friction and gravity as the torques,
-then times reading + fitting each, in this process, best of three.
+then times reading + fitting each, in this process, best of three; also the shipped
+joint-5 friction logs (one of them read at 1 kHz).
 """
 from __future__ import annotations
 
@@ -77,6 +78,21 @@ def main() -> None:
             print(f"  {kind:9s} {len(tr.t):6d} records, {size:5.1f} MB: read + fit {best:6.3f} s "
                   f"({'OK' if best < 2.0 else 'SLOW'})")
             del out
+    # the shipped joint-5 logs, whose fast passes are read at every servo tick (1 kHz)
+    from calib.cli_extra import LOG_DIR
+    from calib.logs import load_traces
+
+    j5 = sorted(str(p) for p in Path(LOG_DIR).glob("friction-j5*.rcilog.*"))
+    if j5:
+        best = np.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            trs = load_traces(j5)
+            run_fit("friction", trs, info, None)
+            best = min(best, time.perf_counter() - t0)
+        n = sum(len(t.t) for t in trs)
+        print(f"  friction  {n:6d} records in the shipped joint-5 logs (72 Hz + 1 kHz): "
+              f"read + fit {best:6.3f} s")
 
 
 if __name__ == "__main__":

@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     fit = sub.add_parser("fit", help="fit one kind of parameter from logs and print the thesis table")
     fit.add_argument("kind", choices=KINDS + ("kinematics",))
     fit.add_argument("logs", nargs="+", metavar="LOG",
-                     help="recorder logs (.rcilog[.gz]); for kinematics, CSV files of measured poses")
+                     help="recorder logs (.rcilog[.xz|.gz]); for kinematics, CSV files of measured poses")
     fit.add_argument("-p", "--params", metavar="FILE",
                      help="parameter file (TOML): fitted inputs are read from it and the "
                           "results merged into it, atomically")

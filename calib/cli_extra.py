@@ -10,7 +10,7 @@ from calib.errors import CalibError
 
 LOG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "logs")
 REPORT = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reports", "calibration.md")
-ORDER = ("sensitivity", "friction", "gravity", "static")  # each fit feeds the next
+ORDER = ("sensitivity", "friction", "gravity", "static", "breakaway")  # each fit feeds the next
 
 
 def fit_all(paths: list[str], params_path: str, quiet: bool = True) -> dict:
@@ -44,7 +44,7 @@ def _report(args: argparse.Namespace) -> int:
 
     paths = sorted(glob.glob(os.path.join(args.logs, "*.rcilog*")))
     if not paths:
-        raise CalibError(f"no logs (*.rcilog, *.rcilog.gz) in {args.logs}; run `calib regen-logs`")
+        raise CalibError(f"no logs (*.rcilog, *.rcilog.xz, *.rcilog.gz) in {args.logs}; run `calib regen-logs`")
     out_dir = os.path.dirname(os.path.abspath(args.out))
     if args.params:
         res = fit_all(paths, args.params, quiet=args.quiet)
@@ -82,6 +82,16 @@ def _record(args: argparse.Namespace) -> int:
 
     info = robot_info(args.robot)
     joints = [int(j) for j in args.joints.split(",")] if args.joints else list(range(1, 7))
+    if args.kind == "breakaway":
+        from calib.breakaway_program import breakaway_plans, run_breakaway
+
+        os.makedirs(args.out, exist_ok=True)
+        static = info.nominal["friction"]["static_pos"]["values"]
+        for bplan in breakaway_plans(static, info.drive.G, joints):
+            path = os.path.join(args.out, bplan.name + ".rcilog")
+            n = run_breakaway(args.url, bplan, path, args.robot)
+            print(f"{bplan.name}: {n} records -> {path}")
+        return 0
     if args.kind == "friction":
         plans = friction_plans(joints)
     elif args.kind == "sensitivity":
@@ -94,7 +104,7 @@ def _record(args: argparse.Namespace) -> int:
     os.makedirs(args.out, exist_ok=True)
     for plan in plans:
         path = os.path.join(args.out, plan.name + ".rcilog")
-        run = run_plan(args.url, plan, path, args.robot, args.rate)
+        run = run_plan(args.url, plan, path, args.robot, args.rate or plan.rate_hz)
         print(f"{plan.name}: {run.records} records -> {path}")
     return 0
 
@@ -102,11 +112,12 @@ def _record(args: argparse.Namespace) -> int:
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register record / regen-logs / report on the `calib` parser."""
     rec = sub.add_parser("record", help="run a measurement program against a robot or simula and log it")
-    rec.add_argument("kind", choices=("sensitivity", "friction", "static", "gravity"))
+    rec.add_argument("kind", choices=("sensitivity", "friction", "static", "gravity", "breakaway"))
     rec.add_argument("--url", required=True, help="robot link, e.g. socket://127.0.0.1:5555 or /dev/ttyUSB0")
     rec.add_argument("--out", default=".", help="folder for the logs")
     rec.add_argument("--robot", default="puma260")
-    rec.add_argument("--rate", type=int, default=36, help="sample rate (Hz)")
+    rec.add_argument("--rate", type=int, default=None,
+                     help="sample rate (Hz); default the program's own (36, 72 or 1000 Hz)")
     rec.add_argument("--joints", help="comma-separated joints (default all)")
     rec.add_argument("--mass", type=float, default=None,
                      help="pulley mass (kg), sensitivity (default 4 kg on joints 1-3, 1 kg on 4-6)")

@@ -50,6 +50,23 @@ FRICTION_RATE_HZ = 72  # readings per second in friction logs: twice the thesis'
 # so each pass averages twice as many ADC readings (each carries its own sensor noise and
 # the part of the 1 kHz ripple the 15 ms filter lets through); still under 5 filter
 # time constants apart, so the readings are not redundant
+# Joints whose fast passes are read at every servo tick, in a log of their own. At 72 Hz
+# each reading catches the ripple of one tick (alpha e_k of the filtered noise-shaped
+# ripple, about 3 % of joint 5's friction), so a 0.5 s pass at 4 rad/s scatters by
+# 0.5 %; read at every tick, the ripple of successive readings telescopes (its mean
+# over a pass is the filter's change over the pass) and only the ADC noise remains,
+# 0.05 % per pass (docs/calib.md, "Joint 5"). Joint 5 needs it most: its Table 4.3 bounds
+# are +-6 % of the coefficient, the viscous term is 1.5 % of its friction at the top speed.
+SERVO_RATE_HZ = 1000
+# joint: (from deg/s, round trips per speed from there up). The other joints too: at
+# 72 Hz their fits were as wide as their Table 4.3 bounds (docs/calib.md). Joints 4 and
+# 6, whose 300-degree windows cost 2.5 times the records per pass, only from 200 deg/s.
+SERVO_RATE_JOINTS = {2: (40.0, (1, 2, 2, 3)), 3: (40.0, (1, 1, 2, 2, 3, 3)),
+                     4: (200.0, (2, 3)), 5: (40.0, (2, 3, 4, 5, 6, 8)),
+                     6: (200.0, (2, 2, 3))}
+FRICTION_WARMUP_S = 200.0  # s: 10 e-foldings of simula's warm-up (a cold joint +20 %, 4.5.3);
+# after 100 s a joint is still 0.13 % over its warm friction, which fades during the first
+# (slow) passes and biases the slope by -0.05e-3 N m s/rad on joint 5
 
 
 @dataclass
@@ -67,11 +84,13 @@ class Plan:
 WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)
 
 
-def sweep_warmup(q: np.ndarray, joint: int, lo: float, hi: float, speed: float = 30 * DEG) -> Path:
-    """Back-and-forth over the window for about WARMUP_S s, so that the joint is warm
+def sweep_warmup(q: np.ndarray, joint: int, lo: float, hi: float, speed: float = 30 * DEG,
+                 seconds: float = WARMUP_S, dwell: float = 0.1) -> Path:
+    """Back-and-forth over the window for about ``seconds`` s, so that the joint is warm
     ("once a joint had warmed up, successive measurements ... very high repeatability")."""
     trip = 2 * (hi - lo + 2 * (speed * speed / (2 * ACCEL) + 2 * DEG)) / speed
-    return sweep_path(q, joint, lo, hi, [speed], max(1, int(np.ceil(WARMUP_S / trip))), ACCEL)
+    return sweep_path(q, joint, lo, hi, [speed], max(1, int(np.ceil(seconds / trip))), ACCEL,
+                      dwell=dwell)
 
 
 def _start_move(here: np.ndarray | None, to: np.ndarray) -> list[Segment]:
@@ -108,7 +127,12 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
 
     By default each joint runs the FRICTION_SPEEDS_DEG up to its top speed
     (friction_top_speed), the last replaced by the top speed itself, with FRICTION_TRIPS
-    round trips; ``speeds_deg`` and ``trips`` override both (then used as given).
+    round trips; ``speeds_deg`` and ``trips`` override both (then used as given). For
+    the joints of SERVO_RATE_JOINTS the speeds from its threshold up go into a second
+    plan, ``friction-jN-servo``, read at every servo tick (SERVO_RATE_HZ) with its trips;
+    both plans sweep the same window.
+    The sweeps turn without standing still, so a joint stays as warm at the top speed
+    as at the slowest (idle time cools it, 4.5.3), after FRICTION_WARMUP_S of warm-up.
     """
     lower, upper, vmax = _robot_limits()
     plans = []
@@ -131,16 +155,28 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             speeds = list(speeds_deg)
             n_trips = trips if trips is not None else 1
         n_trips = [n_trips] * len(speeds) if isinstance(n_trips, int) else list(n_trips)
-        segs = []
-        for v, n in zip(speeds, n_trips):
-            segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
-                               start=segs[-1].end if segs else None).segments
-        path = Path(tuple(segs))
-        meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
-                "speeds": [v * DEG for v in speeds], "trips": n_trips}
-        plans.append(Plan(f"friction-j{j}", path, meta, warmup=sweep_warmup(q, j - 1, lo, hi),
-                          rate_hz=FRICTION_RATE_HZ))
+        groups = [(f"friction-j{j}", FRICTION_RATE_HZ, speeds, n_trips)]
+        if speeds_deg is None and j in SERVO_RATE_JOINTS:
+            start, fast_trips = SERVO_RATE_JOINTS[j]
+            slow = [(v, n) for v, n in zip(speeds, n_trips) if v < start]
+            fast = [v for v in speeds if v >= start]
+            groups = [(f"friction-j{j}", FRICTION_RATE_HZ, [v for v, _ in slow], [n for _, n in slow]),
+                      (f"friction-j{j}-servo", SERVO_RATE_HZ, fast, list(fast_trips[-len(fast):]))]
+        for name, rate, vs, ns in groups:
+            plans.append(_friction_plan(name, rate, j, q, lo, hi, vs, ns))
     return plans
+
+
+def _friction_plan(name: str, rate: int, j: int, q: np.ndarray, lo: float, hi: float,
+                   speeds: list[float], trips: list[int]) -> Plan:
+    segs: list[Segment] = []
+    for v, n in zip(speeds, trips):
+        segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
+                           start=segs[-1].end if segs else None, dwell=0.0).segments
+    meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
+            "speeds": [v * DEG for v in speeds], "trips": list(trips)}
+    warm = sweep_warmup(q, j - 1, lo, hi, seconds=FRICTION_WARMUP_S, dwell=0.0)
+    return Plan(name, Path(tuple(segs)), meta, warmup=warm, rate_hz=rate)
 
 
 # Pulley masses (kg) per joint: the load torque m g r should be of the order of the

@@ -12,10 +12,10 @@ from calib.gravity import fit_gravity
 from calib.robot import GRAVITY_NAMES, RobotInfo
 from calib.sensitivity import fit_sensitivity
 from calib.static import fit_static
-from calib.tables import table_4_1, table_4_2_4_3, table_4_6, table_4_8_4_9
+from calib.tables import table_4_1, table_4_2_4_3, table_4_5, table_4_6, table_4_8_4_9
 from calib.trace import Trace
 
-KINDS = ("sensitivity", "friction", "static", "gravity")
+KINDS = ("sensitivity", "friction", "static", "gravity", "breakaway")
 
 
 @dataclass
@@ -93,6 +93,17 @@ def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None
         sec.update({f"{n}_friction_error": float(e) for n, e in zip(res.names, res.friction_error)})
         sec["unit"] = "N*m"
         return FitOutcome(kind, table_4_8_4_9(res), {"gravity_coeffs": sec}, res)
+    if kind == "breakaway":
+        from calib.breakaway import fit_breakaway
+
+        res, pts = fit_breakaway(traces, drive, info.gravity(inputs["gravity"]))
+        joints = [r.joint for r in res]
+        old = dict(params.get("friction") or {})
+        nom = info.nominal["friction"]
+        sec = dict(old)
+        for key, get in (("static_pos", lambda r: r.plus), ("static_neg", lambda r: r.minus)):
+            sec[key] = _merge(old, key, np.asarray(nom[key]["values"], float), joints, [get(r) for r in res])
+        return FitOutcome(kind, table_4_5(res), {"friction": sec}, res, {"points": pts})
     res, samples = fit_static(traces, drive, info.gravity(inputs["gravity"]))
     sec = {"samples": int(res[0].samples),
            "maximum": [r.maximum for r in res], "minimum": [r.minimum for r in res],

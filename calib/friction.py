@@ -1,7 +1,8 @@
 """Coulomb and viscous friction from constant-speed runs (thesis 4.27, 4.5.4, Tables 4.2-4.4).
 
 Each pass through a window with no change of potential energy does work against
-friction only, so its mean friction is W / |d theta| at the pass's speed.  Per joint and
+friction only, so its mean friction is W / |d theta| at the pass's speed (taken with
+smooth edges, calib.work.tapered_mean).  Per joint and
 direction the points are fitted to 4.27, |f| = F_c + F_v |omega|, by least squares with
 F_c, F_v >= 0 (CasADi QP); the error is twice the fit's standard deviation, as 4.5.4.
 The variation of Table 4.4 is read from the same passes: the friction along the path,
@@ -17,9 +18,13 @@ from calib.drive import Drive
 from calib.errors import FitError, LogError
 from calib.lsq import bounded_lsq
 from calib.trace import Trace
-from calib.work import Pass, find_passes, window_time, window_work
+from calib.work import Pass, find_passes, tapered_mean, window_time
 
 PROFILE_BIN = 0.01  # rad: position bins of the Table 4.4 profile (finer than gear irregularities)
+# rad: length of the Hann edges of each pass's weighting (calib.work.tapered_mean); long
+# against the filter's smear at the top speeds (0.06 rad on joint 5), capped at a quarter
+# of the window so that short windows keep a flat middle
+TAPER = 0.3
 
 
 @dataclass(frozen=True)
@@ -31,6 +36,7 @@ class FrictionPoint:
     speed: float
     friction: float
     path: str
+    rate_hz: float = 36.0   # readings per second of the log the pass comes from
 
 
 @dataclass(frozen=True)
@@ -71,11 +77,13 @@ def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np
     th = drive.current_angles(trace.t, trace.counts)[:, i]
     tau = drive.joint_torques(trace.adc)[:, i]
     points, passes = [], find_passes(th, lo, hi)
+    taper = min(TAPER, 0.25 * (hi - lo))
+    rate = float(trace.rate_hz) if trace.rate_hz > 0 else 1.0 / float(np.median(np.diff(trace.t)))
     for p in passes:
-        work = window_work(th, tau, p, lo, hi)
         dt = window_time(th, trace.t, p, lo, hi)
-        points.append(FrictionPoint(i + 1, p.direction, (hi - lo) / dt, work / (hi - lo),
-                                    trace.path))
+        points.append(FrictionPoint(i + 1, p.direction, (hi - lo) / dt,
+                                    tapered_mean(th, tau, p, lo, hi, taper), trace.path,
+                                    rate))
     if not points:
         raise LogError(trace.path, None, f"no complete pass of joint {i + 1} through "
                        f"the window [{lo:.4f}, {hi:.4f}] rad")
@@ -114,24 +122,36 @@ def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
     """Weighted least squares of |f| = F_c + F_v |omega|, both coefficients >= 0.
 
     A pass's mean friction averages the current noise over the readings it takes, so
-    that part of its variance goes as 1 / duration, i.e. as the speed; what does not
-    average away (a joint still warming up, the filter's effect on the position
-    pattern) is the same at any speed.  The variance is modelled as a |omega| + b and
-    both are estimated from the residuals of a first fit weighted 1 / (speed + median
-    speed) (two-step feasible generalised least squares); each point is then weighted
-    by the inverse of its modelled variance.
+    that part of its variance goes as 1 / (readings per pass), i.e. as speed / reading
+    rate; what does not average away (what is left of the position pattern) is the same
+    at any speed.  How much noise one reading carries depends on how the log was read
+    (at 72 Hz each reading holds a tick's ripple, read at every servo tick the ripple
+    cancels), so the variance is modelled per log: a x + b with x = |omega| / rate for a
+    log with 6 passes or more, a constant for a smaller one, estimated from the
+    residuals of a first fit weighted 1 / (x + median x) (two-step feasible generalised
+    least squares); each point is then weighted by the inverse of its modelled variance.
     """
     speed = np.array([p.speed for p in points])
     f = np.array([p.friction for p in points])
+    x = speed / np.array([p.rate_hz for p in points])
     A = np.c_[np.ones_like(speed), speed]
-    w = 1.0 / np.sqrt(speed + np.median(speed))
+    w = 1.0 / np.sqrt(x + np.median(x))
     fit = bounded_lsq(A * w[:, None], f * w, lower=np.zeros(2), what=what)
     if len(points) >= 6:
         r2 = (f - A @ fit.x) ** 2
-        # variance model from the squared residuals, a and b >= 0; a floor of 1 % of the
-        # mean variance keeps one lucky point from taking all the weight
-        var = bounded_lsq(A[:, ::-1], r2, lower=np.zeros(2), what=what + " (variance)").x
-        model = np.maximum(var[0] * speed + var[1], 0.01 * r2.mean())
+        logs = np.array([p.path for p in points])
+        model = np.empty_like(r2)
+        for log in set(logs):
+            m = logs == log
+            if m.sum() >= 6 and np.ptp(x[m]) > 0:
+                # variance model from the squared residuals, a and b >= 0
+                var = bounded_lsq(np.c_[x[m], np.ones(m.sum())], r2[m], lower=np.zeros(2),
+                                  what=what + " (variance)").x
+                model[m] = var[0] * x[m] + var[1]
+            else:
+                model[m] = r2[m].mean()
+        # a floor of 1 % of the mean variance keeps one lucky point from taking all the weight
+        model = np.maximum(model, 0.01 * r2.mean())
         if np.all(np.isfinite(model)) and model.max() > 0:
             w = 1.0 / np.sqrt(model)
             fit = bounded_lsq(A * w[:, None], f * w, lower=np.zeros(2), what=what)
@@ -167,13 +187,13 @@ def profile_variation(profiles: list[np.ndarray]) -> float:
 def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult], list[FrictionPoint]]:
     """Tables 4.2-4.4 for every joint that has friction logs; also returns the points."""
     by_joint: dict[int, list[FrictionPoint]] = {}
-    prof_by_joint: dict[int, list[np.ndarray]] = {}
+    prof_by_joint: dict[int, list[tuple[float, np.ndarray]]] = {}
     for tr in traces:
         pts, prof = friction_points(tr, drive)
         by_joint.setdefault(pts[0].joint, []).extend(pts)
         prof_by_joint.setdefault(pts[0].joint, [])
         if prof is not None:
-            prof_by_joint[pts[0].joint].append(prof)
+            prof_by_joint[pts[0].joint].append((min(p.speed for p in pts), prof))
     results = []
     for j in sorted(by_joint):
         pts = by_joint[j]
@@ -184,8 +204,13 @@ def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult
                 raise FitError(f"joint {j}: {len(sel)} pass(es) in the {name} direction; "
                                "the fit needs passes at two speeds at least")
             fits[d] = fit_direction(sel, f"joint {j} friction, {name} direction")
+        # Table 4.4 from the logs with the slowest passes: the filter blurs the pattern
+        # less there (a joint's fast passes may come in a log of their own)
+        profs = prof_by_joint[j]
+        slowest = min((v for v, _ in profs), default=0.0)
+        keep = [pr for v, pr in profs if v <= 1.5 * slowest]
         results.append(FrictionResult(joint=j, plus=fits[1], minus=fits[-1],
-                                      variation=profile_variation(prof_by_joint[j])))
+                                      variation=profile_variation(keep)))
     if not results:
         raise FitError("no friction log among the inputs")
     return results, [p for j in sorted(by_joint) for p in by_joint[j]]

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import gzip
+import lzma
 import tempfile
 import zlib
 from collections.abc import Sequence
@@ -53,6 +54,10 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
                   rate_hz=float(header.get("rate_hz", 0) or 0), meta=meta,
                   t=_cycle_times(path, rec),
                   counts=counts[:, :6], adc=adc[:, :6])
+    if "chg_motion_com" in names and "chg_motion_value" in names:
+        # the commands sent each cycle: a breakaway log's ramps are its CUR cycles
+        trace.extra["motion_com"] = np.asarray(rec["chg_motion_com"])[:, :6]
+        trace.extra["motion_value"] = np.asarray(rec["chg_motion_value"], dtype=float)[:, :6]
     check_samples(trace)
     return trace
 
@@ -77,14 +82,21 @@ def _cycle_times(path: str, rec: np.ndarray) -> np.ndarray:
 
 
 def _read(path: str):
-    """read_log, also for a gzip-compressed log (``.gz``: how calib/logs/ ships them)."""
-    if not str(path).endswith(".gz"):
+    """read_log, also for a compressed log: ``.xz`` (how calib/logs/ ships them: a third
+    smaller than gzip on 1 kHz logs) or ``.gz``."""
+    name = str(path)
+    if not name.endswith((".gz", ".xz")):
         return read_log(path)
+    kind = "xz" if name.endswith(".xz") else "gzip"
     try:
-        with gzip.open(path, "rb") as f:
-            data = f.read()
-    except (OSError, EOFError, zlib.error) as exc:
-        raise LogError(path, None, f"not a readable gzip file: {exc}") from None
+        if kind == "xz":
+            with lzma.open(path, "rb") as f:
+                data = f.read()
+        else:
+            with gzip.open(path, "rb") as f:
+                data = f.read()
+    except (OSError, EOFError, zlib.error, lzma.LZMAError) as exc:
+        raise LogError(path, None, f"not a readable {kind} file: {exc}") from None
     with tempfile.NamedTemporaryFile(suffix=".rcilog") as tmp:
         tmp.write(data)
         tmp.flush()

@@ -85,10 +85,12 @@ class Path:
 
 
 def sweep_path(q: np.ndarray, joint: int, lo: float, hi: float, speeds: list[float],
-               trips: int, accel: float, start: np.ndarray | None = None) -> Path:
+               trips: int, accel: float, start: np.ndarray | None = None,
+               dwell: float = 0.1) -> Path:
     """Back-and-forth passes of ``joint`` (0-based) through [lo, hi] rad at each speed,
-    ``trips`` round trips per speed, turning beyond the window where the ramps fit;
-    the other joints held at ``q``.  Begins with a move from ``start`` (if given)."""
+    ``trips`` round trips per speed, turning beyond the window where the ramps fit and
+    standing ``dwell`` s at each turn; the other joints held at ``q``.  Begins with a
+    move from ``start`` (if given)."""
     segs: list[Segment] = []
     here = np.asarray(q, dtype=float).copy()
     for v in speeds:
@@ -100,6 +102,6 @@ def sweep_path(q: np.ndarray, joint: int, lo: float, hi: float, speeds: list[flo
         else:
             segs.append(Segment(low, low, 1.0, accel, 0.3))
         for _ in range(trips):
-            segs.append(Segment(low, high, v, accel, 0.1))
-            segs.append(Segment(high, low, v, accel, 0.1))
+            segs.append(Segment(low, high, v, accel, dwell))
+            segs.append(Segment(high, low, v, accel, dwell))
     return Path(tuple(segs))

@@ -2,7 +2,7 @@
 
 Starts its own simula processes in lockstep (deterministic for a seed, as fast as the
 machine allows), runs every measurement program against them through the RCI session
-API and the recorder, and stores each log gzip-compressed.  The sensitivity runs with
+API and the recorder, and stores each log xz-compressed.  The sensitivity runs with
 the mass need a simula started with the pulley load (``--load pulley:...``), one per
 joint; everything else runs on one simula that, like the real arm, keeps its state
 (position, warmth) from one program to the next.
@@ -10,7 +10,7 @@ joint; everything else runs on one simula that, like the real arm, keeps its sta
 from __future__ import annotations
 
 import argparse
-import gzip
+import lzma
 import os
 import shutil
 import time
@@ -21,15 +21,16 @@ from calib.experiments import (Plan, friction_plans, gravity_plans, sensitivity_
 from calib.program import run_plan
 from calib.robot import robot_info
 
-KINDS = ("friction", "gravity", "static", "sensitivity")
+KINDS = ("friction", "gravity", "static", "sensitivity", "breakaway")
 RADIUS_M = 0.05  # pulley drum radius (estimate: a 10 cm drum, Figure 4.2 is lost)
 
 
 def _store(raw: str, out_dir: str) -> str:
-    """Compress ``raw`` into ``out_dir`` (atomically: temp name, then rename)."""
-    final = os.path.join(out_dir, os.path.basename(raw) + ".gz")
+    """Compress ``raw`` into ``out_dir`` as xz (no time stamp inside, so the same log
+    gives the same bytes), atomically: temp name, then rename."""
+    final = os.path.join(out_dir, os.path.basename(raw) + ".xz")
     tmp = final + ".tmp"
-    with open(raw, "rb") as f, gzip.GzipFile(tmp, "wb", compresslevel=9, mtime=0) as g:
+    with open(raw, "rb") as f, lzma.open(tmp, "wb", preset=9 | lzma.PRESET_EXTREME) as g:
         shutil.copyfileobj(f, g)
     os.replace(tmp, final)
     os.unlink(raw)
@@ -72,6 +73,22 @@ class _Simula:
         self.sim.stop()
 
 
+def _breakaway(out_dir: str, work: str, seed: int, info) -> None:
+    """Table 4.5's breakaway ramps, every joint, on a fresh lockstep simula."""
+    from calib.breakaway_program import breakaway_plans, run_breakaway
+    from rci.simula.process import SimulaProcess
+
+    static = info.nominal["friction"]["static_pos"]["values"]
+    with SimulaProcess("-p", lockstep=True, seed=seed) as sim:
+        for plan in breakaway_plans(static, info.drive.G):
+            t0 = time.monotonic()
+            raw = os.path.join(work, plan.name + ".rcilog")
+            n = run_breakaway(sim.url, plan, raw, extra_meta={"simula_seed": seed, "simula_args": []})
+            final = _store(raw, out_dir)
+            print(f"{plan.name:28s} {n:6d} records  {os.path.getsize(final) / 1e3:7.0f} kB"
+                  f"  {time.monotonic() - t0:6.1f} s", flush=True)
+
+
 def regen(out_dir: str, seed: int, kinds: tuple[str, ...]) -> None:
     """Record every log of ``kinds`` into ``out_dir``."""
     info = robot_info("puma260")
@@ -91,6 +108,9 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...]) -> None:
         plans += [(tuple(p.simula_args), p) for p in sens if p.simula_args]
     sims: dict[tuple[str, ...], _Simula] = {}
     try:
+        if "breakaway" in kinds:
+            # on a simula of its own, so that `--kinds breakaway` alone records the same logs
+            _breakaway(out_dir, work, seed, info)
         for args, plan in plans:
             if args not in sims:
                 if args:           # a pulley simula lives for its one program

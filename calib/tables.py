@@ -1,8 +1,9 @@
-"""Fit results laid out like the thesis's tables (4.1-4.3, 4.4, 4.6, 4.8, 4.9)."""
+"""Fit results laid out like the thesis's tables (4.1-4.6, 4.8, 4.9)."""
 from __future__ import annotations
 
 import numpy as np
 
+from calib.breakaway import BreakawayResult
 from calib.friction import FrictionResult
 from calib.gravity import GravityResult, row_result
 from calib.sensitivity import SensitivityResult
@@ -32,6 +33,15 @@ def table_4_2_4_3(res: list[FrictionResult]) -> str:
             f"{'Joint':>5}  {'Variation':>9}"]
     for r in res:
         out.append(f"{r.joint:>5}  {100 * r.variation:8.0f}%")
+    return "\n".join(out)
+
+
+def table_4_5(res: list[BreakawayResult]) -> str:
+    out = ["Table 4.5  Static friction coefficients F_s, from breakaway ramps (Newton-meters)",
+           f"{'Joint':>5}  {'positive direction':>20}  {'negative direction':>20}  {'ramps':>5}"]
+    for r in res:
+        out.append(f"{r.joint:>5}  {r.plus:9.3f} (sd {r.plus_std:5.3f})  "
+                   f"{r.minus:9.3f} (sd {r.minus_std:5.3f})  {r.ramps:>5}")
     return "\n".join(out)
 
 

@@ -146,3 +146,19 @@ def test_log_without_run_metadata_is_refused(tmp_path, capsys):
         rec.append(How(cycle=0), None)
     assert main(["fit", "static", path, "-q"]) == 2
     assert "metadata 'experiment'" in capsys.readouterr().err
+
+
+def test_xz_log_fits_like_the_plain_one(tmp_path, capsys):
+    """calib/logs/ ships xz-compressed logs; a truncated one is refused by name."""
+    import lzma
+    log = _friction_log(tmp_path, 1)
+    xz = log + ".xz"
+    with open(log, "rb") as f, lzma.open(xz, "wb") as g:
+        g.write(f.read())
+    assert main(["fit", "friction", log, "-q"]) == 0
+    plain = capsys.readouterr().out
+    assert main(["fit", "friction", xz, "-q"]) == 0
+    assert capsys.readouterr().out.replace(".xz", "").splitlines()[2:] == plain.splitlines()[2:]
+    open(xz, "wb").write(open(xz, "rb").read()[:-50])
+    assert main(["fit", "friction", xz, "-q"]) == 2
+    assert xz in capsys.readouterr().err

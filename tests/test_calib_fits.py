@@ -84,7 +84,10 @@ def test_friction_fit_recovers_tables_4_2_and_4_3():
     d = drive()
     traces = []
     for j in range(6):
-        t, q = sweep(np.zeros(6), j, -0.5, 0.5, [0.05, 0.2, 0.5, 0.9, 1.4])
+        # three round trips per speed: one pass per speed left the viscous fit within
+        # 15 % only for lucky seeds (the tapered pass mean of calib.work weighs 3/4 of a
+        # 1 rad window)
+        t, q = sweep(np.zeros(6), j, -0.5, 0.5, [0.05, 0.2, 0.5, 0.9, 1.4] * 3)
         tau = friction_torque(rates(t, q), FC_P, FC_M, FV_P, FV_M)
         tau[:, j] *= 1 + 0.1 * np.sin(7 * q[:, j])  # position-dependent variation
         meta = {"experiment": "friction", "joint": j + 1, "window": [-0.5, 0.5]}
@@ -96,7 +99,7 @@ def test_friction_fit_recovers_tables_4_2_and_4_3():
         assert r.minus.coulomb == pytest.approx(FC_M[j], abs=0.03 * FC_M[j] + 0.005)
         assert r.plus.viscous == pytest.approx(FV_P[j], abs=max(0.15 * FV_P[j], 3e-4))
         assert 0.05 < r.variation < 0.15
-    assert len(points) == 6 * 10
+    assert len(points) == 6 * 30
 
 
 def test_static_friction_statistics_of_halts():

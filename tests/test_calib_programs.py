@@ -14,7 +14,7 @@ INFO = robot_info("puma260")
 
 @pytest.mark.parametrize("joint", sorted(FRICTION_POSES))
 def test_friction_window_has_no_potential_energy_change(joint):
-    (plan,) = friction_plans([joint])
+    plan = friction_plans([joint])[0]
     lo, hi = plan.meta["window"]
     q = np.array(plan.meta["pose"])
     # gravity work over the window must vanish whatever the coefficients: every
@@ -29,17 +29,43 @@ def test_friction_window_has_no_potential_energy_change(joint):
     assert np.abs(integral).max() < 1e-9
 
 
-def test_friction_path_cruises_through_the_window_at_each_speed():
-    (plan,) = friction_plans([2])
-    lo, hi = plan.meta["window"]
-    s = plan.path.sample(36.0)
-    assert INFO.lower[1] <= s[:, 1].min() and s[:, 1].max() <= INFO.upper[1]
-    passes = find_passes(s[:, 1], lo, hi)
-    expected = [v for v, n in zip(plan.meta["speeds"], plan.meta["trips"]) for _ in range(2 * n)]
-    assert len(passes) == len(expected)
-    for p, v in zip(passes, expected):
-        speed = np.abs(np.diff(s[p.first:p.last + 1, 1])) * 36.0
-        assert speed == pytest.approx(v, rel=1e-6)
+@pytest.mark.parametrize("joint", [1, 2])
+def test_friction_path_cruises_through_the_window_at_each_speed(joint):
+    for plan in friction_plans([joint]):
+        lo, hi = plan.meta["window"]
+        s = plan.path.sample(36.0)
+        assert INFO.lower[joint - 1] <= s[:, joint - 1].min()
+        assert s[:, joint - 1].max() <= INFO.upper[joint - 1]
+        passes = find_passes(s[:, joint - 1], lo, hi)
+        expected = [v for v, n in zip(plan.meta["speeds"], plan.meta["trips"]) for _ in range(2 * n)]
+        assert len(passes) == len(expected), plan.name
+        for p, v in zip(passes, expected):
+            speed = np.abs(np.diff(s[p.first:p.last + 1, joint - 1])) * 36.0
+            assert speed == pytest.approx(v, rel=1e-6)
+
+
+def test_fast_passes_of_joints_2_to_6_are_read_at_every_servo_tick():
+    """The fast passes go to a log read at 1 kHz; together the two logs of a joint
+    cover every speed, each once, and both use the same window."""
+    for j in (2, 3, 4, 5, 6):
+        slow, fast = friction_plans([j])
+        assert (slow.name, slow.rate_hz) == (f"friction-j{j}", 72)
+        assert (fast.name, fast.rate_hz) == (f"friction-j{j}-servo", 1000)
+        assert slow.meta["window"] == fast.meta["window"]
+        assert max(slow.meta["speeds"]) < min(fast.meta["speeds"])
+        assert len(fast.meta["trips"]) == len(fast.meta["speeds"])
+    assert [p.rate_hz for p in friction_plans([1])] == [72]
+
+
+def test_friction_sweeps_turn_without_halting():
+    """A joint standing at the turns cools (4.5.3) and would read higher friction on
+    the fast passes, where the turns are a larger share of the time."""
+    for plan in friction_plans([5]):
+        lo, hi = plan.meta["window"]
+        sweeps = [seg for seg in plan.path.segments if seg.distance > hi - lo]
+        assert len(sweeps) == 2 * sum(plan.meta["trips"])
+        assert all(seg.dwell == 0.0 for seg in sweeps)
+        assert plan.warmup.duration >= 200.0
 
 
 def test_every_plan_stays_within_the_joint_ranges():
@@ -147,6 +173,6 @@ def test_regen_logs_records_gravity_logs_that_fit(tmp_path):
     from calib.__main__ import main
 
     assert main(["regen-logs", "--kinds", "gravity", "--out", str(tmp_path)]) == 0
-    logs = sorted(str(p) for p in tmp_path.glob("gravity-*.rcilog.gz"))
+    logs = sorted(str(p) for p in tmp_path.glob("gravity-*.rcilog.xz"))
     assert len(logs) == 10
     assert main(["fit", "gravity", *logs, "-q"]) == 0

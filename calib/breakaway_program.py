@@ -1,0 +1,191 @@
+"""The breakaway measurement program (Table 4.5): ramp a still joint's motor current until it moves.
+
+Thesis 4.5.5's first method set the current of a joint free of gravity loading and
+adjusted it by hand until the joint could just be moved; this program does the same
+without a hand: at each of a few positions and in both directions, joint i is switched
+from its position servo to current mode (CUR) and its motor torque is ramped slowly from
+zero; the first encoder change marks the breakaway. The other joints stay servoed on the
+pose. Between ramps the joint sweeps a few degrees back and forth, so that it stays warm
+(a joint that stands cools, and a cold joint's friction is up to 20 % higher, 4.5.3).
+Only the ramps (and a moment either side) are recorded; the fit (calib.breakaway) finds
+them in the log by their CUR commands.
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
+from calib.paths import Path, Segment
+from rci import codes
+from rci.chg import CUR, POS
+from rci.conversions import DAC_MAX, DAC_MIN, Conversions
+from rci.exceptions import RCIError
+from rci.recorder import Recorder
+from rci.session import Session
+
+BREAKAWAY_RATE_HZ = 72
+RAMP_S = 3.0              # s to reach RAMP_TOP x the data file's F_s (breakaway near 1.9 s)
+RAMP_TOP = 1.6
+MOVED_COUNTS = 3          # encoder counts from the ramp's start that mean "it moved"
+AFTER_ONSET = 6           # cycles the ramp goes on after the onset (the fit reads up to it)
+POSITIONS_DEG = (-20.0, 0.0, 20.0)   # offsets from the friction pose's angle
+BETWEEN_S = 6.0           # s of sweeping between ramps (keeps the joint warm)
+
+
+@dataclass
+class BreakawayPlan:
+    """Ramps of one joint: at ``positions`` (rad, joint angle) and both directions."""
+
+    name: str
+    joint: int                     # 1-based
+    pose: np.ndarray               # rad, the other joints
+    positions: list[float]
+    ramp_rate: float               # N m/s of motor torque on motor ``joint``
+    meta: dict = field(default_factory=dict)
+    rate_hz: int = BREAKAWAY_RATE_HZ
+
+
+def breakaway_plans(static_pos: np.ndarray, G: np.ndarray, joints=range(1, 7)) -> list[BreakawayPlan]:
+    """One plan per joint, at the friction pose (axis vertical or gravity-free at the
+    centre) and POSITIONS_DEG around it; the ramp reaches RAMP_TOP x ``static_pos`` (the
+    data file's Table 4.5, joint N m) through G's diagonal in RAMP_S."""
+    plans = []
+    for j in joints:
+        qdeg, _ = FRICTION_POSES[j]
+        q = np.array(qdeg, float) * DEG
+        pos = [float(q[j - 1] + d * DEG) for d in POSITIONS_DEG]
+        rate = RAMP_TOP * float(static_pos[j - 1]) / abs(float(G[j - 1, j - 1])) / RAMP_S
+        meta = {"experiment": "breakaway", "joint": j, "pose": list(q), "positions": pos,
+                "ramp_motor_torque_rate": rate, "moved_counts": MOVED_COUNTS}
+        plans.append(BreakawayPlan(f"breakaway-j{j}", j, q, pos, rate, meta))
+    return plans
+
+
+def _sweep(q: np.ndarray, j: int, half: float, seconds: float, rate: int) -> np.ndarray:
+    """Setpoints sweeping joint j (0-based) +-half rad about q for about ``seconds``."""
+    lo, hi = q.copy(), q.copy()
+    lo[j], hi[j] = q[j] - half, q[j] + half
+    v = 30 * DEG
+    segs, n = [Segment(q, lo, v, ACCEL)], max(1, int(seconds * v / (4 * half)))
+    for _ in range(n):
+        segs += [Segment(lo, hi, v, ACCEL), Segment(hi, lo, v, ACCEL)]
+    segs.append(Segment(lo, q, v, ACCEL, 0.5))
+    return Path(tuple(segs)).sample(rate)
+
+
+def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "puma260",
+                  extra_meta: dict | None = None, timeout: float | None = 5.0) -> int:
+    """Run ``plan`` on the robot (or simula) at ``url``; returns the records logged.
+
+    Each ramp starts from the motor torque that holds the arm against gravity (the data
+    file's gravity model, through G^-T), so that both directions ramp from the balance.
+    """
+    from calib.robot import GRAVITY_NAMES, robot_info
+
+    info = robot_info(robot)
+    gravity = info.gravity(np.array([info.nominal["gravity_coeffs"][n]["value"]
+                                     for n in GRAVITY_NAMES]))
+    conv = Conversions.for_robot(robot)
+    rate = plan.rate_hz
+    j = plan.joint - 1
+    meta = dict(plan.meta)
+    meta.update(extra_meta or {})
+    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate})
+    # the steps: (kind, setpoints or (position, direction))
+    steps: list[tuple[str, object]] = []
+    first = plan.pose.copy()
+    first[j] = plan.positions[0]
+    warm = sweep_warmup(first, j, first[j] - 10 * DEG, first[j] + 10 * DEG,
+                        seconds=FRICTION_WARMUP_S, dwell=0.0)
+    steps.append(("warm", warm.sample(rate)))
+    here = warm.segments[-1].end
+    for x in plan.positions:
+        q = plan.pose.copy()
+        q[j] = x
+        for d in (1, -1):
+            steps.append(("move", Path((Segment(here, q, 0.6, ACCEL, 0.5),)).sample(rate)))
+            steps.append(("ramp", (q, d)))
+            steps.append(("warm", _sweep(q, j, 8 * DEG, BETWEEN_S, rate)))
+            here = q
+    state = {"step": 0, "k": 0, "hold": None, "onset": None, "c0": None, "power": False}
+    done = threading.Event()
+    rec = Recorder(log_path, robot=robot, rate_hz=rate, meta=meta, block_records=1024)
+    rec.start_writer(0.5)
+    session = Session(url, robot, rate_hz=rate, realtime=False, lock_memory=False,
+                      on_error="raise", gc="leave", overrun="count", timeout=timeout)
+
+    def pos_all(qd: np.ndarray) -> None:
+        counts = conv.angles_to_counts_int(qd)
+        for i in range(6):
+            session.chg.motion[i].issue(POS, int(counts[i]))
+
+    def f1() -> None:
+        how = session.how
+        if not state["power"]:
+            if not how.state & codes.POWER_ON:
+                session.chg.power_on.issue()
+            state["power"] = True
+            # from wherever the arm is to the start of the warm-up (not recorded)
+            start = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            steps.insert(0, ("warm", Path((Segment(start, steps[0][1][0], 0.6, ACCEL, 0.5),))
+                             .sample(rate)))
+        if state["step"] >= len(steps):
+            session.record(None)
+            done.set()
+            pos_all(steps[-1][1][-1])
+            return
+        kind, what = steps[state["step"]]
+        k = state["k"]
+        state["k"] += 1
+        if kind in ("warm", "move"):
+            sp = what
+            pos_all(sp[min(k, len(sp) - 1)])
+            if k >= len(sp) - 1:
+                state["step"] += 1
+                state["k"] = 0
+                if kind == "move":
+                    session.record(rec)          # the ramp's lead-in: a still joint
+            return
+        q, d = what
+        e = int(how.pos[j])
+        if k == 0:
+            state["c0"], state["onset"], state["hold"] = e, None, None
+        if state["hold"] is not None:            # after the breakaway: hold where it is
+            pos_all(state["hold"])
+            if k - state["onset"] > AFTER_ONSET + int(0.3 * rate):
+                session.record(None)
+                state["step"] += 1
+                state["k"] = 0
+            return
+        # the motor torques that hold the arm against gravity, t_s = G^-T t_g: on the
+        # coupled wrist the motors of the later joints, holding theirs, also load this one
+        ts = conv.joint_to_motor_torques(gravity(q))[j] + d * plan.ramp_rate * k / rate
+        if state["onset"] is None and abs(e - state["c0"]) >= MOVED_COUNTS:
+            state["onset"] = k
+        if state["onset"] is not None and k - state["onset"] >= AFTER_ONSET or k / rate > 2 * RAMP_S:
+            state["onset"] = k if state["onset"] is None else state["onset"]
+            qh = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            qh[np.arange(6) != j] = q[np.arange(6) != j]
+            state["hold"] = qh
+            pos_all(qh)
+            return
+        pos_all(q)
+        dac = int(np.clip(np.rint(ts * conv.k_dac[j]), DAC_MIN, DAC_MAX))
+        session.chg.motion[j].issue(CUR, dac)
+
+    try:
+        with session:
+            session.control(f1)
+            session.wait(until=done.is_set)
+            session.record(None)
+            session.release()
+    except RCIError as exc:
+        raise CalibError(f"measurement program {plan.name} on {url} stopped at step "
+                         f"{state['step']}: {exc} (partial log: {log_path})") from None
+    finally:
+        rec.close()
+    return rec.written
