@@ -127,8 +127,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
 
     By default each joint runs the FRICTION_SPEEDS_DEG up to its top speed
     (friction_top_speed), the last replaced by the top speed itself, with FRICTION_TRIPS
-    round trips; ``speeds_deg`` and ``trips`` override both (then used as given). For
-    the joints of SERVO_RATE_JOINTS the speeds from its threshold up go into a second
+    round trips; ``speeds_deg`` and ``trips`` override both (then used as given, in one
+    plan at 72 Hz). By default, for the joints of SERVO_RATE_JOINTS the speeds from its
+    threshold up go into a second
     plan, ``friction-jN-servo``, read at every servo tick (SERVO_RATE_HZ) with its trips;
     both plans sweep the same window.
     The sweeps turn without standing still, so a joint stays as warm at the top speed
@@ -156,7 +157,7 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             n_trips = trips if trips is not None else 1
         n_trips = [n_trips] * len(speeds) if isinstance(n_trips, int) else list(n_trips)
         groups = [(f"friction-j{j}", FRICTION_RATE_HZ, speeds, n_trips)]
-        if speeds_deg is None and j in SERVO_RATE_JOINTS:
+        if speeds_deg is None and trips is None and j in SERVO_RATE_JOINTS:
             start, fast_trips = SERVO_RATE_JOINTS[j]
             slow = [(v, n) for v, n in zip(speeds, n_trips) if v < start]
             fast = [v for v in speeds if v >= start]
