@@ -11,6 +11,7 @@ import ctypes.util
 import gc
 import os
 import sys
+import threading
 from dataclasses import dataclass, field
 
 MCL_CURRENT = 1
@@ -109,36 +110,65 @@ class GCControl:
     (gc.freeze) and raises the generation-0 threshold, so collections are rare and short;
     ``off`` disables the collector during a control (the planning level may call
     ``gc.collect()`` itself); ``leave`` changes nothing. ``restore`` undoes it.
+
+    The collector is process-wide, so the settings are reference counted across every
+    GCControl of the process: the first control task to start applies them (one full
+    ``gc.collect()``), later ones find them in place, and only the last to end undoes
+    them. A second arm starting or stopping therefore never stalls or unprotects
+    another arm's running control.
     """
+
+    _lock = threading.Lock()
+    _holders = 0                    # GCControls currently applied
+    _saved: tuple | None = None     # the process's settings before the first apply
+    _was_enabled = True
+    _active_mode = "leave"
 
     def __init__(self, mode: str = "freeze") -> None:
         if mode not in ("freeze", "off", "leave"):
             raise ValueError(f"gc mode must be 'freeze', 'off' or 'leave', not {mode!r}")
         self.mode = mode
-        self._saved: tuple | None = None
-        self._was_enabled = True
+        self._applied = False
 
     def apply(self, status: RealtimeStatus) -> None:
-        self._saved = gc.get_threshold()
-        self._was_enabled = gc.isenabled()
-        if self.mode == "freeze":
-            gc.collect()
-            gc.freeze()
-            gc.set_threshold(50_000, 50, 100)
-            status.gc = "frozen, gen0 threshold 50000"
-        elif self.mode == "off":
-            gc.collect()
-            gc.disable()
-            status.gc = "disabled during control"
-        else:
+        if self.mode == "leave":            # takes no part in the process's settings
             status.gc = "left as is"
+            return
+        if self._applied:
+            return
+        cls = GCControl
+        with cls._lock:
+            self._applied = True
+            cls._holders += 1
+            if cls._holders > 1:
+                status.gc = f"{cls._active_mode}: already set by another control task"
+                return
+            cls._saved = gc.get_threshold()
+            cls._was_enabled = gc.isenabled()
+            cls._active_mode = self.mode
+            if self.mode == "freeze":
+                gc.collect()
+                gc.freeze()
+                gc.set_threshold(50_000, 50, 100)
+                status.gc = "frozen, gen0 threshold 50000"
+            else:
+                gc.collect()
+                gc.disable()
+                status.gc = "disabled during control"
 
     def restore(self) -> None:
-        if self._saved is None:
+        if not self._applied:
             return
-        gc.set_threshold(*self._saved)
-        if self.mode == "freeze":
-            gc.unfreeze()
-        if self._was_enabled:
-            gc.enable()
-        self._saved = None
+        cls = GCControl
+        with cls._lock:
+            self._applied = False
+            cls._holders -= 1
+            if cls._holders > 0 or cls._saved is None:
+                return
+            gc.set_threshold(*cls._saved)
+            if cls._active_mode == "freeze":
+                gc.unfreeze()
+            if cls._was_enabled:
+                gc.enable()
+            cls._saved = None
+            cls._active_mode = "leave"

@@ -463,3 +463,24 @@ def test_hung_function_against_a_lockstep_robot_is_caught_after_two_seconds(ls_r
         go.set()
     assert t.number == codes.R_OVERRUN and 2.0 <= waited < 2.5
     assert ls_robot.released()
+
+
+def test_gc_settings_are_shared_by_every_control_task_of_the_process():
+    """Two arms' control tasks: the second start neither collects again nor, when the first
+    ends, leaves the second running with the collector back on (rci.realtime.GCControl)."""
+    import gc
+
+    from rci.realtime import GCControl, RealtimeStatus
+
+    before = gc.get_threshold()
+    first, second = GCControl("freeze"), GCControl("freeze")
+    s1, s2 = RealtimeStatus(), RealtimeStatus()
+    first.apply(s1)
+    second.apply(s2)
+    assert s1.gc.startswith("frozen") and "another control task" in s2.gc
+    first.restore()
+    assert gc.get_threshold()[0] == 50_000, "the second task's settings were undone early"
+    second.restore()
+    assert gc.get_threshold() == before
+    second.restore()                      # a second restore changes nothing
+    assert gc.get_threshold() == before
