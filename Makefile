@@ -21,16 +21,18 @@ $(STAMP): pyproject.toml $(wildcard setup.py)
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-# Regenerate every derived file (generated kinematics code, derivation reports).
+# Regenerate every derived file (generated kinematics code, derivation reports), then
+# rebuild the C kernels from the new C so the runtime does not fall back to Python.
 derive: $(STAMP)
 	$(PY) -m derive
 	cat $(DERIVE_SRC) | sha256sum | cut -d' ' -f1 > $(DERIVE_STAMP)
+	$(PY) -m pip install --quiet --no-deps -e .
 
 # Derive only when the inputs differ from those the committed code was derived from.
 derive-if-needed: $(STAMP)
 	@if [ "$$(cat $(DERIVE_SRC) | sha256sum | cut -d' ' -f1)" = "$$(cat $(DERIVE_STAMP) 2>/dev/null)" ]; \
 	then echo "derive: generated code is up to date with derive/ and models/"; \
-	else $(MAKE) derive && $(PY) -m pip install --quiet --no-deps -e .; fi
+	else $(MAKE) derive; fi
 
 test: $(STAMP)
 	$(PY) -m pytest -q
