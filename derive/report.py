@@ -576,6 +576,16 @@ def _general_rows(derivations: dict[str, Derivation]) -> list[Row]:
     rows.append(Row("3.64-3.66", "tau = (4J' Y)^T q, Y^-T tau = 4J'^T q",
                     "(t1, t2 - t3, t3, t4, t5, t6) = 4J'^T q", "confirmed",
                     "Y^-T tau = (t1, t2 - t3, t3, ...) by direct product"))
+    rows.append(Row("3.73-3.74", "structure of the inverse Jacobian computations",
+                    "substitution: dth1 first, then dth2 from it, ...", "checked",
+                    "4J' is block lower triangular and its top block observed in frame 3 (rotated back through "
+                    "A4) is triangular up to a permutation, as is the wrist block (derive/jacobian.py "
+                    "triangular_form); the generated C solves J' and J'^T by substitution this way (signs of the "
+                    "printed formulas not checked term by term; the kernels match Pinocchio)"))
+    rows.append(Row("3.8 text", "each transform of (3.79): 8 multiplies and 4 additions", "as printed", "confirmed",
+                    "true of B (3.81/3.82) applied to ONE 3-vector: two plane rotations, by theta5 and theta6, of "
+                    "4 mul and 2 add each; a D or F map of (3.80) applies B to both halves of the 6-vector, 16 mul "
+                    "and 8 add (reports/opcounts.md)"))
     rows.append(Row("3.79", "frame-6 computations via D_{4,6}, D_{6,4}, F_{4,6}, F_{6,4}", "as printed",
                     "confirmed", "the frame-6 kernels are built this way and match Pinocchio's 6J"))
     rows.append(Row("3.80", "D and F for X = A5 A6", "D_{4,6} = diag(B, B); F_{4,6} = [[0, B], [B, 0]]",
