@@ -68,7 +68,8 @@ class Kernel:
     params: dict[sp.Symbol, float] = field(default_factory=dict)
     source: str = ""  # thesis equations this kernel implements, e.g. "3.16-3.18"
     #: optional structure hint for back ends (the outputs stay authoritative): intermediate
-    #: symbols with their definitions in inputs, and the main outputs written with them
+    #: symbols in order, each defined from the inputs and the symbols before it, and the
+    #: main outputs written with them
     #: (e.g. a frame-4 computation, then one map of 3.79); same values as ``outputs``
     stages: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
     staged: tuple[sp.Matrix, ...] = ()
