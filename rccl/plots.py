@@ -25,9 +25,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _world_fk():
+def pinocchio_fk(robot: str = "puma260"):
+    """T6 by Pinocchio on models/urdf/<robot>.urdf (the reference the measured paths are
+    judged against): a function q (6,) -> (4, 4) base_link -> link6, metres."""
     import pinocchio as pin
-    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / "puma260.urdf"))
+    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
     data = model.createData()
     fid = model.getFrameId("link6")
 
@@ -44,7 +46,7 @@ def path_plot(arm, marks, title: str, out: Path | None = None, extra=None) -> Pa
     import matplotlib.pyplot as plt
 
     out = Path(out or ROOT / "reports" / "rccl-path.png")
-    fk = _world_fk()
+    fk = pinocchio_fk()
     runs = [(title, arm, marks)] + (extra or [])
     fig, axes = plt.subplots(len(runs), 2, figsize=(11, 4.8 * len(runs)), squeeze=False)
     for row, (name, a, mk) in enumerate(runs):
@@ -80,7 +82,7 @@ def transition_plot(arm, windows, out: Path | None = None) -> Path:
     import matplotlib.pyplot as plt
 
     out = Path(out or ROOT / "reports" / "rccl-transition.png")
-    fk = _world_fk()
+    fk = pinocchio_fk()
     t = np.array([x[0] for x in arm.trace])
     qc = np.array([x[1] for x in arm.trace])
     qm = np.array([x[2] for x in arm.trace])
@@ -195,7 +197,7 @@ def straight_line(url: str, rate_hz: int = 36) -> str:
     from rccl import EQ, T6, TL, Trsf, makeposition
     from rccl.transform import rot, trsl
 
-    fk = _world_fk()
+    fk = pinocchio_fk()
     with rccl.open(url, robot="puma260", rate_hz=rate_hz, record=True, timeout=2.0) as arm:
         arm.setmod("joint")
         s = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(np.radians([0.0, 80.0, -170.0, 10.0, -60.0, 0.0]))),

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,9 +18,9 @@ import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import BadRequest, SingularPath, Unreachable
 from rccl.limits import load_limits
+from rccl.plots import pinocchio_fk
 from rccl.transform import rot, trsl
 
-pin = pytest.importorskip("pinocchio")
 SimulaProcess = pytest.importorskip("rci.simula.process").SimulaProcess
 
 # joint 1 rad, joints 2-3 m (vertical and radial strokes), joints 4-6 rad: away from theta5 = pi
@@ -39,15 +38,7 @@ def sim():
 
 @pytest.fixture(scope="module")
 def world():
-    urdf = Path(__file__).resolve().parent.parent / "models" / "urdf" / "microbo.urdf"
-    model = pin.buildModelFromUrdf(str(urdf))
-    data = model.createData()
-    fid = model.getFrameId("link6")
-
-    def fk(q):
-        pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
-        return data.oMf[fid].homogeneous.copy()
-    return fk
+    return pinocchio_fk("microbo")
 
 
 def open_arm(sim, rate_hz: int = 36):

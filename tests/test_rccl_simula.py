@@ -15,9 +15,9 @@ import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import SingularPath, Unreachable
 from rccl.limits import load_limits
+from rccl.plots import pinocchio_fk
 from rccl.transform import rot, trsl
 
-pin = pytest.importorskip("pinocchio")
 SimulaProcess = pytest.importorskip("rci.simula.process").SimulaProcess
 
 START = np.radians([0.0, 80.0, -170.0, 10.0, -60.0, 0.0])   # well away from singularities
@@ -34,16 +34,7 @@ def sim():
 
 @pytest.fixture(scope="module")
 def world():
-    from pathlib import Path
-    urdf = Path(__file__).resolve().parent.parent / "models" / "urdf" / "puma260.urdf"
-    model = pin.buildModelFromUrdf(str(urdf))
-    data = model.createData()
-    fid = model.getFrameId("link6")
-
-    def fk(q):
-        pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
-        return data.oMf[fid].homogeneous.copy()
-    return fk
+    return pinocchio_fk("puma260")
 
 
 def open_arm(sim, rate_hz: int = 36):
