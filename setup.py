@@ -6,7 +6,6 @@ install still succeeds, prints one warning, and the generated Python code is use
 """
 from __future__ import annotations
 
-import ctypes.util
 import sys
 from pathlib import Path
 
@@ -43,13 +42,9 @@ class OptionalBuildExt(build_ext):
         if include is None:
             print("WARNING: numpy headers not found; the C kinematics kernels are built without "
                   "their fast public entry (calls go through the Python checks).", file=sys.stderr)
-        mvec = ctypes.util.find_library("mvec") if sys.platform.startswith("linux") else None
         for ext in self.extensions:
             # the identity of the sources (the .c and the runtime headers), checked at import
             ext.define_macros.append(("RCCL_SOURCE_HASH", '"%s"' % _source_hash(HERE / ext.sources[0])))
-            if mvec:  # glibc's vector sin/cos for the batched loops (emit_c.py: RCCL_LIBMVEC)
-                ext.define_macros.append(("RCCL_LIBMVEC", "1"))
-                ext.libraries.append("mvec")
             if include is not None:
                 ext.include_dirs.append(include)
                 ext.define_macros.append(("RCCL_NUMPY_API", "1"))

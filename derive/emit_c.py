@@ -654,6 +654,12 @@ def _vector_trig(prog: Program) -> tuple[list[str], list[tuple[str, str, int]], 
     return stmts, table, "\n".join(row), len(args)
 
 
+def _slot(slot: dict[tuple[int, str], int], arg: int, fn: str) -> str:
+    """The block row of tv that receives ``fn`` of argument ``arg``, or NULL: not needed."""
+    t = slot.get((arg, fn))
+    return "NULL" if t is None else f"tv[{t}]"
+
+
 def _batch_vector(prog: Program, split) -> str:
     k = prog.kernel
     stmts, table, row, nargs = split
@@ -664,9 +670,12 @@ def _batch_vector(prog: Program, split) -> str:
     ins = "; ".join(f"const double *restrict in{i} = inb{i} + (r0 + r) * is[{i}]" for i in range(nin))
     call = ", ".join([f"&tv[0][r], {TRIG_BLOCK}"] + [f"inb{i} + (r0 + r) * is[{i}]" for i in range(nin)]
                      + [f"outb{i} + (r0 + r) * os[{i}]" for i in range(nout)])
-    trig = "\n".join(f"            vtrig_{fn}(ta[{a}], tv[{t}], m);" for t, (_, fn, a) in enumerate(table))
-    fns = sorted({fn for _, fn, _ in table})
-    one_trig = " ".join(f"vtrig_{fn}(a, {fn[0]}v, {nargs});" for fn in fns)
+    # one reduction per argument gives its sine and cosine together (kin_prelude.h)
+    slot = {(a, fn): t for t, (_, fn, a) in enumerate(table)}
+    trig = "\n".join(
+        f"        vtrig_sincos(ta[{a}], {_slot(slot, a, 'sin')}, {_slot(slot, a, 'cos')}, m);"
+        for a in range(nargs))
+    one_trig = f"vtrig_sincos(a, sv, cv, {nargs});"
     one_call = ", ".join(["tv", "1"] + [f"in{i}" for i in range(nin)] + [f"(double *)out[{i}]" for i in range(nout)])
     return f"""
 #ifdef RCCL_VECTOR_TRIG
@@ -676,8 +685,8 @@ static inline void kv_{k.name}({", ".join(params)})
 {row}
 }}
 
-/* blocks of {TRIG_BLOCK} rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of {TRIG_BLOCK} rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {{
     if (!have_vector_trig) return 0;
@@ -745,6 +754,29 @@ static void batch_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize
 """
 
 
+def finite_by_construction(prog: Program) -> bool:
+    """True when every output is a polynomial in sines and cosines of the inputs (and
+    constants): then finite inputs give finite outputs of bounded size, and the runtime
+    need not scan the results for NaN/inf. An input used outside a sine or cosine (a
+    prismatic joint, a force, a coefficient), a division or any other function breaks it."""
+    if prog.kernel.guards:
+        return False
+    bounded = {sym for sym, f in prog.trig if isinstance(f, (sp.sin, sp.cos))}
+
+    def polynomial_in_bounded(expr: sp.Expr) -> bool:
+        free = expr.free_symbols
+        return free <= bounded and not expr.atoms(sp.Function) and (not free or expr.is_polynomial(*free))
+
+    for sym, expr in prog.temps:  # in dependency order
+        if polynomial_in_bounded(expr):
+            bounded.add(sym)
+    for name, expr in prog.outputs:  # columns rebuilt by a cross product come last, as __<name>
+        if not polynomial_in_bounded(expr):
+            return False
+        bounded.add(sp.Symbol(f"__{name}"))
+    return True
+
+
 def _shape(arg) -> tuple[int, ...]:
     return tuple(arg.shape)
 
@@ -768,7 +800,7 @@ def module_c(robot: str, programs: list[tuple[Program, str]], command: str) -> s
             f"     {{{', '.join(_shape_c(s) for s in outs)}}},\n"
             f"     {{{', '.join(_c_string(a.name) for a in k.inputs)}}},\n"
             f"     {{{', '.join(_c_string(n) for n in onames)}}},\n"
-            f"     {_c_string(_method_doc(k))}}},")
+            f"     {_c_string(_method_doc(k))}, {int(finite_by_construction(p))}}},")
     maxio = max([len(p.kernel.inputs) for p, _ in programs]
                 + [len(p.kernel.outputs) + len(p.kernel.guards) for p, _ in programs] + [1])
     return RUNTIME.format(robot=robot, command=command, kernels=kernels, table="\n".join(table),

@@ -261,3 +261,10 @@ def test_emission_is_deterministic(tmp_path):
     text = a.read_text()
     assert '#include "kin_prelude.h"' in text and '#include "kin_runtime.h"' in text
     assert "static PyObject *call_kernel" not in text and "RCCL_SOURCE_HASH" not in text
+
+
+def test_finite_by_construction_marks_only_polynomials_in_sines_and_cosines(built):
+    programs = built[2]
+    flags = {p.kernel.name: emit_c.finite_by_construction(p) for p, _ in programs}
+    # T6 is a polynomial in sines and cosines; ik2 has guards and atan2; scale uses its inputs bare
+    assert flags == {"fk": True, "ik2": False, "scale": False}

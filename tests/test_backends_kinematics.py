@@ -528,3 +528,49 @@ def test_fast_entries_take_good_input_without_the_runtime(robot):
     cm.public("gravity", record, mod.GRAVITY_COEFFS)(qs[0], c)
     cm.public("gravity", record, mod.GRAVITY_COEFFS)(qs, c, out=np.empty((len(qs), 6)))
     assert calls == []
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_results_not_finite_by_construction_are_still_scanned(robot):
+    """J dq can overflow (dq is used bare); its results are checked, single and batched."""
+    from rccl.kinematics import errors
+    mod = _mod(robot)
+    qs = _qs(mod, 5000, 38)
+    huge = np.full(6, np.finfo(float).max) * np.sign(mod.jacobian6(qs[0])[0])  # the first row's terms add up
+    with pytest.raises(errors.KinematicsError, match="non-finite result"):
+        mod.cartesian_from_joint(qs[0], huge)
+    dq = np.ones((len(qs), 6))
+    dq[4321] = np.full(6, np.finfo(float).max) * np.sign(mod.jacobian6(qs[4321])[0])
+    with pytest.raises(errors.KinematicsError, match="non-finite result; at batch row 4321"):
+        mod.cartesian_from_joint(qs, dq)
+
+
+def test_vector_sincos_within_one_and_a_half_ulp():
+    """The batched rows' own vector sine/cosine (kin_prelude.h) against long double."""
+    cm = _c("puma260")
+    rng = np.random.default_rng(39)
+    half_pi = np.pi / 2
+    x = np.concatenate([
+        rng.uniform(-2 * np.pi, 2 * np.pi, 60_000),      # joint angles
+        rng.uniform(-1e5, 1e5, 20_000),                   # far turns
+        np.arange(-400, 401) * half_pi,                   # next to multiples of pi/2 (rounded)
+        np.nextafter(np.arange(-400, 401) * half_pi, np.inf),
+        [0.0, 1e-300, -1e-300, 5e-324, 1e-8, np.pi / 4, -np.pi / 4],
+        rng.uniform(2.0**20, 1e9, 37),                    # beyond the reduction's range: libm lanes
+    ])
+    got = cm.vector_sincos(x.tolist())
+    if got is None:
+        pytest.skip("this CPU has no AVX2/FMA: the batched rows use libm")  # not on the CI machine
+    s, c = (np.array(v) for v in got)
+    xl = x.astype(np.longdouble)
+    for name, y, exact in (("sin", s, np.sin(xl)), ("cos", c, np.cos(xl))):
+        ulp = np.spacing(np.abs(exact).astype(np.float64))
+        err = np.abs((y.astype(np.longdouble) - exact) / ulp.astype(np.longdouble)).astype(np.float64)
+        worst = int(np.argmax(err))
+        assert err[worst] <= 1.5, f"{name}({x[worst]!r}) off by {err[worst]:.3f} ulp"
+        assert err[:60_000].max() <= 1.4  # joint angles
+    # every lane count: the tails of a vector are padded, not read past the end
+    for n in range(1, 9):
+        sn, cn = cm.vector_sincos(x[:n].tolist())
+        np.testing.assert_array_equal(sn, s[:n])
+        np.testing.assert_array_equal(cn, c[:n])

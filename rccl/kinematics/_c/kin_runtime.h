@@ -38,7 +38,8 @@ static PyObject *np_array_kw = NULL;      /* {"dtype": "float64", "order": "C"} 
 /* ---------------------------------------------------------------- batched rows
  * Every batched call runs its rows in chunks of CHUNK: inputs of the chunk scanned for
  * NaN/inf, the kernel's batched loop, then (public entries) its guards and first output
- * checked while they are still in cache. Large batches are split over threads (pthreads;
+ * checked while they are still in cache (the output only when it is not finite by
+ * construction: kernel_entry.finite_out). Large batches are split over threads (pthreads;
  * RCCL_KINEMATICS_THREADS, default the online CPUs, at most MAX_THREADS). */
 #define CHUNK 64
 #define MAX_THREADS 8
@@ -131,7 +132,7 @@ static void run_job(row_job *j)
             for (int g = k->nout - k->nguard; g < k->nout; ++g)
                 for (Py_ssize_t t = 0; t < m; ++t)
                     if (!(oc[g][t * osc[g]] >= 0)) { j->bad = 1; return; }
-            if (!all_finite(oc[0], m * osc[0])) { j->bad = 1; return; }
+            if (!k->finite_out && !all_finite(oc[0], m * osc[0])) { j->bad = 1; return; }
         }
     }
 }
@@ -325,7 +326,7 @@ static PyObject *public_call(PyObject *self, PyObject *const *args, Py_ssize_t n
         for (int g = 0; g < k->nguard; ++g) { op[1 + g] = &guard[g]; os[1 + g] = 0; }
         k->fn(1, ip, is, op, os);
         for (int g = 0; g < k->nguard; ++g) bad |= !(guard[g] >= 0);
-        bad |= !all_finite(op[0], s->size);
+        bad |= !k->finite_out && !all_finite(op[0], s->size);
     } else {
         for (int g = 0; g < k->nguard; ++g) { op[1 + g] = NULL; os[1 + g] = 1; }
         if (n > 4096) {
@@ -869,7 +870,45 @@ static PyObject *source_hash(PyObject *self, PyObject *noargs)
     return PyUnicode_FromString(RCCL_SOURCE_HASH);
 }
 
+/* vector_sincos([x, ...]) -> ([sin], [cos]) through the batched rows' vector sine/cosine,
+ * or None when this build or CPU has none: lets the tests measure its accuracy */
+static PyObject *vector_sincos(PyObject *self, PyObject *arg)
+{
+    (void)self;
+#ifdef RCCL_VECTOR_TRIG
+    if (!have_vector_trig) Py_RETURN_NONE;
+    PyObject *seq = PySequence_Fast(arg, "vector_sincos takes a sequence of floats");
+    if (!seq) return NULL;
+    const Py_ssize_t n = PySequence_Fast_GET_SIZE(seq);
+    double *buf = PyMem_Malloc(3 * (size_t)(n ? n : 1) * sizeof(double));
+    PyObject *ls = PyList_New(n), *lc = PyList_New(n);
+    if (!buf || !ls || !lc) goto fail;
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        buf[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, i));
+        if (buf[i] == -1.0 && PyErr_Occurred()) goto fail;
+    }
+    for (Py_ssize_t i = 0; i < n; i += 1 << 20) {
+        const int m = n - i < (1 << 20) ? (int)(n - i) : 1 << 20;
+        vtrig_sincos(buf + i, buf + n + i, buf + 2 * n + i, m);
+    }
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        PyList_SET_ITEM(ls, i, PyFloat_FromDouble(buf[n + i]));
+        PyList_SET_ITEM(lc, i, PyFloat_FromDouble(buf[2 * n + i]));
+    }
+    PyMem_Free(buf);
+    Py_DECREF(seq);
+    return Py_BuildValue("(NN)", ls, lc);
+fail:
+    PyMem_Free(buf); Py_XDECREF(ls); Py_XDECREF(lc); Py_DECREF(seq);
+    return NULL;
+#else
+    (void)arg;
+    Py_RETURN_NONE;
+#endif
+}
+
 static PyMethodDef methods[] = {
+    {"vector_sincos", vector_sincos, METH_O, "vector_sincos([x, ...]) -> ([sin x], [cos x]) by the batched rows' vector sine/cosine; None without one"},
     {"kernels", kernels, METH_NOARGS, "kernels() -> {name: (input shapes, output shapes)}"},
     {"source_hash", source_hash, METH_NOARGS, "sha256 of the generated C and the runtime headers this module was built from"},
     {"threads", threads, METH_NOARGS, "threads() -> the most threads a large batch is split over (RCCL_KINEMATICS_THREADS)"},

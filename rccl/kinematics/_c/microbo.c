@@ -88,8 +88,8 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -100,7 +100,7 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
         ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5];
         double a[4];
         for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        vtrig_sincos(a, sv, cv, 4);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
         kv_fk(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -114,14 +114,10 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
-            vtrig_sin(ta[3], tv[6], m);
-            vtrig_cos(ta[3], tv[7], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
         for (int r = 0; r < m; ++r)
             kv_fk(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -210,8 +206,8 @@ static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const d
     out0[1] = atan2((t1*(c_3*t2 + s_2*in0[9]) - t0*(c_1*in0[1] + s_0*in0[5]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -222,7 +218,7 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
         ta[0][r] = in1[0]; ta[1][r] = in1[3];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_ik_wrist(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -236,10 +232,8 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in1[0]; ta[1][r] = in1[3];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -276,8 +270,8 @@ static inline void kv_config_indicators(const double *restrict tv, Py_ssize_t ts
     out0[0] = s_0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -288,7 +282,7 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
         ta[0][r] = in0[4];
         double a[1];
         for (int i = 0; i < 1; ++i) a[i] = ta[i][0];
-        vtrig_sin(a, sv, 1);
+        vtrig_sincos(a, sv, cv, 1);
         tv[0] = sv[0];
         kv_config_indicators(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -302,7 +296,7 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
+        vtrig_sincos(ta[0], tv[0], NULL, m);
         for (int r = 0; r < m; ++r)
             kv_config_indicators(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -417,8 +411,8 @@ static inline void kv_jacobian4(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 0.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -429,7 +423,7 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_jacobian4(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -443,10 +437,8 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_jacobian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -581,8 +573,8 @@ static inline void kv_jacobian6(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 1.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -593,7 +585,7 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
         ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_jacobian6(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -607,12 +599,9 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_jacobian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -667,8 +656,8 @@ static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_
     out0[5] = in1[4] - t0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -679,7 +668,7 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_cartesian_from_joint4(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -693,10 +682,8 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_cartesian_from_joint4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -749,8 +736,8 @@ static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t t
     out0[5] = s_2*in1[3] - c_3*in1[4];
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -761,7 +748,7 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_torque_from_force4(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -775,10 +762,8 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_torque_from_force4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -855,8 +840,8 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
     out2[0] = fabs(s_2) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -867,7 +852,7 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
@@ -881,10 +866,8 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -955,8 +938,8 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     out2[0] = fabs(s_2) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -967,7 +950,7 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
@@ -981,10 +964,8 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -1063,8 +1044,8 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     out0[5] = s_2*z6 - c_3*z7;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1075,7 +1056,7 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
         ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_cartesian_from_joint6(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1089,12 +1070,9 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_cartesian_from_joint6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1161,8 +1139,8 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1173,7 +1151,7 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
         ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_torque_from_force6(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1187,12 +1165,9 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_torque_from_force6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1289,8 +1264,8 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     out2[0] = fabs(s_2) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1301,7 +1276,7 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
         ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
@@ -1315,12 +1290,9 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -1411,8 +1383,8 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     out2[0] = fabs(s_2) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1423,7 +1395,7 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
         ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
         return 1;
@@ -1437,12 +1409,9 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
     }
@@ -1495,8 +1464,8 @@ static inline void kv_gravity(const double *restrict tv, Py_ssize_t ts, const do
     out0[5] = 0.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1507,7 +1476,7 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_gravity(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1521,10 +1490,8 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_gravity(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1589,8 +1556,8 @@ static inline void kv_gravity_regressor(const double *restrict tv, Py_ssize_t ts
     out0[11] = 0.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1601,7 +1568,7 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
         ta[0][r] = in0[3]; ta[1][r] = in0[4];
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_gravity_regressor(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -1615,10 +1582,8 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[3]; ta[1][r] = in0[4];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_gravity_regressor(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -1683,8 +1648,8 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     out0[5] = 9.81*in1[5]*(c_1*t2_n - c_3*s_0*t0);
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1695,7 +1660,7 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
         ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_gravity_links(tv, 1, in0, in1, in2, (double *)out[0]);
         return 1;
@@ -1709,12 +1674,9 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_gravity_links(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], inb2 + (r0 + r) * is[2], outb0 + (r0 + r) * os[0]);
     }
@@ -1831,121 +1793,121 @@ static const kernel_entry KERNELS[20] = {
      {{2, {4, 4}, 16}},
      {"q"},
      {"T"},
-     "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik", batch_ik, 2, 3, 2,
      {{2, {4, 4}, 16}, {0, {0, 0}, 1}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"T", "config"},
      {"q", "guard_axis", "guard_wrist"},
-     "ik(T[4, 4], config[]) -> (q[6], guard_axis, guard_wrist): joint variables for pose T in one configuration (signs +-1: wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "ik(T[4, 4], config[]) -> (q[6], guard_axis, guard_wrist): joint variables for pose T in one configuration (signs +-1: wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_wrist", batch_ik_wrist, 2, 1, 0,
      {{2, {4, 4}, 16}, {1, {6, 0}, 6}},
      {{1, {2, 0}, 2}},
      {"T", "q"},
      {"q56"},
-     "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"config_indicators", batch_config_indicators, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{0, {0, 0}, 1}},
      {"q"},
      {"indicator"},
-     "config_indicators(q[6]) -> (indicator[]): values whose signs are the configuration of q (wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "config_indicators(q[6]) -> (indicator[]): values whose signs are the configuration of q (wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"jacobian4", batch_jacobian4, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"},
-     "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"jacobian6", batch_jacobian6, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"},
-     "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"},
-     "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"torque_from_force4", batch_torque_from_force4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"},
-     "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_axis", "guard_wrist"},
-     "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_axis, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_axis, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"force_from_torque4", batch_force_from_torque4, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_axis", "guard_wrist"},
-     "force_from_torque4(q[6], tau[6]) -> (f[6], guard_axis, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "force_from_torque4(q[6], tau[6]) -> (f[6], guard_axis, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"},
-     "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"torque_from_force6", batch_torque_from_force6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"},
-     "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_axis", "guard_wrist"},
-     "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_axis, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_axis, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"force_from_torque6", batch_force_from_torque6, 2, 3, 2,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_axis", "guard_wrist"},
-     "force_from_torque6(q[6], tau[6]) -> (f[6], guard_axis, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "force_from_torque6(q[6], tau[6]) -> (f[6], guard_axis, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"gravity", batch_gravity, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {2, 0}, 2}},
      {{1, {6, 0}, 6}},
      {"q", "c"},
      {"tau"},
-     "gravity(q[6], c[2]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "gravity(q[6], c[2]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"gravity_regressor", batch_gravity_regressor, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 2}, 12}},
      {"q"},
      {"Y"},
-     "gravity_regressor(q[6]) -> (Y[6, 2]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "gravity_regressor(q[6]) -> (Y[6, 2]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"gravity_links", batch_gravity_links, 3, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {6, 0}, 6}},
      {"q", "m", "com"},
      {"tau"},
-     "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"coefficients_from_links", batch_coefficients_from_links, 2, 1, 0,
      {{1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {2, 0}, 2}},
      {"m", "com"},
      {"c"},
-     "coefficients_from_links(m[6], com[6, 3]) -> (c[2]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "coefficients_from_links(m[6], com[6, 3]) -> (c[2]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"tool_load", batch_tool_load, 2, 1, 0,
      {{1, {2, 0}, 2}, {1, {2, 0}, 2}},
      {{1, {2, 0}, 2}},
      {"c", "load"},
      {"c_loaded"},
-     "tool_load(c[2], load[2]) -> (c_loaded[2]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "tool_load(c[2], load[2]) -> (c_loaded[2]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {2, 6}, 12}, {2, {2, 2}, 4}},
      {"T"},
      {"q", "guards"},
-     "ik_all(T[4, 4]) -> (q[2, 6], guards[2, 2]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "ik_all(T[4, 4]) -> (q[2, 6], guards[2, 2]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
 };
 
 #include "kin_runtime.h"

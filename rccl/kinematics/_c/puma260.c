@@ -116,8 +116,8 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -128,7 +128,7 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         double a[6];
         for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        vtrig_sincos(a, sv, cv, 6);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5];
         kv_fk(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -142,18 +142,12 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
-            vtrig_sin(ta[3], tv[6], m);
-            vtrig_cos(ta[3], tv[7], m);
-            vtrig_sin(ta[4], tv[8], m);
-            vtrig_cos(ta[4], tv[9], m);
-            vtrig_sin(ta[5], tv[10], m);
-            vtrig_cos(ta[5], tv[11], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        vtrig_sincos(ta[4], tv[8], tv[9], m);
+        vtrig_sincos(ta[5], tv[10], tv[11], m);
         for (int r = 0; r < m; ++r)
             kv_fk(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -318,8 +312,8 @@ static inline void kv_ik(const double *restrict tv, Py_ssize_t ts, const double 
     out4[0] = sqrt(t31 + t32) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -330,7 +324,7 @@ static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize
         const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0;
         double a[1];
         for (int i = 0; i < 1; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 1); vtrig_sin(a, sv, 1);
+        vtrig_sincos(a, sv, cv, 1);
         tv[0] = sv[0]; tv[1] = cv[0];
         kv_ik(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3], (double *)out[4]);
         return 1;
@@ -344,8 +338,7 @@ static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0;
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
         for (int r = 0; r < m; ++r)
             kv_ik(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3], outb4 + (r0 + r) * os[4]);
     }
@@ -408,8 +401,8 @@ static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const d
     out0[1] = atan2((t1_n*(s_4*t4 - c_5*in0[9]) - t2*(c_3*t5 + s_2*t3))/sqrt(t1_n*t1_n + t2*t2), c_3*t3 - s_2*t5);
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -420,7 +413,7 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
         const double x_0 = in1[1] + in1[2]; ta[0][r] = in1[0]; ta[1][r] = in1[3]; ta[2][r] = x_0;
         double a[3];
         for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 3); vtrig_sin(a, sv, 3);
+        vtrig_sincos(a, sv, cv, 3);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
         kv_ik_wrist(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -434,12 +427,9 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in1[1] + in1[2]; ta[0][r] = in1[0]; ta[1][r] = in1[3]; ta[2][r] = x_0;
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
             kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -490,8 +480,8 @@ static inline void kv_config_indicators(const double *restrict tv, Py_ssize_t ts
     out0[2] = s_2;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -502,7 +492,7 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[4]; ta[3][r] = x_0;
         double a[4];
         for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        vtrig_sincos(a, sv, cv, 4);
         tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = sv[3];
         kv_config_indicators(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -516,10 +506,10 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[4]; ta[3][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_cos(ta[1], tv[1], m);
-            vtrig_sin(ta[2], tv[2], m);
-            vtrig_sin(ta[3], tv[3], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], NULL, tv[1], m);
+        vtrig_sincos(ta[2], tv[2], NULL, m);
+        vtrig_sincos(ta[3], tv[3], NULL, m);
         for (int r = 0; r < m; ++r)
             kv_config_indicators(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -664,8 +654,8 @@ static inline void kv_jacobian4(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 0.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -676,7 +666,7 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
         const double x_0 = in0[1] + in0[2]; const double x_1 = in0[2] - in0[3]; const double x_2 = in0[2] + in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2;
         double a[7];
         for (int i = 0; i < 7; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 7); vtrig_sin(a, sv, 7);
+        vtrig_sincos(a, sv, cv, 7);
         tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = cv[2]; tv[4] = sv[3]; tv[5] = cv[3]; tv[6] = sv[4]; tv[7] = cv[4]; tv[8] = sv[5]; tv[9] = cv[5]; tv[10] = sv[6]; tv[11] = cv[6];
         kv_jacobian4(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -690,18 +680,13 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; const double x_1 = in0[2] - in0[3]; const double x_2 = in0[2] + in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_cos(ta[1], tv[1], m);
-            vtrig_sin(ta[2], tv[2], m);
-            vtrig_cos(ta[2], tv[3], m);
-            vtrig_sin(ta[3], tv[4], m);
-            vtrig_cos(ta[3], tv[5], m);
-            vtrig_sin(ta[4], tv[6], m);
-            vtrig_cos(ta[4], tv[7], m);
-            vtrig_sin(ta[5], tv[8], m);
-            vtrig_cos(ta[5], tv[9], m);
-            vtrig_sin(ta[6], tv[10], m);
-            vtrig_cos(ta[6], tv[11], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], NULL, tv[1], m);
+        vtrig_sincos(ta[2], tv[2], tv[3], m);
+        vtrig_sincos(ta[3], tv[4], tv[5], m);
+        vtrig_sincos(ta[4], tv[6], tv[7], m);
+        vtrig_sincos(ta[5], tv[8], tv[9], m);
+        vtrig_sincos(ta[6], tv[10], tv[11], m);
         for (int r = 0; r < m; ++r)
             kv_jacobian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -870,8 +855,8 @@ static inline void kv_jacobian6(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 1.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -882,7 +867,7 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         double a[6];
         for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        vtrig_sincos(a, sv, cv, 6);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
         kv_jacobian6(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -896,17 +881,12 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
-            vtrig_sin(ta[5], tv[9], m);
-            vtrig_cos(ta[5], tv[10], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_jacobian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -985,8 +965,8 @@ static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_
     out0[5] = in1[4] + c_4*t3 + s_3*t2;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -997,7 +977,7 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         double a[5];
         for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        vtrig_sincos(a, sv, cv, 5);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
         kv_cartesian_from_joint4(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1011,15 +991,11 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
         for (int r = 0; r < m; ++r)
             kv_cartesian_from_joint4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1096,8 +1072,8 @@ static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t t
     out0[5] = c_6*in1[4] - s_5*in1[3];
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1108,7 +1084,7 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         double a[5];
         for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        vtrig_sincos(a, sv, cv, 5);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
         kv_torque_from_force4(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1122,15 +1098,11 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
         for (int r = 0; r < m; ++r)
             kv_torque_from_force4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1227,8 +1199,8 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
     out3[0] = fabs(s_5) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1239,7 +1211,7 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         double a[5];
         for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        vtrig_sincos(a, sv, cv, 5);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
         kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
         return 1;
@@ -1253,15 +1225,11 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -1348,8 +1316,8 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     out3[0] = fabs(s_5) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1360,7 +1328,7 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         double a[5];
         for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        vtrig_sincos(a, sv, cv, 5);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
         kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
         return 1;
@@ -1374,15 +1342,11 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -1481,8 +1445,8 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     out0[5] = c_6*z7 - s_5*z6;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1493,7 +1457,7 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         double a[6];
         for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        vtrig_sincos(a, sv, cv, 6);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
         kv_cartesian_from_joint6(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1507,17 +1471,12 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
-            vtrig_sin(ta[5], tv[9], m);
-            vtrig_cos(ta[5], tv[10], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_cartesian_from_joint6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1614,8 +1573,8 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     out0[5] = c_6*z13 - s_5*z12;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1626,7 +1585,7 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         double a[6];
         for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        vtrig_sincos(a, sv, cv, 6);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
         kv_torque_from_force6(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -1640,17 +1599,12 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
-            vtrig_sin(ta[5], tv[9], m);
-            vtrig_cos(ta[5], tv[10], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_torque_from_force6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -1767,8 +1721,8 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     out3[0] = fabs(s_5) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1779,7 +1733,7 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         double a[6];
         for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        vtrig_sincos(a, sv, cv, 6);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
         kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
         return 1;
@@ -1793,17 +1747,12 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
-            vtrig_sin(ta[5], tv[9], m);
-            vtrig_cos(ta[5], tv[10], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -1910,8 +1859,8 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     out3[0] = fabs(s_5) - 1e-09;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1922,7 +1871,7 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         double a[6];
         for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 6); vtrig_sin(a, sv, 6);
+        vtrig_sincos(a, sv, cv, 6);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
         kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
         return 1;
@@ -1936,17 +1885,12 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
-            vtrig_sin(ta[4], tv[7], m);
-            vtrig_cos(ta[4], tv[8], m);
-            vtrig_sin(ta[5], tv[9], m);
-            vtrig_cos(ta[5], tv[10], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -2013,8 +1957,8 @@ static inline void kv_gravity(const double *restrict tv, Py_ssize_t ts, const do
     out0[5] = 0.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -2025,7 +1969,7 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
         double a[4];
         for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        vtrig_sincos(a, sv, cv, 4);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
         kv_gravity(tv, 1, in0, in1, (double *)out[0]);
         return 1;
@@ -2039,13 +1983,10 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
         for (int r = 0; r < m; ++r)
             kv_gravity(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
@@ -2136,8 +2077,8 @@ static inline void kv_gravity_regressor(const double *restrict tv, Py_ssize_t ts
     out0[17] = 0.0;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -2148,7 +2089,7 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
         double a[4];
         for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 4); vtrig_sin(a, sv, 4);
+        vtrig_sincos(a, sv, cv, 4);
         tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
         kv_gravity_regressor(tv, 1, in0, (double *)out[0]);
         return 1;
@@ -2162,13 +2103,10 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
         }
-            vtrig_cos(ta[0], tv[0], m);
-            vtrig_sin(ta[1], tv[1], m);
-            vtrig_cos(ta[1], tv[2], m);
-            vtrig_sin(ta[2], tv[3], m);
-            vtrig_cos(ta[2], tv[4], m);
-            vtrig_sin(ta[3], tv[5], m);
-            vtrig_cos(ta[3], tv[6], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
         for (int r = 0; r < m; ++r)
             kv_gravity_regressor(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
     }
@@ -2263,8 +2201,8 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     out0[5] = 9.81*in1[5]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -2275,7 +2213,7 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
         const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ta[4][r] = x_0;
         double a[5];
         for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 5); vtrig_sin(a, sv, 5);
+        vtrig_sincos(a, sv, cv, 5);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4];
         kv_gravity_links(tv, 1, in0, in1, in2, (double *)out[0]);
         return 1;
@@ -2289,16 +2227,11 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ta[4][r] = x_0;
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
-            vtrig_sin(ta[2], tv[4], m);
-            vtrig_cos(ta[2], tv[5], m);
-            vtrig_sin(ta[3], tv[6], m);
-            vtrig_cos(ta[3], tv[7], m);
-            vtrig_sin(ta[4], tv[8], m);
-            vtrig_cos(ta[4], tv[9], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        vtrig_sincos(ta[4], tv[8], tv[9], m);
         for (int r = 0; r < m; ++r)
             kv_gravity_links(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], inb2 + (r0 + r) * is[2], outb0 + (r0 + r) * os[0]);
     }
@@ -2963,8 +2896,8 @@ static inline void kv_ik_all(const double *restrict tv, Py_ssize_t ts, const dou
     out1[31] = t209;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (libmvec),
- * then the straight-line rows */
+/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -2975,7 +2908,7 @@ static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_s
         const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
         double a[2];
         for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_cos(a, cv, 2); vtrig_sin(a, sv, 2);
+        vtrig_sincos(a, sv, cv, 2);
         tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
         kv_ik_all(tv, 1, in0, (double *)out[0], (double *)out[1]);
         return 1;
@@ -2989,10 +2922,8 @@ static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_s
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
         }
-            vtrig_sin(ta[0], tv[0], m);
-            vtrig_cos(ta[0], tv[1], m);
-            vtrig_sin(ta[1], tv[2], m);
-            vtrig_cos(ta[1], tv[3], m);
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
             kv_ik_all(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1]);
     }
@@ -3018,121 +2949,121 @@ static const kernel_entry KERNELS[20] = {
      {{2, {4, 4}, 16}},
      {"q"},
      {"T"},
-     "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "fk(q[6]) -> (T[4, 4]): T6: link 6 in the base frame (4x4 homogeneous transform, m) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"ik", batch_ik, 2, 5, 4,
      {{2, {4, 4}, 16}, {1, {3, 0}, 3}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"T", "config"},
      {"q", "guard_arm_reach", "guard_elbow_reach", "guard_folded", "guard_wrist"},
-     "ik(T[4, 4], config[3]) -> (q[6], guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist): joint variables for pose T in one configuration (signs +-1: arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "ik(T[4, 4], config[3]) -> (q[6], guard_arm_reach, guard_elbow_reach, guard_folded, guard_wrist): joint variables for pose T in one configuration (signs +-1: arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_wrist", batch_ik_wrist, 2, 1, 0,
      {{2, {4, 4}, 16}, {1, {6, 0}, 6}},
      {{1, {2, 0}, 2}},
      {"T", "q"},
      {"q56"},
-     "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "ik_wrist(T[4, 4], q[6]) -> (q56[2]): theta5, theta6 for pose T when q1..q4 are given (wrist singularity: theta4 kept from a reference) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"config_indicators", batch_config_indicators, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{1, {3, 0}, 3}},
      {"q"},
      {"indicator"},
-     "config_indicators(q[6]) -> (indicator[3]): values whose signs are the configuration of q (arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "config_indicators(q[6]) -> (indicator[3]): values whose signs are the configuration of q (arm, elbow, wrist) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"jacobian4", batch_jacobian4, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"},
-     "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "jacobian4(q[6]) -> (J[6, 6]): 4J: motion of link 6 observed in frame 4 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"jacobian6", batch_jacobian6, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 6}, 36}},
      {"q"},
      {"J"},
-     "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "jacobian6(q[6]) -> (J[6, 6]): 6J: motion of link 6 observed in frame 6 per unit joint rate Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"cartesian_from_joint4", batch_cartesian_from_joint4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"},
-     "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "cartesian_from_joint4(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"torque_from_force4", batch_torque_from_force4, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"},
-     "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "torque_from_force4(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"joint_from_cartesian4", batch_joint_from_cartesian4, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"},
-     "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "joint_from_cartesian4(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"force_from_torque4", batch_force_from_torque4, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_shoulder", "guard_elbow", "guard_wrist"},
-     "force_from_torque4(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "force_from_torque4(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 4 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"cartesian_from_joint6", batch_cartesian_from_joint6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "dq"},
      {"dc"},
-     "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "cartesian_from_joint6(q[6], dq[6]) -> (dc[6]): dc = J dq observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"torque_from_force6", batch_torque_from_force6, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}},
      {"q", "f"},
      {"tau"},
-     "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "torque_from_force6(q[6], f[6]) -> (tau[6]): tau = J^T f with f observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"joint_from_cartesian6", batch_joint_from_cartesian6, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "dc"},
      {"dq", "guard_shoulder", "guard_elbow", "guard_wrist"},
-     "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "joint_from_cartesian6(q[6], dc[6]) -> (dq[6], guard_shoulder, guard_elbow, guard_wrist): dq = J^-1 dc with dc observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"force_from_torque6", batch_force_from_torque6, 2, 4, 3,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
      {{1, {6, 0}, 6}, {0, {0, 0}, 1}, {0, {0, 0}, 1}, {0, {0, 0}, 1}},
      {"q", "tau"},
      {"f", "guard_shoulder", "guard_elbow", "guard_wrist"},
-     "force_from_torque6(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "force_from_torque6(q[6], tau[6]) -> (f[6], guard_shoulder, guard_elbow, guard_wrist): f = J^-T tau, observed in frame 6 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"gravity", batch_gravity, 2, 1, 0,
      {{1, {6, 0}, 6}, {1, {3, 0}, 3}},
      {{1, {6, 0}, 6}},
      {"q", "c"},
      {"tau"},
-     "gravity(q[6], c[3]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "gravity(q[6], c[3]) -> (tau[6]): tau_g = regressor(q) c: torques holding the arm against gravity Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"gravity_regressor", batch_gravity_regressor, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {6, 3}, 18}},
      {"q"},
      {"Y"},
-     "gravity_regressor(q[6]) -> (Y[6, 3]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "gravity_regressor(q[6]) -> (Y[6, 3]): d tau_g / d c (tau_g is linear in the coefficients) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 1},
     {"gravity_links", batch_gravity_links, 3, 1, 0,
      {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {6, 0}, 6}},
      {"q", "m", "com"},
      {"tau"},
-     "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "gravity_links(q[6], m[6], com[6, 3]) -> (tau[6]): tau_g from link masses and centres of mass (eq. 4.20, no centre-of-mass assumption) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"coefficients_from_links", batch_coefficients_from_links, 2, 1, 0,
      {{1, {6, 0}, 6}, {2, {6, 3}, 18}},
      {{1, {3, 0}, 3}},
      {"m", "com"},
      {"c"},
-     "coefficients_from_links(m[6], com[6, 3]) -> (c[3]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "coefficients_from_links(m[6], com[6, 3]) -> (c[3]): gravity loading coefficients of given link masses and centres of mass (those 4.24 assumes: 4.21 for the PUMA) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"tool_load", batch_tool_load, 2, 1, 0,
      {{1, {3, 0}, 3}, {1, {2, 0}, 2}},
      {{1, {3, 0}, 3}},
      {"c", "load"},
      {"c_loaded"},
-     "tool_load(c[3], load[2]) -> (c_loaded[3]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "tool_load(c[3], load[2]) -> (c_loaded[3]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {8, 6}, 48}, {2, {8, 4}, 32}},
      {"T"},
      {"q", "guards"},
-     "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast."},
+     "ik_all(T[4, 4]) -> (q[8, 6], guards[8, 4]): every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
 };
 
 #include "kin_runtime.h"
