@@ -109,12 +109,22 @@ def angle_sums(body: str) -> int:
     return sum(count_ops(m["rhs"])["add_sub"] for m in map(_ANGLE_SUM.match, body.splitlines()) if m)
 
 
+#: the comment emit_c.py writes above each kernel; its lowering names the variant chosen
+#: and, for a transform, what the other choices of the rebuilt column (3.3) counted
+_HEADER = re.compile(r"/\* (?P<robot>\w+)\.(?P<name>\w+): .*; lowering: (?P<lowering>[^\n]*)\) \*/\n")
+
+
 def count_file(path: Path) -> list[dict]:
     """One record per kernel found between the BEGIN/END KERNEL markers of a C file."""
     rows = []
-    for m in _KERNEL.finditer(Path(path).read_text()):
+    text = Path(path).read_text()
+    tried = {(m["robot"], m["name"]): m["lowering"].partition("; columns tried (mul/add): ")[2]
+             for m in _HEADER.finditer(text)}
+    for m in _KERNEL.finditer(text):
         row = {"robot": m["robot"], "kernel": m["name"], **count_ops(m["body"]),
                "angle_sum": angle_sums(without_guards(m["body"]))}
+        if tried.get((m["robot"], m["name"])):
+            row["columns_tried"] = tried[(m["robot"], m["name"])]
         if GUARD_MARK in m["body"]:
             bare = count_ops(without_guards(m["body"]))
             row.update({f"{k}_without_guards": bare[k] for k in ("mul_div", "add_sub", "neg", "trig")})
@@ -214,6 +224,15 @@ def write_reports(c_files: list[Path], md_path: Path, json_path: Path, command: 
         "  case + 8/4.",
         "- Section 6.1: RCCL's forward kinematics, 41 mul/div and 17 additions; the thesis",
         "  does not say whether RCCL's 17 include negations or the theta2 + theta3 argument.",
+        "  Ours counts both (19 = 17 + the angle sum + one negation), and we found no way",
+        "  to drop either: S23 and C23 from S2, C2, S3, C3 cost two additions instead of one;",
+        "  in the PUMA 260's frames every term of a_y = -S1 C23 C4 S5 - S1 S23 C5 - C1 S4 S5",
+        "  is negative (tests/test_derive.py checks the derived T6), so an a column formed",
+        "  from products of sines and cosines needs one sign change, or extra subtractions",
+        "  whose terms cancel; rebuilding a (or n) by a cross product instead costs more.",
+        "  What each choice of the rebuilt column counted at best (from the generated C's",
+        "  lowering comments):",
+        *[f"  {r['robot']} {r['kernel']}: {r['columns_tried']}." for r in rows if r.get("columns_tried")],
         "- The frame-4 and frame-6 Jacobian computations are emitted the way 3.73/3.74 are",
         "  written: substitution in the block-triangular 4J' (its top block observed in frame",
         "  3 is triangular), not a product with the expanded inverse 3.68; forward",

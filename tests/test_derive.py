@@ -149,3 +149,12 @@ def test_substitution_solves_triangular_systems():
         sol[sym] = v.xreplace(sol)
     assert sp.simplify(m * sp.Matrix([sol[s] for s in x]) - sp.Matrix(rhs)) == sp.zeros(3, 1)
     assert triangular_pivots(sp.Matrix([[1, 1], [1, 1]])) is None
+
+
+def test_puma_a_y_has_only_negative_terms():
+    """Why forward kinematics spends one sign change (reports/opcounts.md, section 6.1 row):
+    in the PUMA 260's frames every term of a_y is negative, while a_x and a_z mix signs."""
+    t = t6(PUMA260)
+    signs = {key: {sp.sign(term.as_coeff_Mul()[0]) for term in sp.Add.make_args(sp.expand(t[row, 2]))}
+             for key, row in (("a_x", 0), ("a_y", 1), ("a_z", 2))}
+    assert signs == {"a_x": {1, -1}, "a_y": {-1}, "a_z": {1, -1}}

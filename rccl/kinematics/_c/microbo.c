@@ -9,7 +9,7 @@
 #define MAXIO 3
 #include "kin_prelude.h"
 
-/* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: cse, staged (the kernel's structure hint), o=cross) */
+/* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: cse, staged (the kernel's structure hint), o=cross; columns tried (mul/add): none rebuilt 26/12, n rebuilt 24/12, o rebuilt 25/10, a rebuilt 27/13) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
 {
 /* BEGIN KERNEL microbo.fk */

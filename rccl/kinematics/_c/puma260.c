@@ -9,7 +9,7 @@
 #define MAXIO 5
 #include "kin_prelude.h"
 
-/* puma260.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: cse, staged (the kernel's structure hint), o=cross) */
+/* puma260.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: cse, staged (the kernel's structure hint), o=cross; columns tried (mul/add): none rebuilt 42/23, n rebuilt 38/20, o rebuilt 37/19, a rebuilt 38/21) */
 static inline void k_fk(const double *restrict in0, double *restrict out0)
 {
 /* BEGIN KERNEL puma260.fk */
