@@ -31,6 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.output import emit  # noqa: E402
 from rccl.adaptive.control import AdaptiveControl  # noqa: E402
 from rccl.adaptive.force import JointModel  # noqa: E402
 from rccl.adaptive.generator import AdaptiveGenerator  # noqa: E402
@@ -188,11 +189,7 @@ def main(argv: list[str] | None = None) -> int:
               f"({heavy['mean']:.1f} us mean, {heavy['median']:.1f} median, {heavy['p99']:.1f} p99, "
               f"{heavy['max']:.1f} max). Aim on a quiet machine: mean <= {AIM_MEAN_US:.0f} us and p99 <= "
               f"{AIM_P99_US:.0f} us: **{aim}** in this run (load {load_start:.2f} -> {os.getloadavg()[0]:.2f}).", ""]
-    text = "\n".join(lines)
-    print(text)
-    if args.out != "-":
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(text)
+    emit("\n".join(lines), args.out)
     return 0
 
 

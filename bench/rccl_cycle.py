@@ -28,6 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.output import emit  # noqa: E402
 from rccl.limits import load_limits  # noqa: E402
 from rccl.planner import Planner  # noqa: E402
 from rccl.position import EQ, TL, makeposition  # noqa: E402
@@ -229,11 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         f"took {cart['max']:.1f} us ({'within' if cart['max'] <= TARGET_US else 'above'} 100 us; single maxima on a "
         "shared machine include interrupts and cache misses).",
         ""]
-    text = "\n".join(lines)
-    print(text)
-    if args.out != "-":
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(text)
+    emit("\n".join(lines), args.out)
     return 0
 
 
