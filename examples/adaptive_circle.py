@@ -118,11 +118,9 @@ def plot(arm, r_p0_end_t: float, out: Path = REPORT) -> Path:
         ax.grid(alpha=0.3)
     fig.suptitle("Figure 5.3: XY projection of the measured T6 path (simula, 36 Hz)\n"
                  "rebuilt by: .venv/bin/python examples/adaptive_circle.py --plot", fontsize=9)
-    fig.tight_layout()
-    out.parent.mkdir(exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    from adaptive_sim import save_figure
+
+    return save_figure(fig, out)
 
 
 def _cli(argv: list[str]) -> int:

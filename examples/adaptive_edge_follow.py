@@ -119,11 +119,9 @@ def plot(arm, reqs, t_settled, out: Path | None = None) -> Path:
     a2.legend(fontsize=8)
     fig.suptitle("Compliant edge-following (5.4.3) in simula\n"
                  "rebuilt by: .venv/bin/python examples/adaptive_edge_follow.py --plot", fontsize=9)
-    fig.tight_layout()
-    out.parent.mkdir(exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    from adaptive_sim import save_figure
+
+    return save_figure(fig, out)
 
 
 def _cli(argv: list[str]) -> int:

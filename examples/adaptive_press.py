@@ -124,11 +124,9 @@ def plot(out: Path | None = None) -> Path:
     ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Force held at rest along a compliant axis (5.4.3, 4.6) in simula\n"
                  "rebuilt by: .venv/bin/python examples/adaptive_press.py --plot", fontsize=9)
-    fig.tight_layout()
-    out.parent.mkdir(exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    from adaptive_sim import save_figure
+
+    return save_figure(fig, out)
 
 
 # (label, rate Hz, Dither options): the rows of docs/adaptive.md's table

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 import warnings
+from pathlib import Path
 
 from rci.simula.process import SimulaProcess
 
@@ -29,6 +30,17 @@ def url_from_argv(argv: list[str]) -> str | None:
     """A ``socket://`` or device argument, if the user gave one."""
     rest = [a for a in argv if not a.startswith("--")]
     return rest[0] if rest else None
+
+
+def save_figure(fig, out: Path) -> Path:
+    """Lay out ``fig``, write it to ``out`` (110 dpi; its folder made if missing), close it; returns ``out``."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    out.parent.mkdir(exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
 
 
 if __name__ == "__main__":  # pragma: no cover - a quick check that the environment simula starts
