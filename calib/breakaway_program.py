@@ -20,6 +20,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
 from calib.paths import Path, Segment
+from calib.program import drive
 from rci import codes
 from rci.chg import CUR, POS
 from rci.conversions import DAC_MAX, DAC_MIN, Conversions
@@ -178,11 +179,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
         session.chg.motion[j].issue(CUR, dac)
 
     try:
-        with session:
-            session.control(f1)
-            session.wait(until=done.is_set)
-            session.record(None)
-            session.release()
+        drive(session, f1, done)
     except RCIError as exc:
         raise CalibError(f"measurement program {plan.name} on {url} stopped at step "
                          f"{state['step']}: {exc} (partial log: {log_path})") from None

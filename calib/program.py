@@ -33,6 +33,16 @@ class RunInfo:
     cycles: int
 
 
+def drive(session: Session, f1, done: threading.Event) -> None:
+    """Run control function ``f1`` on an open-able ``session`` until ``done`` is set, then stop
+    recording and release. The session is closed on the way out; RCI errors propagate."""
+    with session:
+        session.control(f1)
+        session.wait(until=done.is_set)
+        session.record(None)
+        session.release()
+
+
 def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
              realtime: bool = False, extra_meta: dict | None = None,
              timeout: float | None = 5.0) -> RunInfo:
@@ -80,11 +90,7 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
             chg.motion[j].issue(POS, int(counts[j]))
 
     try:
-        with session:
-            session.control(f1)
-            session.wait(until=done.is_set)
-            session.record(None)
-            session.release()
+        drive(session, f1, done)
     except RCIError as exc:
         # the log keeps what was recorded up to the error (closed cleanly below)
         raise CalibError(f"measurement program {plan.name} on {url} stopped after "
