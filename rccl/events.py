@@ -35,7 +35,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from typing import Any, Callable
+from typing import Any
 
 from .adaptive.conditional import choose
 from .adaptive.ending import MotionEnd
@@ -43,6 +43,7 @@ from .adaptive.generator import HookQueue
 from .adaptive.monitor import Monitor
 from .exceptions import MotionError, RCCLError
 from .motion import Request
+from .queue import HOLD, TAKE, QueuePolicy
 from .position import Position
 
 # --- codes (rule 4: start codes > 0, stop codes < 0; rule 5: NULL is reserved) ------------
@@ -158,80 +159,58 @@ class _StopWatch(Monitor):
         return self.inner(s) if self.inner is not None else None
 
 
-class _Done(threading.Event):
-    """A request's completion event that also tells the EFT (Request.finish calls its set())."""
+class EventGate(QueuePolicy):
+    """The arm's queue policy (``MotionQueue.set_policy``): the start gate of rule 1 and the
+    queued-stop deletion of rule 3; it binds each EFT to the request ``move_ev`` queues.
 
-    def __init__(self, on_set: Callable[[], None], was_set: bool) -> None:
-        super().__init__()
-        self._on_set = on_set
-        if was_set:
-            super().set()
-
-    def set(self) -> None:
-        super().set()
-        self._on_set()
-
-
-class EventQueue(HookQueue):
-    """The arm's motion queue with the start gate of rule 1 and the queued-stop deletion of rule 3."""
+    ``admit`` runs under the queue's lock and reads the flags without the global lock; the
+    global lock is taken only in ``taken`` (outside the queue's lock), so the two are never
+    nested (move_ev holds neither while it queues)."""
 
     def __init__(self, events: "_ArmEvents") -> None:
-        super().__init__()
         self.events = events
         self.next_eft: EFT | None = None      # set by move_ev around arm.move: the request it queues gets it
         self.cleared_head: Request | None = None
 
-    def put(self, item: Request) -> None:
+    def queued(self, item: Request) -> None:
         eft = self.next_eft
         if eft is not None:
             self.next_eft = None
             eft.request = item
-            _bind(eft, item, self.pending.get("evalfn"))
-            if "evalfn" in self.pending:
-                del self.pending["evalfn"]     # merged into the stop watch
-        super().put(item)
+            _bind(eft, item, item.hooks.get("evalfn"))   # the user's monitor (HookQueue merged it) goes inside the stop watch
 
-    def get(self) -> Request | None:
-        to_drop: list[Request] = []
-        out = None
-        with self._lock:
-            while self._items:
-                head = self._items[0]
-                eft = head.hooks.get("eft")
-                if eft is None:
-                    out = self._items.popleft()
-                    break
-                if eft._stop != NULL:            # rule 3: stopped before it started: delete it
-                    to_drop.append(self._items.popleft())
-                    continue
-                if eft._start == NULL:           # rule 1: not yet: the arm holds, the queue waits
-                    break
-                out = self._items.popleft()
-                break
-        # the global lock only after the queue's (move_ev takes them the other way round: never nested)
-        eft = out.hooks.get("eft") if out is not None else None
+    def admit(self, head: Request):
+        eft = head.hooks.get("eft")
+        if eft is None:
+            return TAKE
+        if eft._stop != NULL:            # rule 3: stopped before it started: delete it
+            return MotionError(f"{head.position.name}: deleted from the queue by its stop flag "
+                               f"({code_name(eft._stop)}) before it started")
+        if eft._start == NULL:           # rule 1: not yet: the arm holds, the queue waits
+            return HOLD
+        return TAKE
+
+    def taken(self, item: Request) -> None:
+        eft = item.hooks.get("eft")
         if eft is not None:
             with _lock:
                 eft._status = eft._start     # the motion begins: start code -> status
                 eft.t_started = time.monotonic()
                 eft.traj_started = self.events.arm.gen.t
                 _changed.notify_all()
-        for r in to_drop:
-            r.finish(MotionError(f"{r.position.name}: deleted from the queue by its stop flag "
-                                 f"({code_name(r.hooks['eft']._stop)}) before it started"))
-        return out
 
-    def clear(self) -> list:
-        items = super().clear()
+    def cleared(self, items: list) -> None:
         self.cleared_head = items[0] if items else None
-        return items
+
+
+EventQueue = EventGate    # the name this policy had when it was a queue subclass
 
 
 def _bind(eft: EFT, req: Request, inner: Monitor | None) -> None:
-    """Attach ``eft`` to ``req``: the stop watch, the completion hook."""
+    """Attach ``eft`` to ``req``: the stop watch, the completion callback."""
     req.hooks["eft"] = eft
     req.hooks["evalfn"] = _StopWatch(eft, inner)
-    req._done = _Done(lambda: _finished(eft, req), req._done.is_set())
+    req.on_finish(lambda r: _finished(eft, r))
 
 
 class _ArmEvents:
@@ -245,14 +224,8 @@ class _ArmEvents:
         self.arm = arm
         self.name = name
         self.efts: list[EFT] = []
-        old = gen.queue
-        q = EventQueue(self)
-        with old._lock:
-            q._items.extend(old._items)
-            old._items.clear()
-            q.pending = old.pending
-            gen.queue = q                 # the generator reads its queue attribute every transition
-            arm.queue = q
+        self.gate = EventGate(self)
+        gen.queue.set_policy(self.gate)
 
 
 def attach(arm, name: str | None = None) -> str:
@@ -310,8 +283,8 @@ def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_c
         _check_start_code(after_code, "move_ev(after_code=...)")
     elif start is not None:
         _check_start_code(start, "move_ev(start=...)")
-    q: EventQueue = arm.gen.queue
-    eft = EFT(next(_serial), ae.name, None)         # its request is bound in EventQueue.put
+    q = ae.gate
+    eft = EFT(next(_serial), ae.name, None)         # its request is bound in EventGate.queued
     if source is not None:
         eft.after, eft.after_code = source, after_code
     elif start is not None:
@@ -466,7 +439,7 @@ def _finished(eft: EFT, req: Request) -> None:
             return
         dropper = req.hooks.get("dropped_by")
         ae = next((a for a in _arms.values() if a.name == eft.arm), None)
-        if dropper is not None and ae is not None and ae.arm.gen.queue.cleared_head is req and eft._stop == NULL:
+        if dropper is not None and ae is not None and ae.gate.cleared_head is req and eft._stop == NULL:
             branch = choose(dropper.hooks.get("conditional", []), dropper.hooks.get("ended"))
             if branch is not None:          # 5.6.3: the conditional motion inherits the nominal motion's EFT
                 eft.request = branch.request

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Callable
 
 from .exceptions import BadRequest
 from .position import Position, Snapshot
@@ -72,6 +72,8 @@ class Request:
     error: BaseException | None = None
     profile: Any = None           # the planning level's path check (corner, results), reused if still valid
     _done: threading.Event = field(default_factory=threading.Event, repr=False)
+    _on_finish: list = field(default_factory=list, repr=False)
+    _finish_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def mode(self) -> str:
@@ -83,7 +85,20 @@ class Request:
         self.error = error
         if not self.repeat:
             self.position.end.signal()
-        self._done.set()
+        with self._finish_lock:
+            self._done.set()
+            callbacks, self._on_finish = self._on_finish, []
+        for cb in callbacks:
+            cb(self)
+
+    def on_finish(self, callback: Callable[["Request"], None]) -> None:
+        """Call ``callback(self)`` once when this request finishes (done or failed), from the
+        thread that finishes it; at once, here, if it already has."""
+        with self._finish_lock:
+            if not self._done.is_set():
+                self._on_finish.append(callback)
+                return
+        callback(self)
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until this request completes; True if it did."""

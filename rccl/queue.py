@@ -3,6 +3,11 @@
 A plain FIFO shared by two threads. The planning level ``put``s requests and never blocks;
 the trajectory generator ``get``s one when it nears the end of its current segment, and
 finds ``None`` when the queue is empty (then it repeats the last request: the arm holds).
+
+A ``QueuePolicy`` (``set_policy``) is the supported way to change what ``get`` hands out:
+it may hold the head request back (a start gate) or delete it before it starts, and it is
+told when requests are queued, taken and cleared (``rccl.events`` uses this for the event
+flags of thesis 5.6.3).
 """
 from __future__ import annotations
 
@@ -12,15 +17,46 @@ from typing import Generic, TypeVar
 
 T = TypeVar("T")
 
+TAKE = "take"   # QueuePolicy.admit: hand the head request out
+HOLD = "hold"   # QueuePolicy.admit: keep it (and everything behind it) queued; get returns None
+
+
+class QueuePolicy:
+    """What a queue hands out and when; the default takes every request in order.
+
+    ``admit`` runs under the queue's lock (it must not take other locks that are ever held
+    while calling into the queue); the other hooks run outside it.
+    """
+
+    def queued(self, item) -> None:
+        """``item`` is about to be appended (planning level, in ``put``)."""
+
+    def admit(self, head):
+        """TAKE, HOLD, or an exception: delete ``head`` unstarted (it is finished with that error)."""
+        return TAKE
+
+    def taken(self, item) -> None:
+        """``get`` handed ``item`` out (trajectory level)."""
+
+    def cleared(self, items: list) -> None:
+        """``clear`` removed ``items`` (oldest first)."""
+
 
 class MotionQueue(Generic[T]):
-    """Thread-safe FIFO of motion requests."""
+    """Thread-safe FIFO of motion requests, served through a ``QueuePolicy``."""
 
-    def __init__(self) -> None:
+    def __init__(self, policy: QueuePolicy | None = None) -> None:
         self._items: collections.deque[T] = collections.deque()
         self._lock = threading.Lock()
+        self.policy = policy if policy is not None else QueuePolicy()
+
+    def set_policy(self, policy: QueuePolicy) -> None:
+        """Serve the queue through ``policy`` from the next ``get`` on (requests already queued included)."""
+        with self._lock:
+            self.policy = policy
 
     def put(self, item: T) -> None:
+        self.policy.queued(item)
         with self._lock:
             self._items.append(item)
 
@@ -30,9 +66,26 @@ class MotionQueue(Generic[T]):
             self._items.appendleft(item)
 
     def get(self) -> T | None:
-        """The oldest request, or None if the queue is empty (never blocks: it runs at the control level)."""
+        """The oldest admitted request, or None if the queue is empty or its head is held
+        (never blocks: it runs at the control level). Requests the policy deletes are finished
+        with its error, outside the lock."""
+        dropped: list = []
+        out = None
         with self._lock:
-            return self._items.popleft() if self._items else None
+            policy = self.policy
+            while self._items:
+                verdict = policy.admit(self._items[0])
+                if verdict == TAKE:
+                    out = self._items.popleft()
+                    break
+                if verdict == HOLD:
+                    break
+                dropped.append((self._items.popleft(), verdict))
+        if out is not None:
+            policy.taken(out)
+        for item, error in dropped:
+            item.finish(error)
+        return out
 
     def peek(self) -> T | None:
         with self._lock:
@@ -43,7 +96,8 @@ class MotionQueue(Generic[T]):
         with self._lock:
             items = list(self._items)
             self._items.clear()
-            return items
+        self.policy.cleared(items)
+        return items
 
     def __len__(self) -> int:
         return len(self._items)
