@@ -39,6 +39,13 @@ def pinocchio_fk(robot: str = "puma260"):
     return fk
 
 
+def line_deviation(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) of each point of ``pts`` (n x 3, base frame) from the line through ``a`` and ``b``."""
+    u = (b - a) / np.linalg.norm(b - a)
+    r = pts - a
+    return np.linalg.norm(r - np.outer(r @ u, u), axis=1)
+
+
 def path_plot(arm, marks, title: str, out: Path | None = None, extra=None) -> Path:
     """XY and XZ projections of the tool (T6) path of ``arm.trace`` (commanded and measured)."""
     import matplotlib
@@ -214,12 +221,10 @@ def straight_line(url: str, rate_hz: int = 36) -> str:
         arm.waitfor(p.end)
         arm.rci.wait(0.3)
     a, b = base[:3, 3], goal[:3, 3]
-    u = (b - a) / np.linalg.norm(b - a)
     out = []
     for k, what in ((1, "commanded"), (2, "measured")):
         pts = np.array([fk(x[k])[:3, 3] for x in arm.trace[n0:]])
-        r = pts - a
-        dev = np.linalg.norm(r - np.outer(r @ u, u), axis=1).max()
+        dev = line_deviation(pts, a, b).max()
         out.append(f"{what} {dev * 1e3:.4f} mm (end error {np.linalg.norm(pts[-1] - b) * 1e3:.4f} mm)")
     return (f"straight line at {rate_hz} Hz on simula, {np.linalg.norm(b - a) * 1e3:.1f} mm with a 0.3 rad turn "
             "at 0.1 m/s, "

@@ -18,7 +18,7 @@ import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import BadRequest, SingularPath, Unreachable
 from rccl.limits import load_limits
-from rccl.plots import pinocchio_fk
+from rccl.plots import line_deviation, pinocchio_fk
 from rccl.transform import rot, trsl
 
 SimulaProcess = pytest.importorskip("rci.simula.process").SimulaProcess
@@ -79,13 +79,11 @@ def test_cartesian_straight_line_and_arrival_on_the_microbo(sim, world):
         arm.rci.wait(0.3)
     qc, qm = tail(arm, n0)
     a, b = base[:3, 3], goal[:3, 3]
-    u = (b - a) / np.linalg.norm(b - a)
     # the prismatic joints really moved (the line is not a wrist-only motion)
     assert np.ptp(qc[:, 1]) > 0.01 and np.ptp(qc[:, 2]) > 0.01
     for q, what in ((qc, "commanded"), (qm, "measured")):
         pts = np.array([world(x)[:3, 3] for x in q])
-        r = pts - a
-        dev = np.linalg.norm(r - np.outer(r @ u, u), axis=1)
+        dev = line_deviation(pts, a, b)
         print(f"microbo {what}: max deviation from the line {dev.max() * 1e3:.4f} mm, end point "
               f"{np.linalg.norm(pts[-1] - b) * 1e3:.4f} mm from the goal, {len(q)} samples")
         assert dev.max() <= 1e-4, f"{what} path deviates {dev.max() * 1e3:.4f} mm from the line"

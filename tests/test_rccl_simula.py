@@ -15,7 +15,7 @@ import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import SingularPath, Unreachable
 from rccl.limits import load_limits
-from rccl.plots import pinocchio_fk
+from rccl.plots import line_deviation, pinocchio_fk
 from rccl.transform import rot, trsl
 
 SimulaProcess = pytest.importorskip("rci.simula.process").SimulaProcess
@@ -68,11 +68,9 @@ def test_cartesian_straight_line_within_a_tenth_of_a_millimetre_at_36_hz(sim, wo
         arm.rci.wait(0.3)
     _, qc, qm = tail(arm, n0)
     a, b = base[:3, 3], goal[:3, 3]
-    u = (b - a) / np.linalg.norm(b - a)
     for q, what in ((qc, "commanded"), (qm, "measured")):
         pts = np.array([world(x)[:3, 3] for x in q])
-        r = pts - a
-        dev = np.linalg.norm(r - np.outer(r @ u, u), axis=1)
+        dev = line_deviation(pts, a, b)
         assert dev.max() <= 1e-4, f"{what} path deviates {dev.max() * 1e3:.4f} mm from the line"
         assert np.linalg.norm(pts[-1] - b) <= 1e-4, f"{what} end point misses by {np.linalg.norm(pts[-1] - b) * 1e3} mm"
     assert len(qm) > 20
