@@ -22,16 +22,7 @@ from rci.simula.process import SimulaProcess
 # a request completes in the sample its outgoing transition ends, before that sample's command is
 # stored: read right after, the last command can still be the quartic's tail, 1e-4 rad short
 END_TOL = 1e-4
-# the machine is shared (2 cores, load up to 6 seen): a lockstep simula may be descheduled for
-# longer than RCI's 0.25 s default before sending its next HOW; these tests are not about that
-SLACK = {"lockstep_timeout": 2.0}
-
-
-@pytest.fixture(scope="module")
-def sims():
-    with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
-            SimulaProcess("-p", robot="microbo", lockstep=True) as m:
-        yield p, m
+from simula_pair import SLACK, sims  # noqa: E402,F401  (sims is a fixture)
 
 
 @pytest.fixture

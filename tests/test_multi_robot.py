@@ -20,16 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples"))
 import two_arms  # noqa: E402
 
 
-# the machine is shared (2 cores, load up to 6 seen): a lockstep simula may be descheduled for
-# longer than RCI's 0.25 s default before sending its next HOW; these tests are not about that
-SLACK = {"lockstep_timeout": 2.0}
-
-
-@pytest.fixture(scope="module")
-def sims():
-    with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
-            SimulaProcess("-p", robot="microbo", lockstep=True) as m:
-        yield p, m
+from simula_pair import SLACK, sims  # noqa: E402,F401  (sims is a fixture)
 
 
 def arms(sims):
