@@ -124,14 +124,9 @@ def plot(arm, r_p0_end_t: float, out: Path = REPORT) -> Path:
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import environment_simula, url_from_argv
+    from adaptive_sim import run_main
 
-    url = url_from_argv(argv)
-    if url:
-        arm, fn, r_p0, r_stop, _ = main(url)
-    else:
-        with environment_simula() as sim:
-            arm, fn, r_p0, r_stop, _ = main(sim.url)
+    arm, fn, r_p0, r_stop, _ = run_main(main, argv)
     print(f"trace_circle called {fn.calls} times; functional changes limited in {arm.gen.functional.limited} samples")
     if "--plot" in argv:
         print("wrote", plot(arm, _end_time(arm, r_p0)))

@@ -103,14 +103,9 @@ def tracking_error(arm, track) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import environment_simula, url_from_argv
+    from adaptive_sim import run_main
 
-    url = url_from_argv(argv)
-    if url:
-        arm, enc, track = main(url)
-    else:
-        with environment_simula(*ENV) as sim:
-            arm, enc, track = main(sim.url)
+    arm, enc, track = run_main(main, argv, *ENV)
     ts, err = tracking_error(arm, track)
     print(f"tracked the belt for {TRACK_S} s; belt travel at the end {enc.travel():.4f} m; "
           f"tracking error over {len(ts)} samples: mean {1000 * err.mean():.2f} mm, max {1000 * err.max():.2f} mm")

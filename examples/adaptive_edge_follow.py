@@ -125,14 +125,9 @@ def plot(arm, reqs, t_settled, out: Path | None = None) -> Path:
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import environment_simula, url_from_argv
+    from adaptive_sim import run_main
 
-    url = url_from_argv(argv)
-    if url:
-        arm, reqs, t_settled = main(url)
-    else:
-        with environment_simula(*ENV) as sim:
-            arm, reqs, t_settled = main(sim.url)
+    arm, reqs, t_settled = run_main(main, argv, *ENV)
     end = reqs["slide"].hooks.get("ended")
     print("slide:", "completed (no slip seen)" if end is None else f"ended by {end}")
     print("force-servoed joint(s) used:", sorted({j + 1 for x in arm.adaptive_trace for j in x[4]}))

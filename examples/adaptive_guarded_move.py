@@ -48,14 +48,9 @@ def main(url: str):
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import environment_simula, url_from_argv
+    from adaptive_sim import run_main
 
-    url = url_from_argv(argv)
-    if url:
-        arm, r_down, _ = main(url)
-    else:
-        with environment_simula(*ENV) as sim:
-            arm, r_down, _ = main(sim.url)
+    arm, r_down, _ = run_main(main, argv, *ENV)
     end = r_down.hooks.get("ended")
     print("down motion:", "completed (no contact?)" if end is None else f"ended by {end}")
     return 0 if end is not None else 1

@@ -32,6 +32,16 @@ def url_from_argv(argv: list[str]) -> str | None:
     return rest[0] if rest else None
 
 
+def run_main(main, argv: list[str], *env: str):
+    """``main(url)`` on the robot the user named in ``argv``, else on an environment simula
+    (``env`` words) started for the run and stopped after it; returns what ``main`` returns."""
+    url = url_from_argv(argv)
+    if url:
+        return main(url)
+    with environment_simula(*env) as sim:
+        return main(sim.url)
+
+
 def save_figure(fig, out: Path) -> Path:
     """Lay out ``fig``, write it to ``out`` (110 dpi; its folder made if missing), close it; returns ``out``."""
     import matplotlib.pyplot as plt
