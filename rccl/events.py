@@ -14,16 +14,18 @@ An ``EFT`` belongs to one motion request (``eft = move_ev(arm, position)``):
 
 Across arms, ``move_ev(arm_b, q, start=eft_a)`` makes B's motion wait for A's: the trajectory
 level that ends A's motion sets B's start flag in the same sample, with no round trip
-through the planning level; B's generator takes the motion when it next looks at its queue
-(the end of the hold segment it is in, within the transition time). ``start_ev(code, e1, e2)`` sets several flags at once (each arm's
-generator sees them at its next sample), so motions of different arms start (or, with
-``stop_ev``, stop) together. Conditional motions (5.6.1) inherit the EFT of the nominal
-motion they replace.
+through the planning level; B's generator, holding at rest, looks at its queue every
+sample and starts the motion at its next sample. ``start_ev(code, e1, e2)`` sets several
+flags at once (each arm's generator sees them at its next sample), so motions of different
+arms start (or, with ``stop_ev``, stop) together. Conditional motions (5.6.1, arms from
+``rccl.adaptive.open``) inherit the EFT of the nominal motion they replace.
 
-Works on arms from ``rccl.adaptive.open`` (their generator can end a motion early; the stop
-flag is watched once per sample as a motion monitor, 5.4.2). Misuse is refused at once: an
-object that is not a live EFT (``UnknownEvent``), a wait or a chain of start conditions that
-can never be satisfied (``Deadlock``, naming the motions in the cycle), bad codes.
+Works on arms from ``rccl.open`` and ``rccl.adaptive.open``: the stop flag is the request's
+per-sample watch (``hooks["watch"]``), which the trajectory generator calls once per sample
+and which ends the motion through the generator's early exit (``abort``), as a limit or a
+monitor does on an adaptive arm. Misuse is refused at once: an object that is not a live EFT
+(``UnknownEvent``), a wait or a chain of start conditions that can never be satisfied
+(``Deadlock``, naming the motions in the cycle), bad codes.
 
 Thesis -> Python: ``move_ev(robot, position, params)`` -> ``move_ev(arm, position, start=START)``;
 ``start_ev(code, count, eft...)`` -> ``start_ev(code, *efts)``; ``stop_ev`` likewise;
@@ -38,13 +40,12 @@ import time
 from typing import Any
 
 from .adaptive.conditional import choose
-from .adaptive.ending import MotionEnd
-from .adaptive.generator import HookQueue
-from .adaptive.monitor import Monitor
+from .ending import MotionEnd
 from .exceptions import MotionError, RCCLError
 from .motion import Request
 from .queue import HOLD, TAKE, QueuePolicy
 from .position import Position
+from .trajectory import TrajectoryGenerator
 
 # --- codes (rule 4: start codes > 0, stop codes < 0; rule 5: NULL is reserved) ------------
 NULL = 0
@@ -139,24 +140,18 @@ def _check_live(eft: Any, where: str) -> EFT:
     return eft
 
 
-class _StopWatch(Monitor):
-    """The stop flag as a per-sample motion monitor (5.4.2), around the user's own monitor if any."""
+class _StopWatch:
+    """The stop flag, looked at by the arm's trajectory generator once per sample while the motion
+    runs (the request's ``hooks["watch"]``): a stop code ends the motion in that sample."""
 
-    def __init__(self, eft: EFT, inner: Monitor | None) -> None:
+    def __init__(self, eft: EFT) -> None:
         self.eft = eft
-        self.inner = inner
-        self.fn = inner.fn if inner is not None else (lambda s: None)
-        self.needs = inner.needs if inner is not None else ()
 
-    @property
-    def name(self) -> str:
-        return "stop_ev"
-
-    def __call__(self, s) -> MotionEnd | None:
+    def __call__(self, gen) -> MotionEnd | None:
         code = self.eft._stop
-        if code != NULL:
-            return MotionEnd("stop", "stop_ev", code=code, t=s.t, sample=s.sample)
-        return self.inner(s) if self.inner is not None else None
+        if code == NULL:
+            return None
+        return MotionEnd("stop", "stop_ev", code=code, t=gen.t, sample=gen.samples)
 
 
 class EventGate(QueuePolicy):
@@ -177,7 +172,7 @@ class EventGate(QueuePolicy):
         if eft is not None:
             self.next_eft = None
             eft.request = item
-            _bind(eft, item, item.hooks.get("evalfn"))   # the user's monitor (HookQueue merged it) goes inside the stop watch
+            _bind(eft, item)
 
     def admit(self, head: Request):
         eft = head.hooks.get("eft")
@@ -206,10 +201,10 @@ class EventGate(QueuePolicy):
 EventQueue = EventGate    # the name this policy had when it was a queue subclass
 
 
-def _bind(eft: EFT, req: Request, inner: Monitor | None) -> None:
+def _bind(eft: EFT, req: Request) -> None:
     """Attach ``eft`` to ``req``: the stop watch, the completion callback."""
     req.hooks["eft"] = eft
-    req.hooks["evalfn"] = _StopWatch(eft, inner)
+    req.hooks["watch"] = _StopWatch(eft)
     req.on_finish(lambda r: _finished(eft, r))
 
 
@@ -218,9 +213,9 @@ class _ArmEvents:
 
     def __init__(self, arm, name: str) -> None:
         gen = getattr(arm, "gen", None)
-        if gen is None or not hasattr(gen, "abort") or not isinstance(gen.queue, HookQueue):
-            raise EventError(f"arm {name!r}: event flag triples need an arm from rccl.adaptive.open (its trajectory "
-                             "generator can end a motion early, which the stop flag needs)")
+        if not isinstance(gen, TrajectoryGenerator):
+            raise EventError(f"arm {name!r}: event flag triples need an arm whose RCCL control is running "
+                             "(from rccl.open or rccl.adaptive.open, inside its with block)")
         self.arm = arm
         self.name = name
         self.efts: list[EFT] = []
@@ -229,7 +224,7 @@ class _ArmEvents:
 
 
 def attach(arm, name: str | None = None) -> str:
-    """Prepare ``arm`` (from ``rccl.adaptive.open``) for event flag triples; returns the arm's name.
+    """Prepare ``arm`` (from ``rccl.open`` or ``rccl.adaptive.open``) for event flag triples; returns its name.
 
     Called by ``move_ev`` on first use (name = the robot's name, made unique); call it
     yourself to choose the name used in messages.
@@ -443,7 +438,7 @@ def _finished(eft: EFT, req: Request) -> None:
             branch = choose(dropper.hooks.get("conditional", []), dropper.hooks.get("ended"))
             if branch is not None:          # 5.6.3: the conditional motion inherits the nominal motion's EFT
                 eft.request = branch.request
-                _bind(eft, branch.request, branch.request.hooks.get("evalfn"))
+                _bind(eft, branch.request)
                 _changed.notify_all()
                 return
         if eft._stop == NULL:

@@ -67,7 +67,7 @@ class Request:
     params: MotionParams
     serial: int = 0
     repeat: bool = False          # an internal repetition of the last request (the arm holds)
-    hooks: dict = field(default_factory=dict)   # 5.4/5.6 features: limit, evalfn, comply, cond
+    hooks: dict = field(default_factory=dict)   # 5.4/5.6 features: limit, evalfn, comply, cond, watch (a per-sample check)
     status: str = "queued"        # queued -> running -> done | failed
     error: BaseException | None = None
     profile: Any = None           # the planning level's path check (corner, results), reused if still valid

@@ -26,7 +26,16 @@ velocity and acceleration are continuous (alpha'' = beta'' = 0 at both ends); th
 acceleration is 3 |v2 - v1| / (4 tau), which is how tau and the speeds are chosen to keep
 every joint within its acceleration limit. An empty queue makes the generator repeat the
 last request with zero displacement: the arm decelerates along the same quartic and holds
-(stopping is moving to the same point twice).
+(stopping is moving to the same point twice). While the arm holds at rest the generator
+looks at the queue every sample, so a request queued then (or let through by the queue's
+policy, e.g. an event flag's start code) starts within one sample.
+
+Early exit: ``abort(end)`` (a limit or monitor in ``rccl.adaptive``, ``stop_abort`` in
+``rccl.events``) or a request's ``hooks["watch"]`` (called once per sample while the
+request runs, e.g. an event flag's stop flag) ends the running motion at once: the
+request finishes with ``hooks["ended"] = end`` and the arm leaves its path along the
+straight joint-space continuation of its present position and velocity, which the
+ordinary quartic transition brings to the next queued request, or to rest.
 
 Planning and control: ``plan_path`` (called by ``move()`` at the planning level) computes a
 request's ``Plan`` once: its geometry, the destination's joints and, in Cartesian mode, the
@@ -50,6 +59,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .ending import MotionEnd
 from .exceptions import ConfigurationChange, MotionError, SingularPath, TrajectoryFault, Unreachable
 from .limits import Limits
 from .motion import MotionParams, Request
@@ -619,6 +629,11 @@ def _check_range(limits: Limits, q: np.ndarray, where: str, what: str, units=Non
 # --------------------------------------------------------------------------------------
 # the generator
 # --------------------------------------------------------------------------------------
+def _holds_still(seg: Segment) -> bool:
+    """Whether ``seg`` is the arm holding at a fixed point (the repetition of a static request, no motion)."""
+    return seg.req.repeat and seg.stationary and seg.static
+
+
 class TrajectoryGenerator:
     """Runs at the control level: ``step()`` once per sample returns the joint angles to command (rad).
 
@@ -644,6 +659,8 @@ class TrajectoryGenerator:
         self.faulted: TrajectoryFault | None = None
         self.trans: Transition | None = None
         self.samples = 0
+        self.ended: list[tuple[Request, MotionEnd]] = []   # requests ended early, with why
+        self._abort: MotionEnd | None = None
         self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
         self._lo = limits.lower - 1e-9
         self._hi = limits.upper + 1e-9
@@ -669,15 +686,30 @@ class TrajectoryGenerator:
         """Advance one sample period and return the joint angles to command (rad, (6,))."""
         if self.faulted is not None:
             return self.q
+        end = self._abort
+        if end is None:
+            watch = self.seg.req.hooks.get("watch")
+            if watch is not None:
+                end = watch(self)
+        if end is not None:
+            self._abort = None
+            self._end_now(end)
         t = self.t + self.dt
         try:
             tr = self.trans
             if tr is not None and t >= tr.t_start + 2.0 * tr.tau:
                 tr.prev.req.finish()
+                tr.prev.req.hooks.setdefault("finished_t", t)    # when its outgoing transition ended (s)
                 self.trans = None
             seg = self.seg
-            if self.trans is None and t >= seg.t0 + seg.T - seg.tau_out:
-                self._begin_transition()
+            tr = self.trans
+            if tr is None:
+                if t >= seg.t0 + seg.T - seg.tau_out:
+                    self._begin_transition()
+                elif _holds_still(seg) and len(self.queue):
+                    self._start_from_hold()
+            elif _holds_still(seg) and _holds_still(tr.prev) and len(self.queue):
+                self._start_from_hold()     # from one hold segment into the next: the same point
             self._update_functional()
             q = self._evaluate(t)
             self._check_step(q)
@@ -721,7 +753,24 @@ class TrajectoryGenerator:
         t6 = prev.residual(mu) @ seg.t6_at(lam2)
         return self.kin.ik(t6, seg.config, self.q, f"transition {prev.where} -> {seg.where}")
 
-    def _begin_transition(self) -> None:
+    def _start_from_hold(self) -> None:
+        """The arm holds still: start the queue's head request (if the queue admits it) from the last sample on."""
+        req = self.queue.get()
+        if req is None:
+            return
+        tr = self.trans
+        if tr is not None:            # a transition between two holds of the same point: cut it short
+            tr.prev.req.finish()
+            self.trans = None
+        self._begin_transition(req, now=self.t)
+
+    def _begin_transition(self, req: Request | None = None, now: float | None = None) -> None:
+        """Leave the running segment: into the next queued request, or into a hold.
+
+        Called when the segment reaches its outgoing transition; or, with ``req`` already
+        taken from the queue and ``now`` the last sample's time (s), in the middle of a hold
+        at rest, which the request then leaves from ``now`` on.
+        """
         prev = self.seg
         tau = prev.tau_out
         t_b = prev.t0 + prev.T
@@ -730,14 +779,16 @@ class TrajectoryGenerator:
             q_b = prev.dest_q()   # a static Cartesian segment's end joints are known from its checked path
         else:
             q_b = self.kin.ik(t6_b, prev.config, self.q, prev.where)
-        req = self.queue.get()
+        if now is None:
+            req = self.queue.get()
         seg = None
         at_rest = prev.req.repeat and prev.stationary
         if req is not None:
             req.status = "running"
             try:
                 if at_rest:  # the arm stands still: start the transition now, as long as the new speed needs
-                    seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b, t_b - tau, None,
+                    seg = plan_segment(self.kin, self.limits, self.dt, req, t6_b, q_b,
+                                       t_b - tau if now is None else now, None,
                                        check_points=CONTROL_CHECK_POINTS)
                     tau, t_b = seg.tau_in, seg.t0
                 else:
@@ -785,6 +836,50 @@ class TrajectoryGenerator:
                                f"(limit {bound[i]:.4f} {units[i]} at {1 / self.dt:.0f} Hz): a singularity or a target "
                                "moving too fast; arm stopped")
         _check_range(self.limits, q, self.seg.where, "the commanded point", units)
+
+    # -- early exit (thesis 5.4.1, 5.4.2, 5.6.3) -------------------------------------------
+    def abort(self, end: MotionEnd) -> None:
+        """End the running motion at the next ``step`` (any thread), recording ``end`` in its hooks."""
+        self._abort = end
+
+    def _velocity(self) -> np.ndarray:
+        """The commanded joint velocity of the last sample (rad/s)."""
+        return (self.q - self.q_prev) / self.dt
+
+    def _end_now(self, end: MotionEnd) -> None:
+        """Finish the running request with ``end`` and leave its path along the arm's present velocity."""
+        seg, tr = self.seg, self.trans
+        req = seg.req
+        if tr is not None and tr.prev.req.status == "running":
+            tr.prev.req.finish()
+        self.trans = None
+        v = self._velocity()
+        tau = max(self.dt, float(np.max(ACC_PEAK * np.abs(v) / self.limits.joint_acceleration)))
+        stop = joint_position("stop", self.kin, self.q + v * tau)
+        stop_req = Request(stop, stop.snapshot(), MotionParams(mode="joint"), repeat=True, status="running")
+        self.seg = self._continuation(stop_req, v, tau, seg)
+        if not req.repeat and req.status == "running":
+            req.hooks["ended"] = end
+            req.hooks["finished_t"] = self.t
+            self.ended.append((req, end))
+            req.finish()
+            self._ended_early(req, end)
+
+    def _ended_early(self, req: Request, end: MotionEnd) -> None:
+        """Called after ``req`` was ended by ``end``; a subclass may queue what follows (5.6.1)."""
+
+    def _continuation(self, req: Request, v: np.ndarray, tau: float, like: Segment) -> Segment:
+        """A joint-mode segment through the present command q at velocity v (rad/s), its corner tau s ahead."""
+        s = Segment(req, self.kin)
+        T = max(2.0 * tau, self.dt)
+        b = self.q + v * tau
+        s.mode, s.static, s.stationary = "joint", True, not np.any(v)
+        s.T, s.t0, s.tau_in, s.tau_out = T, self.t + tau - T, 0.0, tau
+        s.q_dest, s.x_dest, s.dq = b, self.kin.fk(b), -v * T
+        s.tool, s.tool_inv, s.config = like.tool, like.tool_inv, self.kin.config_of(self.q)
+        s.d, s.k, s.theta = np.zeros(3), np.array([0.0, 0.0, 1.0]), 0.0
+        s.v_end, s.v_cart = v, None
+        return s
 
     def _freeze(self, exc: BaseException) -> None:
         fault = TrajectoryFault(f"trajectory generator stopped the arm at t = {self.t:.3f} s: {exc}", exc)

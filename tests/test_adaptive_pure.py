@@ -281,7 +281,7 @@ def test_interpolate_and_step_scale():
 
 def test_conditional_matching():
     from rccl.adaptive.conditional import Conditional, choose
-    from rccl.adaptive.ending import MotionEnd
+    from rccl.ending import MotionEnd
 
     end = MotionEnd("limit", "fz", 12.0, 10.0)
     branches = [Conditional("dz", "A"), Conditional("fz", "B"), Conditional("limit", "C")]

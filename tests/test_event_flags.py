@@ -1,6 +1,7 @@
 """Event flag triples (rccl.events, thesis 5.6.3) on two RCCL arms, each on its own lockstep simula.
 
-A PUMA 260 and a Microbo Ecureuil (rccl.adaptive arms); motions are waist turns from where
+A PUMA 260 and a Microbo Ecureuil (rccl.adaptive arms, and a plain rccl.open PUMA with an
+adaptive Microbo); motions are waist turns from where
 each arm stands. Ordering across arms is checked on the wall clock (``t_started``,
 ``t_ended``) and on what each arm was commanded while it had to wait.
 """
@@ -230,16 +231,36 @@ def test_unknown_flags_bad_codes_and_live_frees_are_refused(arms):
     ev.free_ev(a)
 
 
-def test_plain_arm_is_refused(sims):
-    with rccl.open(sims[0].url, "puma260") as arm:
-        with pytest.raises(EventError, match="need an arm from rccl.adaptive.open"):
-            ev.attach(arm, "plain")
+def test_a_plain_arm_and_an_adaptive_arm_share_event_flags(sims):
+    with rccl.open(sims[0].url, "puma260", **SLACK) as puma, \
+            rccl.adaptive.open(sims[1].url, "microbo", **SLACK) as mic:
+        ev.attach(puma, "plain puma")
+        ev.attach(mic, "microbo")
+        try:
+            far, q_far = waist(puma, 0.6, "far")
+            puma.settime(0.2, 20.0)                  # slow: 20 s of robot time
+            a = ev.move_ev(puma, far)
+            pb, qb = waist(mic, 0.3, "pb")
+            b = ev.move_ev(mic, pb, start=a)         # the Microbo moves when the plain PUMA's motion ends
+            ev.wait_ev(a, started=True, timeout=10)
+            assert b.status == NULL
+            ev.stop_ev(-9, a)                        # halts the plain arm's motion (its generator's watch)
+            assert ev.wait_ev(a, timeout=10) == -9
+            end = a.request.hooks["ended"]
+            assert (end.reason, end.what, end.code) == ("stop", "stop_ev", -9)
+            assert a.request.hooks["finished_t"] < 10.0
+            assert ev.wait_ev(b, timeout=20) == DONE           # a user's stop code still starts the follower
+            assert b.start == START and b.t_started >= a.t_ended
+            np.testing.assert_allclose(mic.q, qb, atol=END_TOL)
+            assert abs(puma.q[0] - q_far[0]) > 0.2                # it stopped well short of `far`
+        finally:
+            ev.detach(puma)
+            ev.detach(mic)
 
 
 # --- two RCCL arms as the lockstep control tasks of one Workcell (thesis 5.6.2 + 2.4) -----------
-def test_in_a_lockstep_workcell_the_follower_starts_within_one_hold_segment_of_the_leaders_end():
+def test_in_a_lockstep_workcell_the_follower_starts_within_one_sample_of_the_leaders_end():
     from rccl.adaptive.session import AdaptiveArm
-    from rccl.motion import DEFAULT_TRANSITION
     from rci.multi import Workcell
 
     with SimulaProcess("-p", robot="puma260", lockstep=True) as sp, \
@@ -269,8 +290,9 @@ def test_in_a_lockstep_workcell_the_follower_starts_within_one_hold_segment_of_t
                 ev.detach(mic)
                 puma.close()
                 mic.close()
-    # after the leader's end the follower starts at the end of the hold segment it is in
-    assert all(0.0 < lag <= DEFAULT_TRANSITION + 2 * dt for lag in lags), lags
+    # the follower, holding at rest, looks at its queue every sample: it starts in the sample the
+    # leader ends (when its control task runs after the leader's in that cycle) or in the next one
+    assert all(-1e-9 <= lag <= dt + 1e-9 for lag in lags), (lags, dt)
 
 
 def test_a_users_monitor_still_ends_a_motion_that_has_an_eft(arms):

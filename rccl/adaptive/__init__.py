@@ -12,7 +12,7 @@ docs/adaptive.md describes each feature, its thesis source and its limits.
 from __future__ import annotations
 
 from .comply import Compliance, select_joints, servo_dac
-from .ending import MotionEnd
+from ..ending import MotionEnd
 from .exceptions import AdaptiveError, ForceEstimateError, FunctionalError, MonitorError, SpecError
 from .force import ForceEstimator, JointModel
 from .functional import FunctionalUpdater

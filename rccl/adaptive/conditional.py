@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .ending import MotionEnd
+from ..ending import MotionEnd
 from .exceptions import SpecError
 
 

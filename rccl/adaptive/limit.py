@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import spec as specmod
-from .ending import MotionEnd
+from ..ending import MotionEnd
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .ending import MotionEnd
+from ..ending import MotionEnd
 from .exceptions import MonitorError
 
 
