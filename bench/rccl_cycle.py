@@ -141,10 +141,10 @@ def profile(cycles: int) -> int:
     every, starts = cProfile.Profile(), cProfile.Profile()
     begin = gen._begin_transition
 
-    def timed_begin() -> None:
+    def timed_begin(*args, **kwargs) -> None:
         starts.enable()
         try:
-            begin()
+            begin(*args, **kwargs)
         finally:
             starts.disable()
     gen._begin_transition = timed_begin

@@ -137,8 +137,8 @@ class _WindowLog:
         self.gen = gen
         orig = gen._begin_transition
 
-        def logged() -> None:
-            orig()
+        def logged(*args, **kwargs) -> None:
+            orig(*args, **kwargs)
             tr = gen.trans
             if not (tr.prev.req.repeat and gen.seg.req.repeat):  # skip hold-to-hold (nothing moves)
                 self.windows.append((tr.t_start, tr.t_end))
@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
                 arm.move(ps[2])
                 arm.move(ps[3])
                 arm.waitfor(ps[3].end)
-                arm.rci.wait(0.3)
+                _settle(arm)
             line = straight_line(sim.url)
     marks534 = [("p0", prog.P0_T6), ("park", arm534.park.solve())]
     marks_sq = [(f"c{i}", p.solve()) for i, p in enumerate(ps)]
@@ -196,6 +196,12 @@ def main(argv: list[str] | None = None) -> int:
     print("wrote", p2)
     print(line)
     return 0
+
+
+def _settle(arm, seconds: float = 0.3) -> None:
+    """Let ``arm`` run ``seconds`` more of trajectory time (s; the same cycles on every run of a lockstep simula)."""
+    t_end = arm.gen.t + seconds
+    arm.rci.wait(None, until=lambda: arm.gen.t >= t_end)
 
 
 def straight_line(url: str, rate_hz: int = 36) -> str:
@@ -219,7 +225,7 @@ def straight_line(url: str, rate_hz: int = 36) -> str:
         n0 = len(arm.trace)
         arm.move(p)
         arm.waitfor(p.end)
-        arm.rci.wait(0.3)
+        _settle(arm)
     a, b = base[:3, 3], goal[:3, 3]
     out = []
     for k, what in ((1, "commanded"), (2, "measured")):
