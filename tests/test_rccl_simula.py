@@ -181,3 +181,17 @@ def test_primitives_after_close_are_refused(sim):
     arm.close()
     with pytest.raises(rccl.NotRunning, match="not running"):
         arm.move(p)
+
+
+def test_the_demo_plots_are_written_and_the_line_is_straight(tmp_path, capsys):
+    """``python -m rccl.plots`` (run by make demo): its own lockstep simula, both figures, the line's figures."""
+    import re
+
+    from rccl import plots
+
+    assert plots.main(["--out", str(tmp_path)]) == 0
+    for name in ("rccl-path.png", "rccl-transition.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    measured = float(re.search(r"measured ([0-9.]+) mm", line).group(1))
+    assert measured < 0.1, line
