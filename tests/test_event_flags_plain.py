@@ -45,6 +45,13 @@ def waist(arm, delta: float, name: str):
     return joint_position(name, KIN, q), q
 
 
+def slow_far_motion(arm):
+    """Queue a 20 s waist turn of 0.8 rad with an EFT; (its EFT, the destination joints)."""
+    far, q_far = waist(arm, 0.8, "far")
+    arm.settime(0.2, 20.0)
+    return ev.move_ev(arm, far), q_far
+
+
 def run(*arms, samples: int) -> None:
     for _ in range(samples):
         for arm in arms:
@@ -96,9 +103,7 @@ def test_a_postponed_motion_holds_then_starts_at_the_next_sample_after_start_ev(
 
 def test_stop_ev_ends_a_running_motion_in_the_next_sample_and_the_arm_comes_to_rest(arms):
     left, _ = arms
-    far, q_far = waist(left, 0.8, "far")
-    left.settime(0.2, 20.0)
-    e = ev.move_ev(left, far)
+    e, q_far = slow_far_motion(left)
     run(left, samples=200)                         # 5.6 s into a 20 s motion
     assert e.status > 0
     k = left.gen.samples
@@ -159,9 +164,7 @@ def test_start_after_across_two_plain_arms_starts_the_follower_within_one_sample
 
 def test_stop_abort_flushes_and_halts_a_plain_arm(arms):
     left, _ = arms
-    far, q_far = waist(left, 0.8, "far")
-    left.settime(0.2, 20.0)
-    a = ev.move_ev(left, far)
+    a, q_far = slow_far_motion(left)
     left.settime(0.2, 1.0)
     b = ev.move_ev(left, joint_position("later", KIN, Q0))
     run(left, samples=100)
