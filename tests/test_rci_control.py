@@ -193,6 +193,24 @@ def test_nan_command_is_refused_before_sending(robot):
 
 
 def test_overrunning_user_function(rt_robot):
+    """A control function too slow for the period, cycle after cycle: R_OVERRUN after late_limit late cycles."""
+    s = session(rt_robot.url, rate_hz=50, overrun="error")
+    with s:
+        state = {"n": 0}
+
+        def f2():
+            state["n"] += 1
+            if state["n"] >= 5:
+                time.sleep(0.03)          # 1.5 periods, every cycle
+        t = run_until_terminated(s, lambda: s.control(None, f2))
+    assert t.number == codes.R_OVERRUN and not t.severe
+    assert "late cycles in a row (limit 3)" in t.detail and "control functions" in t.detail
+    assert s.timing.late_run_max >= 3
+    assert rt_robot.released()
+
+
+def test_an_isolated_overrun_is_counted_not_fatal(rt_robot):
+    """The lateness policy: one slow cycle is survived and reported in the timing summary."""
     s = session(rt_robot.url, rate_hz=50, overrun="error")
     with s:
         state = {"n": 0}
@@ -200,10 +218,14 @@ def test_overrunning_user_function(rt_robot):
         def f2():
             state["n"] += 1
             if state["n"] == 5:
-                time.sleep(0.05)          # 2.5 periods
-        t = run_until_terminated(s, lambda: s.control(None, f2))
-    assert t.number == codes.R_OVERRUN
-    assert rt_robot.released()
+                time.sleep(0.03)          # 1.5 periods, once
+        s.control(None, f2)
+        s.wait(0.4)
+        assert s.in_control and s.termination is None
+        s.release()
+    summary = s.timing.summary()
+    assert summary.overruns >= 1 and summary.late_cycles >= 1
+    assert summary.late_run_max < summary.late_limit == 3
 
 
 def test_hung_user_function_is_released_by_the_watchdog(robot):
