@@ -102,8 +102,12 @@ class ControlTask(threading.Thread):
             self.link.send(protocol.CHG, seq, payload)
             self.answered = True
 
-    def terminate(self, code: int, detail: str, *, link_ok: bool = True) -> None:
-        """End the control on an error: implicit release, then tell the session. Idempotent."""
+    def terminate(self, code: int, detail: str | Callable[[], str], *, link_ok: bool = True) -> None:
+        """End the control on an error: implicit release, then tell the session. Idempotent.
+
+        The release goes out first; ``detail`` may be a function that builds the message
+        afterwards (a traceback's description takes a fraction of a millisecond).
+        """
         with self.send_lock:
             if self.ended:
                 return
@@ -118,7 +122,8 @@ class ControlTask(threading.Thread):
                     self.link.send(protocol.CHG, self.seq, protocol.encode_chg(rel))
                 except (LinkClosed, OSError):
                     pass
-        self.s._control_terminated(codes.Termination(code, detail, self.seq if self.seq is not None else -1), self)
+        text = detail() if callable(detail) else detail
+        self.s._control_terminated(codes.Termination(code, text, self.seq if self.seq is not None else -1), self)
         self.started.set()
 
     def request_release(self, power_off: bool) -> None:
@@ -169,7 +174,8 @@ class ControlTask(threading.Thread):
                 return
             self._loop()
         except BaseException as e:  # a bug in RCI itself must still release the arm
-            self.terminate(codes.make_code(codes.R_BTEST, codes.F_SEVERE), f"internal error: {_describe_exception(e)}")
+            self.terminate(codes.make_code(codes.R_BTEST, codes.F_SEVERE),
+                           lambda: f"internal error: {_describe_exception(e)}")
         finally:
             self.gc.restore()
             sys.setswitchinterval(saved_interval)
@@ -428,7 +434,7 @@ class ControlTask(threading.Thread):
             if isinstance(e, (SystemExit, KeyboardInterrupt)):
                 hint = f" ({type(e).__name__} in a control function ends the control, not the program)"
             self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER),
-                           f"in {name}: {_describe_exception(e)}{hint}")
+                           lambda: f"in {name}: {_describe_exception(e)}{hint}")
             return None
         self.in_user = False
         return time.monotonic() - t0

@@ -301,9 +301,13 @@ class Session:
             was_controlling = self.in_control
             if was_controlling:
                 self.release(power_off)
+            # after a severe termination the release asked for power off; say it again in BYE in
+            # case that release was lost on the way (docs/safety.md)
+            severe = self.termination is not None and self.termination.severe
             link = self.link
             try:
-                link.send(protocol.BYE, self._next_msg_seq(), protocol.Bye(power_off and was_controlling).encode())
+                link.send(protocol.BYE, self._next_msg_seq(),
+                          protocol.Bye((power_off and was_controlling) or severe).encode())
                 deadline = time.monotonic() + 0.5
                 while time.monotonic() < deadline:
                     try:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -359,12 +360,20 @@ class Arm:
         self.friction.warm(np.zeros(self.n, dtype=bool), dt)
         self.t += dt
 
-    def step(self, dt: float) -> None:
-        """Advance the arm by ``dt`` seconds in servo-rate substeps (about 1 ms)."""
+    def step(self, dt: float, stop: Callable[[], bool] | None = None) -> bool:
+        """Advance the arm by ``dt`` seconds in servo-rate substeps (about 1 ms).
+
+        ``stop`` is asked before every substep after the first; when it says True the step
+        ends there and False is returned (the arm is then part of the way: the caller undoes
+        it with ``restore_state``). True when the whole step was made.
+        """
         nsub = max(1, int(round(dt * self.truth.disturbances.servo_rate_hz)))
         h = dt / nsub
-        for _ in range(nsub):
+        for k in range(nsub):
+            if k and stop is not None and stop():
+                return False
             self._substep(h)
+        return True
 
     def _load_torque(self) -> tuple[np.ndarray, np.ndarray]:
         """(external load torque, extra Coulomb friction) from the pulley, joint level."""

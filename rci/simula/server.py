@@ -280,6 +280,7 @@ class Server:
         # arrives during that period rewinds the step to the instant it really takes effect
         self._rewind: tuple[tuple, int] | None = None
         self.ticks: deque = deque(maxlen=TICK_HISTORY)     # [seq, wall time sent or None, q]
+        self._took_effect = 0.0       # wall-clock instant the arm was brought to by _arm_to_now
         self.events: deque = deque(maxlen=32)              # control endings, newest last
         self._log_counts: dict[str, list] = {}
         trace = os.environ.get("RCI_SIMULA_TRACE")
@@ -393,11 +394,26 @@ class Server:
         the tick rewinds to it (``_arm_to_now``).
         """
         self._rewind = (self.arm.save_state(), self.seq)
-        self.arm.step(1.0 / self.rate)
+        if not self.arm.step(1.0 / self.rate, stop=self._input_waiting):
+            # a frame came in meanwhile (a release, perhaps): it must not wait for the rest of
+            # the step (up to 2 ms at 100 Hz); the tick steps the arm instead, as when no CHG came
+            self.arm.restore_state(self._rewind[0])
+            self._rewind = None
+            return
         self.rate = self._pending_rate
         seq = (self.seq + 1) & 0xFFFFFFFF
         how = self._how(seq)
         self._prepared = (how, protocol.encode_frame(protocol.HOW, seq, protocol.encode_how(how)))
+
+    def _input_waiting(self) -> bool:
+        """True if the owner has sent something not yet read (asked between the substeps of a step)."""
+        s = self.session
+        if s is None:
+            return False
+        try:
+            return bool(select.select([s.transport], [], [], 0)[0])
+        except (ValueError, OSError):
+            return False
 
     # --- ending a control -------------------------------------------------------------------
     def _arm_to_now(self, seq: int | None = None) -> None:
@@ -410,6 +426,7 @@ class Server:
         HOW's CHG, the step is undone (the controller's computation takes no simulated time,
         so a release right after CHG(n) comes at HOW(n)'s instant, like CHG(n) itself).
         """
+        self._took_effect = time.monotonic()
         rewind, self._rewind = self._rewind, None
         if self.lockstep:
             if rewind is not None and seq is not None and rewind[1] == seq:
@@ -439,7 +456,8 @@ class Server:
         self.arm.hold_all()
         self._prepared = None
         self._rewind = None
-        self.events.append({"cause": cause, "flags": flags, "seq": seq, "wall": time.monotonic(),
+        wall, self._took_effect = self._took_effect or time.monotonic(), 0.0
+        self.events.append({"cause": cause, "flags": flags, "seq": seq, "wall": wall,
                             "t": self.arm.t, "q": [float(x) for x in self.arm.q], "power": bool(self.arm.power),
                             "overruns": self.overruns})
 
@@ -586,7 +604,11 @@ class Server:
             except ProtocolError:
                 bye = protocol.Bye(False)
             if c.running:
-                self._end_control("BYE", self.seq, power_off=bye.power_off)
+                # a controller releases before it says BYE: a control still running here lost
+                # its release on the way, which may have asked for power off: switch it off
+                self._arm_to_now()
+                self._end_control("BYE during a control (its release was lost)", self.seq, power_off=True)
+                self.log("BYE during a control: its release never came; arm held, power off")
             if bye.power_off:
                 self.arm.power = False
                 self.arm.hold_all()
