@@ -575,9 +575,10 @@ class Arm:
             frac = (self.q - self.lower) / (self.upper - self.lower)
             pot = frac * POT_SPAN - POT_SPAN / 2 + d.pot_noise * self.rng.standard_normal(n)
             adc[n:2 * n] = np.clip(np.rint(pot), ADC_MIN, ADC_MAX)
+        pos = self.counters()                 # before the status: a saturated counter flags one
         status = self.status
         self.status, self.status_text = codes.ST_OK, ""
-        return Sample(pos=self.counters(), adcr=adc, state=self.state, status=status,
+        return Sample(pos=pos, adcr=adc, state=self.state, status=status,
                       outport1=self.outport1, inport1=1 if self.hand == 2 else 0)
 
     def snapshot(self) -> dict:
