@@ -173,3 +173,29 @@ def test_busy_refusal_on_the_raw_protocol_and_the_running_control_keeps_its_cycl
         end.end.com = 1
         owner.send(protocol.CHG, nxt.seq, protocol.encode_chg(end))
         owner.close()
+
+
+def test_the_reference_monitor_follows_the_same_rule():
+    """rci.monitor (the protocol's robot half for a real arm) refuses a second controller too."""
+    import threading
+
+    from rci.monitor import EchoArm, Monitor
+    mon = Monitor(EchoArm(), lockstep=True)
+    ports: list[int] = []
+    th = threading.Thread(target=mon.serve_tcp, kwargs=dict(ready=ports.append), daemon=True)
+    th.start()
+    t0 = time.monotonic()
+    while not ports and time.monotonic() - t0 < WAIT:
+        time.sleep(0.005)
+    url = f"socket://127.0.0.1:{ports[0]}"
+    try:
+        with _session(url) as owner:
+            owner.control()
+            _cycles(owner, 5)
+            with pytest.raises(RobotBusy, match="robot busy: owned by the controller at 127.0.0.1:"):
+                _session(url).open()
+            _cycles(owner, 5)
+            owner.release()
+    finally:
+        mon.stop_event.set()
+        th.join(WAIT)
