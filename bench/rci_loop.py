@@ -81,6 +81,20 @@ def kernel_preemption() -> str:
             + (f", booted with {boot[0]}" if boot else ", no preempt= on the boot line"))
 
 
+def hold_program(s: Session, conv: Conversions):
+    """f1 of a minimal real program: encoder counts -> angles, every joint held with POS where it started."""
+    hold: dict[str, np.ndarray] = {}
+
+    def f1() -> None:
+        q = conv.counts_to_angles(s.how.pos)
+        if "q" not in hold:
+            hold["q"] = q
+            hold["counts"] = conv.angles_to_counts_int(q)
+        for j, c in enumerate(hold["counts"]):
+            s.chg.motion[j].issue(POS, int(c))
+    return f1
+
+
 def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
     conv = Conversions.for_robot("puma260")
     load0, steal0 = os.getloadavg()[0], _steal_ticks()
@@ -91,17 +105,7 @@ def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
             if pinned is True:
                 pinned = pin_to_cpus({cpu})                    # this thread: the control thread inherits it
         with Session(sim.url, "puma260", rate_hz=rate, overrun="count", timeout=0.5, on_error="raise") as s:
-            hold: dict[str, np.ndarray] = {}
-
-            def f1() -> None:
-                q = conv.counts_to_angles(s.how.pos)
-                if "q" not in hold:
-                    hold["q"] = q
-                    hold["counts"] = conv.angles_to_counts_int(q)
-                for j, c in enumerate(hold["counts"]):
-                    s.chg.motion[j].issue(POS, int(c))
-
-            s.control(f1)
+            s.control(hold_program(s, conv))
             s.wait(0.5)                                      # warm-up (first calls, caches)
             warm_missed = s.timing.missed
             s.wait(max(seconds - 0.5, 0.0))
@@ -143,15 +147,7 @@ def stress_run(rate: int, seconds: float, hogs: int, cpu: int | None) -> dict:
             if cpu is not None and pin_to_cpus({cpu}, sim.proc.pid) is True:
                 pin_to_cpus({cpu})
             with Session(sim.url, "puma260", rate_hz=rate, timeout=0.5, on_error="raise") as s:
-                hold: dict[str, np.ndarray] = {}
-
-                def f1() -> None:
-                    q = conv.counts_to_angles(s.how.pos)
-                    if "q" not in hold:
-                        hold["q"] = q
-                        hold["counts"] = conv.angles_to_counts_int(q)
-                    for j, c in enumerate(hold["counts"]):
-                        s.chg.motion[j].issue(POS, int(c))
+                f1 = hold_program(s, conv)
 
                 def collect() -> None:
                     sm = s.timing.summary()

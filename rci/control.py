@@ -384,8 +384,9 @@ class ControlTask(threading.Thread):
 
         The previous cycle was late if the robot reports CHGs late or missing since the last
         HOW, or if the control task's own work overran the period. ``late_limit`` late cycles
-        in a row end the control, blamed on the user's functions if the last one overran,
-        else on the link (the CHGs were computed in time but did not reach the robot in time).
+        in a row end the control, blamed on the user's functions if a cycle of the run overran
+        (the late cycles after an overrun are its backlog), else on the link (the CHGs were
+        computed in time but did not reach the robot in time).
         """
         s = self.s
         timing = s.timing

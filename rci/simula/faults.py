@@ -268,6 +268,9 @@ class _Run:
                         self.res.invalid = self.res.invalid or "the proxy applied no fault"
                 if sim.alive():
                     self._measure_arm()
+                else:
+                    self.res.notes.append("simula is gone, and the simulated arm with it: nothing left to measure "
+                                          "(a real arm's controller stops on its own watchdog)")
                 self._detection()
         self.res.notes.extend(self._notes())
         return self.res

@@ -541,15 +541,22 @@ class Server:
                     "end that program to free the robot")
         return None
 
-    def _hello_from(self, c: Client, f: protocol.Frame) -> None:
-        """A HELLO from a connection that does not own the arm."""
+    def _read_hello(self, c: Client, f: protocol.Frame) -> protocol.Hello | None:
+        """The HELLO of ``f``, or None after an ERROR to ``c`` (unreadable, or for another robot)."""
         try:
             hello = protocol.Hello.decode(f.payload)
         except ProtocolError as exc:
             self._error(codes.ST_BAD_COMMAND, f"bad HELLO: {exc}", c)
-            return
+            return None
         if hello.robot != self.robot:
             self._error(codes.ST_BAD_COMMAND, f"this simula is a {self.robot}, the program asks for {hello.robot!r}", c)
+            return None
+        return hello
+
+    def _hello_from(self, c: Client, f: protocol.Frame) -> None:
+        """A HELLO from a connection that does not own the arm."""
+        hello = self._read_hello(c, f)
+        if hello is None:
             return
         owner = self.session
         if owner is not None and owner.welcomed:
@@ -622,16 +629,11 @@ class Server:
 
     def _hello_owner(self, c: Client, f: protocol.Frame) -> None:
         """HELLO from the owner itself (a program restarting on the same connection or line)."""
-        try:
-            hello = protocol.Hello.decode(f.payload)
-        except ProtocolError as exc:
-            self._error(codes.ST_BAD_COMMAND, f"bad HELLO: {exc}", c)
-            return
         if c.running:
             self._end_control("new HELLO from the owner", self.seq)
-        if hello.robot != self.robot:
+        hello = self._read_hello(c, f)
+        if hello is None:
             c.welcomed = False
-            self._error(codes.ST_BAD_COMMAND, f"this simula is a {self.robot}, the program asks for {hello.robot!r}", c)
             return
         self._welcome(c, hello)
 
