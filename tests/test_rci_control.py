@@ -228,6 +228,24 @@ def test_an_isolated_overrun_is_counted_not_fatal(rt_robot):
     assert summary.late_run_max < summary.late_limit == 3
 
 
+def test_late_limit_is_configurable_and_checked(rt_robot):
+    """late_limit=1 is the strict policy: the first late cycle ends the control."""
+    s = session(rt_robot.url, rate_hz=50, overrun="error", late_limit=1)
+    with s:
+        state = {"n": 0}
+
+        def f2():
+            state["n"] += 1
+            if state["n"] == 5:
+                time.sleep(0.03)
+        t = run_until_terminated(s, lambda: s.control(None, f2))
+    assert t.number == codes.R_OVERRUN and "(limit 1)" in t.detail
+    assert Session(rt_robot.url).late_limit_for(1000) == 20 and Session(rt_robot.url).late_limit_for(36) == 3
+    for bad in (0, -2, 1.5, True, "3"):
+        with pytest.raises(ValueError, match="late_limit"):
+            Session(rt_robot.url, late_limit=bad)
+
+
 def test_hung_user_function_is_released_by_the_watchdog(robot):
     s = session(robot.url, rate_hz=50, overrun="error")
     go = threading.Event()
