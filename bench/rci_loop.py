@@ -140,7 +140,7 @@ def stress_run(rate: int, seconds: float, hogs: int, cpu: int | None) -> dict:
     hog_procs = start_hogs(hogs)
     terminations: list[str] = []
     totals = dict(cycles=0, missed=0, late_cycles=0, overruns=0, late_run_max=0, late_limit=0, duplicates=0)
-    jitter99, dur99, user_p50 = [], [], []
+    jitter99, dur99 = [], []
     try:
         time.sleep(1.0)                                      # let the hogs reach full speed
         with SimulaProcess("-p", "--power-on", "--rate", str(rate), lockstep=False) as sim:

@@ -175,7 +175,7 @@ class ControlTask(threading.Thread):
             self._loop()
         except BaseException as e:  # a bug in RCI itself must still release the arm
             self.terminate(codes.make_code(codes.R_BTEST, codes.F_SEVERE),
-                           lambda: f"internal error: {_describe_exception(e)}")
+                           lambda e=e: f"internal error: {_describe_exception(e)}")
         finally:
             self.gc.restore()
             sys.setswitchinterval(saved_interval)
@@ -435,7 +435,7 @@ class ControlTask(threading.Thread):
             if isinstance(e, (SystemExit, KeyboardInterrupt)):
                 hint = f" ({type(e).__name__} in a control function ends the control, not the program)"
             self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER),
-                           lambda: f"in {name}: {_describe_exception(e)}{hint}")
+                           lambda e=e: f"in {name}: {_describe_exception(e)}{hint}")
             return None
         self.in_user = False
         return time.monotonic() - t0

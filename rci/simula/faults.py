@@ -35,7 +35,6 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
