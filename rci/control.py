@@ -404,7 +404,7 @@ class ControlTask(threading.Thread):
         timing.late_cycles += late
         timing.late_run_max = max(timing.late_run_max, self.late_run)
         limit = s.late_limit_for(round(1.0 / self.period))
-        timing.late_limit = limit
+        timing.late_limit = limit if s.overrun == "error" else 0
         if s.overrun != "error" or self.late_run < limit:
             return False
         period_ms = self.period * 1e3

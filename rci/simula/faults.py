@@ -363,7 +363,9 @@ class _Run:
                 return
             time.sleep(RUN_BEFORE_S if not self.lockstep else 0.2)
             self.t_inject = time.monotonic()
-            if not self.sim.command("state")["running"]:
+            state = self.sim.command("state")
+            self.inject_seq = state["cycle"]
+            if not state["running"]:
                 res.invalid = "the control ended before the fault was injected"
                 return
             os.kill(proc.pid, signal.SIGKILL if self.c.process == "kill-controller" else signal.SIGSTOP)
@@ -479,7 +481,7 @@ class _Run:
     def _notes(self) -> list[str]:
         out = []
         if self.term is not None and self.term.detail:
-            out.append(self.term.detail[:160])
+            out.append(self.term.detail[:320])
         return out
 
 
