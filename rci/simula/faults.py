@@ -305,8 +305,12 @@ class _Run:
             try:
                 if self.c.busy:
                     self._second_controller()
-                # lockstep: a hung function is caught after 2 s of wall clock (docs/rci.md)
-                s.wait(seconds=SURVIVE_S if not self.lockstep else 3.0, until=lambda: ended.is_set())
+                # lockstep: SURVIVE_S of simulated time (far less wall clock; more would drive the
+                # joints into their limits), but up to 3 s of wall clock for a hung function,
+                # which the controller catches after 2 s there (docs/rci.md)
+                c_inj = s.how.cycle
+                s.wait(seconds=SURVIVE_S if not self.lockstep else 3.0,
+                       until=lambda: ended.is_set() or (self.lockstep and s.how.cycle - c_inj >= SURVIVE_S * self.rate))
             except ControlTerminated:
                 pass
             if not ended.is_set() and self.c.process == "stop-simula":
