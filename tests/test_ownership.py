@@ -38,7 +38,7 @@ def _cycles(s: Session, n: int) -> None:
 
 
 def test_second_controller_gets_busy_naming_the_owner_and_the_control_goes_on():
-    with SimulaProcess("-p", lockstep=False) as sim:
+    with SimulaProcess("-p", lockstep=True) as sim:           # lockstep: about ownership, not timing
         with _session(sim.url, client="owner-program") as owner:
             owner.control()
             _cycles(owner, 5)
@@ -52,7 +52,7 @@ def test_second_controller_gets_busy_naming_the_owner_and_the_control_goes_on():
             assert "control running" in text
             assert not other.is_open
             _cycles(owner, 10)                                       # undisturbed
-            assert owner.in_control and owner.how.robot_overruns == 0
+            assert owner.in_control and owner.termination is None
             owner.release()
         # the owner has gone: the robot is free for the next program
         with _session(sim.url) as nxt:
@@ -62,7 +62,7 @@ def test_second_controller_gets_busy_naming_the_owner_and_the_control_goes_on():
 
 
 def test_a_bare_connection_does_not_end_a_running_control():
-    with SimulaProcess("-p", lockstep=False) as sim:
+    with SimulaProcess("-p", lockstep=True) as sim:
         host, port = sim.url.removeprefix("socket://").rsplit(":", 1)
         with _session(sim.url) as owner:
             owner.control()
