@@ -396,10 +396,13 @@ def test_checks_switched_off_by_the_checking_bits(ls_robot):
 def test_error_reaches_a_main_thread_blocked_in_sleep(ls_robot):
     s = session(ls_robot.url, rate_hz=50, signals=True)
     with s:
+        returned = threading.Event()     # a lockstep robot can run many cycles before control() returns
+
         def f1():
-            if s.how.cycle > 5:
+            if returned.is_set():
                 raise ValueError("late failure")
         s.control(f1)
+        returned.set()
         t0 = time.monotonic()
         with pytest.raises(ControlTerminated):
             time.sleep(5.0)              # not an RCI wait: the signal interrupts it
