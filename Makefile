@@ -47,6 +47,7 @@ demo: derive-if-needed
 
 bench: $(STAMP)
 	$(PY) bench/rci_loop.py
+	$(PY) -m bench.faults
 	$(PY) bench/rccl_cycle.py
 	$(PY) bench/rccl_adaptive.py
 	$(PY) bench/calib_fit.py

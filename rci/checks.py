@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 
 from . import codes
-from .chg import CUR, DAC_MAX, DAC_MIN, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd
+from .chg import CUR, DAC_MAX, DAC_MIN, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd, Flag
 from .chg import MOTION_NAMES, rate_hz
 from .exceptions import ModelError
 from .how import How
@@ -106,7 +106,7 @@ class Checker:
     def check_how(self, how: How, period: float) -> np.ndarray | None:
         """Check a fresh ``how``; returns the joint angles (rad) when limits are known."""
         if how.status:
-            raise Fault(codes.make_code(codes.R_ROBOT, codes.F_ROBOT | codes.F_SEVERE),
+            raise Fault(codes.for_status(how.status),
                         f"how.status = {how.status}: {codes.STATUS_TEXT.get(how.status, 'unknown status')}")
         lim = self.limits
         chk = self.checking
@@ -144,16 +144,17 @@ class Checker:
         Raises Fault for NaN values, bad command codes, too many commands, and the REQ
         range checks. Nothing is modified.
         """
+        check_structure(chg)
         n = 0
         self._pending_clear: set[int] = set()
         motion_target: dict[int, int] = {}
         stopcal = False
         for i, c in enumerate(chg.motion):
-            if not c.com:
+            if not _com(c, f"motion[{i}]", i):
                 continue
             n += 1
             if c.com not in MOTION_NAMES or c.com == NONE:
-                raise Fault(codes.make_code(codes.R_BADCMD, 0, i), f"chg.motion[{i}].com = {c.com!r} is not POS/CUR/STOP/STOPCAL")
+                raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER, i), f"chg.motion[{i}].com = {c.com!r} is not POS/CUR/STOP/STOPCAL")
             if c.com != POS:
                 self._pending_clear.add(i)
             if c.com in (STOP,):
@@ -161,7 +162,7 @@ class Checker:
             v = _value(c, f"motion[{i}]")
             if c.com == CUR:
                 if not (DAC_MIN <= v <= DAC_MAX):
-                    raise Fault(codes.make_code(codes.R_BADCMD, 0, i), f"chg.motion[{i}] CUR {v} outside the 12-bit DAC range")
+                    raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER, i), f"chg.motion[{i}] CUR {v} outside the 12-bit DAC range")
                 if self.checking & codes.CHECK_REQCUR and self.limits is not None and abs(v) > self.limits.max_dac[i]:
                     raise Fault(codes.make_code(codes.R_REQCUR, codes.F_RANGE, i),
                                 f"joint {i + 1}: CUR {v} exceeds {self.limits.max_dac[i]:.0f}")
@@ -170,35 +171,35 @@ class Checker:
             elif c.com == STOPCAL:
                 stopcal = True
         for i, c in enumerate(chg.setparam):
-            if c.com:
+            if _com(c, f"setparam[{i}]", i):
                 n += 1
                 _value(c, f"setparam[{i}]")
         new_checking = self.checking
         for name in VALUED:
             c: Cmd = getattr(chg, name)
-            if not c.com:
+            if not _com(c, name):
                 continue
             n += 1
             v = _value(c, name)
             if name == "hand" and v not in (1, 2):
-                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.hand.value = {v} is neither OPEN (1) nor CLOSE (2)")
+                raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg.hand.value = {v} is neither OPEN (1) nor CLOSE (2)")
             if name == "rate":
                 try:
                     rate_hz(v)
                 except ValueError as e:
-                    raise Fault(codes.make_code(codes.R_BADCMD), str(e)) from None
+                    raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER), str(e)) from None
             if name == "checking":
                 if not (0 <= v <= codes.CHECK_ALL):
-                    raise Fault(codes.make_code(codes.R_BADCMD), f"chg.checking.value = {v:#x} has bits outside {codes.CHECK_ALL:#x}")
+                    raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg.checking.value = {v:#x} has bits outside {codes.CHECK_ALL:#x}")
                 new_checking = v
             if name == "zindex" and not (0 <= v < (1 << self.nj)):
-                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.zindex.value = {v:#x} names joints beyond {self.nj}")
+                raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg.zindex.value = {v:#x} names joints beyond {self.nj}")
             if name == "adco" and not (0 <= v < self.nadc):
-                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.adco.value = {v} is not an ADC channel (0..{self.nadc - 1})")
+                raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg.adco.value = {v} is not an ADC channel (0..{self.nadc - 1})")
             if name in ("outport1", "pendant") and not (0 <= v <= 0xFFFF):
-                raise Fault(codes.make_code(codes.R_BADCMD), f"chg.{name}.value = {v} does not fit in 16 bits")
+                raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg.{name}.value = {v} does not fit in 16 bits")
         for name in UNVALUED:
-            if getattr(chg, name).com:
+            if _com(getattr(chg, name), name):
                 n += 1
         if n > self.max_commands:
             raise Fault(codes.make_code(codes.R_TOOMANY), f"{n} commands in one cycle, at most {self.max_commands}")
@@ -238,15 +239,61 @@ class Checker:
                             f"joint {j + 1}: requested step needs {v[j]:.3f} rad/s, limit {lim.max_velocity[j]:.3f} rad/s")
 
 
+def check_structure(chg: Chg) -> None:
+    """Fault(R_BADCMD) naming the entry if user code replaced part of ``chg`` with something else."""
+    for name in ("motion", "setparam"):
+        seq = getattr(chg, name)
+        if not isinstance(seq, list) or len(seq) != chg.nj:
+            raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER),
+                        f"chg.{name} was replaced by {type(seq).__name__} {seq!r:.40}: it must stay a list of "
+                        f"{chg.nj} commands (set chg.{name}[i].com and .value instead)")
+        for i, c in enumerate(seq):
+            if not isinstance(c, Cmd):
+                raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER, i),
+                            f"chg.{name}[{i}] = {c!r:.40} is not a command: use chg.{name}[{i}].issue(com, value)")
+    for name in VALUED:
+        if not isinstance(getattr(chg, name), Cmd):
+            raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER),
+                        f"chg.{name} = {getattr(chg, name)!r:.40} is not a command: use chg.{name}.issue(value)")
+    for name in UNVALUED:
+        if not isinstance(getattr(chg, name), (Flag, Cmd)):
+            raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER),
+                        f"chg.{name} = {getattr(chg, name)!r:.40} is not a command: set chg.{name}.com = 1")
+
+
+def _com(c: Cmd | Flag, where: str, joint: int | None = None) -> int:
+    """The command code of an entry (0: none); Fault(R_BADCMD) unless an integer 0..255."""
+    com = c.com
+    if isinstance(com, (bool, np.bool_)):
+        return int(com)
+    if not isinstance(com, (int, np.integer)):
+        raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER, joint),
+                    f"chg.{where}.com = {com!r:.40} is not an integer command code")
+    if not 0 <= com <= 255:
+        raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER, joint),
+                    f"chg.{where}.com = {int(com)} is not a command code (0..255)")
+    return int(com)
+
+
 def _value(c: Cmd, where: str) -> int:
-    """The integer value of a command; Fault(R_NANCMD) for NaN, inf or non-numbers."""
+    """The integer value of a command: Fault(R_NANCMD) for NaN or infinity, Fault(R_BADCMD) for
+    anything that is not a real number (text such as ``"12"`` included) or does not fit in 32 bits."""
     v = c.value
     if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
-        return int(v)
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise Fault(codes.make_code(codes.R_NANCMD, codes.F_USER), f"chg.{where}.value = {v!r} is not a number") from None
-    if not math.isfinite(f):
-        raise Fault(codes.make_code(codes.R_NANCMD, codes.F_USER), f"chg.{where}.value = {v!r}")
-    return int(round(f))
+        out = int(v)
+    else:
+        if isinstance(v, (str, bytes, bytearray, bool, np.bool_)) or v is None:
+            raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER),
+                        f"chg.{where}.value = {v!r:.40} is a {type(v).__name__}, not a number")
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER),
+                        f"chg.{where}.value = {v!r:.40} is not a number") from None
+        if not math.isfinite(f):
+            raise Fault(codes.make_code(codes.R_NANCMD, codes.F_USER), f"chg.{where}.value = {v!r}")
+        out = int(round(f))
+    if not -2**31 <= out < 2**31:
+        raise Fault(codes.make_code(codes.R_BADCMD, codes.F_USER),
+                    f"chg.{where}.value = {out} does not fit in the link's 32-bit value field")
+    return out

@@ -125,6 +125,33 @@ class Chg:
         for _, c in self.entries():
             c.com = 0
 
+    def repair(self) -> list[str]:
+        """Put back a fresh entry wherever user code replaced one with something else.
+
+        ``chg.motion[2] = None`` or ``chg.hand = 5`` would otherwise break every later
+        control of the session; returns the names of the entries replaced.
+        """
+        fixed: list[str] = []
+        for name, n in (("motion", self.nj), ("setparam", self.nj)):
+            seq = getattr(self, name)
+            if not isinstance(seq, list) or len(seq) != n:
+                setattr(self, name, [Cmd() for _ in range(n)])
+                fixed.append(name)
+                continue
+            for i, c in enumerate(seq):
+                if not isinstance(c, Cmd):
+                    seq[i] = Cmd()
+                    fixed.append(f"{name}[{i}]")
+        for name in VALUED:
+            if not isinstance(getattr(self, name), Cmd):
+                setattr(self, name, Cmd())
+                fixed.append(name)
+        for name in UNVALUED:
+            if not isinstance(getattr(self, name), (Flag, Cmd)):
+                setattr(self, name, Flag())
+                fixed.append(name)
+        return fixed
+
     def copy(self) -> "Chg":
         """An independent snapshot (same coms and values; a new lock)."""
         new = Chg(nj=self.nj)
@@ -136,9 +163,14 @@ class Chg:
 
 
 def as_wire_int(value: int | float, where: str) -> int:
-    """Convert a user value to an int for the wire; ValueError naming ``where`` for NaN/inf/junk."""
+    """Convert a user value to an int for the wire; ValueError naming ``where`` for NaN/inf/junk.
+
+    Text is refused even when it spells a number (``"12"``): a command value is a number.
+    """
     if isinstance(value, bool):
         return int(value)
+    if isinstance(value, (str, bytes, bytearray)):
+        raise ValueError(f"chg.{where}.value is {value!r}, text and not a number")
     try:
         f = float(value)
     except (TypeError, ValueError):

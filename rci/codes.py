@@ -41,6 +41,8 @@ R_NANCMD = 32   # a user control function left NaN/inf or a non-integer in chg
 R_SEQGAP = 33   # a how frame was lost (sequence number gap)
 R_ROBOT = 34    # the robot reported a non-zero how.status
 R_INTERRUPT = 35  # Ctrl-C (SIGINT) at the planning level
+R_CHGLATE = 36  # the robot got no chg in time for several cycles in a row although the control
+                # functions were quick: commands lost or delayed between the host and the robot
 R_USER_BASE = 0x1000  # A.5.2: codes >= this are the programmer's own
 
 # --- chg.checking bits (A.5.1: the six range checks may be disabled) -------------------
@@ -67,6 +69,9 @@ ST_WATCHDOG = 3         # robot stopped the arm: no chg arrived in time
 ST_BAD_COMMAND = 4      # the robot rejected a command in chg
 ST_POWER_FAULT = 5      # arm power failed
 ST_EXTERNAL_STOP = 6    # emergency stop pressed
+ST_ENCODER_RANGE = 7    # an encoder counter left the 32-bit range of the link (saturated)
+ST_BUSY = 8             # ERROR only: the robot is owned by another controller (HELLO refused)
+ST_BAD_FRAME = 9        # the robot received a corrupt frame from its controller and ended the control
 
 STATUS_TEXT = {
     ST_OK: "no error",
@@ -76,6 +81,9 @@ STATUS_TEXT = {
     ST_BAD_COMMAND: "robot rejected a command",
     ST_POWER_FAULT: "arm power fault",
     ST_EXTERNAL_STOP: "emergency stop",
+    ST_ENCODER_RANGE: "encoder counter out of the link's 32-bit range",
+    ST_BUSY: "robot owned by another controller",
+    ST_BAD_FRAME: "robot received a corrupt frame from the controller",
 }
 
 REASONS = {
@@ -96,9 +104,24 @@ REASONS = {
     R_SEQGAP: "how packet lost (sequence gap)",
     R_ROBOT: "robot controller reported an error",
     R_INTERRUPT: "interrupted from the keyboard",
+    R_CHGLATE: "commands reached the robot late or never (link)",
 }
 
 NAMES = {v: k for k, v in globals().items() if k.startswith("R_") and isinstance(v, int) and k != "R_USER_BASE"}
+
+
+def for_status(status: int) -> int:
+    """The termination code for a non-zero robot status word (how.status or an ERROR frame).
+
+    The robot's own link-fault reports keep the link codes, so the fault is blamed on the
+    link and not on the robot: its watchdog (no chg in time) is R_CHGLATE, a corrupt frame
+    it received is R_CHKSUM; every other status is R_ROBOT. All are severe.
+    """
+    if status == ST_WATCHDOG:
+        return make_code(R_CHGLATE, F_COMM | F_SEVERE)
+    if status == ST_BAD_FRAME:
+        return make_code(R_CHKSUM, F_COMM | F_SEVERE)
+    return make_code(R_ROBOT, F_ROBOT | F_SEVERE)
 
 
 def make_code(number: int, flags: int = 0, joint: int | None = None) -> int:

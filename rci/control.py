@@ -4,7 +4,15 @@ Each cycle: read the robot's HOW frame and check it, fill ``how``, call f1, chec
 send ``chg`` (then clear its commands), call f2, record, and wait for the next HOW. Any
 failure ends the control with a termination code (A.5.1): the task sends an implicit
 release (stop + end, and power off when the error is severe), then tells the session,
-which tells the planning level.
+which tells the planning level. Faults are blamed on the party that caused them
+(docs/safety.md): the link (severe, a link code), the robot (severe, R_ROBOT), or the
+user's control functions (R_USERFUNC, R_BADCMD, R_NANCMD, R_OVERRUN: the arm stops,
+power stays as it was).
+
+Lateness policy (docs/rci.md, "Late cycles"): a cycle is late when the robot reports
+that its CHG came late or never, or when the control task's own work overran the
+period. Isolated late cycles are counted, not fatal; ``Session.late_limit`` late cycles
+in a row end the control (against a real-time robot; a lockstep simulator only counts).
 
 A watchdog thread ends the control with R_OVERRUN when a user function has not returned
 two periods after its cycle began (an infinite loop in f1 cannot be interrupted in
@@ -31,6 +39,23 @@ if TYPE_CHECKING:  # pragma: no cover
     from .session import Session
 
 ControlFunction = Callable[[], object]
+
+
+class _PrevCycle:
+    """What the lateness policy needs to know about the cycle before the current HOW."""
+
+    __slots__ = ("overran", "duration", "user", "send_delay")
+
+    def __init__(self) -> None:
+        self.overran = False
+        self.duration = self.user = self.send_delay = 0.0
+
+
+def _is_zero(value: object) -> bool:
+    """True for a session.terminate that asks for nothing (0, the usual case)."""
+    if value is False:
+        return True
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) and value == 0
 
 
 def _describe_exception(e: BaseException) -> str:
@@ -77,8 +102,12 @@ class ControlTask(threading.Thread):
             self.link.send(protocol.CHG, seq, payload)
             self.answered = True
 
-    def terminate(self, code: int, detail: str, *, link_ok: bool = True) -> None:
-        """End the control on an error: implicit release, then tell the session. Idempotent."""
+    def terminate(self, code: int, detail: str | Callable[[], str], *, link_ok: bool = True) -> None:
+        """End the control on an error: implicit release, then tell the session. Idempotent.
+
+        The release goes out first; ``detail`` may be a function that builds the message
+        afterwards (a traceback's description takes a fraction of a millisecond).
+        """
         with self.send_lock:
             if self.ended:
                 return
@@ -93,7 +122,8 @@ class ControlTask(threading.Thread):
                     self.link.send(protocol.CHG, self.seq, protocol.encode_chg(rel))
                 except (LinkClosed, OSError):
                     pass
-        self.s._control_terminated(codes.Termination(code, detail, self.seq if self.seq is not None else -1), self)
+        text = detail() if callable(detail) else detail
+        self.s._control_terminated(codes.Termination(code, text, self.seq if self.seq is not None else -1), self)
         self.started.set()
 
     def request_release(self, power_off: bool) -> None:
@@ -144,7 +174,8 @@ class ControlTask(threading.Thread):
                 return
             self._loop()
         except BaseException as e:  # a bug in RCI itself must still release the arm
-            self.terminate(codes.make_code(codes.R_BTEST, codes.F_SEVERE), f"internal error: {_describe_exception(e)}")
+            self.terminate(codes.make_code(codes.R_BTEST, codes.F_SEVERE),
+                           lambda e=e: f"internal error: {_describe_exception(e)}")
         finally:
             self.gc.restore()
             sys.setswitchinterval(saved_interval)
@@ -180,8 +211,13 @@ class ControlTask(threading.Thread):
         checker.reset()
         timing = s.timing
         timing.reset()
+        timing.late_limit = s.late_limit_for(s.rate_hz) if s.overrun == "error" else 0
         recorder_get = lambda: s.recorder  # noqa: E731  (may be set or cleared while running)
         first_timeout = s.start_timeout
+        prev = _PrevCycle()
+        self.late_run = 0
+        self.run_overran = False
+        self.run_slowest = (0.0, 0.0)          # (duration, user time) of the slowest overrun of the run
         t_base = None
         seq_base = 0
         robot_over0 = None
@@ -219,18 +255,23 @@ class ControlTask(threading.Thread):
                                f"no HOW from the robot for {timeout:.3f} s")
                 return
             if frame.type == protocol.ERROR:
+                code = codes.make_code(codes.R_ROBOT, codes.F_ROBOT | codes.F_SEVERE)
                 try:
                     msg = protocol.ErrorMsg.decode(frame.payload)
                     text = f"robot error {msg.code}: {msg.text}"
+                    code = codes.for_status(msg.code)
                 except ProtocolError as e:
                     text = f"robot sent an unreadable ERROR frame ({e})"
-                self.terminate(codes.make_code(codes.R_ROBOT, codes.F_ROBOT | codes.F_SEVERE), text, link_ok=True)
+                self.terminate(code, text, link_ok=True)
                 return
             if frame.type != protocol.HOW:
                 self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE),
                                f"unexpected {frame.name} frame during control")
                 return
             # --- read and check the incoming data -----------------------------------
+            if self.seq is not None and frame.seq == self.seq:
+                timing.duplicates += 1          # the same HOW twice (the link repeated it): answered already
+                continue
             self.cycle_start = t_arr
             try:
                 self._seqcheck.check(frame.seq)
@@ -259,13 +300,11 @@ class ControlTask(threading.Thread):
             if robot_over0 is None:
                 robot_over0 = buf.robot_overruns
             lateness = t_arr - (t_base + ((frame.seq - seq_base) & 0xFFFFFFFF) * self.period)
-            if buf.robot_overruns != robot_over0:
-                timing.missed += (buf.robot_overruns - robot_over0) & 0xFFFFFFFF
-                robot_over0 = buf.robot_overruns
-                if s.overrun == "error":
-                    self.terminate(codes.make_code(codes.R_OVERRUN, codes.F_USER),
-                                   f"robot reports a late or missing CHG (robot_overruns = {buf.robot_overruns})")
-                    return
+            robot_late = (buf.robot_overruns - robot_over0) & 0xFFFFFFFF
+            robot_over0 = buf.robot_overruns
+            timing.missed += robot_late
+            if self._late(robot_late, prev, lateness):
+                return
             try:
                 q = checker.check_how(buf, self.period)
             except Fault as f:
@@ -283,7 +322,7 @@ class ControlTask(threading.Thread):
                 if spent is None or self.ended:
                     return
                 t_user += spent
-            if s.terminate and self._user_terminate():
+            if not _is_zero(s.terminate) and self._user_terminate():
                 return
             # --- check and send chg ------------------------------------------------
             with chg.lock:
@@ -291,16 +330,17 @@ class ControlTask(threading.Thread):
                     new_checking = checker.check_chg(chg, how, q, self.period)
                     payload = protocol.encode_chg(chg)
                 except Fault as f:
-                    chg.clear()
+                    self._discard_commands(chg)
                     self.terminate(f.code, f.detail)
                     return
-                except ValueError as e:
-                    chg.clear()
-                    self.terminate(codes.make_code(codes.R_NANCMD, codes.F_USER), str(e))
+                except (ValueError, TypeError, AttributeError) as e:
+                    self._discard_commands(chg)
+                    self.terminate(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg: {e}")
                     return
                 new_rate = rate_hz(int(round(float(chg.rate.value)))) if chg.rate.com else None
                 chg.clear()
             checker.checking = new_checking
+            prev.send_delay = time.monotonic() - t_arr
             try:
                 self._send_chg(frame.seq, payload)
             except LinkClosed as e:
@@ -317,7 +357,7 @@ class ControlTask(threading.Thread):
                 if spent is None or self.ended:
                     return
                 t_user += spent
-            if s.terminate and self._user_terminate():
+            if not _is_zero(s.terminate) and self._user_terminate():
                 return
             # --- bookkeeping -------------------------------------------------------
             t_end = time.monotonic()
@@ -327,32 +367,90 @@ class ControlTask(threading.Thread):
             rec = recorder_get()
             if rec is not None:
                 rec.append(how, payload, lateness, duration)
-            if duration > self.period:
+            prev.overran = duration > self.period
+            prev.duration, prev.user = duration, t_user
+            if prev.overran:
                 timing.overruns += 1
-                if s.overrun == "error":
-                    self.terminate(codes.make_code(codes.R_OVERRUN, codes.F_USER),
-                                   f"cycle took {duration * 1e3:.2f} ms, period {self.period * 1e3:.2f} ms "
-                                   f"(user functions {t_user * 1e3:.2f} ms)")
-                    return
+
+    @staticmethod
+    def _discard_commands(chg: Chg) -> None:
+        """After a bad chg: drop this cycle's commands and mend any entry user code replaced,
+        so the next control of the session starts from a sound record."""
+        chg.repair()
+        chg.clear()
+
+    def _late(self, robot_late: int, prev: "_PrevCycle", lateness: float) -> bool:
+        """Apply the lateness policy at a HOW; True if it ended the control.
+
+        The previous cycle was late if the robot reports CHGs late or missing since the last
+        HOW, or if the control task's own work overran the period. ``late_limit`` late cycles
+        in a row end the control, blamed on the user's functions if a cycle of the run overran
+        (the late cycles after an overrun are its backlog), else on the link (the CHGs were
+        computed in time but did not reach the robot in time).
+        """
+        s = self.s
+        timing = s.timing
+        late = max(robot_late, 1 if prev.overran else 0)
+        if not late:
+            self.late_run = 0
+            return False
+        if self.late_run == 0:
+            self.run_overran = False
+            self.run_slowest = (0.0, 0.0)
+        if prev.overran and prev.duration > self.run_slowest[0]:
+            self.run_slowest = (prev.duration, prev.user)
+        self.run_overran = self.run_overran or prev.overran      # the backlog of an overrun is the overrun's
+        self.late_run += late
+        timing.late_cycles += late
+        timing.late_run_max = max(timing.late_run_max, self.late_run)
+        limit = s.late_limit_for(round(1.0 / self.period))
+        timing.late_limit = limit if s.overrun == "error" else 0
+        if s.overrun != "error" or self.late_run < limit:
+            return False
+        period_ms = self.period * 1e3
+        if self.run_overran:
+            self.terminate(codes.make_code(codes.R_OVERRUN, codes.F_USER),
+                           f"{self.late_run} late cycles in a row (limit {limit}), begun or prolonged by control "
+                           f"cycles longer than the period; the slowest took {self.run_slowest[0] * 1e3:.2f} ms of a "
+                           f"{period_ms:.2f} ms period, {self.run_slowest[1] * 1e3:.2f} ms of it in the control functions")
+        else:
+            self.terminate(codes.make_code(codes.R_CHGLATE, codes.F_COMM | codes.F_SEVERE),
+                           f"{self.late_run} late cycles in a row (limit {limit}): the robot got no CHG in time "
+                           f"although the last was sent {prev.send_delay * 1e3:.2f} ms after its HOW "
+                           f"(period {period_ms:.2f} ms); this HOW came {lateness * 1e3:.2f} ms after its time: "
+                           f"frames lost or delayed between host and robot, or the control thread not scheduled")
+        return True
 
     def _call_user(self, fn, name: str) -> float | None:
         """Run one user control function; its duration in seconds, or None if it raised
-        (the control is then terminated with R_USERFUNC)."""
+        (the control is then terminated with R_USERFUNC). Whatever it raises, SystemExit and
+        KeyboardInterrupt included, is the user function's fault, not the link's."""
         t0 = time.monotonic()
         self.in_user = True
         try:
             fn()
-        except Exception as e:
+        except BaseException as e:  # noqa: BLE001 - sys.exit() in f1 ends the control, not RCI
             self.in_user = False  # before terminate, so the watchdog does not see a hung function
-            self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER), f"in {name}: {_describe_exception(e)}")
+            hint = ""
+            if isinstance(e, (SystemExit, KeyboardInterrupt)):
+                hint = f" ({type(e).__name__} in a control function ends the control, not the program)"
+            self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER),
+                           lambda e=e: f"in {name}: {_describe_exception(e)}{hint}")
             return None
         self.in_user = False
         return time.monotonic() - t0
 
     def _user_terminate(self) -> bool:
         """A.5.2: the control functions set ``session.terminate`` to force an error."""
-        code = int(self.s.terminate)
-        if not code:
-            return False
-        self.terminate(code, "set by a control function (A.5.2)")
+        raw = self.s.terminate
+        if isinstance(raw, (int, np.integer)) and not isinstance(raw, bool):
+            code = int(raw)
+            if code == 0:
+                return False
+            if 0 < code <= 0xFFFFFFFF:
+                self.terminate(code, "set by a control function (A.5.2)")
+                return True
+        self.terminate(codes.make_code(codes.R_USERFUNC, codes.F_USER),
+                       f"s.terminate = {raw!r:.40} set by a control function is not a termination code "
+                       f"(A.5.2: a positive integer, codes >= {codes.R_USER_BASE:#x} are the programmer's own)")
         return True

@@ -61,6 +61,15 @@ class RobotRefused(RCIError):
         super().__init__(f"robot refused: {text} (code {code})")
 
 
+class RobotBusy(RobotRefused, DeviceError):
+    """The robot is owned by another controller (an ERROR ``ST_BUSY`` answer to HELLO).
+
+    ``text`` names the owner (pid, address, client name). The running control of the
+    owner is not disturbed. A crashed owner can be taken over with ``takeover=True`` once
+    the robot's watchdog has stopped its control (docs/protocol.md, "Ownership").
+    """
+
+
 # --- protocol (framing) errors ----------------------------------------------------------
 class ProtocolError(RCIError):
     """A frame on the robot link is bad. ``code`` is the A.5.1 error number it maps to."""
@@ -72,6 +81,14 @@ class ChecksumError(ProtocolError):
     """A frame's CRC-16 does not match its contents (maps to R_CHKSUM)."""
 
     code = 11
+
+
+class VersionError(ProtocolError):
+    """A frame of a protocol version this side does not speak (``version``: the one received)."""
+
+    def __init__(self, version: int, text: str) -> None:
+        self.version = version
+        super().__init__(text)
 
 
 class FrameLengthError(ProtocolError):

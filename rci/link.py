@@ -213,11 +213,18 @@ class Link:
 def open_link(url: str, *, baudrate: int = 115200, connect_timeout: float = 5.0) -> Link:
     """Open the robot link named by ``url`` (device path, ``socket://host:port`` or ``loop://``).
 
-    Raises DeviceError (thesis R_BAD_OPEN) naming the URL if it cannot be opened.
+    A device path (serial line or pty) is opened with an exclusive lock: one controller per
+    line (docs/protocol.md, "Ownership"); a second program gets DeviceError at once instead
+    of sharing, and stealing, the first one's frames. Over TCP the robot itself refuses a
+    second controller (BUSY). Raises DeviceError (thesis R_BAD_OPEN) naming the URL if the
+    link cannot be opened.
     """
+    device = "://" not in url
     try:
         port = serial.serial_for_url(url, baudrate=baudrate, timeout=connect_timeout,
-                                     write_timeout=connect_timeout)
+                                     write_timeout=connect_timeout, **({"exclusive": True} if device else {}))
     except (serial.SerialException, OSError, ValueError) as e:
-        raise DeviceError(f"cannot open robot link {url!r}: {e}") from None
+        hint = " (another program has this line open: one controller per line)" \
+            if device and "exclusively lock" in str(e) else ""
+        raise DeviceError(f"cannot open robot link {url!r}: {e}{hint}") from None
     return Link(port, url)

@@ -8,6 +8,11 @@ drifts the joint in proportion to the current), enough to test a controller end 
 simula is the full simulator; a real arm's monitor would wrap its hardware in ``Arm``.
 
 A ``fault`` hook can rewrite or drop each outgoing HOW frame (fault-injection tests).
+
+It follows the robot-side safety rules of docs/protocol.md: the release flags of any CHG
+are obeyed whatever its seq; a cycle without a CHG holds the joints that were in current
+mode (``Arm.hold_current_mode``, where the arm has it); one controller at a time (over TCP
+a connection arriving while one is served is answered ERROR ``ST_BUSY`` and closed).
 """
 from __future__ import annotations
 
@@ -37,6 +42,7 @@ class Arm(Protocol):
     def apply(self, chg: Chg) -> None: ...            # execute one CHG's commands
     def step(self, dt: float) -> None: ...            # advance dt seconds
     def released(self, power_off: bool) -> None: ...  # control ended
+    # optional: def hold_current_mode(self) -> None  - a cycle passed without a CHG
 
 
 class EchoArm:
@@ -98,6 +104,12 @@ class EchoArm:
             if power_off:
                 self.state &= ~codes.POWER_ON
 
+    def hold_current_mode(self) -> None:
+        with self.lock:
+            cur = self.mode == CUR
+            self.mode[cur] = 0
+            self.current[cur] = 0
+
 
 class _Stream:
     """Bytes over a file descriptor (socket or pty master), non-blocking, with select."""
@@ -149,6 +161,8 @@ class Monitor:
         self.how = How(pos=np.zeros(arm.nj, dtype=np.int64), adcr=np.zeros(arm.nadc, dtype=np.int64))
         self._t0 = time.monotonic_ns()
         self._msg_seq = 0
+        self._listener: socket.socket | None = None
+        self._owner = ""
 
     # --- transport entry points ---------------------------------------------------
     def serve_fd(self, fd: int, closer: Callable[[], None] | None = None) -> None:
@@ -166,8 +180,9 @@ class Monitor:
         srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         srv.bind((host, port))
-        srv.listen(1)
+        srv.listen(4)
         srv.settimeout(0.05)
+        self._listener = srv
         if ready is not None:
             ready(srv.getsockname()[1])
         try:
@@ -177,6 +192,7 @@ class Monitor:
                 except socket.timeout:
                     continue
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                self._owner = "%s:%d" % conn.getpeername()[:2]
                 self.serve_fd(conn.fileno(), conn.close)
         finally:
             srv.close()
@@ -202,6 +218,7 @@ class Monitor:
         answered = True
         missing = 0
         while not self.stop_event.is_set():
+            self._refuse_newcomers()
             if running and not self.lockstep:
                 wait = next_t - time.monotonic()
             else:
@@ -224,6 +241,9 @@ class Monitor:
                     if not answered:
                         self.robot_overruns += 1
                         missing += 1
+                        hold = getattr(self.arm, "hold_current_mode", None)
+                        if hold is not None:
+                            hold()             # no command for this period: no motor current either
                         if missing >= self.watchdog:
                             self.arm.released(False)
                             running = False
@@ -285,6 +305,26 @@ class Monitor:
                 running = False
                 self.arm.released(bye.power_off)
                 self._send(stream, protocol.BYE, self._msg(), frame.payload)
+
+    def _refuse_newcomers(self) -> None:
+        """One controller at a time: a connection arriving while one is served gets ERROR(ST_BUSY)."""
+        srv = self._listener
+        if srv is None:
+            return
+        try:
+            ready, _, _ = select.select([srv], [], [], 0)
+            if not ready:
+                return
+            conn, _ = srv.accept()
+        except OSError:
+            return
+        try:
+            msg = protocol.ErrorMsg(codes.ST_BUSY, f"robot busy: owned by the controller at {self._owner}; "
+                                                   f"one controller at a time")
+            conn.sendall(protocol.encode_frame(protocol.ERROR, 0, msg.encode()))
+        except OSError:
+            pass
+        conn.close()
 
     def _apply(self, chg: Chg) -> None:
         self.arm.apply(chg)

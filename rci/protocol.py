@@ -22,11 +22,11 @@ import numpy as np
 from . import chg as chgmod
 from .chg import Chg, Cmd, UNVALUED, VALUED
 from .exceptions import (ChecksumError, FrameLengthError, ProtocolError, SequenceGap,
-                         UnknownFrameType)
+                         UnknownFrameType, VersionError)
 from .how import How
 
 SYNC = b"\xA5\x5A"
-VERSION = 1
+VERSION = 2          # 2: HELLO carries the controller's pid and a takeover flag (ownership, docs/protocol.md)
 HEADER = struct.Struct("<BBIH")     # ver, type, seq, len (after the sync bytes)
 HEADER_LEN = 2 + HEADER.size + 2    # sync + fields + hcrc = 12
 TRAILER_LEN = 2
@@ -132,7 +132,8 @@ class FrameDecoder:
             payload = bytes(buf[HEADER_LEN:HEADER_LEN + length])
             del buf[:total]
             if ver != VERSION:
-                raise ProtocolError(f"protocol version {ver} not supported (this side speaks {VERSION})")
+                raise VersionError(ver, f"{TYPE_NAMES.get(ftype, hex(ftype))} frame of protocol version {ver}: "
+                                        f"not supported (this side speaks {VERSION})")
             if ftype not in TYPE_NAMES:
                 raise UnknownFrameType(f"unknown frame type 0x{ftype:02x} (seq {seq})")
             return Frame(ftype, seq, payload)
@@ -178,30 +179,44 @@ def _unpack_str(data: bytes, off: int, what: str) -> tuple[str, int]:
 
 
 # --- session payloads --------------------------------------------------------------------
+HELLO_TAKEOVER = 0x01   # HELLO.flags: take the robot over from an owner whose control the robot stopped
+
+
 @dataclass(frozen=True)
 class Hello:
-    """HELLO: the controller asks for a robot by name at a sample rate (Hz)."""
+    """HELLO: the controller asks for a robot by name at a sample rate (Hz).
+
+    ``pid`` is the controller's process id and ``client`` a free text naming the program;
+    the robot quotes both when it refuses another controller (BUSY). ``takeover`` asks to
+    replace an owner whose control the robot's watchdog has stopped.
+    """
 
     robot: str
     rate_hz: int = 36
     client: str = "rci"
-    _S = struct.Struct("<BH")
+    pid: int = 0
+    takeover: bool = False
+    _S = struct.Struct("<BHIB")       # version, rate_hz, pid, flags
 
     def encode(self) -> bytes:
-        return self._S.pack(VERSION, self.rate_hz) + _pack_str(self.robot) + _pack_str(self.client)
+        flags = HELLO_TAKEOVER if self.takeover else 0
+        return (self._S.pack(VERSION, self.rate_hz, self.pid & 0xFFFFFFFF, flags)
+                + _pack_str(self.robot) + _pack_str(self.client))
 
     @classmethod
     def decode(cls, data: bytes) -> "Hello":
+        if len(data) < 1:
+            raise FrameLengthError("HELLO payload is empty")
+        if data[0] != VERSION:
+            raise VersionError(data[0], f"HELLO asks for protocol version {data[0]}, this side speaks {VERSION}")
         if len(data) < cls._S.size:
             raise FrameLengthError(f"HELLO payload of {len(data)} bytes is too short")
-        ver, rate = cls._S.unpack_from(data)
-        if ver != VERSION:
-            raise ProtocolError(f"HELLO asks for protocol version {ver}, this side speaks {VERSION}")
+        ver, rate, pid, flags = cls._S.unpack_from(data)
         robot, off = _unpack_str(data, cls._S.size, "HELLO robot")
         client, off = _unpack_str(data, off, "HELLO client")
         if off != len(data):
             raise FrameLengthError(f"HELLO has {len(data) - off} trailing bytes")
-        return cls(robot, rate, client)
+        return cls(robot, rate, client, pid, bool(flags & HELLO_TAKEOVER))
 
 
 @dataclass(frozen=True)
@@ -296,13 +311,24 @@ def how_size(nj: int, nadc: int) -> int:
     return _HOW_HEAD.size + 4 * nj + _HOW_MID.size + 2 * nadc
 
 
+I32_MIN, I32_MAX = -2**31, 2**31 - 1
+
+
 def encode_how(how: How) -> bytes:
-    """HOW payload from a How record (pos as int32 counts, adcr as int16)."""
+    """HOW payload from a How record (pos as int32 counts, adcr as int16).
+
+    ValueError naming the joint for a count outside the int32 range (a robot must saturate
+    and report it, never let it wrap).
+    """
     nj, nadc = len(how.pos), len(how.adcr)
+    pos = np.asarray(how.pos)
+    if pos.size and (pos.min() < I32_MIN or pos.max() > I32_MAX):
+        j = int(np.argmax((pos < I32_MIN) | (pos > I32_MAX)))
+        raise ValueError(f"how.pos[{j}] = {int(pos[j])} does not fit in the link's 32-bit encoder field")
     return b"".join((
         _HOW_HEAD.pack(how.time_ns, how.rate_hz, how.robot_overruns & 0xFFFFFFFF, how.wc & 0xFFFF,
                        how.status & 0xFFFF, how.state & 0xFFFF, how.exio & 0xFFFF, nj, nadc),
-        np.asarray(how.pos, dtype="<i4").tobytes(),
+        pos.astype("<i4").tobytes(),
         _HOW_MID.pack(how.inport1 & 0xFFFF, how.outport1 & 0xFFFF, *(int(b) & 0xFF for b in how.pendant)),
         np.asarray(how.adcr, dtype="<i2").tobytes(),
     ))

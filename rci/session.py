@@ -22,6 +22,7 @@ main thread) the error is delivered by the next ``wait()`` or primitive call.
 from __future__ import annotations
 
 import atexit
+import os
 import signal
 import sys
 import threading
@@ -35,7 +36,7 @@ from .checks import Checker, Limits
 from .chg import Chg, MAX_RATE_HZ
 from .control import ControlTask
 from .exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTerminated, DeviceError,
-                         LinkClosed, NoControl, NotOpen, ProtocolError, RobotRefused, Timeout)
+                         LinkClosed, NoControl, NotOpen, ProtocolError, RobotBusy, RobotRefused, Timeout)
 from .how import How
 from .link import Link, open_link
 from .realtime import RealtimeStatus, lock_memory, unlock_memory
@@ -52,8 +53,15 @@ class Session:
     ``rci.conversions``), a ``Limits``, or None (range checks off); ``timeout`` s without a
     HOW before R_TIMEOUT (default two periods, at least ``min_timeout``; against a lockstep
     simulator at least ``lockstep_timeout``, since its cycles are not wall-clock time);
-    ``overrun`` ``"error"`` (R_OVERRUN), ``"count"``, or ``"auto"`` (error against a real-time
-    robot, count against a lockstep simulator, where a slow cycle harms nothing); ``realtime`` try SCHED_FIFO at ``priority`` for
+    ``overrun`` what late cycles do (docs/rci.md, "Late cycles"): ``"error"`` ends the control
+    after ``late_limit`` late cycles in a row (R_OVERRUN when the control functions overran,
+    R_CHGLATE when the commands were in time but did not reach the robot in time),
+    ``"count"`` only counts them, ``"auto"`` (default) is ``"error"`` against a real-time robot
+    and ``"count"`` against a lockstep simulator, where a slow cycle harms nothing;
+    ``late_limit`` late cycles in a row that end the control (default None: 3, or 20 ms
+    worth of cycles at high rates, like libfranka's 20 lost packets at 1 kHz);
+    ``takeover`` take the robot over from a crashed owner whose control the robot's
+    watchdog has stopped (docs/protocol.md, "Ownership"); ``realtime`` try SCHED_FIFO at ``priority`` for
     the control thread; ``gc`` ``"freeze"``/``"off"``/``"leave"``; ``lock_memory`` mlockall;
     ``signals`` deliver errors and Ctrl-C through signals when opened in the main thread.
     """
@@ -61,7 +69,7 @@ class Session:
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
                  limits: str | Limits | None = "model", timeout: float | None = None,
                  min_timeout: float = 0.02, start_timeout: float = 2.0, overrun: str = "auto",
-                 lockstep_timeout: float = 0.25,
+                 late_limit: int | None = None, lockstep_timeout: float = 0.25, takeover: bool = False,
                  realtime: bool = True, priority: int = 80, gc: str = "freeze",
                  lock_memory: bool = True, switch_interval: float | None = 2e-4,
                  signals: bool = True, watchdog: bool = True, max_commands: int = 16,
@@ -71,6 +79,9 @@ class Session:
             raise ValueError(f"rate_hz must be 4..{MAX_RATE_HZ}, not {rate_hz}")
         if overrun not in ("error", "count", "auto"):
             raise ValueError(f"overrun must be 'error', 'count' or 'auto', not {overrun!r}")
+        if late_limit is not None and (isinstance(late_limit, bool) or not isinstance(late_limit, int)
+                                       or late_limit < 1):
+            raise ValueError(f"late_limit must be None (automatic) or an integer >= 1, not {late_limit!r}")
         self.url = url
         self.robot = robot
         self.rate_hz = int(rate_hz)
@@ -80,7 +91,9 @@ class Session:
         self.start_timeout = start_timeout
         self.overrun_mode = overrun
         self.overrun = "error" if overrun == "auto" else overrun   # resolved at open()
+        self.late_limit = late_limit
         self.lockstep_timeout = lockstep_timeout
+        self.takeover = takeover
         self.lockstep = False
         self.realtime = realtime
         self.priority = priority
@@ -135,6 +148,13 @@ class Session:
         floor = max(self.min_timeout, self.lockstep_timeout if self.lockstep else 0.0)
         return max(2.0 * period, floor)
 
+    def late_limit_for(self, rate_hz: float) -> int:
+        """Late cycles in a row that end a control at ``rate_hz`` (``late_limit``, or the default:
+        3, and up to 20 ms worth of cycles at high rates, e.g. 5 at 250 Hz and 20 at 1 kHz)."""
+        if self.late_limit is not None:
+            return self.late_limit
+        return max(3, int(round(0.02 * rate_hz)))
+
     @property
     def is_open(self) -> bool:
         return self.link is not None
@@ -163,8 +183,11 @@ class Session:
             try:
                 link.drain()
                 link.send(protocol.HELLO, self._next_msg_seq(),
-                          protocol.Hello(self.robot, self.rate_hz, self.client).encode())
+                          protocol.Hello(self.robot, self.rate_hz, self.client, os.getpid(), self.takeover).encode())
                 welcome = self._await_welcome(link)
+            except (LinkClosed, OSError) as e:
+                link.close()
+                raise DeviceError(f"{self.url}: link closed while opening the session: {e}") from None
             except BaseException:
                 link.close()
                 raise
@@ -214,6 +237,8 @@ class Session:
                 return protocol.Welcome.decode(frame.payload)
             if frame.type == protocol.ERROR:
                 msg = protocol.ErrorMsg.decode(frame.payload)
+                if msg.code == codes.ST_BUSY:
+                    raise RobotBusy(msg.code, f"{self.url}: {msg.text}")
                 raise RobotRefused(msg.code, msg.text)
             # HOW frames of an earlier program may still be in flight: ignore them
 
@@ -276,13 +301,19 @@ class Session:
             was_controlling = self.in_control
             if was_controlling:
                 self.release(power_off)
+            # after a severe termination the release asked for power off; say it again in BYE in
+            # case that release was lost on the way (docs/safety.md)
+            severe = self.termination is not None and self.termination.severe
             link = self.link
             try:
-                link.send(protocol.BYE, self._next_msg_seq(), protocol.Bye(power_off and was_controlling).encode())
+                link.send(protocol.BYE, self._next_msg_seq(),
+                          protocol.Bye((power_off and was_controlling) or severe).encode())
                 deadline = time.monotonic() + 0.5
                 while time.monotonic() < deadline:
                     try:
                         frame = link.recv(deadline - time.monotonic())
+                    except LinkClosed:
+                        break               # the robot (or the link) is gone: nothing to wait for
                     except ProtocolError:
                         continue
                     if frame is None or frame.type == protocol.BYE:

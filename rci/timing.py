@@ -30,6 +30,10 @@ class TimingSummary:
     overhead_p99: float
     user_share_p50: float       # share of the period left to user code: 1 - overhead/period
     user_share_p99: float       # (computed with the p99 overhead: the worst-case budget)
+    late_cycles: int = 0        # cycles late by the lateness policy (robot saw its CHG late, or work overran)
+    late_run_max: int = 0       # the longest run of late cycles in a row
+    late_limit: int = 0         # late cycles in a row that end the control (0: not set / never reached)
+    duplicates: int = 0         # HOW frames received twice (ignored)
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -48,6 +52,10 @@ class CycleTiming:
         self.count = 0
         self.missed = 0
         self.overruns = 0
+        self.late_cycles = 0
+        self.late_run_max = 0
+        self.late_limit = 0
+        self.duplicates = 0
         self.last_lateness = 0.0
         self.last_duration = 0.0
         self.last_user_time = 0.0
@@ -56,6 +64,10 @@ class CycleTiming:
         self.count = 0
         self.missed = 0
         self.overruns = 0
+        self.late_cycles = 0
+        self.late_run_max = 0
+        self.late_limit = 0
+        self.duplicates = 0
 
     def add(self, arrival: float, lateness: float, duration: float, user_time: float, period: float) -> None:
         i = self.count % self.capacity
@@ -82,7 +94,8 @@ class CycleTiming:
         if len(order) < 2:
             z = 0.0
             return TimingSummary(len(order), float(self.period[order[-1]]) if len(order) else 0.0,
-                                 self.missed, self.overruns, z, z, z, z, z, z, z, z, z, 1.0, 1.0)
+                                 self.missed, self.overruns, z, z, z, z, z, z, z, z, z, 1.0, 1.0,
+                                 self.late_cycles, self.late_run_max, self.late_limit, self.duplicates)
         arr, per = self.arrival[order], self.period[order]
         jit = np.abs(np.diff(arr) - per[1:])
         dur, usr = self.duration[order], self.user_time[order]
@@ -95,4 +108,6 @@ class CycleTiming:
             lateness_p99=q(self.lateness[order], 99),
             duration_p50=q(dur, 50), duration_p99=q(dur, 99), duration_max=float(dur.max()),
             overhead_p50=q(ovh, 50), overhead_p99=q(ovh, 99),
-            user_share_p50=1.0 - q(ovh, 50) / period, user_share_p99=1.0 - q(ovh, 99) / period)
+            user_share_p50=1.0 - q(ovh, 50) / period, user_share_p99=1.0 - q(ovh, 99) / period,
+            late_cycles=self.late_cycles, late_run_max=self.late_run_max, late_limit=self.late_limit,
+            duplicates=self.duplicates)

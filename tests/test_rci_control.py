@@ -193,6 +193,24 @@ def test_nan_command_is_refused_before_sending(robot):
 
 
 def test_overrunning_user_function(rt_robot):
+    """A control function too slow for the period, cycle after cycle: R_OVERRUN after late_limit late cycles."""
+    s = session(rt_robot.url, rate_hz=50, overrun="error")
+    with s:
+        state = {"n": 0}
+
+        def f2():
+            state["n"] += 1
+            if state["n"] >= 5:
+                time.sleep(0.03)          # 1.5 periods, every cycle
+        t = run_until_terminated(s, lambda: s.control(None, f2))
+    assert t.number == codes.R_OVERRUN and not t.severe
+    assert "late cycles in a row (limit 3)" in t.detail and "control functions" in t.detail
+    assert s.timing.late_run_max >= 3
+    assert rt_robot.released()
+
+
+def test_an_isolated_overrun_is_counted_not_fatal(rt_robot):
+    """The lateness policy: one slow cycle is survived and reported in the timing summary."""
     s = session(rt_robot.url, rate_hz=50, overrun="error")
     with s:
         state = {"n": 0}
@@ -200,10 +218,32 @@ def test_overrunning_user_function(rt_robot):
         def f2():
             state["n"] += 1
             if state["n"] == 5:
-                time.sleep(0.05)          # 2.5 periods
+                time.sleep(0.03)          # 1.5 periods, once
+        s.control(None, f2)
+        s.wait(0.4)
+        assert s.in_control and s.termination is None
+        s.release()
+    summary = s.timing.summary()
+    assert summary.overruns >= 1 and summary.late_cycles >= 1
+    assert summary.late_run_max < summary.late_limit == 3
+
+
+def test_late_limit_is_configurable_and_checked(rt_robot):
+    """late_limit=1 is the strict policy: the first late cycle ends the control."""
+    s = session(rt_robot.url, rate_hz=50, overrun="error", late_limit=1)
+    with s:
+        state = {"n": 0}
+
+        def f2():
+            state["n"] += 1
+            if state["n"] == 5:
+                time.sleep(0.03)
         t = run_until_terminated(s, lambda: s.control(None, f2))
-    assert t.number == codes.R_OVERRUN
-    assert rt_robot.released()
+    assert t.number == codes.R_OVERRUN and "(limit 1)" in t.detail
+    assert Session(rt_robot.url).late_limit_for(1000) == 20 and Session(rt_robot.url).late_limit_for(36) == 3
+    for bad in (0, -2, 1.5, True, "3"):
+        with pytest.raises(ValueError, match="late_limit"):
+            Session(rt_robot.url, late_limit=bad)
 
 
 def test_hung_user_function_is_released_by_the_watchdog(robot):
@@ -356,10 +396,13 @@ def test_checks_switched_off_by_the_checking_bits(ls_robot):
 def test_error_reaches_a_main_thread_blocked_in_sleep(ls_robot):
     s = session(ls_robot.url, rate_hz=50, signals=True)
     with s:
+        returned = threading.Event()     # a lockstep robot can run many cycles before control() returns
+
         def f1():
-            if s.how.cycle > 5:
+            if returned.is_set():
                 raise ValueError("late failure")
         s.control(f1)
+        returned.set()
         t0 = time.monotonic()
         with pytest.raises(ControlTerminated):
             time.sleep(5.0)              # not an RCI wait: the signal interrupts it

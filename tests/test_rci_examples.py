@@ -33,7 +33,7 @@ def run_example(*args: str, timeout: float = 60.0) -> subprocess.CompletedProces
 
 def test_zero_gravity_holds_and_moves_when_pushed():
     zg = load("zero_gravity")
-    with SimulaProcess("-c", "--warm", lockstep=True) as sim:
+    with SimulaProcess("-c", "--warm", "--test-channel", lockstep=True) as sim:
         with Session(sim.url, "puma260", rate_hz=36, lock_memory=False) as s:
             w = zg.Weightless(s)
             s.control(None, w)

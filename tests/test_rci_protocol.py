@@ -87,6 +87,23 @@ def test_session_payloads_round_trip():
     assert p.Bye.decode(p.Bye(True).encode()).power_off is True
 
 
+def test_hello_of_version_2_carries_the_pid_and_the_takeover_flag():
+    h = p.Hello("puma260", 100, "prog", pid=4242, takeover=True)
+    raw = h.encode()
+    assert raw[0] == p.VERSION == 2 and p.Hello.decode(raw) == h
+    assert p.Hello.decode(p.Hello("puma260", 36, "x", 7).encode()).takeover is False
+    old = bytes([1]) + raw[1:]                        # a version-1 HELLO
+    with pytest.raises(p.VersionError, match="version 1"):
+        p.Hello.decode(old)
+
+
+def test_text_values_are_refused_on_the_wire():
+    c = Chg()
+    c.motion[0].issue(POS, "12")
+    with pytest.raises(ValueError, match=r"motion\[0\].*text"):
+        p.encode_chg(c)
+
+
 def test_float_values_are_rounded_and_nan_is_refused():
     c = Chg()
     c.motion[1].issue(CUR, 12.6)

@@ -187,7 +187,7 @@ def test_remembers_state_across_two_programs():
 
 def test_current_mode_holds_with_gravity_compensation_and_moves_when_pushed():
     """The zero-gravity program of 2.2.2 against the process, pushed via the control channel."""
-    with SimulaProcess("-c", "--warm") as sim:
+    with SimulaProcess("-c", "--warm", "--test-channel") as sim:
         ctl = Controller(sim.url)
         ctl.hello()
         h = power_on(ctl, ctl.start())
@@ -326,7 +326,7 @@ def test_environment_option_presses_the_tool_on_a_plane():
 def test_control_channel_reports_bad_commands():
     with SimulaProcess("-p", "--no-control") as quiet:
         assert quiet.control_url == "" and quiet.url.startswith("socket://")
-    with SimulaProcess("-p") as sim:
+    with SimulaProcess("-p", "--test-channel") as sim:
         assert sim.command("ping")["ok"]
         for line, text in (("torque 9 1.0", "joint 9"), ("torque 1 nan", "not finite"), ("torque 1", "usage"),
                            ("load pulley:joint=1", "missing"), ("fly", "unknown command"), ("", "empty")):

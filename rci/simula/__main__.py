@@ -7,8 +7,9 @@ Usage (see docs/simula.md)::
     simula --pty                      # serve a pseudo-terminal instead of TCP
 
 stdout line 1 is the link address for ``rci.link.open_link`` (``socket://host:port`` or
-the pty device path); line 2 is ``control socket://host:port`` (the test control channel)
-unless ``--no-control``. With ``-v`` the joint angles follow, once per simulated second.
+the pty device path); line 2 is ``control socket://host:port`` (the control channel: state,
+events, ping; the commands that act on the arm only with ``--test-channel``) unless
+``--no-control``. With ``-v`` the joint angles follow, once per simulated second.
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from .arm import Arm
 from .control import ControlChannel
 from .exceptions import SimulaError
 from .params import load_params, parse_load, truth_from_model
-from .server import WATCHDOG_CYCLES, Server
+from .server import LOCKSTEP_WATCHDOG_S, WATCHDOG_CYCLES, Server
 
 DEFAULT_PORT = 7600
 
@@ -45,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pty", action="store_true", help="serve a pseudo-terminal instead of TCP (path on line 1)")
     p.add_argument("--control-port", type=int, default=0, help="control-channel port on loopback (0: any free)")
     p.add_argument("--no-control", action="store_true", help="no control channel")
+    p.add_argument("--test-channel", action="store_true",
+                   help="allow the control channel's commands that act on the arm (torque, load): tests only")
     p.add_argument("--seed", type=int, default=0, help="seed of every random disturbance (reproducible runs)")
     p.add_argument("--load", default="none", help="pulley load: pulley:joint=J,mass=KG,radius=M[,sign=+-1]")
     p.add_argument("--env", action="append", default=[], metavar="SPEC",
@@ -58,6 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="real-time mode: missing CHGs in a row before the arm is stopped")
     p.add_argument("--watchdog-time", type=float, default=0.1,
                    help="real time: and at least this many seconds without a CHG (default 0.1 s)")
+    p.add_argument("--lockstep-watchdog", type=float, default=LOCKSTEP_WATCHDOG_S,
+                   help=f"lockstep: wall-clock seconds without a CHG before a control is ended "
+                        f"(default {LOCKSTEP_WATCHDOG_S}; 0: never)")
     p.add_argument("--priority", type=int, default=70,
                    help="real time: SCHED_FIFO priority (0: leave the scheduler alone); falls back quietly")
     p.add_argument("--warm", action="store_true", help="start with warmed-up joints (no cold friction excess)")
@@ -98,9 +104,11 @@ def main(argv: list[str] | None = None) -> int:
         if not 4 <= args.rate <= 1000:
             raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")
         server = Server(arm, model.name, lockstep=args.lockstep, verbose=args.verbose, rate_hz=args.rate,
-                        watchdog=max(1, args.watchdog), watchdog_time=max(0.0, args.watchdog_time))
+                        watchdog=max(1, args.watchdog), watchdog_time=max(0.0, args.watchdog_time),
+                        lockstep_watchdog=max(0.0, args.lockstep_watchdog))
         url = server.open_pty() if args.pty else server.listen_tcp(args.host, args.port)
-        control = None if args.no_control else ControlChannel("127.0.0.1", args.control_port)
+        control = None if args.no_control else ControlChannel("127.0.0.1", args.control_port,
+                                                              test_commands=args.test_channel)
     except (ModelError, SimulaError, ValueError, OSError) as exc:
         print(f"simula: {exc}", file=sys.stderr)
         return 2

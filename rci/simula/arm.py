@@ -31,7 +31,9 @@ Everything here is deterministic for a given seed and sequence of calls.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -47,6 +49,7 @@ HOLD, SERVO, CURRENT = 0, 1, 2          # internal joint modes (HOLD: servo on a
 MODE_NAMES = {HOLD: "hold", SERVO: "pos", CURRENT: "cur"}
 N_ADC = 16                               # thesis A.4: 16 ADC channels
 POT_SPAN = 4000                          # potentiometer counts over a joint's range (-2000..2000)
+COUNT_MIN, COUNT_MAX = -2**31, 2**31 - 1  # the link's int32 encoder field (docs/protocol.md, HOW)
 _EPS_V = 1e-9                            # rad/s below which a servo joint counts as halted
 
 
@@ -168,10 +171,44 @@ class Arm:
         self.limit_hits = 0
         self._alpha_h, self._alpha = -1.0, 1.0
 
+    # attributes that describe the robot or the world, not the arm's evolving state: a rewind
+    # (``restore_state``) keeps them (``ext`` and ``load`` are set by the test channel)
+    _NOT_STATE = frozenset({"model", "truth", "n", "dynamic", "conv", "pm", "pd", "rng", "friction", "rotor",
+                            "lower", "upper", "vmax", "imax", "counts_per_rev", "load", "ext", "_zeros",
+                            "environment", "_env_data"})
+
     # --- helpers -------------------------------------------------------------------
     def counters(self) -> np.ndarray:
-        """Encoder counters as the controller reads them (int64)."""
-        return np.rint(self.conv.angles_to_counts(self.q) + self.cal_offset).astype(np.int64)
+        """Encoder counters as the controller reads them (int64), saturated to the link's int32 range.
+
+        A counter beyond that range (a STOPCAL near the limit, then motion) is held at the
+        limit and reported (status ``ST_ENCODER_RANGE``) instead of wrapping silently.
+        """
+        c = np.rint(self.conv.angles_to_counts(self.q) + self.cal_offset).astype(np.int64)
+        out = (c < COUNT_MIN) | (c > COUNT_MAX)
+        if out.any():
+            j = int(np.argmax(out))
+            self.flag(codes.ST_ENCODER_RANGE, f"joint {j + 1}: encoder count {int(c[j])} outside the link's "
+                                              f"32-bit range, saturated")
+            c = np.clip(c, COUNT_MIN, COUNT_MAX)
+        return c
+
+    def save_state(self) -> tuple:
+        """Everything that evolves as the arm moves (joint state, modes, filter, friction
+        warmth, random generators), for :meth:`restore_state`: the server rewinds a step
+        it made ahead of time when a release arrives during that period."""
+        mine = {k: (v.copy() if isinstance(v, np.ndarray) else copy.copy(v))
+                for k, v in vars(self).items() if k not in self._NOT_STATE}
+        return (mine, self.friction.warmth.copy(), self.rng.bit_generator.state,
+                self.friction.rng.bit_generator.state)
+
+    def restore_state(self, saved: tuple) -> None:
+        mine, warmth, rng, fric_rng = saved
+        for k, v in mine.items():
+            setattr(self, k, v.copy() if isinstance(v, np.ndarray) else copy.copy(v))
+        self.friction.warmth = warmth.copy()
+        self.rng.bit_generator.state = rng
+        self.friction.rng.bit_generator.state = fric_rng
 
     def gravity(self, q: np.ndarray | None = None) -> np.ndarray:
         """Gravity loading t_g(q): torques the joints exert to hold the arm (N*m / N)."""
@@ -296,6 +333,17 @@ class Arm:
         """Stop every joint where it is (END of a control, watchdog, session lost)."""
         self._hold_here(range(self.n))
 
+    def hold_current_mode(self) -> bool:
+        """Put every joint in current mode under the position servo where it is; True if any was.
+
+        A robot that got no chg for a cycle keeps its position targets (a target is a place
+        to stop at) but not a motor current (a current keeps accelerating the joint).
+        """
+        cur = np.flatnonzero(self.mode == CURRENT)
+        if len(cur):
+            self._hold_here(cur)
+        return bool(len(cur))
+
     # --- physics ---------------------------------------------------------------------
     def quiescent(self) -> bool:
         """True when nothing can move: power off, or every joint held still on its target
@@ -312,12 +360,20 @@ class Arm:
         self.friction.warm(np.zeros(self.n, dtype=bool), dt)
         self.t += dt
 
-    def step(self, dt: float) -> None:
-        """Advance the arm by ``dt`` seconds in servo-rate substeps (about 1 ms)."""
+    def step(self, dt: float, stop: Callable[[], bool] | None = None) -> bool:
+        """Advance the arm by ``dt`` seconds in servo-rate substeps (about 1 ms).
+
+        ``stop`` is asked before every substep after the first; when it says True the step
+        ends there and False is returned (the arm is then part of the way: the caller undoes
+        it with ``restore_state``). True when the whole step was made.
+        """
         nsub = max(1, int(round(dt * self.truth.disturbances.servo_rate_hz)))
         h = dt / nsub
-        for _ in range(nsub):
+        for k in range(nsub):
+            if k and stop is not None and stop():
+                return False
             self._substep(h)
+        return True
 
     def _load_torque(self) -> tuple[np.ndarray, np.ndarray]:
         """(external load torque, extra Coulomb friction) from the pulley, joint level."""
@@ -519,9 +575,10 @@ class Arm:
             frac = (self.q - self.lower) / (self.upper - self.lower)
             pot = frac * POT_SPAN - POT_SPAN / 2 + d.pot_noise * self.rng.standard_normal(n)
             adc[n:2 * n] = np.clip(np.rint(pot), ADC_MIN, ADC_MAX)
+        pos = self.counters()                 # before the status: a saturated counter flags one
         status = self.status
         self.status, self.status_text = codes.ST_OK, ""
-        return Sample(pos=self.counters(), adcr=adc, state=self.state, status=status,
+        return Sample(pos=pos, adcr=adc, state=self.state, status=status,
                       outport1=self.outport1, inport1=1 if self.hand == 2 else 0)
 
     def snapshot(self) -> dict:

@@ -3,8 +3,9 @@
 ``with SimulaProcess("-p", lockstep=True) as sim: open_link(sim.url) ...`` starts
 ``python -m rci.simula --port 0 ...``, waits for the address it prints on stdout line 1
 (and the control channel on line 2), and kills the process on exit. ``sim.command(
-"torque 2 1.5")`` talks to the control channel; ``sim.lines`` collects the rest of
-stdout (``-v`` output) without ever letting the pipe fill up.
+"state")`` talks to the control channel; ``sim.lines`` collects the rest of stdout (``-v``
+output) without ever letting the pipe fill up. ``ToolProcess`` is the same for any tool
+that prints its address and control channel that way (``rci.simula.proxy``).
 """
 from __future__ import annotations
 
@@ -20,15 +21,11 @@ import time
 from .exceptions import StartError
 
 
-class SimulaProcess:
-    """A running simula; a context manager that always stops it."""
+class ToolProcess:
+    """A running tool that prints its address (line 1) and ``control <url>`` (line 2); always stopped."""
 
-    def __init__(self, *args: str, robot: str = "puma260", lockstep: bool = True, seed: int = 0,
-                 pty: bool = False, start_timeout: float = 30.0) -> None:
-        self.argv = [sys.executable, "-m", "rci.simula", "--robot", robot, "--seed", str(seed), *args]
-        if lockstep:
-            self.argv.append("--lockstep")
-        self.argv += ["--pty"] if pty else ["--port", "0"]
+    def __init__(self, argv: list[str], start_timeout: float = 30.0) -> None:
+        self.argv = argv
         self.start_timeout = start_timeout
         self.proc: subprocess.Popen | None = None
         self.url = ""
@@ -37,7 +34,7 @@ class SimulaProcess:
         self._ctl: socket.socket | None = None
         self._ctl_buf = b""
 
-    def start(self) -> "SimulaProcess":
+    def start(self) -> "ToolProcess":
         self.proc = subprocess.Popen(self.argv, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, bufsize=0)
         fd = self.proc.stdout.fileno()
         deadline = time.monotonic() + self.start_timeout
@@ -48,11 +45,11 @@ class SimulaProcess:
             ready, _, _ = select.select([fd], [], [], max(0.0, left))
             if not ready:
                 self.stop()
-                raise StartError(f"simula did not print its address within {self.start_timeout} s: {self.argv}")
+                raise StartError(f"{self.argv[2]} did not print its address within {self.start_timeout} s: {self.argv}")
             data = os.read(fd, 4096)
             if not data:
                 code = self.proc.wait()
-                raise StartError(f"simula exited with code {code} before printing its address: {self.argv}")
+                raise StartError(f"{self.argv[2]} exited with code {code} before printing its address: {self.argv}")
             buf += data
         lines = buf.decode().split("\n")
         head = [x.strip() for x in lines[:want]]
@@ -71,7 +68,7 @@ class SimulaProcess:
     def command(self, line: str, timeout: float = 5.0) -> dict:
         """Send one control-channel command and return its JSON reply."""
         if not self.control_url:
-            raise StartError("this simula has no control channel")
+            raise StartError(f"this {self.argv[2]} has no control channel")
         if self._ctl is None:
             host, port = self.control_url.removeprefix("socket://").rsplit(":", 1)
             self._ctl = socket.create_connection((host, int(port)), timeout=timeout)
@@ -80,7 +77,7 @@ class SimulaProcess:
         while b"\n" not in self._ctl_buf:
             data = self._ctl.recv(65536)
             if not data:
-                raise StartError("simula closed the control channel")
+                raise StartError(f"{self.argv[2]} closed the control channel")
             self._ctl_buf += data
         raw, _, self._ctl_buf = self._ctl_buf.partition(b"\n")
         return json.loads(raw)
@@ -104,8 +101,20 @@ class SimulaProcess:
                 self.proc.wait(timeout)
         return self.proc.returncode
 
-    def __enter__(self) -> "SimulaProcess":
+    def __enter__(self) -> "ToolProcess":
         return self.start()
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+class SimulaProcess(ToolProcess):
+    """A running simula (``python -m rci.simula --port 0 ...``)."""
+
+    def __init__(self, *args: str, robot: str = "puma260", lockstep: bool = True, seed: int = 0,
+                 pty: bool = False, start_timeout: float = 30.0) -> None:
+        argv = [sys.executable, "-m", "rci.simula", "--robot", robot, "--seed", str(seed), *args]
+        if lockstep:
+            argv.append("--lockstep")
+        argv += ["--pty"] if pty else ["--port", "0"]
+        super().__init__(argv, start_timeout)

@@ -1,15 +1,25 @@
 """simula's robot side of the RCI link: sessions over TCP or a pty, real-time and lockstep cycles.
 
-One client (control program) at a time drives the arm; the arm and its state outlive
-every session, as A.7 asks ("remember its state from one program to the next"). The
-protocol is docs/protocol.md (frames from ``rci.protocol``); the test control channel
-is ``rci.simula.control``. Single-threaded: one ``select`` loop serves the link, the
-control channel and the real-time clock, so a run is easy to reason about.
+One controller at a time owns the arm (docs/protocol.md, "Ownership"): another one is
+refused with a BUSY error naming the owner, and the running control is not disturbed; a
+crashed owner can be taken over explicitly once the robot's watchdog has stopped its
+control. The arm and its state outlive every session, as A.7 asks ("remember its state
+from one program to the next"). The protocol is docs/protocol.md (frames from
+``rci.protocol``); the control channel is ``rci.simula.control``. Single-threaded: one
+``select`` loop serves the link, the control channel and the real-time clock, so a run
+is easy to reason about; no socket operation in it blocks.
+
+Safety (docs/safety.md): the release flags of any CHG with a valid checksum are obeyed
+whatever its sequence number; a release takes effect when it arrives (real time: a step
+computed ahead for the period in progress is rewound to that instant; lockstep: at the
+instant of the HOW it answers). A corrupt frame from the owner during a control, its
+connection closing, or the watchdog end the control with the arm held and power off.
 """
 from __future__ import annotations
 
 import errno
 import gc
+from collections import deque
 import os
 import select
 import socket
@@ -22,14 +32,21 @@ import numpy as np
 
 from .. import codes, protocol
 from ..chg import rate_hz as chg_rate_hz
-from ..exceptions import ProtocolError
+from ..chg import Chg
+from ..exceptions import ProtocolError, VersionError
 from ..how import How
 from .arm import N_ADC, Arm
 from .control import ControlChannel
 
-SERVER_NAME = "simula 1"
+SERVER_NAME = "simula 2"
 WATCHDOG_CYCLES = 5        # real-time mode: missing CHGs in a row before the arm is stopped
+LOCKSTEP_WATCHDOG_S = 3.0  # lockstep: wall-clock seconds without a CHG before the control is ended
 SPIN_S = 0.0002            # real-time mode: busy-wait the last 200 us before a tick (jitter)
+MAX_PENDING = 8            # connections that have not (yet) been welcomed
+PENDING_TIMEOUT_S = 10.0   # a connection that says nothing is closed after this long
+MAX_UNSENT = 1 << 16       # bytes queued to a controller that does not read before it counts as gone
+LOG_BURST = 5              # diagnostics of one kind per second; the rest are counted
+TICK_HISTORY = 256         # HOWs remembered (seq, time sent, joint angles) for the events command
 
 
 class TickTrace:
@@ -77,42 +94,80 @@ class TickTrace:
 
 
 class Transport:
-    """A byte pipe to one client: ``fileno``, ``read``, ``write``, ``close``."""
+    """A byte pipe to one client: ``fileno``, ``read``, ``write``, ``flush``, ``close``; never blocks."""
+
+    address = ""
 
     def fileno(self) -> int:
         raise NotImplementedError
 
-    def read(self) -> bytes:
+    def read(self) -> bytes | None:
+        """What is there (b"" if nothing), or None at end of file."""
         raise NotImplementedError
 
     def write(self, data: bytes) -> bool:
+        """Queue and send what the peer accepts; False if the peer is gone or does not read."""
         raise NotImplementedError
+
+    def wants_write(self) -> bool:
+        return False
+
+    def flush(self) -> bool:
+        return True
 
     def close(self) -> None:
         pass
 
 
 class SocketTransport(Transport):
-    def __init__(self, sock: socket.socket) -> None:
+    """A non-blocking TCP connection with a bounded queue of unsent bytes."""
+
+    def __init__(self, sock: socket.socket, address: str = "") -> None:
         self.sock = sock
+        self.address = address
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        sock.settimeout(2.0)        # a client that stops reading must not freeze the robot
+        sock.setblocking(False)     # a client that stops reading must not freeze the robot
+        self.out = bytearray()
 
     def fileno(self) -> int:
         return self.sock.fileno()
 
-    def read(self) -> bytes:
+    def read(self) -> bytes | None:
         try:
-            return self.sock.recv(65536)
-        except (ConnectionError, socket.timeout, OSError):
+            data = self.sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
             return b""
+        except OSError:
+            return None
+        return data or None
 
     def write(self, data: bytes) -> bool:
+        if self.out:
+            self.out += data
+            return self.flush()
         try:
-            self.sock.sendall(data)
-            return True
-        except (OSError, socket.timeout):
+            n = self.sock.send(data)
+        except (BlockingIOError, InterruptedError):
+            n = 0
+        except OSError:
             return False
+        if n < len(data):
+            self.out += data[n:]
+        return len(self.out) <= MAX_UNSENT
+
+    def wants_write(self) -> bool:
+        return bool(self.out)
+
+    def flush(self) -> bool:
+        if self.out:
+            try:
+                n = self.sock.send(self.out)
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                return False
+            del self.out[:n]
+        return len(self.out) <= MAX_UNSENT
 
     def close(self) -> None:
         try:
@@ -122,24 +177,27 @@ class SocketTransport(Transport):
 
 
 class PtyTransport(Transport):
-    """The master side of a pseudo-terminal; the controller opens the slave path with pyserial."""
+    """The master side of a pseudo-terminal; the controller opens the slave path with pyserial.
+
+    One line, one controller: rci opens a device path with an exclusive lock, so a second
+    program cannot open it while the first has it (docs/protocol.md, "Ownership").
+    """
 
     def __init__(self) -> None:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)              # no echo, no line discipline: a byte pipe
         os.set_blocking(self.master, False)
         self.path = os.ttyname(self.slave)  # the slave stays open so a closing client gives no EIO
+        self.address = self.path
 
     def fileno(self) -> int:
         return self.master
 
-    def read(self) -> bytes:
+    def read(self) -> bytes | None:
         try:
             return os.read(self.master, 65536)
-        except BlockingIOError:
-            return b""
-        except OSError:
-            return b""
+        except (BlockingIOError, OSError):
+            return b""                      # a pty has no end of file: a new program may open it
 
     def write(self, data: bytes) -> bool:
         try:
@@ -160,22 +218,32 @@ class PtyTransport(Transport):
 
 @dataclass
 class Client:
-    """Protocol state of the connected controller."""
+    """Protocol state of one connected controller (the owner, or one not yet welcomed)."""
 
     transport: Transport
     decoder: protocol.FrameDecoder = field(default_factory=protocol.FrameDecoder)
-    welcomed: bool = False
-    running: bool = False
+    welcomed: bool = False        # HELLO accepted: this client owns the arm
+    running: bool = False         # a control is in progress (START .. end)
     msg_seq: int = 0
     bad_frames: int = 0
+    hello: protocol.Hello | None = None
+    connected: float = field(default_factory=time.monotonic)
+    faulted: bool = False         # the robot itself ended this owner's control (watchdog, corrupt frame)
+
+    def describe(self) -> str:
+        h = self.hello
+        who = f"pid {h.pid}" if h is not None and h.pid else "pid unknown"
+        name = f", program {h.client!r}" if h is not None and h.client else ""
+        where = f" at {self.transport.address}" if self.transport.address else ""
+        return f"{who}{where}{name}"
 
 
 class Server:
-    """Serves one arm to successive clients; call :meth:`serve_forever`."""
+    """Serves one arm to successive controllers, one owner at a time; call :meth:`serve_forever`."""
 
     def __init__(self, arm: Arm, robot: str, *, lockstep: bool = False, verbose: bool = False,
                  rate_hz: int = 36, watchdog: int = WATCHDOG_CYCLES, watchdog_time: float = 0.1,
-                 out=None, err=None) -> None:
+                 lockstep_watchdog: float = LOCKSTEP_WATCHDOG_S, out=None, err=None) -> None:
         self.arm = arm
         self.robot = robot
         self.lockstep = lockstep
@@ -183,25 +251,38 @@ class Server:
         self.rate = rate_hz
         self.watchdog = watchdog
         self.watchdog_time = watchdog_time
+        self.lockstep_watchdog = lockstep_watchdog
         self.out = out or sys.stdout
         self.err = err or sys.stderr
         self.listener: socket.socket | None = None
         self.pty: PtyTransport | None = None
-        self.session: Client | None = None
+        self.session: Client | None = None      # the owner (or, on a pty, the line's one client)
+        self.pending: list[Client] = []         # TCP connections not welcomed (yet)
         self.control: ControlChannel | None = None
         self.seq = 0                  # HOW cycle counter, never restarts (docs/protocol.md)
-        self.overruns = 0
-        self.missed = 0
+        self.overruns = 0             # cycles of this control whose CHG was late or missing
+        self.missed = 0               # ... in a row (the watchdog's count)
+        self.stale = 0                # CHGs for an older cycle, or after the control ended (ignored)
+        self.duplicates = 0           # second CHGs for the cycle in progress (ignored)
         self.got_chg = True
         self.next_tick = 0.0
         self.next_report = 1.0
         self.last_idle = time.monotonic()
+        self.last_tick_wall = 0.0     # when the latest HOW was sent (real time: the tick)
+        self.last_chg_wall = 0.0      # when the latest CHG of the running control came in
         self.stopping = False
         self._pending_rate = rate_hz
         # real-time mode: the next HOW frame, computed as soon as the CHG that decides it is
         # in, so a tick only writes bytes (the arm step and the encoding, ~75 us at 1 kHz,
         # used to sit between the tick and the HOW and added their variation to the jitter)
         self._prepared: tuple[How, bytes] | None = None
+        # (arm state before the latest step made for a CHG, that CHG's seq): a release that
+        # arrives during that period rewinds the step to the instant it really takes effect
+        self._rewind: tuple[tuple, int] | None = None
+        self.ticks: deque = deque(maxlen=TICK_HISTORY)     # [seq, wall time sent or None, q]
+        self._took_effect = 0.0       # wall-clock instant the arm was brought to by _arm_to_now
+        self.events: deque = deque(maxlen=32)              # control endings, newest last
+        self._log_counts: dict[str, list] = {}
         trace = os.environ.get("RCI_SIMULA_TRACE")
         self.trace: TickTrace | None = TickTrace(trace) if trace and not lockstep else None
 
@@ -211,7 +292,8 @@ class Server:
         s = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         s.bind((host, port))
-        s.listen(4)
+        s.listen(8)
+        s.setblocking(False)
         self.listener = s
         return f"socket://{host}:{s.getsockname()[1]}"
 
@@ -225,6 +307,20 @@ class Server:
     def log(self, text: str) -> None:
         print(f"simula: {text}", file=self.err, flush=True)
 
+    def log_limited(self, kind: str, text: str) -> None:
+        """At most LOG_BURST lines of one kind per second; the others are counted and summed up."""
+        now = time.monotonic()
+        entry = self._log_counts.setdefault(kind, [now, 0, 0])     # window start, shown, suppressed
+        if now - entry[0] >= 1.0:
+            if entry[2]:
+                self.log(f"({entry[2]} more '{kind}' messages in the last {now - entry[0]:.1f} s not shown)")
+            entry[:] = [now, 0, 0]
+        if entry[1] < LOG_BURST:
+            entry[1] += 1
+            self.log(text)
+        else:
+            entry[2] += 1
+
     def _report(self) -> None:
         """-v: joint angles once per simulated second (A.7)."""
         while self.verbose and self.arm.t + 1e-9 >= self.next_report:
@@ -232,60 +328,202 @@ class Server:
             print(f"t={self.next_report:8.1f} s  q(deg) = {q}", file=self.out, flush=True)
             self.next_report += 1.0
 
+    # --- what the control channel shows ----------------------------------------------------
+    def owner_info(self) -> dict | None:
+        s = self.session
+        if s is None or not s.welcomed:
+            return None
+        h = s.hello
+        return {"pid": h.pid if h else 0, "program": h.client if h else "", "address": s.transport.address,
+                "running": s.running, "faulted": s.faulted}
+
+    def events_info(self) -> dict:
+        """The control endings remembered and the latest HOWs (seq, wall time sent, q in rad)."""
+        ticks = [[seq, t, [float(x) for x in q]] for seq, t, q in list(self.ticks)[-64:]]
+        return {"events": list(self.events), "ticks": ticks, "stale_chg": self.stale,
+                "duplicate_chg": self.duplicates, "now": time.monotonic()}
+
     # --- frames --------------------------------------------------------------------------
-    def _send(self, ftype: int, seq: int, payload: bytes = b"") -> None:
-        s = self.session
-        if s is None:
+    def _send(self, ftype: int, seq: int, payload: bytes = b"", client: Client | None = None) -> None:
+        c = client or self.session
+        if c is None:
             return
-        if not s.transport.write(protocol.encode_frame(ftype, seq, payload)):
-            self._drop("client stopped reading or went away")
+        if not c.transport.write(protocol.encode_frame(ftype, seq, payload)):
+            self._lost(c, "client stopped reading or went away")
 
-    def _send_msg(self, ftype: int, payload: bytes = b"") -> None:
-        s = self.session
-        if s is not None:
-            s.msg_seq += 1              # before sending: a failed send drops the session
-            self._send(ftype, s.msg_seq - 1, payload)
+    def _send_msg(self, ftype: int, payload: bytes = b"", client: Client | None = None) -> None:
+        c = client or self.session
+        if c is not None:
+            c.msg_seq += 1              # before sending: a failed send drops the session
+            self._send(ftype, c.msg_seq - 1, payload, c)
 
-    def _error(self, code: int, text: str) -> None:
-        self.log(text)
-        self._send_msg(protocol.ERROR, protocol.ErrorMsg(code, text).encode())
+    def _error(self, code: int, text: str, client: Client | None = None) -> None:
+        self.log_limited("refusal", text)
+        self._send_msg(protocol.ERROR, protocol.ErrorMsg(code, text).encode(), client)
 
     def _how(self, seq: int) -> How:
         """Sample the arm now: the HOW for cycle ``seq``."""
         smp = self.arm.sample()
         if smp.status:
-            self.log(f"status {smp.status} ({codes.STATUS_TEXT.get(smp.status, '?')}) at cycle {seq}")
+            self.log_limited("status", f"status {smp.status} ({codes.STATUS_TEXT.get(smp.status, '?')}) at cycle {seq}")
         how = How(pos=smp.pos, adcr=smp.adcr, status=smp.status, state=smp.state, exio=0,
                   inport1=smp.inport1, outport1=smp.outport1,
                   time_ns=int(round(self.arm.t * 1e9)), rate_hz=self.rate,
                   robot_overruns=self.overruns)
+        self.ticks.append([seq, None, self.arm.q.copy()])
         return how
+
+    def _sent(self) -> None:
+        """The latest HOW has just been written: remember when (the arm's position at that instant is known)."""
+        now = time.monotonic()
+        self.last_tick_wall = now
+        if self.ticks:
+            self.ticks[-1][1] = now
 
     def _send_how(self) -> None:
         self._send(protocol.HOW, self.seq, protocol.encode_how(self._how(self.seq)))
+        self._sent()
 
     def _prepare_next(self) -> None:
         """Real-time mode, CHG of this cycle applied: advance the arm to the next tick now.
 
         The arm's motion from this tick to the next depends only on the commands in hand,
         so it is computed here, while the clock still has most of the period to run; the
-        tick then sends the frame at once (re-encoded there only if a stale or duplicate CHG
-        has changed ``robot_overruns`` meanwhile).
+        tick then sends the frame at once (re-encoded there only if ``robot_overruns``
+        changed meanwhile). The state before the step is kept: a release arriving before
+        the tick rewinds to it (``_arm_to_now``).
         """
-        self.arm.step(1.0 / self.rate)
+        self._rewind = (self.arm.save_state(), self.seq)
+        if not self.arm.step(1.0 / self.rate, stop=self._input_waiting):
+            # a frame came in meanwhile (a release, perhaps): it must not wait for the rest of
+            # the step (up to 2 ms at 100 Hz); the tick steps the arm instead, as when no CHG came
+            self.arm.restore_state(self._rewind[0])
+            self._rewind = None
+            return
         self.rate = self._pending_rate
         seq = (self.seq + 1) & 0xFFFFFFFF
         how = self._how(seq)
         self._prepared = (how, protocol.encode_frame(protocol.HOW, seq, protocol.encode_how(how)))
 
+    def _input_waiting(self) -> bool:
+        """True if the owner has sent something not yet read (asked between the substeps of a step)."""
+        s = self.session
+        if s is None:
+            return False
+        try:
+            return bool(select.select([s.transport], [], [], 0)[0])
+        except (ValueError, OSError):
+            return False
+
+    # --- ending a control -------------------------------------------------------------------
+    def _arm_to_now(self, seq: int | None = None) -> None:
+        """Bring the arm to the instant a release takes effect, before it is applied.
+
+        Real time: the wall-clock instant it arrives. A step already made for the period in
+        progress (``_prepare_next``) is undone and the arm advanced only by the time that
+        really passed since the last tick (at most a period). Lockstep: the instant of the
+        HOW the release answers (``seq``); if simula has already stepped past it for that
+        HOW's CHG, the step is undone (the controller's computation takes no simulated time,
+        so a release right after CHG(n) comes at HOW(n)'s instant, like CHG(n) itself).
+        """
+        self._took_effect = time.monotonic()
+        rewind, self._rewind = self._rewind, None
+        if self.lockstep:
+            if rewind is not None and seq is not None and rewind[1] == seq:
+                self.arm.restore_state(rewind[0])
+                self._forget_ticks_after(seq)
+            return
+        if rewind is not None:
+            self.arm.restore_state(rewind[0])
+            self._prepared = None
+            self._forget_ticks_after(rewind[1])
+        dt = min(max(time.monotonic() - self.last_tick_wall, 0.0), 1.0 / self.rate)
+        if dt > 0.0:
+            self.arm.step(dt)
+
+    def _forget_ticks_after(self, seq: int) -> None:
+        """Drop the remembered HOWs of cycles after ``seq`` (a rewound step: the arm never got there)."""
+        while self.ticks and 0 < ((self.ticks[-1][0] - seq) & 0xFFFFFFFF) < 0x80000000:
+            self.ticks.pop()
+
+    def _end_control(self, cause: str, seq: int, *, power_off: bool = False, flags: str = "") -> None:
+        """The control is over: hold every joint (power off if asked) and remember how it ended."""
+        s = self.session
+        if s is not None:
+            s.running = False
+        if power_off:
+            self.arm.power = False
+        self.arm.hold_all()
+        self._prepared = None
+        self._rewind = None
+        wall, self._took_effect = self._took_effect or time.monotonic(), 0.0
+        self.events.append({"cause": cause, "flags": flags, "seq": seq, "wall": wall,
+                            "t": self.arm.t, "q": [float(x) for x in self.arm.q], "power": bool(self.arm.power),
+                            "overruns": self.overruns})
+
+    def _release(self, chg: Chg, seq: int) -> None:
+        """The release flags of a CHG that is not the cycle's answer (stale, duplicate, or late).
+
+        Obeyed whatever its seq (docs/protocol.md): power_off and stop always, end when a
+        control is running, power_on only while the control it was sent in still runs.
+        """
+        s = self.session
+        running = s is not None and s.running
+        flags = Chg(nj=chg.nj)
+        flags.power_off.com, flags.stop.com = chg.power_off.com, chg.stop.com
+        flags.power_on.com = chg.power_on.com if running else 0
+        flags.end.com = chg.end.com if running else 0
+        names = ",".join(n for n in ("end", "stop", "power_on", "power_off") if getattr(flags, n).com)
+        if not names:
+            return
+        if running and flags.end.com:
+            self._arm_to_now(seq)
+        self.arm.apply(flags, 1.0 / self.rate)
+        if flags.end.com:
+            self._end_control("release", seq, flags=names)
+
+    def _robot_ends(self, cause: str, status: int, text: str) -> None:
+        """The robot itself ends the owner's control (corrupt frame): hold, power off, ERROR."""
+        s = self.session
+        if s is None or not s.running:
+            return
+        self._arm_to_now()
+        self._end_control(cause, self.seq, power_off=True)
+        s.faulted = True
+        self.log(f"{text}: arm held, power off")
+        self._send_msg(protocol.ERROR, protocol.ErrorMsg(status, text[:255]).encode(), s)
+
+    def _watchdog_fires(self) -> None:
+        """No CHG for too long: hold, power off, a last HOW with status 3, no more HOWs."""
+        s = self.session
+        assert s is not None
+        self.arm.hold_all()
+        self.arm.power = False
+        self.arm.flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped, power off")
+        self.log(self.arm.status_text)
+        self.seq = (self.seq + 1) & 0xFFFFFFFF
+        self._end_control("watchdog", self.seq, power_off=True)
+        s.faulted = True
+        self._send_how()
+
+    def _lost(self, c: Client, why: str) -> None:
+        """A connection is gone (end of file, or it stopped reading)."""
+        if c is self.session:
+            self._drop(why)
+        elif c in self.pending:
+            self.pending.remove(c)
+            c.transport.close()
+
     def _drop(self, why: str) -> None:
-        """The client is gone: hold the arm and wait for the next one (pty: keep the device)."""
+        """The owner's connection is gone: a running control ends (arm held, power off); wait for the next."""
         s = self.session
         if s is None:
             return
         if s.running:
-            self.arm.hold_all()
-        if self.verbose or s.running:
+            self._arm_to_now()
+            self._end_control(f"link lost: {why}", self.seq, power_off=True)
+            self.log(f"session ended during a control: {why}: arm held, power off")
+        elif self.verbose:
             self.log(f"session ended: {why}")
         if isinstance(s.transport, PtyTransport):
             self.session = Client(s.transport)
@@ -293,125 +531,213 @@ class Server:
             s.transport.close()
             self.session = None
 
-    def _handle(self, f: protocol.Frame) -> None:
-        s = self.session
-        assert s is not None
-        if f.type == protocol.HELLO:
-            try:
-                hello = protocol.Hello.decode(f.payload)
-            except ProtocolError as exc:
-                self._error(codes.ST_BAD_COMMAND, f"bad HELLO: {exc}")
+    # --- ownership ---------------------------------------------------------------------------
+    def _takeover_refusal(self, owner: Client) -> str | None:
+        """None if a takeover of ``owner`` is allowed, else why not."""
+        if owner.running:
+            return "its control is running (a takeover needs the robot's watchdog to have stopped it)"
+        if not owner.faulted:
+            return ("it is connected and its last control did not end on a robot-side fault; "
+                    "end that program to free the robot")
+        return None
+
+    def _read_hello(self, c: Client, f: protocol.Frame) -> protocol.Hello | None:
+        """The HELLO of ``f``, or None after an ERROR to ``c`` (unreadable, or for another robot)."""
+        try:
+            hello = protocol.Hello.decode(f.payload)
+        except ProtocolError as exc:
+            self._error(codes.ST_BAD_COMMAND, f"bad HELLO: {exc}", c)
+            return None
+        if hello.robot != self.robot:
+            self._error(codes.ST_BAD_COMMAND, f"this simula is a {self.robot}, the program asks for {hello.robot!r}", c)
+            return None
+        return hello
+
+    def _hello_from(self, c: Client, f: protocol.Frame) -> None:
+        """A HELLO from a connection that does not own the arm."""
+        hello = self._read_hello(c, f)
+        if hello is None:
+            return
+        owner = self.session
+        if owner is not None and owner.welcomed:
+            why = self._takeover_refusal(owner) if hello.takeover else "takeover not asked"
+            if why is not None:
+                text = (f"robot busy: owned by {owner.describe()}"
+                        + (f", control running at {self.rate} Hz" if owner.running else "")
+                        + (f"; takeover refused: {why}" if hello.takeover else
+                           "; one controller at a time (a crashed owner can be taken over once the robot's "
+                           "watchdog has stopped it)"))
+                self._error(codes.ST_BUSY, text, c)
+                self._lost(c, "refused")
                 return
-            if s.running:
-                self.arm.hold_all()
-                s.running = False
-            if hello.robot != self.robot:
-                self._error(codes.ST_BAD_COMMAND, f"this simula is a {self.robot}, the program asks for {hello.robot!r}")
-                return
-            s.welcomed = True
-            w = protocol.Welcome(self.robot, self.arm.n, N_ADC, self.rate, self.arm.state,
-                                 protocol.MODE_LOCKSTEP if self.lockstep else protocol.MODE_REALTIME, SERVER_NAME)
-            self._send_msg(protocol.WELCOME, w.encode())
-        elif f.type == protocol.START:
-            if not s.welcomed:
-                self._error(codes.ST_BAD_COMMAND, "START before HELLO")
-                return
-            try:
-                rate = chg_rate_hz(protocol.Start.decode(f.payload).rate_hz)
-            except (ProtocolError, ValueError) as exc:
-                self._error(codes.ST_BAD_COMMAND, f"bad START: {exc}")
-                return
-            self.rate = self._pending_rate = rate
-            self._prepared = None
-            s.running = True
-            self.overruns = 0
-            self.missed = 0
-            self.got_chg = False
-            self.seq = (self.seq + 1) & 0xFFFFFFFF
-            self._send_how()
-            self.next_tick = time.monotonic() + 1.0 / self.rate
-        elif f.type == protocol.CHG:
-            if not s.running:
-                return                      # a CHG in flight after END: ignore
-            if f.seq != self.seq or self.got_chg:
-                self.overruns += 1          # stale or duplicate reply
-                return
-            try:
-                chg = protocol.decode_chg(f.payload)
-            except ProtocolError as exc:
-                self.overruns += 1
-                self.log(f"bad CHG {f.seq}: {exc}")
-                return
-            self.got_chg = True
-            self.missed = 0
-            if self.trace is not None:
-                self.trace.got_chg(time.monotonic())
-            events = self.arm.apply(chg, 1.0 / self.rate)
-            if self.arm.status:
-                self.log(self.arm.status_text)
-            new_rate = self.rate
-            for ev in events:
-                if ev.startswith("rate:"):
-                    try:
-                        new_rate = chg_rate_hz(int(ev[5:]))
-                    except ValueError as exc:
-                        self.arm.flag(codes.ST_BAD_COMMAND, str(exc))
-            if "end" in events:
-                s.running = False
-                self.arm.hold_all()
-                return
-            if self.lockstep:
-                self.arm.step(1.0 / self.rate)
-                self.rate = new_rate
-                self._report()
-                self.seq = (self.seq + 1) & 0xFFFFFFFF
-                self.got_chg = False
-                self._send_how()
+            self.log(f"takeover: {c.describe() if c.hello else c.transport.address} replaces {owner.describe()}")
+            owner.transport.close()
+            self.session = None
+        if c in self.pending:
+            self.pending.remove(c)
+        self.session = c
+        self._welcome(c, hello)
+
+    def _welcome(self, c: Client, hello: protocol.Hello) -> None:
+        c.welcomed = True
+        c.hello = hello
+        c.faulted = False
+        w = protocol.Welcome(self.robot, self.arm.n, N_ADC, self.rate, self.arm.state,
+                             protocol.MODE_LOCKSTEP if self.lockstep else protocol.MODE_REALTIME, SERVER_NAME)
+        self._send_msg(protocol.WELCOME, w.encode(), c)
+
+    # --- frames from the owner --------------------------------------------------------------
+    def _handle(self, c: Client, f: protocol.Frame) -> None:
+        if c is not self.session or not c.welcomed:
+            if f.type == protocol.HELLO:
+                if c is self.session:            # the pty's client, not welcomed yet
+                    self._hello_owner(c, f)
+                else:
+                    self._hello_from(c, f)
+            elif f.type == protocol.BYE:
+                self._send_msg(protocol.BYE, f.payload if len(f.payload) == 1 else b"\x00", c)
             else:
-                self._pending_rate = new_rate
-                t0 = time.monotonic()
-                self._prepare_next()
-                if self.trace is not None:
-                    self.trace.prepared(time.monotonic() - t0)
+                self._error(codes.ST_BAD_COMMAND, f"{f.name} frame before HELLO: ignored", c)
+            return
+        if f.type == protocol.HELLO:
+            self._hello_owner(c, f)
+        elif f.type == protocol.START:
+            self._start(c, f)
+        elif f.type == protocol.CHG:
+            self._chg(c, f)
         elif f.type == protocol.BYE:
             try:
                 bye = protocol.Bye.decode(f.payload)
             except ProtocolError:
                 bye = protocol.Bye(False)
-            if s.running:
-                self.arm.hold_all()
-                s.running = False
+            if c.running:
+                # a controller releases before it says BYE: a control still running here lost
+                # its release on the way, which may have asked for power off: switch it off
+                self._arm_to_now()
+                self._end_control("BYE during a control (its release was lost)", self.seq, power_off=True)
+                self.log("BYE during a control: its release never came; arm held, power off")
             if bye.power_off:
                 self.arm.power = False
                 self.arm.hold_all()
-            self._send_msg(protocol.BYE, bye.encode())
-            s.welcomed = False
+            self._send_msg(protocol.BYE, bye.encode(), c)
+            c.welcomed = False                   # no longer the owner
+            if not isinstance(c.transport, PtyTransport):
+                self.session = None
+                self.pending.append(c)
         else:
-            self._error(codes.ST_BAD_COMMAND, f"unexpected {f.name} frame from the controller")
+            self._error(codes.ST_BAD_COMMAND, f"unexpected {f.name} frame from the controller", c)
 
-    def _on_readable(self) -> None:
-        s = self.session
-        assert s is not None
-        data = s.transport.read()
-        if not data:
-            if not isinstance(s.transport, PtyTransport):
-                self._drop("connection closed")
+    def _hello_owner(self, c: Client, f: protocol.Frame) -> None:
+        """HELLO from the owner itself (a program restarting on the same connection or line)."""
+        if c.running:
+            self._end_control("new HELLO from the owner", self.seq)
+        hello = self._read_hello(c, f)
+        if hello is None:
+            c.welcomed = False
             return
-        s.decoder.feed(data)
-        while self.session is s:
+        self._welcome(c, hello)
+
+    def _start(self, c: Client, f: protocol.Frame) -> None:
+        try:
+            rate = chg_rate_hz(protocol.Start.decode(f.payload).rate_hz)
+        except (ProtocolError, ValueError) as exc:
+            self._error(codes.ST_BAD_COMMAND, f"bad START: {exc}", c)
+            return
+        self.rate = self._pending_rate = rate
+        self._prepared = None
+        self._rewind = None
+        c.running = True
+        c.faulted = False
+        self.overruns = 0
+        self.missed = 0
+        self.got_chg = False
+        self.last_chg_wall = time.monotonic()
+        self.seq = (self.seq + 1) & 0xFFFFFFFF
+        self._send_how()
+        self.next_tick = time.monotonic() + 1.0 / self.rate
+
+    def _chg(self, c: Client, f: protocol.Frame) -> None:
+        try:
+            chg = protocol.decode_chg(f.payload)
+        except ProtocolError as exc:
+            self._bad_frame(c, exc)
+            return
+        if not (c.running and f.seq == self.seq and not self.got_chg):
+            if c.running and f.seq == self.seq:
+                self.duplicates += 1
+            else:
+                self.stale += 1
+            self._release(chg, f.seq)
+            return
+        self.got_chg = True
+        self.missed = 0
+        self.last_chg_wall = time.monotonic()
+        if self.trace is not None:
+            self.trace.got_chg(self.last_chg_wall)
+        events = self.arm.apply(chg, 1.0 / self.rate)
+        if self.arm.status:
+            self.log_limited("status", self.arm.status_text)
+        new_rate = self.rate
+        for ev in events:
+            if ev.startswith("rate:"):
+                try:
+                    new_rate = chg_rate_hz(int(ev[5:]))
+                except ValueError as exc:
+                    self.arm.flag(codes.ST_BAD_COMMAND, str(exc))
+        if "end" in events:
+            flags = ",".join(n for n in ("end", "stop", "power_on", "power_off") if getattr(chg, n).com)
+            self._end_control("release", f.seq, flags=flags)
+            return
+        if self.lockstep:
+            self._rewind = (self.arm.save_state(), self.seq)
+            self.arm.step(1.0 / self.rate)
+            self.rate = new_rate
+            self._report()
+            self.seq = (self.seq + 1) & 0xFFFFFFFF
+            self.got_chg = False
+            self._send_how()
+        else:
+            self._pending_rate = new_rate
+            t0 = time.monotonic()
+            self._prepare_next()
+            if self.trace is not None:
+                self.trace.prepared(time.monotonic() - t0)
+
+    def _bad_frame(self, c: Client, exc: ProtocolError) -> None:
+        c.bad_frames += 1
+        who = "controller" if c is self.session else f"connection {c.transport.address}"
+        self.log_limited("bad frame", f"bad frame from the {who} dropped: {exc}")
+        if isinstance(exc, VersionError) and c is not self.session:
+            self._error(codes.ST_BAD_COMMAND, f"{exc}", c)
+            return
+        if c is self.session and c.running:
+            self._robot_ends("corrupt frame from the controller", codes.ST_BAD_FRAME,
+                             f"corrupt frame from the controller during a control ({exc})")
+
+    def _on_readable(self, c: Client) -> None:
+        data = c.transport.read()
+        if data is None:
+            self._lost(c, "connection closed")
+            return
+        if not data:
+            return
+        c.decoder.feed(data)
+        while self._connected(c):
             try:
-                f = s.decoder.next_frame()
+                f = c.decoder.next_frame()
             except ProtocolError as exc:
-                s.bad_frames += 1
-                self.log(f"bad frame dropped: {exc}")
+                self._bad_frame(c, exc)
                 continue
             if f is None:
                 break
-            self._handle(f)
+            self._handle(c, f)
+
+    def _connected(self, c: Client) -> bool:
+        return c is self.session or c in self.pending
 
     # --- real-time clock --------------------------------------------------------------------
     def _poll_client(self) -> None:
-        """Read whatever the controller has sent, without waiting."""
+        """Read whatever the owner has sent, without waiting."""
         s = self.session
         if s is None:
             return
@@ -420,7 +746,7 @@ class Server:
         except (InterruptedError, ValueError, OSError):
             return
         if ready:
-            self._on_readable()
+            self._on_readable(s)
 
     def _wait_for_tick(self) -> None:
         """The last SPIN_S before a tick: busy-wait for accuracy, still reading the link.
@@ -457,22 +783,23 @@ class Server:
             self.overruns += 1
             self.missed += 1
             if self.missed >= self.watchdog and self.missed / self.rate >= self.watchdog_time:
-                self.arm.hold_all()
-                self.arm.flag(codes.ST_WATCHDOG, f"no CHG for {self.missed} cycles: arm stopped")
-                self.log(self.arm.status_text)
                 self.arm.step(1.0 / self.rate)
                 self.next_tick += 1.0 / self.rate
-                self.seq = (self.seq + 1) & 0xFFFFFFFF
-                self._send_how()
-                s.running = False
+                self._watchdog_fires()
                 return
         prepared, self._prepared = self._prepared, None
+        self._rewind = None
         if prepared is None:                  # no CHG in time (or none yet): step the arm now
             self.arm.step(1.0 / self.rate)
             self.rate = self._pending_rate
             self.seq = (self.seq + 1) & 0xFFFFFFFF
             self.got_chg = False
             self._send_how()
+            if late and self.arm.hold_current_mode():
+                # no command for the period now starting: position targets stay (a place to
+                # stop at), motor currents do not (they would keep accelerating the joint)
+                self.log_limited("late", f"no CHG for cycle {(self.seq - 1) & 0xFFFFFFFF}: "
+                                         f"current-mode joints held")
         else:
             how, frame = prepared
             self.seq = (self.seq + 1) & 0xFFFFFFFF
@@ -482,6 +809,7 @@ class Server:
                 frame = protocol.encode_frame(protocol.HOW, self.seq, protocol.encode_how(how))
             if not s.transport.write(frame):
                 self._drop("client stopped reading or went away")
+            self._sent()
         if self.trace is not None:
             self.trace.tick(deadline, time.monotonic(), late)
         self.next_tick += 1.0 / self.rate          # the new rate's period from here on
@@ -489,6 +817,14 @@ class Server:
         now = time.monotonic()
         if now - self.next_tick > 5.0 / self.rate:         # far behind (machine stalled): resync
             self.next_tick = now + 1.0 / self.rate
+
+    def _lockstep_watchdog(self) -> None:
+        """Lockstep: a control whose CHG has not come for ``lockstep_watchdog`` s of wall clock is ended."""
+        s = self.session
+        if (self.lockstep and s is not None and s.running and self.lockstep_watchdog > 0
+                and time.monotonic() - self.last_chg_wall > self.lockstep_watchdog):
+            self.missed = 1
+            self._watchdog_fires()
 
     def _idle_step(self) -> None:
         """Real-time mode without a running control: the arm keeps living (finishes motions, cools)."""
@@ -520,35 +856,86 @@ class Server:
             if not self.lockstep:
                 gc.set_threshold(*saved_gc)
 
+    def _accept(self) -> None:
+        try:
+            conn, addr = self.listener.accept()
+        except (BlockingIOError, InterruptedError, OSError):
+            return
+        address = f"{addr[0]}:{addr[1]}" if isinstance(addr, tuple) else str(addr)
+        if len(self.pending) >= MAX_PENDING:
+            self.log_limited("too many connections", f"connection from {address} refused: "
+                                                     f"{MAX_PENDING} connections already wait for a HELLO")
+            conn.close()
+            return
+        self.pending.append(Client(SocketTransport(conn, address)))
+
+    def _expire_pending(self) -> None:
+        if not self.pending:
+            return
+        now = time.monotonic()
+        for c in [c for c in self.pending if now - c.connected > PENDING_TIMEOUT_S and c.hello is None]:
+            self._lost(c, "silent")
+
+    def _control_work(self, control: ControlChannel) -> None:
+        """Run queued control-channel commands, never in the last moments before a tick."""
+        now = time.monotonic()
+        running = self.session is not None and self.session.running
+        if not self.lockstep and running:
+            if self.next_tick - now < 4 * SPIN_S:
+                return
+            budget = 1 if self.rate >= 500 else 2
+        else:
+            budget = 4
+        control.service(self, budget)
+
     def _serve(self, control: ControlChannel | None) -> None:
         while not self.stopping:
-            fds: list = []
+            clients = ([self.session] if self.session is not None else []) + self.pending
+            rfds: list = [c.transport for c in clients]
             if self.listener is not None:
-                fds.append(self.listener)
-            if self.session is not None:
-                fds.append(self.session.transport)
+                rfds.append(self.listener)
+            wfds: list = [c.transport for c in clients if c.transport.wants_write()]
             if control is not None:
-                fds.extend(control.fds())
+                rfds.extend(control.fds())
+                wfds.extend(control.write_fds())
             running = self.session is not None and self.session.running
             if not self.lockstep and running:
                 timeout = max(0.0, self.next_tick - time.monotonic() - SPIN_S)
             else:
-                timeout = 0.05 if not self.lockstep else 0.5
+                timeout = 0.05 if not self.lockstep else 0.25
+            if control is not None and control.pending():
+                timeout = min(timeout, 0.001)
             try:
-                ready, _, _ = select.select(fds, [], [], timeout)
+                ready, writable, _ = select.select(rfds, wfds, [], timeout)
             except InterruptedError:
                 continue
+            for w in writable:
+                c = next((c for c in clients if c.transport is w), None)
+                if c is not None:
+                    if self._connected(c) and not c.transport.flush():
+                        self._lost(c, "client stopped reading")
+                elif control is not None:
+                    control.on_writable(w)
+            for r in ready:                   # the owner first: its end of file frees the robot
+                if self.session is not None and r is self.session.transport:
+                    self._on_readable(self.session)
             for r in ready:
                 if r is self.listener:
-                    conn, _ = self.listener.accept()
-                    if self.session is not None:
-                        self._drop("a new controller connected")
-                    self.session = Client(SocketTransport(conn))
+                    self._accept()
                 elif self.session is not None and r is self.session.transport:
-                    self._on_readable()
-                elif control is not None:
-                    control.on_readable(r, self)
-            if not self.lockstep:
+                    continue
+                else:
+                    c = next((c for c in self.pending if c.transport is r), None)
+                    if c is not None:
+                        self._on_readable(c)
+                    elif control is not None:
+                        control.on_readable(r)
+            if control is not None and control.pending():
+                self._control_work(control)
+            self._expire_pending()
+            if self.lockstep:
+                self._lockstep_watchdog()
+            else:
                 running = self.session is not None and self.session.running
                 if running and time.monotonic() >= self.next_tick - SPIN_S:
                     if self.trace is not None:
@@ -565,6 +952,8 @@ class Server:
     def close(self) -> None:
         if self.trace is not None:
             self.trace.save()
+        for c in self.pending:
+            c.transport.close()
         if self.session is not None:
             self.session.transport.close()
         if self.pty is not None:
