@@ -54,6 +54,10 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
                   rate_hz=float(header.get("rate_hz", 0) or 0), meta=meta,
                   t=_cycle_times(path, rec),
                   counts=counts[:, :6], adc=adc[:, :6])
+    if "how_inport1" in names:
+        trace.extra["inport1"] = np.asarray(rec["how_inport1"])
+    if "u_touch" in names:                   # the touch index of a kinematics log
+        trace.extra["touch"] = np.asarray(rec["u_touch"])
     if "chg_motion_com" in names and "chg_motion_value" in names:
         # the commands sent each cycle: a breakaway log's ramps are its CUR cycles
         trace.extra["motion_com"] = np.asarray(rec["chg_motion_com"])[:, :6]
