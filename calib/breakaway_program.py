@@ -95,7 +95,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     j = plan.joint - 1
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
-    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate})
+    meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate})
     # the steps: (kind, setpoints or (position, direction))
     steps: list[tuple[str, object]] = []
     first = plan.pose.copy()

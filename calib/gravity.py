@@ -24,6 +24,7 @@ import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError, LogError
+from calib.logs import clipped_note, saturated_mask
 from calib.lsq import bounded_lsq
 from calib.trace import Trace
 from calib.work import find_passes, window_work
@@ -75,8 +76,9 @@ class GravityResult:
     rows: list[GravityRow]
 
 
-def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
-    """tau0 of every full pass of a gravity log (both directions)."""
+def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> list[SweepPass]:
+    """tau0 of every full pass of a gravity log (both directions); passes with a reading
+    at an ADC rail are left out (noted in ``notes``)."""
     i = trace.joint_index()
     q_start = np.asarray(trace.need("q_start", (list, tuple)), dtype=float)
     if q_start.shape != (6,):
@@ -91,7 +93,12 @@ def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
     th, tau = theta[:, i], drive.joint_torques(trace.adc)[:, i]
     mid = lo + np.pi / 2
     out = []
-    for p in find_passes(th, lo, hi):
+    passes = find_passes(th, lo, hi)
+    clipped = saturated_mask(trace, [i], drive.G)
+    keep = [p for p in passes if not clipped[p.first - 1:p.last + 2].any()]
+    if notes is not None and len(keep) < len(passes):
+        notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], drive.G))
+    for p in keep:
         w_low = window_work(th, tau, p, lo, mid)
         w_high = window_work(th, tau, p, mid, hi)
         w1, w2 = (w_low, w_high) if p.direction > 0 else (w_high, w_low)
@@ -100,8 +107,9 @@ def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
         out.append(SweepPass(position, role, i + 1, p.direction, q0,
                              p.direction * (w1 - w2) / 2.0, trace.path))
     if not out:
+        why = " with every reading off the ADC's rails" if len(keep) < len(passes) else ""
         raise LogError(trace.path, None, f"no full pass of joint {i + 1} through "
-                       f"[{lo:.4f}, {hi:.4f}] rad")
+                       f"[{lo:.4f}, {hi:.4f}] rad{why}")
     return out
 
 
@@ -133,19 +141,45 @@ def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str,
     return fit.x, fit.std
 
 
+def sweep_friction(passes: Sequence[SweepPass], traces: list[Trace], drive: Drive) -> np.ndarray:
+    """Each swept joint's friction (N m, (6,), NaN where not swept), from the sweeps
+    themselves: over the same 180 degrees gravity's work cancels between a pass up and a
+    pass down, so (W_up + W_down) / (2 pi) is the mean friction."""
+    out = np.full(6, np.nan)
+    per: dict[int, list[float]] = {}
+    for tr in traces:
+        i = tr.joint_index()
+        lo = float(tr.need("phi_low", (int, float)))
+        theta = drive.current_angles(tr.t, tr.counts)[:, i]
+        tau = drive.joint_torques(tr.adc)[:, i]
+        ps = find_passes(theta, lo, lo + np.pi)
+        up = [window_work(theta, tau, p, lo, lo + np.pi) for p in ps if p.direction > 0]
+        dn = [window_work(theta, tau, p, lo, lo + np.pi) for p in ps if p.direction < 0]
+        if up and dn:
+            per.setdefault(i, []).append((np.mean(up) + np.mean(dn)) / (2 * np.pi))
+    for i, v in per.items():
+        out[i] = abs(float(np.mean(v)))
+    return out
+
+
 def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
-                names: tuple[str, ...], noise: np.ndarray | None = None) -> GravityResult:
+                names: tuple[str, ...], noise: np.ndarray | None = None,
+                notes: list[str] | None = None) -> GravityResult:
     """Table 4.9 from gravity logs.
 
     ``noise`` (6,) is the expected scatter of a joint's tau0 in relative terms: what
     remains of friction in W1 - W2 grows with the joint's friction, so rows are weighted
-    by 1 / noise[joint]^2 (the caller passes each joint's Coulomb friction); without
-    it all rows weigh the same.  error = sqrt((2 std of the fit)^2 + (half the
+    by 1 / noise[joint]^2; by default each swept joint's friction as the sweeps
+    themselves measure it (``sweep_friction``), so no other fit's values are needed.  error = sqrt((2 std of the fit)^2 + (half the
     difference between the fits of the two directions)^2), the thesis's combination of
     measurement uncertainty and direction; friction_error = how much the result moves
     without the repeat (4.49).
     """
-    passes = [p for tr in traces for p in sweep_passes(tr, drive)]
+    passes = [p for tr in traces for p in sweep_passes(tr, drive, notes)]
+    if noise is None:
+        noise = sweep_friction(passes, traces, drive)
+        if not np.isfinite(noise[[p.joint - 1 for p in passes]]).all():
+            noise = None          # a joint swept one way only: equal weights
     rows = gravity_rows(passes, regressor)
     k = len(names)
     value, std = _solve(rows, True, k, "gravity loading", noise)

@@ -56,7 +56,7 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
     body = plan.path.sample(rate_hz)
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
-    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate_hz})
+    meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate_hz})
     state = {"k": -1, "setpoints": None, "recording_from": 0}
     done = threading.Event()
     rec = Recorder(log_path, robot=robot, rate_hz=rate_hz, meta=meta, block_records=1024)

@@ -103,7 +103,7 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
     rate = plan.rate_hz
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
-    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate,
+    meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate,
                  "touch_points": [list(map(float, t.point)) for t in plan.touches],
                  "touch_faces": [t.face for t in plan.touches]})
     steps = _steps(plan, kin)
