@@ -8,8 +8,9 @@ F_c, F_v >= 0 (CasADi QP).
 The variation of Table 4.4 is read from the same passes: the friction along the path,
 averaged over passes at each position, against its mean.
 
-The uncertainty printed is PRINTED_SD standard deviations. For F_v it is the fit's; for
-F_c the fit's combined with that of the position pattern's window mean: the friction
+The uncertainty printed is a 99.73 % interval (calib.lsq.coverage_factor: 3 sd, Student's
+t for the fit's few degrees of freedom). For F_v it is the fit's; for F_c the fit's
+combined with three standard deviations of the position pattern's window mean: the friction
 varies along the path (Table 4.4), the same on every pass, so each pass's mean carries
 the pattern's mean over the window, which no fit of speeds can tell from F_c, the
 joint's mean friction. Its standard deviation is estimated from the measured profile
@@ -21,14 +22,14 @@ Passes with a reading at an ADC rail are left out (the current there is unknown)
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
-from calib.lsq import PRINTED_SD, bounded_lsq
+from calib.lsq import PRINTED_SD, bounded_lsq, coverage_factor
 from calib.trace import Trace
 from calib.work import Pass, find_passes, hann_edge_weights, tapered_mean, window_time
 
@@ -53,9 +54,9 @@ class FrictionPoint:
 
 @dataclass(frozen=True)
 class DirectionFit:
-    """4.27 for one joint and direction: F_c (N m), F_v (N m s/rad); errors are
-    PRINTED_SD standard deviations: the fit's, and for F_c also the position pattern's
-    (``coulomb_pattern_sd``, N m)."""
+    """4.27 for one joint and direction: F_c (N m), F_v (N m s/rad); errors are 99.73 %
+    intervals: ``factor`` times the fit's standard deviation (calib.lsq.coverage_factor),
+    for F_c combined with 3 x the position pattern's (``coulomb_pattern_sd``, N m)."""
 
     coulomb: float
     coulomb_err: float
@@ -64,12 +65,14 @@ class DirectionFit:
     points: int
     coulomb_fit_sd: float = float("nan")
     coulomb_pattern_sd: float = float("nan")
+    factor: float = PRINTED_SD     # the fit's sds become the printed error by this (Student t)
 
     def with_pattern(self, relative_sd: float) -> "DirectionFit":
         """This fit with the pattern's window mean (relative sd) added to F_c's error."""
         sd = abs(self.coulomb) * relative_sd
-        return DirectionFit(self.coulomb, PRINTED_SD * float(np.hypot(self.coulomb_fit_sd, sd)),
-                            self.viscous, self.viscous_err, self.points, self.coulomb_fit_sd, sd)
+        err = float(np.hypot(self.factor * self.coulomb_fit_sd, PRINTED_SD * sd))
+        return DirectionFit(self.coulomb, err, self.viscous, self.viscous_err, self.points,
+                            self.coulomb_fit_sd, sd, self.factor)
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,14 @@ class FrictionResult:
     plus: DirectionFit
     minus: DirectionFit
     variation: float
+
+    def with_scale_error(self, relative: float) -> "FrictionResult":
+        """The errors with a relative scale uncertainty (printed, 99.73 %) of the torques added:
+        the fitted torque sensitivities' (every torque, so every coefficient, scales with them)."""
+        def scaled(f: DirectionFit) -> DirectionFit:
+            return replace(f, coulomb_err=float(np.hypot(f.coulomb_err, relative * f.coulomb)),
+                           viscous_err=float(np.hypot(f.viscous_err, relative * f.viscous)))
+        return replace(self, plus=scaled(self.plus), minus=scaled(self.minus))
 
 
 def friction_points(trace: Trace, drive: Drive,
@@ -185,9 +196,10 @@ def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
         if np.all(np.isfinite(model)) and model.max() > 0:
             w = 1.0 / np.sqrt(model)
             fit = bounded_lsq(A * w[:, None], f * w, lower=np.zeros(2), what=what)
-    return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=PRINTED_SD * float(fit.std[0]),
-                        viscous=float(fit.x[1]), viscous_err=PRINTED_SD * float(fit.std[1]),
-                        points=len(points), coulomb_fit_sd=float(fit.std[0]))
+    k = coverage_factor(fit.dof)
+    return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=k * float(fit.std[0]),
+                        viscous=float(fit.x[1]), viscous_err=k * float(fit.std[1]),
+                        points=len(points), coulomb_fit_sd=float(fit.std[0]), factor=k)
 
 
 def profile_variation(profiles: list[np.ndarray]) -> float:
@@ -228,7 +240,8 @@ def pattern_sd(profiles: list[np.ndarray], lo: float, hi: float, lines: int = 6)
     taper = min(TAPER, 0.25 * (hi - lo))
     est = []
     for pair in profiles:
-        signal = np.nanmean(pair, axis=0)
+        ok = np.isfinite(pair)
+        signal = np.where(ok.any(axis=0), np.where(ok, pair, 0.0).sum(axis=0) / np.maximum(ok.sum(axis=0), 1), np.nan)
         centres = np.linspace(lo, hi, len(signal) + 1)
         centres = 0.5 * (centres[1:] + centres[:-1])
         ok = np.isfinite(signal)

@@ -14,6 +14,14 @@ so that gravity does the same work in both segments: the difference of the two t
 estimates is Y(q0) c - Y(q0') c, linear in the loading coefficients c, with Y the
 gravity regressor of the robot model.  Every pass of every position is one row of a
 least-squares fit for c.
+
+Joint 2's sweep has no repeat (its axis is always horizontal, docs/calib.md). There the
+friction's position pattern (Table 4.4) would stay in W1 - W2; it is taken out with the
+sweep's own friction profile instead: going up and coming down, gravity is the same at a
+position, so half the difference of the two torques is the friction along the path, and
+its integrals over the two segments give the work difference to remove
+(``segment_friction_difference``), scaled for the direction by the friction's asymmetry
+measured on the same sweep once a first fit has given gravity.
 """
 from __future__ import annotations
 
@@ -27,7 +35,7 @@ from calib.errors import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
 from calib.lsq import bounded_lsq
 from calib.trace import Trace
-from calib.work import find_passes, window_work
+from calib.work import Pass, find_passes, window_work
 
 Regressor = Callable[[np.ndarray], np.ndarray]  # q (6,) rad -> (6, k), tau_g = Y c
 
@@ -43,6 +51,9 @@ class SweepPass:
     q0: np.ndarray
     tau0: float
     path: str
+    # N m rad: the sweep's mean friction profile integrated over the first 90 degrees less
+    # over the second (``segment_friction_difference``); NaN when not measured
+    friction_difference: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -75,6 +86,13 @@ class GravityResult:
     friction_error: np.ndarray
     rows: list[GravityRow]
 
+    def with_scale_error(self, relative: float) -> "GravityResult":
+        """The errors with a relative scale uncertainty of the torques added (the fitted
+        torque sensitivities': every coefficient scales with them)."""
+        from dataclasses import replace
+
+        return replace(self, error=np.hypot(self.error, relative * np.abs(self.value)))
+
 
 def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> list[SweepPass]:
     """tau0 of every full pass of a gravity log (both directions); passes with a reading
@@ -98,6 +116,7 @@ def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> 
     keep = [p for p in passes if not clipped[p.first - 1:p.last + 2].any()]
     if notes is not None and len(keep) < len(passes):
         notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], drive.G))
+    diff = segment_friction_difference(th, tau, keep, lo, mid, hi)
     for p in keep:
         w_low = window_work(th, tau, p, lo, mid)
         w_high = window_work(th, tau, p, mid, hi)
@@ -105,7 +124,7 @@ def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> 
         q0 = q_start.copy()
         q0[i] = lo if p.direction > 0 else hi
         out.append(SweepPass(position, role, i + 1, p.direction, q0,
-                             p.direction * (w1 - w2) / 2.0, trace.path))
+                             p.direction * (w1 - w2) / 2.0, trace.path, diff))
     if not out:
         why = " with every reading off the ADC's rails" if len(keep) < len(passes) else ""
         raise LogError(trace.path, None, f"no full pass of joint {i + 1} through "
@@ -113,8 +132,43 @@ def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> 
     return out
 
 
-def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[GravityRow]:
-    """Group passes by (position, joint, direction) and apply the repeat of 4.51."""
+PROFILE_BIN = 0.01  # rad
+
+
+def segment_friction_difference(theta: np.ndarray, tau: np.ndarray, passes: Sequence[Pass],
+                                lo: float, mid: float, hi: float) -> float:
+    """D = the integral of the mean friction profile over [lo, mid] less over [mid, hi] (N m rad).
+
+    At one position gravity is the same going up and coming down, so half the difference
+    of the torques up and down, (tau_up - tau_down) / 2, is the friction there (the mean of
+    the two directions'); the friction's position pattern (Table 4.4) makes its work
+    differ between the segments by D (and by D (F_d / F_mean) in direction d), which W1 - W2
+    keeps when no repeat (4.49-4.51) removes it. NaN without passes both ways."""
+    edges = np.arange(lo, hi + PROFILE_BIN / 2, PROFILE_BIN)
+    n = len(edges) - 1
+    sums, counts = {1: np.zeros(n), -1: np.zeros(n)}, {1: np.zeros(n), -1: np.zeros(n)}
+    for p in passes:
+        seg = slice(p.first, p.last + 1)
+        idx = np.clip(np.digitize(theta[seg], edges) - 1, 0, n - 1)
+        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=n)
+        counts[p.direction] += np.bincount(idx, minlength=n)
+    both = (counts[1] > 0) & (counts[-1] > 0)
+    if both.sum() < 0.8 * n:
+        return float("nan")
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    f = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
+    profile = np.interp(centres, centres[both], f)
+    first = centres < mid
+    return float((profile[first].sum() - profile[~first].sum()) * PROFILE_BIN)
+
+
+def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor,
+                 asymmetry: dict[int, float] | None = None) -> list[GravityRow]:
+    """Group passes by (position, joint, direction) and apply the repeat of 4.51.
+
+    A sweep without a repeat has the friction pattern's segment difference removed instead:
+    tau0 less D (1 + d a) / 2, with a = (F+ - F-) / (F+ + F-) of the joint from ``asymmetry``
+    (0 when not known)."""
     keys = sorted({(p.position, p.joint, p.direction) for p in passes if p.role == "main"},
                   key=lambda k: (k[0], -k[1], -k[2]))
     rows = []
@@ -127,7 +181,10 @@ def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[Grav
             tau0 = raw_tau0 - float(np.mean([p.tau0 for p in rep]))
             row = raw_row - np.asarray(regressor(rep[0].q0))[j - 1]
         else:
-            tau0, row = raw_tau0, raw_row
+            D = float(np.mean([p.friction_difference for p in main]))
+            a = (asymmetry or {}).get(j, 0.0)
+            tau0 = raw_tau0 - (D * (1 + d * a) / 2 if np.isfinite(D) else 0.0)
+            row = raw_row
         rows.append(GravityRow(pos, j, d, tau0, raw_tau0, row, raw_row, len(main) + len(rep)))
     return rows
 
@@ -183,6 +240,11 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     rows = gravity_rows(passes, regressor)
     k = len(names)
     value, std = _solve(rows, True, k, "gravity loading", noise)
+    lone = {p.joint for p in passes if p.role == "main"} - {p.joint for p in passes if p.role == "repeat"}
+    if lone:        # sweeps without a repeat: once more with their directions' friction asymmetry
+        asym = friction_asymmetry(traces, drive, regressor, value, lone)
+        rows = gravity_rows(passes, regressor, asym)
+        value, std = _solve(rows, True, k, "gravity loading", noise)
     raw, _ = _solve(rows, False, k, "gravity loading without the friction repeat", noise)
     by_dir = []
     for d in (1, -1):
@@ -198,6 +260,36 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     error = np.sqrt((2 * std) ** 2 + (ddiff / 2) ** 2)
     return GravityResult(names=names, value=value, error=error, fit_std=std,
                          direction_diff=ddiff, friction_error=np.abs(value - raw), rows=rows)
+
+
+def friction_asymmetry(traces: list[Trace], drive: Drive, regressor: Regressor, coeffs: np.ndarray,
+                       joints: set[int]) -> dict[int, float]:
+    """(F+ - F-) / (F+ + F-) of each joint in ``joints`` (1-based) over its sweeps, with the
+    gravity of ``coeffs`` taken off: F+ the mean of tau - tau_g moving up, F- of tau_g - tau
+    moving down."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    for tr in traces:
+        i = tr.joint_index()
+        if i + 1 not in joints:
+            continue
+        lo = float(tr.need("phi_low", (int, float)))
+        q_start = np.asarray(tr.need("q_start", (list, tuple)), dtype=float)
+        theta = drive.current_angles(tr.t, tr.counts)[:, i]
+        tau = drive.joint_torques(tr.adc)[:, i]
+        for p in find_passes(theta, lo, lo + np.pi):
+            seg = slice(p.first, p.last + 1)
+            q = np.tile(q_start, (p.last + 1 - p.first, 1))
+            q[:, i] = theta[seg]
+            tg = np.array([np.asarray(regressor(x))[i] @ coeffs for x in q])
+            out.setdefault(i + 1, []).append((p.direction, float(np.mean(p.direction * (tau[seg] - tg)))))
+    asym = {}
+    for j, v in out.items():
+        up = [f for d, f in v if d > 0]
+        dn = [f for d, f in v if d < 0]
+        if up and dn:
+            fp, fm = float(np.mean(up)), float(np.mean(dn))
+            asym[j] = (fp - fm) / (fp + fm) if fp + fm > 0 else 0.0
+    return asym
 
 
 def row_result(row: GravityRow, result: GravityResult) -> tuple[str, float]:

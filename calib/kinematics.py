@@ -60,11 +60,20 @@ class KinematicFit:
     kind: str = "poses"
 
     @property
+    def factor(self) -> float:
+        """Standard deviations in the printed uncertainty: Student's t (99.73 %) for the
+        residual's degrees of freedom (calib.lsq.coverage_factor)."""
+        from calib.lsq import coverage_factor
+
+        dof = self.measurements * (6 if self.kind == "poses" else 1) - self.rank
+        return coverage_factor(dof)
+
+    @property
     def names(self) -> list[str]:
         return param_names(len(self.e) // 4)
 
-    def combinations(self) -> list[tuple[str, float, float, str]]:
-        """(name, value, std, unit) of the identifiable combination of each group of parameters
+    def combinations(self) -> list[tuple[str, float, float, str, np.ndarray]]:
+        """(name, value, std, unit, coefficients (24,)) of the identifiable combination of each group of parameters
         not identifiable alone (e.g. "dd2 + dd3"): the part of the group orthogonal to its
         null-space directions."""
         out = []
@@ -92,7 +101,8 @@ class KinematicFit:
                 terms = " ".join(f"{'+' if c >= 0 else '-'} {abs(c):.2f} {names[i]}".replace(" 1.00 ", " ")
                                  for c, i in zip(u, idx) if abs(c) > 1e-6)
                 unit = UNITS[idx[lead] % 4]
-                out.append((terms.lstrip("+ "), float(full @ self.e), float(np.sqrt(full @ self.cov @ full)), unit))
+                out.append((terms.lstrip("+ "), float(full @ self.e), float(np.sqrt(full @ self.cov @ full)),
+                            unit, full))
         return out
 
 
@@ -300,12 +310,14 @@ def touches_from_trace(trace: Trace, drive) -> Touches:
     return Touches(np.array(Q), np.array(N), np.array(H), tip, np.array(K))
 
 
-def table(fit: KinematicFit, sigmas: float = 3.0) -> str:
+def table(fit: KinematicFit, sigmas: float | None = None) -> str:
     """The error parameters per joint (mm, millidegrees), laid out like Table 3.1, with
-    +- ``sigmas`` standard deviations."""
+    their printed uncertainty (``sigmas`` standard deviations; by default the fit's
+    99.73 % factor, ``KinematicFit.factor``)."""
+    sigmas = fit.factor if sigmas is None else sigmas
     what = "touches" if fit.kind == "touches" else "poses"
     out = [f"Kinematic error parameters (3.84) from {fit.measurements} {what}: e per joint, "
-           f"+- {sigmas:g} sd ('-' = not identifiable alone)",
+           f"+- {sigmas:.2f} sd, 99.73 % ('-' = not identifiable alone)",
            f"{'Joint':>5}  {'d theta (mdeg)':>18}  {'d d (mm)':>16}  {'d a (mm)':>16}  {'d alpha (mdeg)':>18}"]
     conv = (np.degrees(1) * 1e3, 1e3, 1e3, np.degrees(1) * 1e3)
     for j in range(len(fit.e) // 4):
@@ -315,7 +327,7 @@ def table(fit: KinematicFit, sigmas: float = 3.0) -> str:
             v = fit.e[i] * conv[k]
             cells.append(f"{v:8.3f} +- {sigmas * fit.std[i] * conv[k]:6.3f}" if fit.identifiable[i] else "-")
         out.append(f"{j + 1:>5}  {cells[0]:>18}  {cells[1]:>16}  {cells[2]:>16}  {cells[3]:>18}")
-    for name, value, std, unit in fit.combinations():
+    for name, value, std, unit, _ in fit.combinations():
         out.append(f"not separable alone; identified as a combination: {name} = "
                    f"{_scaled(unit, value)} +- {_scaled(unit, sigmas * std)}")
     before, after = 1e3 * fit.rms_position_before, 1e3 * fit.rms_position_after
@@ -332,19 +344,20 @@ def _scaled(unit: str, value: float) -> str:
     return f"{np.degrees(value) * 1e3:.3f} mdeg" if unit == "rad" else f"{value * 1e3:.4f} mm"
 
 
-def section(fit: KinematicFit, sigmas: float = 3.0) -> dict:
+def section(fit: KinematicFit, sigmas: float | None = None) -> dict:
     """The ``[kinematics]`` section of the parameter file: every error parameter (the
     minimum-norm values where the measurements leave a combination open, so that the
     corrected model reproduces what was measured), the printed uncertainty (NaN where not
     identifiable alone) and the combinations."""
+    sigmas = fit.factor if sigmas is None else sigmas
     n = len(fit.e) // 4
     sec: dict = {}
     for k, name in enumerate(PARAM_NAMES):
         sec[name] = [float(fit.e[4 * j + k]) for j in range(n)]
         sec[f"{name}_error"] = [float(sigmas * fit.std[4 * j + k]) for j in range(n)]
     sec["identifiable"] = [bool(x) for x in fit.identifiable]
-    sec["combinations"] = [f"{nm} = {v!r} +- {sigmas * s!r} {u}" for nm, v, s, u in fit.combinations()]
-    sec["error_is"] = f"{sigmas:g} sd"
+    sec["combinations"] = [f"{nm} = {v!r} +- {sigmas * s!r} {u}" for nm, v, s, u, _ in fit.combinations()]
+    sec["error_is"] = f"{sigmas:.3f} sd (99.73 %, {fit.measurements - fit.rank} degrees of freedom)"
     sec["measurements"] = int(fit.measurements)
     sec["rms_residual_before"] = fit.rms_position_before
     sec["rms_residual_after"] = fit.rms_position_after

@@ -32,14 +32,15 @@ import numpy as np
 from calib.errors import CalibError
 
 TOUCH_RATE_HZ = 250            # one count of a joint's encoder per cycle at most in the slow approach
-STANDOFF = 0.008               # m from the nominal face where each approach starts (arm errors < 5 mm)
+STANDOFF = 0.006               # m from the nominal face where each approach starts (arm errors < 4 mm)
 OVERTRAVEL = 0.004             # m past the nominal face where an approach gives up
-FAST = 0.010                   # m/s, first approach
-BACKOFF = 0.0006               # m back along the line after the first contact
-SLOW = 0.0008                  # m/s, the measuring approach (3.2 um per cycle at 250 Hz)
-LINEAR = 0.08                  # m/s, straight moves of the tip between touches
-ANGULAR = 0.6                  # rad/s, turning of the probe on those moves
-JOINT_SPEED = 0.6              # rad/s, joint moves at the hub
+FAST = 0.020                   # m/s, first approach
+BACKOFF = 0.0005               # m back along the line after the first contact
+SLOW = 0.0015                  # m/s, the measuring approach: 6 um per cycle at 250 Hz, about one
+                               # encoder count of one joint (5 to 50 um of tip travel)
+LINEAR = 0.12                  # m/s, straight moves of the tip between touches
+ANGULAR = 1.5                  # rad/s, turning of the probe on those moves
+JOINT_SPEED = 1.5              # rad/s, joint moves between hubs (a third of the slowest joint's limit)
 TILT_DEG = 25.0                # probe axis within this of the face's inward normal
 CLEARANCE = 0.020              # m: joint moves between hubs keep the tip this far from every face
 # the probe tip in link-6 coordinates (m): a 8 cm stylus cranked 2 cm off the flange axis
@@ -47,7 +48,10 @@ TIP = (0.02, 0.0, 0.08)
 PROBE_BIT = 1                  # inport1 bit of the probe (bit 0 is the hand)
 PROBE_NOISE = 2e-6             # m, simula's trigger repeatability (1 sigma)
 HUB_DISTANCE = 0.10            # m: each face's hub, where the probe turns, is this far in front of it
-CONFIG = (-1, 1)               # arm, elbow of every touch (the PUMA 260 reaches the corner best "left/up")
+# the configurations (arm, elbow, wrist) the touches are made in: both arms and both wrists
+# (the elbow-down solutions leave the PUMA 260's estimated joint-3 range), so that the DH
+# errors are seen from different sides, as a user's programs will work
+CONFIGS = ((-1, 1, 1), (-1, 1, -1), (1, 1, 1), (1, 1, -1))
 
 
 @dataclass(frozen=True)
@@ -254,8 +258,9 @@ def joint_line(qa: np.ndarray, qb: np.ndarray, rate_hz: float, speed: float = JO
 
 def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER,
                tip=TIP, robot: str = "puma260", name: str = "kinematics") -> TouchPlan:
-    """``n_per_face`` touches on each face of ``fixture``, half in each wrist configuration,
-    grouped by face and configuration (so that the wrist turns over at the hub only)."""
+    """``n_per_face`` touches on each face of ``fixture``, shared among CONFIGS (a
+    configuration that reaches few points of a face leaves its share to the others),
+    grouped by face and configuration (so that the arm changes configuration at a hub only)."""
     import importlib
 
     from rci.robot_model import load_robot
@@ -267,22 +272,23 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER
     margin = np.radians(5.0)
     touches: list[Touch] = []
     for fi, face in enumerate(fixture.faces):
-        for wrist in (1, -1):
-            config = (*CONFIG, wrist)
+        on_face = 0
+        for c, config in enumerate(CONFIGS):
             group: list[Touch] = []
-            tries = 0
-            while len(group) < (n_per_face + (wrist > 0)) // 2:
-                tries += 1
-                if tries > 4000:
-                    raise CalibError(f"touch plan: face {face.name} ({'noflip' if wrist > 0 else 'flip'}) "
-                                     f"has only {len(group)} reachable touches")
+            want = (n_per_face - on_face) // (len(CONFIGS) - c)
+            for _ in range(1500):
+                if len(group) >= want:
+                    break
                 p = np.array([rng.uniform(*r) for r in face.region])
                 R = _rotation(-np.asarray(face.normal, float), np.radians(rng.uniform(0, TILT_DEG)),
                               rng.uniform(0, 2 * np.pi), rng.uniform(-np.pi, np.pi))
                 t = Touch(fi, p, R, config)
                 if _reachable(kin, t, fixture, tip, lower, upper, margin):
                     group.append(t)
+            on_face += len(group)
             touches += _nearest_first(group, face.hub)
+        if on_face == 0:
+            raise CalibError(f"touch plan: no point of face {face.name} is reachable in any configuration")
     touches = _route(kin, touches, fixture, tip, lower, upper, margin)
     meta = {"experiment": "kinematics", "fixture": fixture.meta(), "tip": list(tip),
             "probe_bit": PROBE_BIT, "plan_seed": seed, "touches": len(touches),
@@ -319,21 +325,37 @@ def _gap(kin, qa: np.ndarray, qb: np.ndarray, fixture: Fixture, tool: np.ndarray
 UPRIGHT = (np.pi / 2, -np.pi / 2)
 
 
+# joint moves between hubs, tried in this order until one keeps the tip clear: each stage
+# moves a set of joints to their goal ("up" raises joints 2 and 3 to UPRIGHT, "down"
+# lowers them to the goal)
+ROUTES = (((0, 1, 2, 3, 4, 5),),
+          ("up", (0, 3, 4, 5), "down"),
+          ((3, 4, 5), "up", (0,), "down"),
+          ("up", (0,), (3, 4, 5), "down"),
+          ("up", (3, 4, 5), (0,), "down"))
+
+
 def joint_route(kin, qa: np.ndarray, qb: np.ndarray, fixture: Fixture, tip, where: str) -> list[np.ndarray]:
     """Joint waypoints from qa to qb that keep the tip (nominal model) CLEARANCE from every
-    face: straight if that is clear, else by way of the upright arm (joints 2 and 3
-    raised, the others turned there). CalibError when neither is clear."""
+    face: the first of ROUTES that does (straight; by way of the upright arm, joints 2 and 3
+    raised, the others turned there in some order). CalibError when none does."""
     tool = tool_transform(tip)
-    if _gap(kin, qa, qb, fixture, tool) >= CLEARANCE:
-        return [qa, qb]
-    va, vb = qa.copy(), qb.copy()
-    va[1:3] = vb[1:3] = UPRIGHT
-    route = [qa, va, vb, qb]
-    gap = min(_gap(kin, a, b, fixture, tool) for a, b in zip(route, route[1:]))
-    if gap < CLEARANCE:
-        raise CalibError(f"touch plan: {where}: every joint route passes {1e3 * gap:.0f} mm from a face "
-                         f"(needs {1e3 * CLEARANCE:.0f} mm)")
-    return route
+    for stages in ROUTES:
+        route = [np.array(qa, dtype=float)]
+        for stage in stages:
+            q = route[-1].copy()
+            if stage == "up":
+                q[1:3] = UPRIGHT
+            elif stage == "down":
+                q[1:3] = qb[1:3]
+            else:
+                q[list(stage)] = qb[list(stage)]
+            route.append(q)
+        gap = min(_gap(kin, a, b, fixture, tool) for a, b in zip(route, route[1:]))
+        if gap >= CLEARANCE:
+            return route
+    raise CalibError(f"touch plan: {where}: every joint route passes within {1e3 * CLEARANCE:.0f} mm "
+                     f"of a face")
 
 
 def _nearest_first(group: list[Touch], hub: np.ndarray) -> list[Touch]:
@@ -346,6 +368,8 @@ def _nearest_first(group: list[Touch], hub: np.ndarray) -> list[Touch]:
         here = left[k].point
         out.append(left.pop(k))
     return out
+
+
 
 
 def hub_pose(kin, t: Touch, fixture: Fixture, tip) -> np.ndarray:
@@ -367,8 +391,8 @@ def in_range(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
 def _route(kin, touches: list[Touch], fixture: Fixture, tip, lower, upper, margin) -> list[Touch]:
     """Decide how each touch is reached, as the program will move (nominal model): straight
     from the last stand-off when that line keeps every joint in range, else by way of the
-    face's hub (each joint then on the branch nearest the middle of its range). Also checks
-    the joint routes between hubs."""
+    face's hub (each joint then on its principal branch). A touch that neither way reaches
+    (a joint out of range, or no clear joint route between the hubs) is dropped."""
     out: list[Touch] = []
     q = None
     prev: Touch | None = None
@@ -387,8 +411,10 @@ def _route(kin, touches: list[Touch], fixture: Fixture, tip, lower, upper, margi
                                     kin.Config(*prev.config), q, rate, tip)[-1]
             qb = hub_pose(kin, t, fixture, tip)
             if qa is not None:
-                joint_route(kin, qa, qb, fixture, tip, f"from face {fixture.faces[prev.face].name} "
-                            f"to {fixture.faces[t.face].name}")
+                try:
+                    joint_route(kin, qa, qb, fixture, tip, "")
+                except CalibError:
+                    continue    # no clear joint route from the last hub to this orientation: dropped
             path = cartesian_line(kin, kin.fk(qb), standoff, config, qb, rate, tip)
             if np.any(path < lower + margin) or np.any(path > upper - margin):
                 continue        # not reachable without leaving a joint's range: dropped
