@@ -29,7 +29,7 @@ from calib.trace import Trace
 
 KINDS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
 # the order that builds one parameter file, each fit's inputs fitted before it
-ORDER = ("sensitivity", "friction", "gravity", "static", "breakaway", "kinematics")
+ORDER = ("sensitivity", "kinematics", "gravity", "friction", "static", "breakaway")
 # what fits each input, for the refusal's message
 PROVIDER = {"sigma": "sensitivity", "gravity": "gravity"}
 
@@ -106,6 +106,23 @@ class Inputs:
             if np.isfinite(sigma[k]) and np.isfinite(std[k]) and trials[k] >= 2:
                 worst = max(worst, coverage_factor(int(trials[k]) - 1) * std[k] / np.sqrt(trials[k]) / sigma[k])
         return float(worst)
+
+    def regressor(self):
+        """The gravity regressor of 4.24 at the arm's true joint angles: q plus the fitted joint
+        offsets (d theta of ``[kinematics]``) when the parameter file has a kinematic
+        calibration (a sweep's start torque is c sin or cos of the true angle), else at q."""
+        kin = self.params.get("kinematics", {})
+        if "dtheta" not in kin:
+            return self.info.regressor
+        offset = np.nan_to_num(np.asarray(kin["dtheta"], dtype=float))
+        reg = self.info.regressor
+        return lambda q: reg(np.asarray(q, dtype=float) + offset)
+
+    def gravity_model(self):
+        """tau_g(q) (N m) with the fitted coefficients at the true joint angles."""
+        c = self.gravity()
+        reg = self.regressor()
+        return lambda q: np.asarray(reg(q)) @ c
 
     def gravity(self) -> np.ndarray:
         """Gravity loading coefficients (c12, c13, c15), N m."""
@@ -190,6 +207,7 @@ def _fit_friction(traces, info, params, inputs, notes) -> FitOutcome:
     drive = info.drive.with_sigma(inputs.sigma(joints))
     res, points = fit_friction(traces, drive, notes)
     res = [r.with_scale_error(inputs.sigma_scale_error([r.joint - 1])) for r in res]
+    res = _window_gravity(res, traces, info, params, notes)
     js = [r.joint for r in res]
     old = params.get("friction")
     sec: dict[str, Any] = dict(old or {})   # breakaway's static_pos/neg stay; none are invented
@@ -205,10 +223,35 @@ def _fit_friction(traces, info, params, inputs, notes) -> FitOutcome:
     return FitOutcome("friction", table_4_2_4_3(res), {"friction": sec}, res, {"points": points})
 
 
+def _window_gravity(res, traces, info, params, notes) -> list:
+    """Each joint's Coulomb values corrected for gravity's mean over its window on the arm
+    the parameter file describes (calib.window_gravity)."""
+    from calib.friction import TAPER
+    from calib.window_gravity import window_gravity
+
+    out, sources = [], set()
+    for r in res:
+        tr = next(t for t in traces if t.joint_index() == r.joint - 1)
+        lo, hi = (float(x) for x in tr.need("window", (list, tuple)))
+        if "pose" not in tr.meta:
+            notes.append(f"{tr.path}: no metadata 'pose' (the arm's pose during the sweeps): gravity's "
+                         f"mean over joint {r.joint}'s window is neither corrected nor in its error")
+            out.append(r)
+            continue
+        pose = np.asarray(tr.need("pose", (list, tuple)), dtype=float)
+        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)))
+        sources.add(source)
+        out.append(r.with_window_gravity(g, sd))
+    if any(not s.startswith("the fitted kinematics") or "data file" in s for s in sources):
+        notes.append("gravity's mean over the friction windows (their axes lean by the DH errors) from "
+                     + "; ".join(sorted(sources)) + ": fit kinematics and gravity first to correct for it")
+    return out
+
+
 def _fit_gravity(traces, info, params, inputs, notes) -> FitOutcome:
     joints = sorted({t.joint_index() for t in traces})
     drive = info.drive.with_sigma(inputs.sigma(joints))
-    res = fit_gravity(traces, drive, info.regressor, GRAVITY_NAMES, notes=notes)
+    res = fit_gravity(traces, drive, inputs.regressor(), GRAVITY_NAMES, notes=notes)
     res = res.with_scale_error(inputs.sigma_scale_error(joints))
     sec: dict[str, Any] = {n: float(v) for n, v in zip(res.names, res.value)}
     sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
@@ -222,7 +265,7 @@ def _fit_breakaway(traces, info, params, inputs, notes) -> FitOutcome:
 
     joints = sorted({t.joint_index() for t in traces})
     drive = info.drive.with_sigma(inputs.sigma(joints))
-    res, pts = fit_breakaway(traces, drive, info.gravity(inputs.gravity()), notes)
+    res, pts = fit_breakaway(traces, drive, inputs.gravity_model(), notes)
     js = [r.joint for r in res]
     old = dict(params.get("friction") or {})
     sec = dict(old)
@@ -233,7 +276,7 @@ def _fit_breakaway(traces, info, params, inputs, notes) -> FitOutcome:
 
 def _fit_static(traces, info, params, inputs, notes) -> FitOutcome:
     drive = info.drive.with_sigma(inputs.sigma(list(range(6))))
-    res, samples = fit_static(traces, drive, info.gravity(inputs.gravity()), notes)
+    res, samples = fit_static(traces, drive, inputs.gravity_model(), notes)
     sec = {"samples": int(res[0].samples),
            "maximum": [r.maximum for r in res], "minimum": [r.minimum for r in res],
            "mean": [r.mean for r in res], "std": [r.std for r in res], "unit": "N*m"}

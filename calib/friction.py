@@ -84,6 +84,14 @@ class FrictionResult:
     minus: DirectionFit
     variation: float
 
+    def with_window_gravity(self, g: float, sd: float) -> "FrictionResult":
+        """F_c+ less and F_c- plus the window's mean gravity torque ``g`` (N m; each + pass
+        carries +g, each - pass -g), its standard deviation ``sd`` added to the errors
+        (x PRINTED_SD) (calib.window_gravity)."""
+        def moved(f: DirectionFit, d: int) -> DirectionFit:
+            return replace(f, coulomb=f.coulomb - d * g, coulomb_err=float(np.hypot(f.coulomb_err, PRINTED_SD * sd)))
+        return replace(self, plus=moved(self.plus, 1), minus=moved(self.minus, -1))
+
     def with_scale_error(self, relative: float) -> "FrictionResult":
         """The errors with a relative scale uncertainty (printed, 99.73 %) of the torques added:
         the fitted torque sensitivities' (every torque, so every coefficient, scales with them)."""

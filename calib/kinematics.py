@@ -354,6 +354,7 @@ def section(fit: KinematicFit, sigmas: float | None = None) -> dict:
     sec: dict = {}
     for k, name in enumerate(PARAM_NAMES):
         sec[name] = [float(fit.e[4 * j + k]) for j in range(n)]
+        sec[f"{name}_std"] = [float(fit.std[4 * j + k]) for j in range(n)]
         sec[f"{name}_error"] = [float(sigmas * fit.std[4 * j + k]) for j in range(n)]
     sec["identifiable"] = [bool(x) for x in fit.identifiable]
     sec["combinations"] = [f"{nm} = {v!r} +- {sigmas * s!r} {u}" for nm, v, s, u, _ in fit.combinations()]

@@ -13,6 +13,16 @@ from calib.errors import CalibError  # noqa: E402
 from calib.friction import FrictionPoint, FrictionResult  # noqa: E402
 
 
+def y_limits(friction: np.ndarray, fit, top_speed: float) -> tuple[float, float]:
+    """The y-range (N m) of a direction's panel: the passes, the fitted line from 0 to
+    ``top_speed`` (rad/s) and F_c's band, with 8 % to spare."""
+    line = np.array([fit.coulomb, fit.coulomb + fit.viscous * top_speed])
+    lo = min(friction.min() if len(friction) else line.min(), line.min() - fit.coulomb_err)
+    hi = max(friction.max() if len(friction) else line.max(), line.max() + fit.coulomb_err)
+    pad = 0.08 * (hi - lo) + 1e-6
+    return float(lo - pad), float(hi + pad)
+
+
 def friction_plots(results: list[FrictionResult], points: list[FrictionPoint],
                    folder: str, prefix: str = "calib-friction-j") -> list[str]:
     """One PNG per joint: for each direction its own panel (the two directions' frictions
@@ -36,10 +46,7 @@ def friction_plots(results: list[FrictionResult], points: list[FrictionPoint],
                             label=f"F_c +- {fit.coulomb_err:.3f}")
             ax.plot(vs, line, "k-", lw=0.9, label=f"{fit.coulomb:.3f} + {1e3 * fit.viscous:.2f}e-3 w")
             ax.plot(v, f, "o", mfc=face, mec="k", ms=4, ls="none", label=f"passes ({len(pts)})")
-            lo = min(f.min() if len(f) else line.min(), line.min() - fit.coulomb_err)
-            hi = max(f.max() if len(f) else line.max(), line.max() + fit.coulomb_err)
-            pad = 0.08 * (hi - lo) + 1e-6
-            ax.set_ylim(lo - pad, hi + pad)
+            ax.set_ylim(*y_limits(f, fit, np.radians(vs[-1])))
             ax.set_xlim(left=0)
             ax.set_xlabel("speed (degrees/s)")
             ax.set_ylabel("friction (N m)")
