@@ -66,13 +66,13 @@ class DirectionFit:
     coulomb_fit_sd: float = float("nan")
     coulomb_pattern_sd: float = float("nan")
     factor: float = PRINTED_SD     # the fit's sds become the printed error by this (Student t)
+    window_gravity: float = 0.0    # N m taken off every pass mean of this direction (gravity over the window)
 
     def with_pattern(self, relative_sd: float) -> "DirectionFit":
         """This fit with the pattern's window mean (relative sd) added to F_c's error."""
         sd = abs(self.coulomb) * relative_sd
         err = float(np.hypot(self.factor * self.coulomb_fit_sd, PRINTED_SD * sd))
-        return DirectionFit(self.coulomb, err, self.viscous, self.viscous_err, self.points,
-                            self.coulomb_fit_sd, sd, self.factor)
+        return replace(self, coulomb_err=err, coulomb_pattern_sd=sd)
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,8 @@ class FrictionResult:
         carries +g, each - pass -g), its standard deviation ``sd`` added to the errors
         (x PRINTED_SD) (calib.window_gravity)."""
         def moved(f: DirectionFit, d: int) -> DirectionFit:
-            return replace(f, coulomb=f.coulomb - d * g, coulomb_err=float(np.hypot(f.coulomb_err, PRINTED_SD * sd)))
+            return replace(f, coulomb=f.coulomb - d * g, coulomb_err=float(np.hypot(f.coulomb_err, PRINTED_SD * sd)),
+                           window_gravity=d * g)
         return replace(self, plus=moved(self.plus, 1), minus=moved(self.minus, -1))
 
     def with_scale_error(self, relative: float) -> "FrictionResult":

@@ -27,8 +27,9 @@ def friction_plots(results: list[FrictionResult], points: list[FrictionPoint],
                    folder: str, prefix: str = "calib-friction-j") -> list[str]:
     """One PNG per joint: for each direction its own panel (the two directions' frictions
     differ by more than the viscous rise, so on one axis either would be flat), the passes
-    (N m against degrees/s), the fitted line of 4.27 and the band of F_c's printed
-    uncertainty; each y-axis spans the points and the line, not zero. Returns the paths."""
+    (N m against degrees/s, less gravity's mean over the window where the fit took it off),
+    the fitted line of 4.27 and the band of F_c's printed uncertainty; each y-axis spans
+    the points and the line, not zero. Returns the paths."""
     try:
         os.makedirs(folder, exist_ok=True)
     except OSError as exc:
@@ -39,13 +40,14 @@ def friction_plots(results: list[FrictionResult], points: list[FrictionPoint],
         for ax, (d, fit, name, face) in zip(axes, ((1, r.plus, "+", "none"), (-1, r.minus, "-", "k"))):
             pts = [p for p in points if p.joint == r.joint and p.direction == d]
             v = np.degrees([p.speed for p in pts])
-            f = np.array([p.friction for p in pts])
+            f = np.array([p.friction for p in pts]) - fit.window_gravity
             vs = np.linspace(0.0, max(v.max() if len(v) else 1.0, 1.0) * 1.05, 50)
             line = fit.coulomb + fit.viscous * np.radians(vs)
             ax.fill_between(vs, line - fit.coulomb_err, line + fit.coulomb_err, color="0.85", lw=0,
                             label=f"F_c +- {fit.coulomb_err:.3f}")
             ax.plot(vs, line, "k-", lw=0.9, label=f"{fit.coulomb:.3f} + {1e3 * fit.viscous:.2f}e-3 w")
-            ax.plot(v, f, "o", mfc=face, mec="k", ms=4, ls="none", label=f"passes ({len(pts)})")
+            label = f"passes ({len(pts)})" + (f", window gravity {fit.window_gravity:+.4f} taken off" if fit.window_gravity else "")
+            ax.plot(v, f, "o", mfc=face, mec="k", ms=4, ls="none", label=label)
             ax.set_ylim(*y_limits(f, fit, np.radians(vs[-1])))
             ax.set_xlim(left=0)
             ax.set_xlabel("speed (degrees/s)")
