@@ -31,7 +31,8 @@ from calib.errors import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
 from calib.lsq import PRINTED_SD, bounded_lsq, coverage_factor
 from calib.trace import Trace
-from calib.work import Pass, find_passes, hann_edge_weights, tapered_mean, window_time
+from calib.work import (Pass, find_passes, hann_edge_weights, tapered_mean, up_down_half_difference,
+                         window_time)
 
 PROFILE_BIN = 0.01  # rad: position bins of the Table 4.4 profile (finer than gear irregularities)
 # rad: length of the Hann edges of each pass's weighting (calib.work.tapered_mean); long
@@ -150,21 +151,12 @@ def friction_points(trace: Trace, drive: Drive,
 def _half_difference_profile(th: np.ndarray, tau: np.ndarray, passes: list[Pass],
                              lo: float, hi: float) -> np.ndarray | None:
     """(tau going up - tau coming down) / 2 per position bin, over its mean, minus 1."""
-    n_bins = max(int((hi - lo) / PROFILE_BIN), 4)
-    edges = np.linspace(lo, hi, n_bins + 1)
-    sums = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
-    counts = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
-    for p in passes:
-        seg = slice(p.first, p.last + 1)
-        idx = np.clip(np.digitize(th[seg], edges) - 1, 0, n_bins - 1)
-        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=n_bins)
-        counts[p.direction] += np.bincount(idx, minlength=n_bins)
-    both = (counts[1] > 0) & (counts[-1] > 0)
+    half = up_down_half_difference(th, tau, passes, lo, hi, max(int((hi - lo) / PROFILE_BIN), 4))
+    both = np.isfinite(half)
     if both.sum() < 4:
         return None
-    half = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
-    prof = np.full(n_bins, np.nan)
-    prof[both] = half / half.mean() - 1.0
+    prof = np.full(len(half), np.nan)
+    prof[both] = half[both] / half[both].mean() - 1.0
     return prof
 
 

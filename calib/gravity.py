@@ -35,7 +35,7 @@ from calib.errors import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
 from calib.lsq import bounded_lsq
 from calib.trace import Trace
-from calib.work import Pass, find_passes, window_work
+from calib.work import Pass, find_passes, up_down_half_difference, window_work
 
 Regressor = Callable[[np.ndarray], np.ndarray]  # q (6,) rad -> (6, k), tau_g = Y c
 
@@ -144,22 +144,15 @@ def segment_friction_difference(theta: np.ndarray, tau: np.ndarray, passes: Sequ
     the two directions'); the friction's position pattern (Table 4.4) makes its work
     differ between the segments by D (and by D (F_d / F_mean) in direction d), which W1 - W2
     keeps when no repeat (4.49-4.51) removes it. NaN without passes both ways."""
-    edges = np.arange(lo, hi + PROFILE_BIN / 2, PROFILE_BIN)
-    n = len(edges) - 1
-    sums, counts = {1: np.zeros(n), -1: np.zeros(n)}, {1: np.zeros(n), -1: np.zeros(n)}
-    for p in passes:
-        seg = slice(p.first, p.last + 1)
-        idx = np.clip(np.digitize(theta[seg], edges) - 1, 0, n - 1)
-        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=n)
-        counts[p.direction] += np.bincount(idx, minlength=n)
-    both = (counts[1] > 0) & (counts[-1] > 0)
+    n = max(int(round((hi - lo) / PROFILE_BIN)), 4)
+    half = up_down_half_difference(theta, tau, list(passes), lo, hi, n)
+    both = np.isfinite(half)
     if both.sum() < 0.8 * n:
         return float("nan")
-    centres = 0.5 * (edges[1:] + edges[:-1])
-    f = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
-    profile = np.interp(centres, centres[both], f)
+    centres = lo + (np.arange(n) + 0.5) * (hi - lo) / n
+    profile = np.interp(centres, centres[both], half[both])
     first = centres < mid
-    return float((profile[first].sum() - profile[~first].sum()) * PROFILE_BIN)
+    return float((profile[first].sum() - profile[~first].sum()) * (hi - lo) / n)
 
 
 def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor,

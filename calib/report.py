@@ -145,16 +145,8 @@ def _tables_4_2_4_4(info, truth, out, check, vt, plots) -> list[str]:
          "| joint | dir | thesis | truth | fit (+- " + SD + ") | of which pattern (1 sd) | abs(fit - truth) "
          "| within thesis bound | within fit error |",
          "|---|---|---|---|---|---|---|---|---|"]
-    for r in res:
-        j = r.joint - 1
-        for name, fit, key in (("+", r.plus, "coulomb_pos"), ("-", r.minus, "coulomb_neg")):
-            th, te = fr[key]["values"][j], fr[key]["uncertainty"][j]
-            ts, tv = _t(truth, key, j, ".3f")
-            d = abs(fit.coulomb - tv)
-            L.append(f"| {r.joint} | {name} | {th:.3f} +- {te:.3f} | {ts} | {fit.coulomb:.3f} +- "
-                     f"{fit.coulomb_err:.3f} | {fit.coulomb_pattern_sd:.4f} | {d:.3f} | "
-                     + (f"{check('4.2', d <= te)} | {check('4.2 fit', d <= fit.coulomb_err)} |"
-                        if truth is not None else "- | - |"))
+    L += _friction_rows(res, fr, truth, check, "4.2", "coulomb", 1.0, ".3f",
+                        lambda fit: f" | {fit.coulomb_pattern_sd:.4f}")
     L += ["", "## Table 4.3: viscous friction (N m s / rad, x 1000)", "",
           "The viscous term is a few per cent of the Coulomb term, so it needs each pass's "
           "mean friction to a fraction of a per cent (4.5.3: repeatable to under 1 %). What makes "
@@ -169,17 +161,7 @@ def _tables_4_2_4_4(info, truth, out, check, vt, plots) -> list[str]:
           f"of a variance model per log (a |omega| / rate + b) estimated from the residuals; fit +- {SD}.", "",
           f"| joint | dir | thesis | truth | fit (+- {SD}) | abs(fit - truth) | within thesis bound | within fit error |",
           "|---|---|---|---|---|---|---|---|"]
-    for r in res:
-        j = r.joint - 1
-        for name, fit, key in (("+", r.plus, "viscous_pos"), ("-", r.minus, "viscous_neg")):
-            th, te = fr[key]["values"][j], fr[key]["uncertainty"][j]
-            ts, tv = _t(truth, key, j, ".5f")
-            d = abs(fit.viscous - tv)
-            tshow = "-" if truth is None else f"{1e3 * tv:.2f}"
-            L.append(f"| {r.joint} | {name} | {1e3 * th:.2f} +- {1e3 * te:.2f} | {tshow} | "
-                     f"{1e3 * fit.viscous:.2f} +- {1e3 * fit.viscous_err:.2f} | {1e3 * d:.2f} | "
-                     + (f"{check('4.3', d <= te)} | {check('4.3 fit', d <= fit.viscous_err)} |"
-                        if truth is not None else "- | - |"))
+    L += _friction_rows(res, fr, truth, check, "4.3", "viscous", 1e3, ".2f", lambda fit: "")
     L += ["", "## Table 4.4: variation of the friction along the path", "",
           "simula multiplies the Coulomb friction by 1 + v p(q), with v the Table 4.4 value "
           "(the truth's) and p a seeded pattern of spatial harmonics, |p| <= 1. The fit estimates "
@@ -198,6 +180,26 @@ def _tables_4_2_4_4(info, truth, out, check, vt, plots) -> list[str]:
           "band: the printed uncertainty of F_c)", ""]
     L += [f"![{p}]({p.split('/')[-1]})" for p in plots]
     return L + [""]
+
+
+def _friction_rows(res, fr, truth, check, table: str, what: str, scale: float, fmt: str, extra) -> list[str]:
+    """Rows of Table 4.2 (``what`` coulomb) or 4.3 (viscous, shown x ``scale``): thesis,
+    truth, fit +- error (``extra(fit)`` after it), |fit - truth|, the two checks."""
+    L = []
+    for r in res:
+        j = r.joint - 1
+        for name, fit, d_key in (("+", r.plus, "pos"), ("-", r.minus, "neg")):
+            key = f"{what}_{d_key}"
+            th, te = fr[key]["values"][j], fr[key]["uncertainty"][j]
+            value, err = getattr(fit, what), getattr(fit, f"{what}_err")
+            tv = float("nan") if truth is None else float(getattr(truth, key)[j])
+            d = abs(value - tv)
+            v = lambda x: format(scale * x, fmt)  # noqa: E731
+            L.append(f"| {r.joint} | {name} | {v(th)} +- {v(te)} | {'-' if truth is None else v(tv)} | "
+                     f"{v(value)} +- {v(err)}{extra(fit)} | {v(d)} | "
+                     + (f"{check(table, d <= te)} | {check(table + ' fit', d <= err)} |"
+                        if truth is not None else "- | - |"))
+    return L
 
 
 def _table_4_5(info, truth, out, check) -> list[str]:

@@ -22,15 +22,11 @@ from collections.abc import Callable
 import numpy as np
 
 from calib.errors import CalibError
-from calib.program import drive
+from calib.program import command_joints, drive_recorded, open_measurement
 from calib.touch import (BACKOFF, FAST, OVERTRAVEL, SLOW, STANDOFF, TouchPlan, cartesian_line,
                          hub_pose, joint_route, joint_line, pose_t6, tool_transform)
 from rci import codes
-from rci.chg import POS
 from rci.conversions import Conversions
-from rci.exceptions import RCIError
-from rci.recorder import Recorder
-from rci.session import Session
 
 # one step of the program: a builder of setpoints from the joint angles it starts at,
 # whether it stops on the probe, and the touch index it records under (None: not recorded)
@@ -115,16 +111,11 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
         return np.vstack([joint_line(a, b, rate) for a, b in zip(route, route[1:])])
     state = {"step": -1, "k": 0, "sp": None, "q": None, "error": None, "power": False, "rec_off": False}
     done = threading.Event()
-    rec = Recorder(log_path, robot=robot, rate_hz=rate, meta=meta, block_records=1024,
-                   user_fields={"touch": ("<i2", ())})
-    rec.start_writer(0.5)
-    session = Session(url, robot, rate_hz=rate, realtime=False, lock_memory=False,
-                      on_error="raise", gc="leave", overrun="count", timeout=timeout)
+    rec, session = open_measurement(url, robot, rate, log_path, meta, timeout,
+                                    user_fields={"touch": ("<i2", ())})
 
     def pos_all(q: np.ndarray) -> None:
-        counts = conv.angles_to_counts_int(q)
-        for i in range(6):
-            session.chg.motion[i].issue(POS, int(counts[i]))
+        command_joints(session, conv, q)
 
     def begin(q: np.ndarray) -> None:
         state["step"] += 1
@@ -189,13 +180,7 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
         pos_all(sp[min(k, len(sp) - 1)])
         state["k"] = k + 1
 
-    try:
-        drive(session, f1, done)
-    except RCIError as exc:
-        raise CalibError(f"measurement program {plan.name} on {url} stopped at step "
-                         f"{state['step']}: {exc} (partial log: {log_path})") from None
-    finally:
-        rec.close()
+    drive_recorded(session, f1, done, rec, plan.name, url, lambda: f"at step {state['step']}")
     if state["error"] is not None:
         raise state["error"]
     return rec.written
