@@ -15,27 +15,61 @@ from calib.progress import progress
 from calib.robot import robot_info
 
 
-def _fit_kinematics(args: argparse.Namespace) -> int:
+def _fit_kinematic_poses(args: argparse.Namespace) -> int:
+    """``calib fit kinematics POSES.csv``: end poses measured by an external instrument."""
     import numpy as np
 
-    from calib.kinematics import fit_kinematics, read_poses, table
-    from rci.robot_model import load_robot
+    from calib.kinematics import fit_kinematics, nominal_dh, read_poses, section, table
 
-    if args.params:
-        raise CalibError("kinematic error parameters are not part of the runtime parameter "
-                         "file (simula and RCCL use the DH table); drop --params")
     Q, T = zip(*(read_poses(p) for p in args.logs))
-    model = load_robot("puma260")
-    dh = np.array([[j.theta, j.d, j.a, j.alpha] for j in model.joints])
-    fit = fit_kinematics(dh, np.vstack(Q), np.concatenate(T))
+    fit = fit_kinematics(nominal_dh("puma260"), np.vstack(Q), np.concatenate(T))
     print(f"calib fit kinematics: {sum(len(q) for q in Q)} poses of robot puma260\n")
     print(table(fit))
+    if args.params:
+        _existing_params(args.params, "puma260")
+        update_params(args.params, "puma260", {"kinematics": section(fit)}, _command(), "kinematics", [])
+        print(f"\nwrote {args.params}")
     return 0
 
 
+def _command() -> str:
+    return "calib " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def _existing_params(path: str | None, robot: str) -> dict | None:
+    """The parameter file at ``path`` if it exists (it must be of ``robot``)."""
+    if not path or not os.path.exists(path):
+        return None
+    params = read_params(path)
+    if params["calib"].get("robot") != robot:
+        raise CalibError(f"{path}: holds parameters of robot {params['calib'].get('robot')!r}, "
+                         f"these logs are of {robot!r}")
+    return params
+
+
+def _is_log(path: str) -> bool:
+    return ".rcilog" in os.path.basename(path)
+
+
+def print_outcome(outcome) -> None:
+    """A fit's table, then its warnings and assumptions (never only in a file)."""
+    print(outcome.table)
+    for note in outcome.notes:
+        print(f"\nwarning: {note}")
+    if outcome.assumed:
+        print("\nASSUMED, not fitted (--assume-datafile):")
+        for a in outcome.assumed:
+            print(f"  {a}")
+
+
 def _fit(args: argparse.Namespace) -> int:
-    if args.kind == "kinematics":
-        return _fit_kinematics(args)
+    if args.kind == "kinematics" and not any(_is_log(p) for p in args.logs):
+        return _fit_kinematic_poses(args)
+    if args.plots:
+        try:   # before the fit: a folder that cannot be made must not cost the fit
+            os.makedirs(args.plots, exist_ok=True)
+        except OSError as exc:
+            raise CalibError(f"--plots {args.plots}: cannot create the folder: {exc.strerror}") from None
     paths = list(args.logs)
     traces = [load_trace(p, args.allow_truncated)
               for p in progress(paths, len(paths), f"reading {args.kind} logs",
@@ -49,19 +83,14 @@ def _fit(args: argparse.Namespace) -> int:
             raise CalibError(f"{tr.path}: is a '{tr.experiment}' log, not a '{args.kind}' one")
     robot = traces[0].robot
     info = robot_info(robot)
-    params = None
-    if args.params and os.path.exists(args.params):
-        params = read_params(args.params)
-        if params["calib"].get("robot") != robot:
-            raise CalibError(f"{args.params}: holds parameters of robot "
-                             f"{params['calib'].get('robot')!r}, these logs are of {robot!r}")
-    outcome = run_fit(args.kind, traces, info, params)
+    params = _existing_params(args.params, robot)
+    outcome = run_fit(args.kind, traces, info, params, assume_datafile=args.assume_datafile,
+                      params_name=args.params)
     print(f"calib fit {args.kind}: {len(traces)} log(s) of robot {robot}\n")
-    print(outcome.table)
+    print_outcome(outcome)
     if args.params:
-        command = "calib " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        update_params(args.params, robot, outcome.sections, command)
-        print(f"\nwrote {args.params}")
+        update_params(args.params, robot, outcome.sections, _command(), args.kind, outcome.assumed)
+        print(f"\nwrote {args.params}" + (" (with [calib] assumed)" if outcome.assumed else ""))
     if args.plots and args.kind == "friction":
         from calib.plots import friction_plots
         for path in friction_plots(outcome.results, outcome.extra["points"], args.plots):
@@ -71,17 +100,22 @@ def _fit(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="calib", description=(
-        "Calibrate the PUMA 260's torque sensitivities, friction and gravity loading from "
-        "recorded logs (thesis chapter 4). See docs/calib.md."))
+        "Calibrate the PUMA 260's torque sensitivities, friction and gravity loading (thesis "
+        "chapter 4) and its kinematic errors (3.84) from recorded logs. See docs/calib.md."))
     sub = parser.add_subparsers(dest="command", required=True)
     fit = sub.add_parser("fit", help="fit one kind of parameter from logs and print the thesis table")
-    fit.add_argument("kind", choices=KINDS + ("kinematics",))
+    fit.add_argument("kind", choices=KINDS)
     fit.add_argument("logs", nargs="+", metavar="LOG",
-                     help="recorder logs (.rcilog[.xz|.gz]); for kinematics, CSV files of measured poses")
+                     help="recorder logs (.rcilog[.xz|.gz]); for kinematics also CSV files of measured poses")
     fit.add_argument("-p", "--params", metavar="FILE",
                      help="parameter file (TOML): fitted inputs are read from it and the "
                           "results merged into it, atomically")
     fit.add_argument("--plots", metavar="DIR", help="write friction-against-speed PNGs here (friction)")
+    fit.add_argument("--assume-datafile", action="store_true",
+                     help="where the fit needs an earlier fit's values (torque sensitivities, gravity "
+                          "coefficients) that -p does not hold, use the robot data file's (the thesis's "
+                          "tables) and say so in the output and in the parameter file; without it such "
+                          "a fit is refused")
     fit.add_argument("--allow-truncated", action="store_true",
                      help="fit the records before the cut of a log that was not closed")
     fit.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

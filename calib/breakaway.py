@@ -26,6 +26,7 @@ import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError, LogError
+from calib.logs import clipped_note, saturated_mask
 from calib.trace import Trace
 
 CUR_COMMAND = 2          # rci.chg.CUR
@@ -73,9 +74,10 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def breakaway_points(trace: Trace, drive: Drive,
-                     gravity: Callable[[np.ndarray], np.ndarray]) -> list[BreakawayPoint]:
-    """Every ramp of a breakaway log as a point (see the module docstring)."""
+def breakaway_points(trace: Trace, drive: Drive, gravity: Callable[[np.ndarray], np.ndarray],
+                     notes: list[str] | None = None) -> list[BreakawayPoint]:
+    """Every ramp of a breakaway log as a point (see the module docstring); ramps with a
+    reading at an ADC rail are left out (noted in ``notes``)."""
     i = trace.joint_index()
     com = trace.extra.get("motion_com")
     if com is None:
@@ -87,9 +89,12 @@ def breakaway_points(trace: Trace, drive: Drive,
     theta = drive.joint_angles(trace.counts)
     tau = drive.joint_torques(trace.adc)[:, i]
     points = []
-    for a, b in _runs(com[:, i] == CUR_COMMAND):
-        if b - a < 8:
-            continue
+    clipped = saturated_mask(trace, [i], drive.G)
+    ramps = [(a, b) for a, b in _runs(com[:, i] == CUR_COMMAND) if b - a >= 8]
+    keep = [(a, b) for a, b in ramps if not clipped[a:b + 1].any()]
+    if notes is not None and len(keep) < len(ramps):
+        notes.append(clipped_note(trace, "ramps", len(ramps) - len(keep), len(ramps), [i], drive.G))
+    for a, b in keep:
         go = np.flatnonzero(np.abs(trace.counts[a:b + 2, i] - trace.counts[a, i]) >= moved)
         if len(go) == 0 or go[0] < 2:
             raise LogError(trace.path, trace.first_record + a,
@@ -118,10 +123,10 @@ def breakaway_points(trace: Trace, drive: Drive,
     return points
 
 
-def fit_breakaway(traces: list[Trace], drive: Drive,
-                  gravity: Callable[[np.ndarray], np.ndarray]) -> tuple[list[BreakawayResult], list[BreakawayPoint]]:
+def fit_breakaway(traces: list[Trace], drive: Drive, gravity: Callable[[np.ndarray], np.ndarray],
+                  notes: list[str] | None = None) -> tuple[list[BreakawayResult], list[BreakawayPoint]]:
     """Table 4.5 for every joint with breakaway logs; also returns the points."""
-    pts = [p for tr in traces for p in breakaway_points(tr, drive, gravity)]
+    pts = [p for tr in traces for p in breakaway_points(tr, drive, gravity, notes)]
     results = []
     for j in sorted({p.joint for p in pts}):
         up = np.array([p.static for p in pts if p.joint == j and p.direction > 0])

@@ -17,16 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.errors import CalibError
 from calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
 from calib.paths import Path, Segment
-from calib.program import drive
+from calib.program import command_joints, drive_recorded, open_measurement
 from rci import codes
-from rci.chg import CUR, POS
+from rci.chg import CUR
 from rci.conversions import DAC_MAX, DAC_MIN, Conversions
-from rci.exceptions import RCIError
-from rci.recorder import Recorder
-from rci.session import Session
 
 BREAKAWAY_RATE_HZ = 72
 RAMP_S = 3.0              # s to reach RAMP_TOP x the data file's F_s (breakaway near 1.9 s)
@@ -95,7 +91,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     j = plan.joint - 1
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
-    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate})
+    meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate})
     # the steps: (kind, setpoints or (position, direction))
     steps: list[tuple[str, object]] = []
     first = plan.pose.copy()
@@ -114,15 +110,10 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
             here = q
     state = {"step": 0, "k": 0, "hold": None, "onset": None, "c0": None, "power": False}
     done = threading.Event()
-    rec = Recorder(log_path, robot=robot, rate_hz=rate, meta=meta, block_records=1024)
-    rec.start_writer(0.5)
-    session = Session(url, robot, rate_hz=rate, realtime=False, lock_memory=False,
-                      on_error="raise", gc="leave", overrun="count", timeout=timeout)
+    rec, session = open_measurement(url, robot, rate, log_path, meta, timeout)
 
     def pos_all(qd: np.ndarray) -> None:
-        counts = conv.angles_to_counts_int(qd)
-        for i in range(6):
-            session.chg.motion[i].issue(POS, int(counts[i]))
+        command_joints(session, conv, qd)
 
     def f1() -> None:
         how = session.how
@@ -178,11 +169,5 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
         dac = int(np.clip(np.rint(ts * conv.k_dac[j]), DAC_MIN, DAC_MAX))
         session.chg.motion[j].issue(CUR, dac)
 
-    try:
-        drive(session, f1, done)
-    except RCIError as exc:
-        raise CalibError(f"measurement program {plan.name} on {url} stopped at step "
-                         f"{state['step']}: {exc} (partial log: {log_path})") from None
-    finally:
-        rec.close()
+    drive_recorded(session, f1, done, rec, plan.name, url, lambda: f"at step {state['step']}")
     return rec.written

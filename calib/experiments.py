@@ -164,7 +164,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             groups = [(f"friction-j{j}", FRICTION_RATE_HZ, [v for v, _ in slow], [n for _, n in slow]),
                       (f"friction-j{j}-servo", SERVO_RATE_HZ, fast, list(fast_trips[-len(fast):]))]
         for name, rate, vs, ns in groups:
-            plans.append(_friction_plan(name, rate, j, q, lo, hi, vs, ns))
+            plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns)
+            plan.meta["log_set"] = [g[0] for g in groups]   # the fit warns when one is missing
+            plans.append(plan)
     return plans
 
 
@@ -203,7 +205,8 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
         for mass in (mass_j, 0.0):
             path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
             meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
-                    "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1}}
+                    "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1},
+                    "log_set": [f"sensitivity-j{j}-loaded", f"sensitivity-j{j}-unloaded"]}
             tag = "loaded" if mass > 0 else "unloaded"
             args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
             plans.append(Plan(f"sensitivity-j{j}-{tag}", path, meta, args,
@@ -222,9 +225,10 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
             j = sw.joint - 1
             path = sweep_path(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi, [speed_deg * DEG],
                               trips, ACCEL)
-            meta = {"experiment": "gravity", "joint": sw.joint, "position": name, "role": sw.role,
-                    "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how}
             tag = name if joint == TABLE_4_7[name][1] else f"{name}-j{joint}"
+            meta = {"experiment": "gravity", "joint": sw.joint, "position": name, "role": sw.role,
+                    "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how,
+                    "log_set": [f"gravity-{tag}-main"] + ([f"gravity-{tag}-repeat"] if repeat is not None else [])}
             plans.append(Plan(f"gravity-{tag}-{sw.role}", path, meta,
                               warmup=sweep_warmup(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi)))
     return plans

@@ -1,111 +1,305 @@
-"""One fit of one kind over a set of logs: the results, their table, their parameter sections."""
+"""One fit of one kind over a set of logs: the results, their table, their parameter sections.
+
+A fit that needs values from an earlier fit (the torque sensitivities turn currents into
+torques; the gravity coefficients are subtracted at a halt or a breakaway) takes them from
+the parameter file, and only from there: when the file lacks them the fit is refused
+with a message that names the missing values and the command that fits them. With
+``assume_datafile`` the robot data file's values (the thesis's tables) are used instead,
+and the fit says so: in its printed notes and in the parameter file's
+``[calib] assumed``. A value the parameter file holds as NaN (a joint not fitted) counts
+as missing.
+"""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from calib.errors import CalibError
+from calib.errors import CalibError, FitError
 from calib.friction import fit_friction
 from calib.gravity import fit_gravity
+from calib.logs import motors_of
 from calib.robot import GRAVITY_NAMES, RobotInfo
 from calib.sensitivity import fit_sensitivity
 from calib.static import fit_static
 from calib.tables import table_4_1, table_4_2_4_3, table_4_5, table_4_6, table_4_8_4_9
 from calib.trace import Trace
 
-KINDS = ("sensitivity", "friction", "static", "gravity", "breakaway")
+KINDS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
+# the order that builds one parameter file, each fit's inputs fitted before it
+ORDER = ("sensitivity", "kinematics", "gravity", "friction", "static", "breakaway")
+# what fits each input, for the refusal's message
+PROVIDER = {"sigma": "sensitivity", "gravity": "gravity"}
 
 
 @dataclass
 class FitOutcome:
-    """What a fit produced: the printed table, TOML sections, and the raw results."""
+    """What a fit produced: the printed table, TOML sections, the raw results, and notes
+    (warnings and assumptions) that are printed with the table and kept in the report."""
 
     kind: str
     table: str
     sections: dict[str, dict[str, Any]]
     results: Any
     extra: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    assumed: list[str] = field(default_factory=list)
 
 
-def current_values(info: RobotInfo, params: dict | None) -> dict[str, np.ndarray]:
-    """Torque sensitivities and gravity coefficients to use as inputs: the parameter
-    file's fitted values where it has them, else the robot data file's."""
-    sigma = np.asarray(info.drive.sigma, dtype=float)
-    coeffs = np.array([info.nominal["gravity_coeffs"][n]["value"] for n in GRAVITY_NAMES])
-    if params:
-        if "motors" in params and "torque_sensitivity" in params["motors"]:
-            sigma = np.asarray(params["motors"]["torque_sensitivity"], dtype=float)
-        if "gravity_coeffs" in params:
-            coeffs = np.array([params["gravity_coeffs"].get(n, c) for n, c in zip(GRAVITY_NAMES, coeffs)])
-    return {"sigma": sigma, "gravity": coeffs}
+class Inputs:
+    """The values a fit takes from earlier fits (via the parameter file), with the rule
+    above; ``assumed`` lists what came from the data file instead."""
+
+    def __init__(self, info: RobotInfo, params: dict | None, kind: str, assume_datafile: bool,
+                 params_name: str | None, logs: str) -> None:
+        self.info, self.params, self.kind = info, params or {}, kind
+        self.assume, self.params_name, self.logs = assume_datafile, params_name, logs
+        self.assumed: list[str] = []
+
+    def _missing(self, what: str, which: str) -> CalibError:
+        src = (f"the parameter file {self.params_name} does not hold them" if self.params_name
+               else "no parameter file (-p) was given")
+        fit = PROVIDER[what]
+        return CalibError(
+            f"calib fit {self.kind} needs the fitted {which}, and {src}. Fit them "
+            f"first:\n    calib fit {fit} calib/logs/{fit}-*.rcilog.xz -p {self.params_name or 'fitted.toml'}\n"
+            f"then run this fit with the same -p; or pass --assume-datafile to use the robot data "
+            f"file's values (models/{self.info.name}.toml, the thesis's tables), which the output "
+            "and the parameter file will then say were assumed")
+
+    def sigma(self, joints: list[int]) -> np.ndarray:
+        """Torque sensitivities (6,) N m/A for the motors that load ``joints`` (0-based)."""
+        nominal = np.asarray(self.info.drive.sigma, dtype=float)
+        got = self.params.get("motors", {}).get("torque_sensitivity")
+        sigma = np.full(6, np.nan) if got is None else np.asarray(got, dtype=float)
+        need = motors_of(joints, self.info.drive.G)
+        gap = [m for m in need if not np.isfinite(sigma[m])]
+        if gap:
+            names = ", ".join(str(m + 1) for m in gap)
+            if not self.assume:
+                raise self._missing("sigma", f"torque sensitivities of motor(s) {names} (Table 4.1)")
+            sigma[gap] = nominal[gap]
+            self.assumed.append(f"{self.kind}: torque sensitivity of motor(s) {names} = "
+                                + ", ".join(f"{nominal[m]:.4f}" for m in gap)
+                                + f" N m/A, Table 4.1 from models/{self.info.name}.toml")
+        # motors that load none of the fitted joints do not enter: any finite stand-in
+        return np.where(np.isfinite(sigma), sigma, nominal)
+
+    def sigma_scale_error(self, joints: list[int]) -> float:
+        """The printed (99.73 %) relative uncertainty the fitted torque sensitivities of the
+        motors of ``joints`` pass on to every torque, so to every coefficient fitted from
+        them: the largest of their standard errors (std / sqrt(trials)) times the coverage
+        factor of their trials. 0 for values the data file stood in for (announced as
+        assumed: no honest error exists for them). The a priori scale errors of 4.5.2's
+        independent error (mass, drum radius, current scale) are common to every torque and
+        are not included (docs/calib.md)."""
+        from calib.lsq import coverage_factor
+
+        m = self.params.get("motors", {})
+        sigma = np.asarray(m.get("torque_sensitivity", [np.nan] * 6), dtype=float)
+        std = np.asarray(m.get("torque_sensitivity_std", [np.nan] * 6), dtype=float)
+        trials = np.asarray(m.get("torque_sensitivity_trials", [0] * 6), dtype=float)
+        worst = 0.0
+        for k in motors_of(joints, self.info.drive.G):
+            if np.isfinite(sigma[k]) and np.isfinite(std[k]) and trials[k] >= 2:
+                worst = max(worst, coverage_factor(int(trials[k]) - 1) * std[k] / np.sqrt(trials[k]) / sigma[k])
+        return float(worst)
+
+    def regressor(self):
+        """The gravity regressor of 4.24 at the arm's true joint angles: q plus the fitted joint
+        offsets (d theta of ``[kinematics]``) when the parameter file has a kinematic
+        calibration (a sweep's start torque is c sin or cos of the true angle), else at q."""
+        kin = self.params.get("kinematics", {})
+        if "dtheta" not in kin:
+            return self.info.regressor
+        offset = np.nan_to_num(np.asarray(kin["dtheta"], dtype=float))
+        reg = self.info.regressor
+        return lambda q: reg(np.asarray(q, dtype=float) + offset)
+
+    def gravity_model(self):
+        """tau_g(q) (N m) with the fitted coefficients at the true joint angles."""
+        c = self.gravity()
+        reg = self.regressor()
+        return lambda q: np.asarray(reg(q)) @ c
+
+    def gravity(self) -> np.ndarray:
+        """Gravity loading coefficients (c12, c13, c15), N m."""
+        got = self.params.get("gravity_coeffs", {})
+        vals = np.array([float(got.get(n, np.nan)) for n in GRAVITY_NAMES])
+        gap = [n for n, v in zip(GRAVITY_NAMES, vals) if not np.isfinite(v)]
+        if gap:
+            if not self.assume:
+                raise self._missing("gravity", f"gravity loading coefficients {', '.join(gap)} (Table 4.9)")
+            nominal = {n: float(self.info.nominal["gravity_coeffs"][n]["value"]) for n in GRAVITY_NAMES}
+            for k, n in enumerate(GRAVITY_NAMES):
+                if n in gap:
+                    vals[k] = nominal[n]
+            self.assumed.append(f"{self.kind}: gravity coefficients " + ", ".join(f"{n} = {nominal[n]:.3f}" for n in gap)
+                                + f" N m, Table 4.9 from models/{self.info.name}.toml")
+        return vals
 
 
-def _merge(old: dict | None, key: str, base: np.ndarray, joints: list[int], new: list[float]) -> list[float]:
-    arr = np.array(old[key], dtype=float) if old and key in old else np.array(base, dtype=float)
+def _merge(old: dict | None, key: str, joints: list[int], new: list[float], n: int = 6) -> list[float]:
+    """A per-joint list: the file's old values (NaN where it had none: not fitted), with
+    the fitted ``joints`` (1-based) replaced."""
+    arr = np.array(old[key], dtype=float) if old and key in old else np.full(n, np.nan)
     for j, v in zip(joints, new):
         arr[j - 1] = v
     return [float(x) for x in arr]
 
 
-def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None) -> FitOutcome:
-    """Fit ``kind`` on ``traces``; inputs (sigma, gravity) from ``params`` or nominal."""
+def log_set_notes(traces: list[Trace]) -> list[str]:
+    """Warnings for logs recorded as a set (metadata ``log_set``: a joint's slow and servo-rate
+    friction logs, a sensitivity run with and without the mass, a gravity sweep and its
+    repeat) given without the rest of their set."""
+    names = {(tr.experiment, str(tr.meta.get("log_name", ""))) for tr in traces}
+    notes, seen = [], set()
+    for tr in traces:
+        for other in tr.meta.get("log_set", []) or []:
+            if (tr.experiment, other) not in names and other not in seen:
+                seen.add(other)
+                notes.append(f"{tr.path}: recorded together with log {other!r}, which is not among the "
+                             f"inputs: {_consequence(tr.experiment)}")
+    return notes
+
+
+def _consequence(kind: str) -> str:
+    return {"friction": "the speeds it holds are missing from the fit, so the viscous coefficient "
+                        "(and its error) rests on the speeds that are left",
+            "gravity": "without the friction-cancelling repeat (4.49-4.51) the row keeps the friction "
+                       "difference between the segments",
+            "sensitivity": "the loaded and unloaded runs cancel friction only together (4.43)"}.get(
+        kind, "the fit lacks its measurements")
+
+
+def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None,
+            assume_datafile: bool = False, params_name: str | None = None) -> FitOutcome:
+    """Fit ``kind`` on ``traces``; inputs from ``params`` (see the module docstring)."""
     if kind not in KINDS:
         raise CalibError(f"unknown fit kind {kind!r}; one of {', '.join(KINDS)}")
-    inputs = current_values(info, params)
-    drive = info.drive.with_sigma(inputs["sigma"])
-    params = params or {}
-    if kind == "sensitivity":
-        res = fit_sensitivity(traces, drive)
-        joints = [r.joint for r in res]
-        old = params.get("motors")
-        sec = {"torque_sensitivity": _merge(old, "torque_sensitivity", info.drive.sigma, joints, [r.mean for r in res]),
-               "torque_sensitivity_std": _merge(old, "torque_sensitivity_std", np.full(6, np.nan), joints, [r.std for r in res]),
-               "torque_sensitivity_error": _merge(old, "torque_sensitivity_error", np.full(6, np.nan), joints, [r.independent_error for r in res]),
-               "torque_sensitivity_trials": [int(x) if np.isfinite(x) else 0 for x in _merge(old, "torque_sensitivity_trials", np.zeros(6), joints, [r.trials for r in res])],
-               "unit": "N*m/A"}
-        return FitOutcome(kind, table_4_1(res), {"motors": sec}, res)
-    if kind == "friction":
-        res, points = fit_friction(traces, drive)
-        joints = [r.joint for r in res]
-        old = params.get("friction")
-        nom = info.nominal["friction"]
-        sec: dict[str, Any] = {}
-        for key, get in (("coulomb_pos", lambda r: r.plus.coulomb), ("coulomb_neg", lambda r: r.minus.coulomb),
-                         ("viscous_pos", lambda r: r.plus.viscous), ("viscous_neg", lambda r: r.minus.viscous),
-                         ("coulomb_pos_error", lambda r: r.plus.coulomb_err), ("coulomb_neg_error", lambda r: r.minus.coulomb_err),
-                         ("viscous_pos_error", lambda r: r.plus.viscous_err), ("viscous_neg_error", lambda r: r.minus.viscous_err),
-                         ("variation", lambda r: r.variation)):
-            base = np.asarray(nom[key]["values"], float) if key in nom else np.full(6, np.nan)
-            sec[key] = _merge(old, key, base, joints, [get(r) for r in res])
-        for key in ("static_pos", "static_neg"):  # Table 4.5 is hand-measured: carried over
-            sec[key] = list(old[key]) if old and key in old else [float(x) for x in nom[key]["values"]]
-        return FitOutcome(kind, table_4_2_4_3(res), {"friction": sec}, res, {"points": points})
-    if kind == "gravity":
-        fr = params.get("friction") or {}
-        nom = info.nominal["friction"]
-        coulomb = 0.5 * (np.asarray(fr.get("coulomb_pos", nom["coulomb_pos"]["values"]), float)
-                         + np.asarray(fr.get("coulomb_neg", nom["coulomb_neg"]["values"]), float))
-        res = fit_gravity(traces, drive, info.regressor, GRAVITY_NAMES, noise=coulomb)
-        sec = {n: float(v) for n, v in zip(res.names, res.value)}
-        sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
-        sec.update({f"{n}_friction_error": float(e) for n, e in zip(res.names, res.friction_error)})
-        sec["unit"] = "N*m"
-        return FitOutcome(kind, table_4_8_4_9(res), {"gravity_coeffs": sec}, res)
-    if kind == "breakaway":
-        from calib.breakaway import fit_breakaway
+    logs = " ".join(os.path.basename(t.path) for t in traces)
+    inputs = Inputs(info, params, kind, assume_datafile, params_name, logs)
+    notes = log_set_notes(traces)
+    out = _FITS[kind](traces, info, params or {}, inputs, notes)
+    out.notes = notes + out.notes
+    out.assumed = inputs.assumed
+    return out
 
-        res, pts = fit_breakaway(traces, drive, info.gravity(inputs["gravity"]))
-        joints = [r.joint for r in res]
-        old = dict(params.get("friction") or {})
-        nom = info.nominal["friction"]
-        sec = dict(old)
-        for key, get in (("static_pos", lambda r: r.plus), ("static_neg", lambda r: r.minus)):
-            sec[key] = _merge(old, key, np.asarray(nom[key]["values"], float), joints, [get(r) for r in res])
-        return FitOutcome(kind, table_4_5(res), {"friction": sec}, res, {"points": pts})
-    res, samples = fit_static(traces, drive, info.gravity(inputs["gravity"]))
+
+def _fit_sensitivity(traces, info, params, inputs, notes) -> FitOutcome:
+    res = fit_sensitivity(traces, info.drive, notes)
+    joints = [r.joint for r in res]
+    old = params.get("motors")
+    sec = {"torque_sensitivity": _merge(old, "torque_sensitivity", joints, [r.mean for r in res]),
+           "torque_sensitivity_std": _merge(old, "torque_sensitivity_std", joints, [r.std for r in res]),
+           "torque_sensitivity_error": _merge(old, "torque_sensitivity_error", joints,
+                                              [r.independent_error for r in res]),
+           "torque_sensitivity_trials": [int(x) if np.isfinite(x) else 0 for x in
+                                         _merge(old, "torque_sensitivity_trials", joints, [r.trials for r in res])],
+           "unit": "N*m/A"}
+    return FitOutcome("sensitivity", table_4_1(res), {"motors": sec}, res)
+
+
+def _fit_friction(traces, info, params, inputs, notes) -> FitOutcome:
+    joints = sorted({t.joint_index() for t in traces})
+    drive = info.drive.with_sigma(inputs.sigma(joints))
+    res, points = fit_friction(traces, drive, notes)
+    res = [r.with_scale_error(inputs.sigma_scale_error([r.joint - 1])) for r in res]
+    res = _window_gravity(res, traces, info, params, notes)
+    js = [r.joint for r in res]
+    old = params.get("friction")
+    sec: dict[str, Any] = dict(old or {})   # breakaway's static_pos/neg stay; none are invented
+    for key, get in (("coulomb_pos", lambda r: r.plus.coulomb), ("coulomb_neg", lambda r: r.minus.coulomb),
+                     ("viscous_pos", lambda r: r.plus.viscous), ("viscous_neg", lambda r: r.minus.viscous),
+                     ("coulomb_pos_error", lambda r: r.plus.coulomb_err),
+                     ("coulomb_neg_error", lambda r: r.minus.coulomb_err),
+                     ("viscous_pos_error", lambda r: r.plus.viscous_err),
+                     ("viscous_neg_error", lambda r: r.minus.viscous_err),
+                     ("variation", lambda r: r.variation)):
+        sec[key] = _merge(old, key, js, [get(r) for r in res])
+    sec["error_is"] = "99.73 % (3 sd; Student's t for few passes; F_c with the position pattern's window mean)"
+    return FitOutcome("friction", table_4_2_4_3(res), {"friction": sec}, res, {"points": points})
+
+
+def _window_gravity(res, traces, info, params, notes) -> list:
+    """Each joint's Coulomb values corrected for gravity's mean over its window on the arm
+    the parameter file describes (calib.window_gravity)."""
+    from calib.friction import TAPER
+    from calib.window_gravity import window_gravity
+
+    out, sources = [], set()
+    for r in res:
+        tr = next(t for t in traces if t.joint_index() == r.joint - 1)
+        lo, hi = (float(x) for x in tr.need("window", (list, tuple)))
+        if "pose" not in tr.meta:
+            notes.append(f"{tr.path}: no metadata 'pose' (the arm's pose during the sweeps): gravity's "
+                         f"mean over joint {r.joint}'s window is neither corrected nor in its error")
+            out.append(r)
+            continue
+        pose = np.asarray(tr.need("pose", (list, tuple)), dtype=float)
+        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)))
+        sources.add(source)
+        out.append(r.with_window_gravity(g, sd))
+    if any(not s.startswith("the fitted kinematics") or "data file" in s for s in sources):
+        notes.append("gravity's mean over the friction windows (their axes lean by the DH errors) from "
+                     + "; ".join(sorted(sources)) + ": fit kinematics and gravity first to correct for it")
+    return out
+
+
+def _fit_gravity(traces, info, params, inputs, notes) -> FitOutcome:
+    joints = sorted({t.joint_index() for t in traces})
+    drive = info.drive.with_sigma(inputs.sigma(joints))
+    res = fit_gravity(traces, drive, inputs.regressor(), GRAVITY_NAMES, notes=notes)
+    res = res.with_scale_error(inputs.sigma_scale_error(joints))
+    sec: dict[str, Any] = {n: float(v) for n, v in zip(res.names, res.value)}
+    sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
+    sec.update({f"{n}_friction_error": float(e) for n, e in zip(res.names, res.friction_error)})
+    sec["unit"] = "N*m"
+    return FitOutcome("gravity", table_4_8_4_9(res), {"gravity_coeffs": sec}, res)
+
+
+def _fit_breakaway(traces, info, params, inputs, notes) -> FitOutcome:
+    from calib.breakaway import fit_breakaway
+
+    joints = sorted({t.joint_index() for t in traces})
+    drive = info.drive.with_sigma(inputs.sigma(joints))
+    res, pts = fit_breakaway(traces, drive, inputs.gravity_model(), notes)
+    js = [r.joint for r in res]
+    old = dict(params.get("friction") or {})
+    sec = dict(old)
+    for key, get in (("static_pos", lambda r: r.plus), ("static_neg", lambda r: r.minus)):
+        sec[key] = _merge(old, key, js, [get(r) for r in res])
+    return FitOutcome("breakaway", table_4_5(res), {"friction": sec}, res, {"points": pts})
+
+
+def _fit_static(traces, info, params, inputs, notes) -> FitOutcome:
+    drive = info.drive.with_sigma(inputs.sigma(list(range(6))))
+    res, samples = fit_static(traces, drive, inputs.gravity_model(), notes)
     sec = {"samples": int(res[0].samples),
            "maximum": [r.maximum for r in res], "minimum": [r.minimum for r in res],
            "mean": [r.mean for r in res], "std": [r.std for r in res], "unit": "N*m"}
-    return FitOutcome(kind, table_4_6(res), {"static_friction": sec}, res, {"samples": samples})
+    return FitOutcome("static", table_4_6(res), {"static_friction": sec}, res, {"samples": samples})
+
+
+def _fit_kinematics(traces, info, params, inputs, notes) -> FitOutcome:
+    from calib.kinematics import Touches, fit_touches, nominal_dh, section, table, touches_from_trace
+
+    parts = [touches_from_trace(tr, info.drive) for tr in traces]
+    if len({tuple(p.tip) for p in parts}) > 1:
+        raise FitError("the kinematics logs were made with different probe tips: fit them separately")
+    t = Touches(np.vstack([p.q for p in parts]), np.vstack([p.normals for p in parts]),
+                np.concatenate([p.offsets for p in parts]), parts[0].tip,
+                np.concatenate([p.index for p in parts]))
+    if len(t.q) < 4 * len(nominal_dh(info.name)):
+        notes.append(f"{len(t.q)} touches for {4 * len(nominal_dh(info.name))} error parameters: "
+                     "parameters beyond what they determine are left at their minimum-norm values")
+    fit = fit_touches(nominal_dh(info.name), t)
+    sec = section(fit)
+    sec["tip"] = [float(x) for x in t.tip]
+    return FitOutcome("kinematics", table(fit), {"kinematics": sec}, fit, {"touches": t})
+
+
+_FITS = {"sensitivity": _fit_sensitivity, "friction": _fit_friction, "gravity": _fit_gravity,
+         "breakaway": _fit_breakaway, "static": _fit_static, "kinematics": _fit_kinematics}

@@ -4,21 +4,35 @@ Each pass through a window with no change of potential energy does work against
 friction only, so its mean friction is W / |d theta| at the pass's speed (taken with
 smooth edges, calib.work.tapered_mean).  Per joint and
 direction the points are fitted to 4.27, |f| = F_c + F_v |omega|, by least squares with
-F_c, F_v >= 0 (CasADi QP); the error is twice the fit's standard deviation, as 4.5.4.
+F_c, F_v >= 0 (CasADi QP).
 The variation of Table 4.4 is read from the same passes: the friction along the path,
 averaged over passes at each position, against its mean.
+
+The uncertainty printed is a 99.73 % interval (calib.lsq.coverage_factor: 3 sd, Student's
+t for the fit's few degrees of freedom). For F_v it is the fit's; for F_c the fit's
+combined with three standard deviations of the position pattern's window mean: the friction
+varies along the path (Table 4.4), the same on every pass, so each pass's mean carries
+the pattern's mean over the window, which no fit of speeds can tell from F_c, the
+joint's mean friction. Its standard deviation is estimated from the measured profile
+(``pattern_sd``): the profile is resolved into sinusoids of the path, and each one's
+window mean, averaged over where along the gear pattern the window may fall (a random
+phase), is A^2 |H(k)|^2 / 2 in variance, H the window's weighting seen at wavenumber k.
+A component longer than the window is indistinguishable from F_c and is not covered.
+Passes with a reading at an ADC rail are left out (the current there is unknown).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError, LogError
-from calib.lsq import bounded_lsq
+from calib.logs import clipped_note, saturated_mask
+from calib.lsq import PRINTED_SD, bounded_lsq, coverage_factor
 from calib.trace import Trace
-from calib.work import Pass, find_passes, tapered_mean, window_time
+from calib.work import (Pass, find_passes, hann_edge_weights, tapered_mean, up_down_half_difference,
+                         window_time)
 
 PROFILE_BIN = 0.01  # rad: position bins of the Table 4.4 profile (finer than gear irregularities)
 # rad: length of the Hann edges of each pass's weighting (calib.work.tapered_mean); long
@@ -41,13 +55,25 @@ class FrictionPoint:
 
 @dataclass(frozen=True)
 class DirectionFit:
-    """4.27 for one joint and direction: F_c (N m), F_v (N m s/rad), errors = 2 std."""
+    """4.27 for one joint and direction: F_c (N m), F_v (N m s/rad); errors are 99.73 %
+    intervals: ``factor`` times the fit's standard deviation (calib.lsq.coverage_factor),
+    for F_c combined with 3 x the position pattern's (``coulomb_pattern_sd``, N m)."""
 
     coulomb: float
     coulomb_err: float
     viscous: float
     viscous_err: float
     points: int
+    coulomb_fit_sd: float = float("nan")
+    coulomb_pattern_sd: float = float("nan")
+    factor: float = PRINTED_SD     # the fit's sds become the printed error by this (Student t)
+    window_gravity: float = 0.0    # N m taken off every pass mean of this direction (gravity over the window)
+
+    def with_pattern(self, relative_sd: float) -> "DirectionFit":
+        """This fit with the pattern's window mean (relative sd) added to F_c's error."""
+        sd = abs(self.coulomb) * relative_sd
+        err = float(np.hypot(self.factor * self.coulomb_fit_sd, PRINTED_SD * sd))
+        return replace(self, coulomb_err=err, coulomb_pattern_sd=sd)
 
 
 @dataclass(frozen=True)
@@ -59,8 +85,26 @@ class FrictionResult:
     minus: DirectionFit
     variation: float
 
+    def with_window_gravity(self, g: float, sd: float) -> "FrictionResult":
+        """F_c+ less and F_c- plus the window's mean gravity torque ``g`` (N m; each + pass
+        carries +g, each - pass -g), its standard deviation ``sd`` added to the errors
+        (x PRINTED_SD) (calib.window_gravity)."""
+        def moved(f: DirectionFit, d: int) -> DirectionFit:
+            return replace(f, coulomb=f.coulomb - d * g, coulomb_err=float(np.hypot(f.coulomb_err, PRINTED_SD * sd)),
+                           window_gravity=d * g)
+        return replace(self, plus=moved(self.plus, 1), minus=moved(self.minus, -1))
 
-def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np.ndarray | None]:
+    def with_scale_error(self, relative: float) -> "FrictionResult":
+        """The errors with a relative scale uncertainty (printed, 99.73 %) of the torques added:
+        the fitted torque sensitivities' (every torque, so every coefficient, scales with them)."""
+        def scaled(f: DirectionFit) -> DirectionFit:
+            return replace(f, coulomb_err=float(np.hypot(f.coulomb_err, relative * f.coulomb)),
+                           viscous_err=float(np.hypot(f.viscous_err, relative * f.viscous)))
+        return replace(self, plus=scaled(self.plus), minus=scaled(self.minus))
+
+
+def friction_points(trace: Trace, drive: Drive,
+                    notes: list[str] | None = None) -> tuple[list[FrictionPoint], np.ndarray | None]:
     """Every pass of a friction log as a point, plus the log's relative friction profile.
 
     The profiles (2, bins) come from the log's two slowest speeds (where the current
@@ -77,6 +121,12 @@ def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np
     th = drive.current_angles(trace.t, trace.counts)[:, i]
     tau = drive.joint_torques(trace.adc)[:, i]
     points, passes = [], find_passes(th, lo, hi)
+    clipped = saturated_mask(trace, [i], drive.G)
+    if clipped.any():
+        keep = [p for p in passes if not clipped[p.first - 1:p.last + 2].any()]
+        if notes is not None and len(keep) < len(passes):
+            notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], drive.G))
+        passes = keep
     taper = min(TAPER, 0.25 * (hi - lo))
     rate = float(trace.rate_hz) if trace.rate_hz > 0 else 1.0 / float(np.median(np.diff(trace.t)))
     for p in passes:
@@ -85,8 +135,9 @@ def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np
                                     tapered_mean(th, tau, p, lo, hi, taper), trace.path,
                                     rate))
     if not points:
+        why = " with every reading off the ADC's rails" if clipped.any() else ""
         raise LogError(trace.path, None, f"no complete pass of joint {i + 1} through "
-                       f"the window [{lo:.4f}, {hi:.4f}] rad")
+                       f"the window [{lo:.4f}, {hi:.4f}] rad{why}")
     speeds = sorted({round(pt.speed, 3) for pt in points})
     profiles = []
     for v in speeds[:2]:  # the two slowest speeds: two independent looks at one pattern
@@ -100,21 +151,12 @@ def friction_points(trace: Trace, drive: Drive) -> tuple[list[FrictionPoint], np
 def _half_difference_profile(th: np.ndarray, tau: np.ndarray, passes: list[Pass],
                              lo: float, hi: float) -> np.ndarray | None:
     """(tau going up - tau coming down) / 2 per position bin, over its mean, minus 1."""
-    n_bins = max(int((hi - lo) / PROFILE_BIN), 4)
-    edges = np.linspace(lo, hi, n_bins + 1)
-    sums = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
-    counts = {1: np.zeros(n_bins), -1: np.zeros(n_bins)}
-    for p in passes:
-        seg = slice(p.first, p.last + 1)
-        idx = np.clip(np.digitize(th[seg], edges) - 1, 0, n_bins - 1)
-        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=n_bins)
-        counts[p.direction] += np.bincount(idx, minlength=n_bins)
-    both = (counts[1] > 0) & (counts[-1] > 0)
+    half = up_down_half_difference(th, tau, passes, lo, hi, max(int((hi - lo) / PROFILE_BIN), 4))
+    both = np.isfinite(half)
     if both.sum() < 4:
         return None
-    half = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
-    prof = np.full(n_bins, np.nan)
-    prof[both] = half / half.mean() - 1.0
+    prof = np.full(len(half), np.nan)
+    prof[both] = half[both] / half[both].mean() - 1.0
     return prof
 
 
@@ -155,9 +197,10 @@ def fit_direction(points: list[FrictionPoint], what: str) -> DirectionFit:
         if np.all(np.isfinite(model)) and model.max() > 0:
             w = 1.0 / np.sqrt(model)
             fit = bounded_lsq(A * w[:, None], f * w, lower=np.zeros(2), what=what)
-    return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=2 * float(fit.std[0]),
-                        viscous=float(fit.x[1]), viscous_err=2 * float(fit.std[1]),
-                        points=len(points))
+    k = coverage_factor(fit.dof)
+    return DirectionFit(coulomb=float(fit.x[0]), coulomb_err=k * float(fit.std[0]),
+                        viscous=float(fit.x[1]), viscous_err=k * float(fit.std[1]),
+                        points=len(points), coulomb_fit_sd=float(fit.std[0]), factor=k)
 
 
 def profile_variation(profiles: list[np.ndarray]) -> float:
@@ -184,14 +227,55 @@ def profile_variation(profiles: list[np.ndarray]) -> float:
     return float(np.sqrt(2.0 * np.mean(est)))
 
 
-def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult], list[FrictionPoint]]:
-    """Tables 4.2-4.4 for every joint that has friction logs; also returns the points."""
+def pattern_sd(profiles: list[np.ndarray], lo: float, hi: float, lines: int = 6) -> float:
+    """Standard deviation (relative to the friction) of the position pattern's mean over
+    the window [lo, hi] rad, as each pass's tapered mean weighs it; NaN without a profile.
+
+    The mean of each profile pair (the repeatable part, calib.friction.profile_variation)
+    is resolved greedily into ``lines`` sinusoids of the path (the strongest wavenumber of
+    what is left, then its least-squares amplitude); each contributes A^2 |H(k)|^2 / 2,
+    the variance of its weighted window mean over a uniformly random phase. Checked by
+    simulation over 200 seeded patterns per joint window (docs/calib.md): the estimate's
+    RMS is within 10 % of the true RMS window mean, and 3 sd covers 98.5-100 %.
+    """
+    taper = min(TAPER, 0.25 * (hi - lo))
+    est = []
+    for pair in profiles:
+        ok = np.isfinite(pair)
+        signal = np.where(ok.any(axis=0), np.where(ok, pair, 0.0).sum(axis=0) / np.maximum(ok.sum(axis=0), 1), np.nan)
+        centres = np.linspace(lo, hi, len(signal) + 1)
+        centres = 0.5 * (centres[1:] + centres[:-1])
+        ok = np.isfinite(signal)
+        if ok.sum() < 8:
+            continue
+        th, x = centres[ok], signal[ok] - signal[ok].mean()
+        w = hann_edge_weights(th, lo, hi, taper)
+        ks = np.linspace(np.pi / (hi - lo), 0.5 * np.pi / PROFILE_BIN, 2000)
+        C, S = np.cos(np.outer(ks, th)), np.sin(np.outer(ks, th))
+        var = 0.0
+        for _ in range(lines):
+            k = ks[int(np.argmax((C @ x) ** 2 + (S @ x) ** 2))]
+            A = np.c_[np.cos(k * th), np.sin(k * th), np.ones_like(th)]
+            c, *_ = np.linalg.lstsq(A, x, rcond=None)
+            x = x - A @ c
+            H = abs(np.sum(w * np.exp(1j * k * th)) / np.sum(w))
+            var += 0.5 * (c[0] ** 2 + c[1] ** 2) * H ** 2
+        est.append(var)
+    return float(np.sqrt(np.mean(est))) if est else float("nan")
+
+
+def fit_friction(traces: list[Trace], drive: Drive,
+                 notes: list[str] | None = None) -> tuple[list[FrictionResult], list[FrictionPoint]]:
+    """Tables 4.2-4.4 for every joint that has friction logs; also returns the points.
+    Warnings (passes left out, a log of a set missing) are appended to ``notes``."""
     by_joint: dict[int, list[FrictionPoint]] = {}
     prof_by_joint: dict[int, list[tuple[float, np.ndarray]]] = {}
+    window: dict[int, tuple[float, float]] = {}
     for tr in traces:
-        pts, prof = friction_points(tr, drive)
+        pts, prof = friction_points(tr, drive, notes)
         by_joint.setdefault(pts[0].joint, []).extend(pts)
         prof_by_joint.setdefault(pts[0].joint, [])
+        window[pts[0].joint] = tuple(float(x) for x in tr.meta["window"])
         if prof is not None:
             prof_by_joint[pts[0].joint].append((min(p.speed for p in pts), prof))
     results = []
@@ -209,7 +293,13 @@ def fit_friction(traces: list[Trace], drive: Drive) -> tuple[list[FrictionResult
         profs = prof_by_joint[j]
         slowest = min((v for v, _ in profs), default=0.0)
         keep = [pr for v, pr in profs if v <= 1.5 * slowest]
-        results.append(FrictionResult(joint=j, plus=fits[1], minus=fits[-1],
+        rel = pattern_sd(keep, *window[j])
+        if not np.isfinite(rel):
+            rel = 0.0
+            if notes is not None:
+                notes.append(f"joint {j}: no position profile (passes in both directions at two slow "
+                             "speeds): F_c's error leaves out the pattern's window mean")
+        results.append(FrictionResult(joint=j, plus=fits[1].with_pattern(rel), minus=fits[-1].with_pattern(rel),
                                       variation=profile_variation(keep)))
     if not results:
         raise FitError("no friction log among the inputs")

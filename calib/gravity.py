@@ -14,6 +14,14 @@ so that gravity does the same work in both segments: the difference of the two t
 estimates is Y(q0) c - Y(q0') c, linear in the loading coefficients c, with Y the
 gravity regressor of the robot model.  Every pass of every position is one row of a
 least-squares fit for c.
+
+Joint 2's sweep has no repeat (its axis is always horizontal, docs/calib.md). There the
+friction's position pattern (Table 4.4) would stay in W1 - W2; it is taken out with the
+sweep's own friction profile instead: going up and coming down, gravity is the same at a
+position, so half the difference of the two torques is the friction along the path, and
+its integrals over the two segments give the work difference to remove
+(``segment_friction_difference``), scaled for the direction by the friction's asymmetry
+measured on the same sweep once a first fit has given gravity.
 """
 from __future__ import annotations
 
@@ -24,9 +32,10 @@ import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError, LogError
+from calib.logs import clipped_note, saturated_mask
 from calib.lsq import bounded_lsq
 from calib.trace import Trace
-from calib.work import find_passes, window_work
+from calib.work import Pass, find_passes, up_down_half_difference, window_work
 
 Regressor = Callable[[np.ndarray], np.ndarray]  # q (6,) rad -> (6, k), tau_g = Y c
 
@@ -42,6 +51,9 @@ class SweepPass:
     q0: np.ndarray
     tau0: float
     path: str
+    # N m rad: the sweep's mean friction profile integrated over the first 90 degrees less
+    # over the second (``segment_friction_difference``); NaN when not measured
+    friction_difference: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -74,9 +86,17 @@ class GravityResult:
     friction_error: np.ndarray
     rows: list[GravityRow]
 
+    def with_scale_error(self, relative: float) -> "GravityResult":
+        """The errors with a relative scale uncertainty of the torques added (the fitted
+        torque sensitivities': every coefficient scales with them)."""
+        from dataclasses import replace
 
-def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
-    """tau0 of every full pass of a gravity log (both directions)."""
+        return replace(self, error=np.hypot(self.error, relative * np.abs(self.value)))
+
+
+def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> list[SweepPass]:
+    """tau0 of every full pass of a gravity log (both directions); passes with a reading
+    at an ADC rail are left out (noted in ``notes``)."""
     i = trace.joint_index()
     q_start = np.asarray(trace.need("q_start", (list, tuple)), dtype=float)
     if q_start.shape != (6,):
@@ -91,22 +111,57 @@ def sweep_passes(trace: Trace, drive: Drive) -> list[SweepPass]:
     th, tau = theta[:, i], drive.joint_torques(trace.adc)[:, i]
     mid = lo + np.pi / 2
     out = []
-    for p in find_passes(th, lo, hi):
+    passes = find_passes(th, lo, hi)
+    clipped = saturated_mask(trace, [i], drive.G)
+    keep = [p for p in passes if not clipped[p.first - 1:p.last + 2].any()]
+    if notes is not None and len(keep) < len(passes):
+        notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], drive.G))
+    diff = segment_friction_difference(th, tau, keep, lo, mid, hi)
+    for p in keep:
         w_low = window_work(th, tau, p, lo, mid)
         w_high = window_work(th, tau, p, mid, hi)
         w1, w2 = (w_low, w_high) if p.direction > 0 else (w_high, w_low)
         q0 = q_start.copy()
         q0[i] = lo if p.direction > 0 else hi
         out.append(SweepPass(position, role, i + 1, p.direction, q0,
-                             p.direction * (w1 - w2) / 2.0, trace.path))
+                             p.direction * (w1 - w2) / 2.0, trace.path, diff))
     if not out:
+        why = " with every reading off the ADC's rails" if len(keep) < len(passes) else ""
         raise LogError(trace.path, None, f"no full pass of joint {i + 1} through "
-                       f"[{lo:.4f}, {hi:.4f}] rad")
+                       f"[{lo:.4f}, {hi:.4f}] rad{why}")
     return out
 
 
-def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[GravityRow]:
-    """Group passes by (position, joint, direction) and apply the repeat of 4.51."""
+PROFILE_BIN = 0.01  # rad
+
+
+def segment_friction_difference(theta: np.ndarray, tau: np.ndarray, passes: Sequence[Pass],
+                                lo: float, mid: float, hi: float) -> float:
+    """D = the integral of the mean friction profile over [lo, mid] less over [mid, hi] (N m rad).
+
+    At one position gravity is the same going up and coming down, so half the difference
+    of the torques up and down, (tau_up - tau_down) / 2, is the friction there (the mean of
+    the two directions'); the friction's position pattern (Table 4.4) makes its work
+    differ between the segments by D (and by D (F_d / F_mean) in direction d), which W1 - W2
+    keeps when no repeat (4.49-4.51) removes it. NaN without passes both ways."""
+    n = max(int(round((hi - lo) / PROFILE_BIN)), 4)
+    half = up_down_half_difference(theta, tau, list(passes), lo, hi, n)
+    both = np.isfinite(half)
+    if both.sum() < 0.8 * n:
+        return float("nan")
+    centres = lo + (np.arange(n) + 0.5) * (hi - lo) / n
+    profile = np.interp(centres, centres[both], half[both])
+    first = centres < mid
+    return float((profile[first].sum() - profile[~first].sum()) * (hi - lo) / n)
+
+
+def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor,
+                 asymmetry: dict[int, float] | None = None) -> list[GravityRow]:
+    """Group passes by (position, joint, direction) and apply the repeat of 4.51.
+
+    A sweep without a repeat has the friction pattern's segment difference removed instead:
+    tau0 less D (1 + d a) / 2, with a = (F+ - F-) / (F+ + F-) of the joint from ``asymmetry``
+    (0 when not known)."""
     keys = sorted({(p.position, p.joint, p.direction) for p in passes if p.role == "main"},
                   key=lambda k: (k[0], -k[1], -k[2]))
     rows = []
@@ -119,7 +174,10 @@ def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor) -> list[Grav
             tau0 = raw_tau0 - float(np.mean([p.tau0 for p in rep]))
             row = raw_row - np.asarray(regressor(rep[0].q0))[j - 1]
         else:
-            tau0, row = raw_tau0, raw_row
+            D = float(np.mean([p.friction_difference for p in main]))
+            a = (asymmetry or {}).get(j, 0.0)
+            tau0 = raw_tau0 - (D * (1 + d * a) / 2 if np.isfinite(D) else 0.0)
+            row = raw_row
         rows.append(GravityRow(pos, j, d, tau0, raw_tau0, row, raw_row, len(main) + len(rep)))
     return rows
 
@@ -133,22 +191,53 @@ def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str,
     return fit.x, fit.std
 
 
+def sweep_friction(passes: Sequence[SweepPass], traces: list[Trace], drive: Drive) -> np.ndarray:
+    """Each swept joint's friction (N m, (6,), NaN where not swept), from the sweeps
+    themselves: over the same 180 degrees gravity's work cancels between a pass up and a
+    pass down, so (W_up + W_down) / (2 pi) is the mean friction."""
+    out = np.full(6, np.nan)
+    per: dict[int, list[float]] = {}
+    for tr in traces:
+        i = tr.joint_index()
+        lo = float(tr.need("phi_low", (int, float)))
+        theta = drive.current_angles(tr.t, tr.counts)[:, i]
+        tau = drive.joint_torques(tr.adc)[:, i]
+        ps = find_passes(theta, lo, lo + np.pi)
+        up = [window_work(theta, tau, p, lo, lo + np.pi) for p in ps if p.direction > 0]
+        dn = [window_work(theta, tau, p, lo, lo + np.pi) for p in ps if p.direction < 0]
+        if up and dn:
+            per.setdefault(i, []).append((np.mean(up) + np.mean(dn)) / (2 * np.pi))
+    for i, v in per.items():
+        out[i] = abs(float(np.mean(v)))
+    return out
+
+
 def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
-                names: tuple[str, ...], noise: np.ndarray | None = None) -> GravityResult:
+                names: tuple[str, ...], noise: np.ndarray | None = None,
+                notes: list[str] | None = None) -> GravityResult:
     """Table 4.9 from gravity logs.
 
     ``noise`` (6,) is the expected scatter of a joint's tau0 in relative terms: what
     remains of friction in W1 - W2 grows with the joint's friction, so rows are weighted
-    by 1 / noise[joint]^2 (the caller passes each joint's Coulomb friction); without
-    it all rows weigh the same.  error = sqrt((2 std of the fit)^2 + (half the
+    by 1 / noise[joint]^2; by default each swept joint's friction as the sweeps
+    themselves measure it (``sweep_friction``), so no other fit's values are needed.  error = sqrt((2 std of the fit)^2 + (half the
     difference between the fits of the two directions)^2), the thesis's combination of
     measurement uncertainty and direction; friction_error = how much the result moves
     without the repeat (4.49).
     """
-    passes = [p for tr in traces for p in sweep_passes(tr, drive)]
+    passes = [p for tr in traces for p in sweep_passes(tr, drive, notes)]
+    if noise is None:
+        noise = sweep_friction(passes, traces, drive)
+        if not np.isfinite(noise[[p.joint - 1 for p in passes]]).all():
+            noise = None          # a joint swept one way only: equal weights
     rows = gravity_rows(passes, regressor)
     k = len(names)
     value, std = _solve(rows, True, k, "gravity loading", noise)
+    lone = {p.joint for p in passes if p.role == "main"} - {p.joint for p in passes if p.role == "repeat"}
+    if lone:        # sweeps without a repeat: once more with their directions' friction asymmetry
+        asym = friction_asymmetry(traces, drive, regressor, value, lone)
+        rows = gravity_rows(passes, regressor, asym)
+        value, std = _solve(rows, True, k, "gravity loading", noise)
     raw, _ = _solve(rows, False, k, "gravity loading without the friction repeat", noise)
     by_dir = []
     for d in (1, -1):
@@ -164,6 +253,36 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     error = np.sqrt((2 * std) ** 2 + (ddiff / 2) ** 2)
     return GravityResult(names=names, value=value, error=error, fit_std=std,
                          direction_diff=ddiff, friction_error=np.abs(value - raw), rows=rows)
+
+
+def friction_asymmetry(traces: list[Trace], drive: Drive, regressor: Regressor, coeffs: np.ndarray,
+                       joints: set[int]) -> dict[int, float]:
+    """(F+ - F-) / (F+ + F-) of each joint in ``joints`` (1-based) over its sweeps, with the
+    gravity of ``coeffs`` taken off: F+ the mean of tau - tau_g moving up, F- of tau_g - tau
+    moving down."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    for tr in traces:
+        i = tr.joint_index()
+        if i + 1 not in joints:
+            continue
+        lo = float(tr.need("phi_low", (int, float)))
+        q_start = np.asarray(tr.need("q_start", (list, tuple)), dtype=float)
+        theta = drive.current_angles(tr.t, tr.counts)[:, i]
+        tau = drive.joint_torques(tr.adc)[:, i]
+        for p in find_passes(theta, lo, lo + np.pi):
+            seg = slice(p.first, p.last + 1)
+            q = np.tile(q_start, (p.last + 1 - p.first, 1))
+            q[:, i] = theta[seg]
+            tg = np.array([np.asarray(regressor(x))[i] @ coeffs for x in q])
+            out.setdefault(i + 1, []).append((p.direction, float(np.mean(p.direction * (tau[seg] - tg)))))
+    asym = {}
+    for j, v in out.items():
+        up = [f for d, f in v if d > 0]
+        dn = [f for d, f in v if d < 0]
+        if up and dn:
+            fp, fm = float(np.mean(up)), float(np.mean(dn))
+            asym[j] = (fp - fm) / (fp + fm) if fp + fm > 0 else 0.0
+    return asym
 
 
 def row_result(row: GravityRow, result: GravityResult) -> tuple[str, float]:

@@ -50,10 +50,17 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
     if counts.ndim != 2 or counts.shape[1] < 6 or adc.ndim != 2 or adc.shape[1] < 6:
         raise LogError(path, None, f"records hold {counts.shape[1:]} positions and "
                        f"{adc.shape[1:]} ADC channels; a 6-joint robot is needed")
+    rate_hz = header.get("rate_hz", 0) or 0
+    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not np.isfinite(rate_hz) or rate_hz < 0:
+        raise LogError(path, None, f"header 'rate_hz' = {rate_hz!r} is not a sample rate in Hz")
     trace = Trace(path=str(path), robot=str(header.get("robot", "")),
-                  rate_hz=float(header.get("rate_hz", 0) or 0), meta=meta,
+                  rate_hz=float(rate_hz), meta=meta,
                   t=_cycle_times(path, rec),
                   counts=counts[:, :6], adc=adc[:, :6])
+    if "how_inport1" in names:
+        trace.extra["inport1"] = np.asarray(rec["how_inport1"])
+    if "u_touch" in names:                   # the touch index of a kinematics log
+        trace.extra["touch"] = np.asarray(rec["u_touch"])
     if "chg_motion_com" in names and "chg_motion_value" in names:
         # the commands sent each cycle: a breakaway log's ramps are its CUR cycles
         trace.extra["motion_com"] = np.asarray(rec["chg_motion_com"])[:, :6]
@@ -129,3 +136,26 @@ def load_traces(paths: Sequence[str], experiment: str | None = None,
 def saturated_records(trace: Trace, joint: int) -> np.ndarray:
     """Indices of records whose ADC channel of ``joint`` (0-based) sits at a rail."""
     return np.flatnonzero(np.abs(trace.adc[:, joint]) >= ADC_RAIL)
+
+
+def motors_of(joints, G: np.ndarray) -> list[int]:
+    """The motors (0-based) whose torque reaches any of ``joints`` (0-based): t_j = G^T t_s,
+    so motor m loads joint j where G[m, j] != 0 (on the PUMA's wrist, joint 4 needs motors
+    4, 5 and 6)."""
+    G = np.asarray(G)
+    return sorted({m for j in joints for m in np.flatnonzero(G[:, j] != 0.0)})
+
+
+def saturated_mask(trace: Trace, joints, G: np.ndarray) -> np.ndarray:
+    """True for each record where an ADC channel of a motor of ``joints`` (0-based) sits at
+    a rail: there the current (so the torque) is unknown, only bounded."""
+    chans = motors_of(joints, G)
+    return np.any(np.abs(trace.adc[:, chans]) >= ADC_RAIL, axis=1)
+
+
+def clipped_note(trace: Trace, what: str, dropped: int, total: int, joints, G: np.ndarray) -> str:
+    """The warning for ``dropped`` of ``total`` units (passes, halts, ramps) left out for
+    readings at an ADC rail."""
+    chans = ", ".join(str(m + 1) for m in motors_of(joints, G))
+    return (f"{trace.path}: {dropped} of {total} {what} left out: ADC channel(s) {chans} read at "
+            f"the rail (+-{ADC_RAIL}), where the current is unknown")

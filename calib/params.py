@@ -32,15 +32,23 @@ def read_params(path: str) -> dict[str, Any]:
         raise CalibError(f"{path}: cannot read parameter file: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise CalibError(f"{path}: not a valid TOML parameter file: {exc}") from None
-    if data.get("calib", {}).get("schema") != SCHEMA:
-        raise CalibError(f"{path}: [calib] schema is {data.get('calib', {}).get('schema')!r}, "
+    except UnicodeDecodeError as exc:
+        raise CalibError(f"{path}: not a text (UTF-8) TOML parameter file: byte {exc.start} is "
+                         f"{exc.object[exc.start:exc.start + 1]!r}") from None
+    if not isinstance(data.get("calib"), dict) or data["calib"].get("schema") != SCHEMA:
+        head = data.get("calib")
+        raise CalibError(f"{path}: [calib] schema is {head.get('schema') if isinstance(head, dict) else None!r}, "
                          f"expected {SCHEMA!r}")
     return data
 
 
 def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any]],
-                  command: str) -> dict[str, Any]:
-    """Merge ``sections`` into the file at ``path`` (created if absent), atomically."""
+                  command: str, kind: str | None = None, assumed: list[str] | None = None) -> dict[str, Any]:
+    """Merge ``sections`` into the file at ``path`` (created if absent), atomically.
+
+    ``[calib] assumed`` lists the values fits took from the robot data file instead of an
+    earlier fit (``--assume-datafile``); the entries of fit ``kind`` are replaced by
+    ``assumed`` (a refit without assumptions clears them)."""
     data: dict[str, Any] = {}
     if os.path.exists(path):
         data = read_params(path)
@@ -54,11 +62,20 @@ def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any
     history = list(data["calib"].get("commands", []))
     history.append(command)
     data["calib"]["commands"] = history[-20:]
+    if kind is not None:
+        kept = [a for a in data["calib"].get("assumed", []) if not a.startswith(f"{kind}:")]
+        data["calib"]["assumed"] = kept + list(assumed or [])
+        if not data["calib"]["assumed"]:
+            del data["calib"]["assumed"]
     for name, body in sections.items():
         data[name] = dict(body)
-    text = ("# Calibration parameters fitted by `calib` (docs/calib.md); rebuilt by the\n"
-            "# commands listed in [calib].commands.  SI units: N*m, N*m*s/rad, N*m/A.\n\n"
-            + dumps(data))
+    head = ("# Calibration parameters fitted by `calib` (docs/calib.md); rebuilt by the\n"
+            "# commands listed in [calib].commands.  SI units: N*m, N*m*s/rad, N*m/A, rad, m.\n"
+            "# NaN: not fitted (simula --params keeps its own value there).\n")
+    if data["calib"].get("assumed"):
+        head += ("# NOT ALL MEASURED: [calib].assumed lists values taken from the robot data file\n"
+                 "# (--assume-datafile) where a fit needed an earlier fit's result.\n")
+    text = head + "\n" + dumps(data)
     _atomic_write(path, text)
     return data
 
@@ -124,13 +141,18 @@ class Fitted:
     static_neg: np.ndarray
     gravity_coeffs: dict[str, float]
     source: str
+    # the values that are the data file's, not fitted ("friction.coulomb_pos[3]", ...),
+    # plus those the file itself says a fit assumed ([calib] assumed)
+    assumed: tuple[str, ...] = ()
 
 
 def load_fitted(path: str | None, robot: str) -> Fitted:
     """Fitted parameters of ``robot`` from the file at ``path`` (None: the data file's).
 
     Usage in a control program: ``p = load_fitted(args.params, "puma260")`` then
-    ``Conversions.from_model(model, sigma=p.sigma)`` and ``gravity(q, p.gravity_coeffs)``.
+    ``Conversions.from_model(model, sigma=p.sigma)`` and ``gravity(q, p.gravity_coeffs)``;
+    ``p.assumed`` names every value that is the data file's rather than fitted, for the
+    program to print.
     """
     from calib.robot import robot_info
 
@@ -139,23 +161,29 @@ def load_fitted(path: str | None, robot: str) -> Fitted:
     if data["calib"].get("robot") != robot:
         raise CalibError(f"{path}: parameters are for robot {data['calib'].get('robot')!r}, not {robot!r}")
 
+    assumed: list[str] = list(data["calib"].get("assumed", []))
+
     def vec(section: str, key: str, nom: list[float]) -> np.ndarray:
         out = np.array(nom, dtype=float)
         got = data.get(section, {}).get(key)
-        if got is not None:
-            got = np.asarray(got, dtype=float)
-            if got.shape != out.shape:
-                raise CalibError(f"{path}: [{section}] {key} has {got.size} values, expected {out.size}")
-            out = np.where(np.isfinite(got), got, out)
-        return out
+        if got is None:
+            got = np.full(out.shape, np.nan)
+        got = np.asarray(got, dtype=float)
+        if got.shape != out.shape:
+            raise CalibError(f"{path}: [{section}] {key} has {got.size} values, expected {out.size}")
+        assumed.extend(f"{section}.{key}[{j + 1}]" for j in np.flatnonzero(~np.isfinite(got)))
+        return np.where(np.isfinite(got), got, out)
 
     fr = nominal["friction"]
     grav = {k: float(v["value"]) for k, v in nominal["gravity_coeffs"].items()}
     for k in grav:
-        if k in data.get("gravity_coeffs", {}):
-            grav[k] = float(data["gravity_coeffs"][k])
+        x = data.get("gravity_coeffs", {}).get(k)
+        if x is not None and np.isfinite(float(x)):
+            grav[k] = float(x)
+        else:
+            assumed.append(f"gravity_coeffs.{k}")
     return Fitted(robot=robot,
                   sigma=vec("motors", "torque_sensitivity", nominal["motors"]["torque_sensitivity"]["values"]),
                   **{k: vec("friction", k, fr[k]["values"]) for k in
                      ("coulomb_pos", "coulomb_neg", "viscous_pos", "viscous_neg", "static_pos", "static_neg")},
-                  gravity_coeffs=grav, source=path or "robot data file")
+                  gravity_coeffs=grav, source=path or "robot data file", assumed=tuple(assumed))

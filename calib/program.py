@@ -43,6 +43,41 @@ def drive(session: Session, f1, done: threading.Event) -> None:
         session.release()
 
 
+def open_measurement(url: str, robot: str, rate_hz: int, log_path: str, meta: dict,
+                     timeout: float | None, realtime: bool = False,
+                     user_fields: dict | None = None) -> tuple[Recorder, Session]:
+    """The recorder (writing in the background) and the RCI session every measurement
+    program runs on: errors raised, overruns counted (a lockstep simula on a busy machine
+    is slow, not late), ``timeout`` s without a HOW before R_TIMEOUT."""
+    rec = Recorder(log_path, robot=robot, rate_hz=rate_hz, meta=meta, block_records=1024,
+                   user_fields=user_fields)
+    rec.start_writer(0.5)
+    session = Session(url, robot, rate_hz=rate_hz, realtime=realtime, lock_memory=False,
+                      on_error="raise", gc="leave", overrun="count", timeout=timeout)
+    return rec, session
+
+
+def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, name: str, url: str,
+                   where) -> None:
+    """``drive`` the measurement program ``name``, then close its recorder; an RCI error
+    becomes a CalibError naming the program, the robot, ``where()`` it stopped and the
+    partial log (kept, closed cleanly)."""
+    try:
+        drive(session, f1, done)
+    except RCIError as exc:
+        raise CalibError(f"measurement program {name} on {url} stopped {where()}: {exc} "
+                         f"(partial log: {rec.path})") from None
+    finally:
+        rec.close()
+
+
+def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
+    """POS commands for every joint: the angles ``q`` (rad) in whole encoder counts."""
+    counts = conv.angles_to_counts_int(q)
+    for i in range(len(counts)):
+        session.chg.motion[i].issue(POS, int(counts[i]))
+
+
 def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
              realtime: bool = False, extra_meta: dict | None = None,
              timeout: float | None = 5.0) -> RunInfo:
@@ -56,13 +91,10 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
     body = plan.path.sample(rate_hz)
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
-    meta.update({"program": f"calib record {plan.name}", "rate_hz": rate_hz})
+    meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate_hz})
     state = {"k": -1, "setpoints": None, "recording_from": 0}
     done = threading.Event()
-    rec = Recorder(log_path, robot=robot, rate_hz=rate_hz, meta=meta, block_records=1024)
-    rec.start_writer(0.5)
-    session = Session(url, robot, rate_hz=rate_hz, realtime=realtime, lock_memory=False,
-                      on_error="raise", gc="leave", overrun="count", timeout=timeout)
+    rec, session = open_measurement(url, robot, rate_hz, log_path, meta, timeout, realtime)
 
     def f1() -> None:
         how, chg = session.how, session.chg
@@ -85,16 +117,7 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
         if k >= len(sp):
             done.set()
             k = len(sp) - 1
-        counts = conv.angles_to_counts_int(sp[k])
-        for j in range(6):
-            chg.motion[j].issue(POS, int(counts[j]))
+        command_joints(session, conv, sp[k])
 
-    try:
-        drive(session, f1, done)
-    except RCIError as exc:
-        # the log keeps what was recorded up to the error (closed cleanly below)
-        raise CalibError(f"measurement program {plan.name} on {url} stopped after "
-                         f"{max(state['k'], 0)} cycles: {exc} (partial log: {log_path})") from None
-    finally:
-        rec.close()
+    drive_recorded(session, f1, done, rec, plan.name, url, lambda: f"after {max(state['k'], 0)} cycles")
     return RunInfo(log_path, rec.written, state["k"] + 1)

@@ -4,8 +4,13 @@ Starts its own simula processes in lockstep (deterministic for a seed, as fast a
 machine allows), runs every measurement program against them through the RCI session
 API and the recorder, and stores each log xz-compressed.  The sensitivity runs with
 the mass need a simula started with the pulley load (``--load pulley:...``), one per
-joint; everything else runs on one simula that, like the real arm, keeps its state
-(position, warmth) from one program to the next.
+joint; the breakaway ramps and the kinematic touches (with the fixture and the probe,
+``--env``) run on simulas of their own; everything else runs on one simula that, like
+the real arm, keeps its state (position, warmth) from one program to the next.
+
+``--params FILE`` gives every simula that parameter file, so the logs are recorded
+against another truth than the data file's; each log's ``meta.truth`` says which
+(seed, the file's path and text), and ``calib report`` compares with it.
 """
 from __future__ import annotations
 
@@ -20,9 +25,11 @@ from calib.experiments import (Plan, friction_plans, gravity_plans, sensitivity_
                                static_plan)
 from calib.program import run_plan
 from calib.robot import robot_info
+from calib.truth import truth_meta
 
-KINDS = ("friction", "gravity", "static", "sensitivity", "breakaway")
+KINDS = ("friction", "gravity", "static", "sensitivity", "breakaway", "kinematics")
 RADIUS_M = 0.05  # pulley drum radius (estimate: a 10 cm drum, Figure 4.2 is lost)
+KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable errors
 
 
 def _store(raw: str, out_dir: str) -> str:
@@ -37,14 +44,21 @@ def _store(raw: str, out_dir: str) -> str:
     return final
 
 
-def _run(url: str, plan: Plan, out_dir: str, work: str, seed: int) -> None:
+def _report_log(name: str, records: int, final: str, t0: float) -> None:
+    print(f"{name:28s} {records:6d} records  {os.path.getsize(final) / 1e3:7.0f} kB"
+          f"  {time.monotonic() - t0:6.1f} s", flush=True)
+
+
+def _simula_args(params: str | None, extra: list[str]) -> list[str]:
+    return (["--params", params] if params else []) + list(extra)
+
+
+def _run(url: str, plan: Plan, out_dir: str, work: str, seed: int, params: str | None) -> None:
     t0 = time.monotonic()
     raw = os.path.join(work, plan.name + ".rcilog")
     info = run_plan(url, plan, raw, rate_hz=plan.rate_hz,
-                    extra_meta={"simula_seed": seed, "simula_args": plan.simula_args})
-    final = _store(raw, out_dir)
-    print(f"{plan.name:28s} {info.records:6d} records  {os.path.getsize(final) / 1e3:7.0f} kB"
-          f"  {time.monotonic() - t0:6.1f} s", flush=True)
+                    extra_meta={"truth": truth_meta(seed, params, _simula_args(params, plan.simula_args))})
+    _report_log(plan.name, info.records, _store(raw, out_dir), t0)
 
 
 class _Simula:
@@ -52,45 +66,66 @@ class _Simula:
     run once more from the arm's ready position; its warm-up makes up for the lost
     warmth)."""
 
-    def __init__(self, args: tuple[str, ...], seed: int) -> None:
+    def __init__(self, args: tuple[str, ...], seed: int, params: str | None) -> None:
         from rci.simula.process import SimulaProcess
 
-        self.make = lambda: SimulaProcess("-p", *args, lockstep=True, seed=seed)
+        self.make = lambda: SimulaProcess("-p", *_simula_args(params, list(args)), lockstep=True, seed=seed)
         self.sim = self.make().start()
 
-    def run(self, plan: Plan, out_dir: str, work: str, seed: int) -> None:
+    def run(self, plan: Plan, out_dir: str, work: str, seed: int, params: str | None) -> None:
         try:
-            _run(self.sim.url, plan, out_dir, work, seed)
+            _run(self.sim.url, plan, out_dir, work, seed, params)
         except CalibError as exc:
             if self.sim.proc is None or self.sim.proc.poll() is None:
                 raise                                    # simula is alive: a real error
             print(f"{plan.name}: simula exited ({exc}); starting it again", flush=True)
             self.sim.stop()
             self.sim = self.make().start()
-            _run(self.sim.url, plan, out_dir, work, seed)
+            _run(self.sim.url, plan, out_dir, work, seed, params)
 
     def stop(self) -> None:
         self.sim.stop()
 
 
-def _breakaway(out_dir: str, work: str, seed: int, info) -> None:
+def _breakaway(out_dir: str, work: str, seed: int, info, params: str | None) -> None:
     """Table 4.5's breakaway ramps, every joint, on a fresh lockstep simula."""
     from calib.breakaway_program import breakaway_plans, run_breakaway
     from rci.simula.process import SimulaProcess
 
     static = info.nominal["friction"]["static_pos"]["values"]
-    with SimulaProcess("-p", lockstep=True, seed=seed) as sim:
+    args = _simula_args(params, [])
+    with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
         for plan in breakaway_plans(static, info.drive.G):
             t0 = time.monotonic()
             raw = os.path.join(work, plan.name + ".rcilog")
-            n = run_breakaway(sim.url, plan, raw, extra_meta={"simula_seed": seed, "simula_args": []})
-            final = _store(raw, out_dir)
-            print(f"{plan.name:28s} {n:6d} records  {os.path.getsize(final) / 1e3:7.0f} kB"
-                  f"  {time.monotonic() - t0:6.1f} s", flush=True)
+            n = run_breakaway(sim.url, plan, raw, extra_meta={"truth": truth_meta(seed, params, args)})
+            _report_log(plan.name, n, _store(raw, out_dir), t0)
 
 
-def regen(out_dir: str, seed: int, kinds: tuple[str, ...]) -> None:
-    """Record every log of ``kinds`` into ``out_dir``."""
+def record_kinematics(out_path: str, seed: int, params: str | None,
+                      touches_per_face: int = KINEMATIC_TOUCHES, plan_seed: int = 1985) -> int:
+    """The kinematic touches on a fresh lockstep simula with the fixture and the probe
+    (``--env``, calib.touch.simula_words); returns the records logged."""
+    from calib.touch import simula_words, touch_plan
+    from calib.touch_program import run_touches
+    from rci.simula.process import SimulaProcess
+
+    plan = touch_plan(touches_per_face, seed=plan_seed)
+    env = [w for word in simula_words(plan.fixture, plan.tip) for w in ("--env", word)]
+    args = _simula_args(params, env)
+    with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
+        return run_touches(sim.url, plan, out_path, extra_meta={"truth": truth_meta(seed, params, args)})
+
+
+def _kinematics(out_dir: str, work: str, seed: int, params: str | None) -> None:
+    t0 = time.monotonic()
+    raw = os.path.join(work, "kinematics.rcilog")
+    n = record_kinematics(raw, seed, params)
+    _report_log("kinematics", n, _store(raw, out_dir), t0)
+
+
+def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = None) -> None:
+    """Record every log of ``kinds`` into ``out_dir`` (against simula with ``params``)."""
     info = robot_info("puma260")
     os.makedirs(out_dir, exist_ok=True)
     work = os.path.join(out_dir, ".work")
@@ -108,16 +143,18 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...]) -> None:
         plans += [(tuple(p.simula_args), p) for p in sens if p.simula_args]
     sims: dict[tuple[str, ...], _Simula] = {}
     try:
+        if "kinematics" in kinds:
+            _kinematics(out_dir, work, seed, params)
         if "breakaway" in kinds:
             # on a simula of its own, so that `--kinds breakaway` alone records the same logs
-            _breakaway(out_dir, work, seed, info)
+            _breakaway(out_dir, work, seed, info, params)
         for args, plan in plans:
             if args not in sims:
                 if args:           # a pulley simula lives for its one program
                     for key in [k for k in sims if k]:
                         sims.pop(key).stop()
-                sims[args] = _Simula(args, seed)
-            sims[args].run(plan, out_dir, work, seed)
+                sims[args] = _Simula(args, seed, params)
+            sims[args].run(plan, out_dir, work, seed, params)
     finally:
         for sim in sims.values():
             sim.stop()
@@ -129,7 +166,16 @@ def _main(args: argparse.Namespace) -> int:
     bad = set(kinds) - set(KINDS)
     if bad:
         raise SystemExit(f"calib regen-logs: unknown kind(s) {sorted(bad)}; known: {', '.join(KINDS)}")
-    regen(args.out, args.seed, kinds)
+    if args.params:
+        from rci.robot_model import load_robot
+        from rci.simula.exceptions import ParamsError
+        from rci.simula.params import load_params, truth_from_model
+
+        try:            # refuse a bad file before hours of recording
+            load_params(args.params, "puma260", truth_from_model(load_robot("puma260")))
+        except ParamsError as exc:
+            raise CalibError(str(exc)) from None
+    regen(args.out, args.seed, kinds, args.params)
     return 0
 
 
@@ -141,4 +187,6 @@ def add_regen(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=LOG_DIR)
     p.add_argument("--seed", type=int, default=1985, help="simula's seed (reproducible logs)")
     p.add_argument("--kinds", help=f"comma-separated subset of {','.join(KINDS)}")
+    p.add_argument("--params", metavar="FILE",
+                   help="simula parameter file: the truth to record against (default: the robot data file)")
     p.set_defaults(func=_main)

@@ -19,6 +19,7 @@ import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError, LogError
+from calib.logs import clipped_note, saturated_mask
 from calib.trace import Trace
 from calib.work import find_passes, window_work
 
@@ -48,13 +49,19 @@ class _PassWork:
     minus: np.ndarray  # ... on each - pass
 
 
-def _ampere_radians(trace: Trace, drive: Drive) -> tuple[int, tuple[float, float], _PassWork]:
+def _ampere_radians(trace: Trace, drive: Drive,
+                    notes: list[str] | None = None) -> tuple[int, tuple[float, float], _PassWork]:
     i = trace.joint_index()
     lo, hi = _window(trace)
     theta = drive.current_angles(trace.t, trace.counts)[:, i]
     current = drive.motor_currents(trace.adc)[:, i] * drive.G[i, i]
+    clipped = saturated_mask(trace, [i], np.eye(6))     # only motor i's current enters 4.43
     plus, minus = [], []
-    for p in find_passes(theta, lo, hi):
+    passes = find_passes(theta, lo, hi)
+    keep = [p for p in passes if not clipped[p.first - 1:p.last + 2].any()]
+    if notes is not None and len(keep) < len(passes):
+        notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], np.eye(6)))
+    for p in keep:
         (plus if p.direction > 0 else minus).append(window_work(theta, current, p, lo, hi))
     if not plus or not minus:
         raise LogError(trace.path, None, f"no complete pass in both directions through "
@@ -85,12 +92,13 @@ def mass_work(trace: Trace, lo: float, hi: float) -> float:
     return sign * mass * GRAVITY * radius * (hi - lo)
 
 
-def fit_sensitivity(traces: list[Trace], drive: Drive) -> list[SensitivityResult]:
-    """Table 4.1 from sensitivity logs: each joint needs loaded and unloaded logs."""
+def fit_sensitivity(traces: list[Trace], drive: Drive, notes: list[str] | None = None) -> list[SensitivityResult]:
+    """Table 4.1 from sensitivity logs: each joint needs loaded and unloaded logs.
+    Passes with motor i's reading at an ADC rail are left out (noted in ``notes``)."""
     loaded: dict[int, list[tuple[Trace, tuple[float, float], _PassWork]]] = {}
     unloaded: dict[int, list[tuple[Trace, tuple[float, float], _PassWork]]] = {}
     for tr in traces:
-        i, window, work = _ampere_radians(tr, drive)
+        i, window, work = _ampere_radians(tr, drive, notes)
         mass = float(tr.need("load", dict).get("mass_kg", 0.0))
         (loaded if mass > 0 else unloaded).setdefault(i, []).append((tr, window, work))
     results = []

@@ -14,6 +14,7 @@ import numpy as np
 
 from calib.drive import Drive
 from calib.errors import FitError
+from calib.logs import clipped_note, saturated_mask
 from calib.trace import Trace
 
 FILTER_SETTLE_S = 0.1  # skip this long into a halt: ~6 time constants of the 15 ms filter
@@ -51,12 +52,18 @@ def find_halts(counts: np.ndarray, t: np.ndarray, min_duration: float,
 
 
 def halt_samples(trace: Trace, drive: Drive, gravity: Callable[[np.ndarray], np.ndarray],
-                 min_duration: float = 0.4) -> np.ndarray:
-    """Static friction (N m), (H,6): per halt, joint torque minus gravity loading."""
+                 min_duration: float = 0.4, notes: list[str] | None = None) -> np.ndarray:
+    """Static friction (N m), (H,6): per halt, joint torque minus gravity loading; halts
+    with a reading at an ADC rail are left out (noted in ``notes``)."""
     theta = drive.joint_angles(trace.counts)
     tau = drive.joint_torques(trace.adc)
     rows = []
-    for first, last in find_halts(trace.counts, trace.t, min_duration):
+    clipped = saturated_mask(trace, range(6), drive.G)
+    halts = find_halts(trace.counts, trace.t, min_duration)
+    keep = [(a, b) for a, b in halts if not clipped[a:b + 1].any()]
+    if notes is not None and len(keep) < len(halts):
+        notes.append(clipped_note(trace, "halts", len(halts) - len(keep), len(halts), range(6), drive.G))
+    for first, last in keep:
         settled = trace.t >= trace.t[first] + FILTER_SETTLE_S
         idx = np.arange(first, last + 1)
         idx = idx[settled[idx]]
@@ -67,10 +74,10 @@ def halt_samples(trace: Trace, drive: Drive, gravity: Callable[[np.ndarray], np.
     return np.array(rows).reshape(-1, 6)
 
 
-def fit_static(traces: list[Trace], drive: Drive,
-               gravity: Callable[[np.ndarray], np.ndarray]) -> tuple[list[StaticResult], np.ndarray]:
+def fit_static(traces: list[Trace], drive: Drive, gravity: Callable[[np.ndarray], np.ndarray],
+               notes: list[str] | None = None) -> tuple[list[StaticResult], np.ndarray]:
     """Table 4.6 over every halt of every log; also returns the samples (H,6)."""
-    samples = np.vstack([halt_samples(tr, drive, gravity) for tr in traces])
+    samples = np.vstack([halt_samples(tr, drive, gravity, notes=notes) for tr in traces])
     if len(samples) < 2:
         raise FitError(f"{len(samples)} halt(s) found in the static-friction logs; "
                        "Table 4.6 needs many (the thesis used 275)")

@@ -8,7 +8,7 @@ import numpy as np
 
 from calib.errors import LogError
 
-EXPERIMENTS = ("sensitivity", "friction", "static", "gravity", "breakaway")
+EXPERIMENTS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
 
 
 @dataclass

@@ -135,3 +135,22 @@ def tapered_mean(theta: np.ndarray, tau: np.ndarray, p: Pass, lo: float, hi: flo
     num = float(np.sum(0.5 * (wt[1:] + wt[:-1]) * dth))
     den = float(np.sum(0.5 * (ww[1:] + ww[:-1]) * dth))
     return p.direction * num / den
+
+
+def up_down_half_difference(theta: np.ndarray, tau: np.ndarray, passes: list[Pass], lo: float,
+                            hi: float, bins: int) -> np.ndarray:
+    """(tau going up - tau coming down) / 2 (N m) in ``bins`` equal bins of [lo, hi] (rad),
+    NaN where a bin lacks a direction: at one position gravity is the same both ways, so
+    this is the mean of the two directions' friction there."""
+    edges = np.linspace(lo, hi, bins + 1)
+    sums = {1: np.zeros(bins), -1: np.zeros(bins)}
+    counts = {1: np.zeros(bins), -1: np.zeros(bins)}
+    for p in passes:
+        seg = slice(p.first, p.last + 1)
+        idx = np.clip(np.digitize(theta[seg], edges) - 1, 0, bins - 1)
+        sums[p.direction] += np.bincount(idx, weights=tau[seg], minlength=bins)
+        counts[p.direction] += np.bincount(idx, minlength=bins)
+    both = (counts[1] > 0) & (counts[-1] > 0)
+    out = np.full(bins, np.nan)
+    out[both] = 0.5 * (sums[1][both] / counts[1][both] - sums[-1][both] / counts[-1][both])
+    return out

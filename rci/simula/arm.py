@@ -4,7 +4,9 @@ Physics (thesis 2.2.3 and A.7: a simulator of the gravity loading and friction o
 chapter 4, eq. 4.7, which is what matters at the speeds RCI programs use):
 
 * gravity loading from Pinocchio's ``computeGeneralizedGravity`` on the robot's URDF
-  (the world model, independent of the generated kinematics the controller uses);
+  (the world model, independent of the generated kinematics the controller uses); a
+  parameter file's ``[kinematics]`` errors of the DH table (thesis 3.83) move the URDF's
+  joints (``apply_dh_errors``), so the simulated arm is not the nominal model;
 * friction from :mod:`rci.simula.friction` (eq. 4.27 with Tables 4.2-4.6, Table 4.4
   variation, cold joints, stiction);
 * a joint under POS (or holding after STOP) is servoed by its microcontroller along a
@@ -96,6 +98,52 @@ def _tune_gravity(pmodel: pin.Model, model, coeffs: dict[str, float]) -> None:
         pmodel.inertias[jid] = pin.Inertia(body.mass, lever, body.inertia)
 
 
+def _dh_fixed(d: float, a: float, alpha: float) -> pin.SE3:
+    """The fixed part of a DH step, Tz(d) Tx(a) Rx(alpha) (thesis eq. 3.3)."""
+    return pin.SE3(pin.utils.rotate("x", alpha), np.array([a, 0.0, d]))
+
+
+def apply_dh_errors(pmodel: pin.Model, model, errors: np.ndarray) -> None:
+    """Give the URDF model ``pmodel`` the DH table of ``model`` plus ``errors`` (n, 4):
+    per joint (d theta rad, d d m, d a m, d alpha rad), exactly, not to first order.
+
+    With C_i = Tz(d_i) Tx(a_i) Rx(alpha_i), the true step is
+    A_i' = Rz(theta_i + q_i + d theta_i) C_i' = Rz(d theta_i) A_i (C_i^-1 C_i'):
+    d theta_i turns joint i's placement about its own axis (z_{i-1}, which the URDF's joint
+    frame shares), and E_i = C_i^-1 C_i' is appended to DH frame i (the URDF frame
+    ``link<i>``), so everything after it (joint i+1, the tool point on link 6) moves.
+    Link inertials stay where they are on their bodies. Revolute joints only.
+    """
+    errors = np.asarray(errors, dtype=float)
+    data = pmodel.createData()
+    pin.computeJointJacobians(pmodel, data, pin.neutral(pmodel))
+    for i, joint in enumerate(model.joints):
+        e = errors[i]
+        if not np.any(e):
+            continue
+        if joint.kind != "revolute":
+            raise ParamsError(f"{model.name}: [kinematics] errors of the prismatic joint {i + 1} "
+                              "are not supported by simula")
+        jid = pmodel.getJointId(f"joint{i + 1}")
+        fid = pmodel.getFrameId(f"link{i + 1}")
+        if jid >= pmodel.njoints or fid >= len(pmodel.frames) or pmodel.frames[fid].parentJoint != jid:
+            raise SimulaError(f"{model.urdf_path}: no joint{i + 1} carrying frame link{i + 1}: "
+                              "cannot apply [kinematics] errors")
+        if e[0]:
+            axis = pin.getJointJacobian(pmodel, data, jid, pin.LOCAL)[3:, pmodel.joints[jid].idx_v]
+            pmodel.jointPlacements[jid] = pmodel.jointPlacements[jid] * pin.SE3(pin.exp3(axis * e[0]), np.zeros(3))
+        E = _dh_fixed(joint.d, joint.a, joint.alpha).inverse() * _dh_fixed(joint.d + e[1], joint.a + e[2],
+                                                                          joint.alpha + e[3])
+        F = pmodel.frames[fid].placement
+        shift = F * E * F.inverse()              # E seen from joint i's own frame
+        for k in range(1, pmodel.njoints):
+            if pmodel.parents[k] == jid:
+                pmodel.jointPlacements[k] = shift * pmodel.jointPlacements[k]
+        for frame in pmodel.frames:
+            if frame.parentJoint == jid and frame.name in (f"link{i + 1}", f"link{i + 1}_frame"):
+                frame.placement = shift * frame.placement
+
+
 class Arm:
     """The simulated robot arm (n joints) with its controller's joint-level behaviour."""
 
@@ -114,6 +162,8 @@ class Arm:
             raise SimulaError(f"{model.urdf_path}: URDF has {self.pm.nq} joints, data file {n}")
         self.pm.gravity.linear = np.array([0.0, 0.0, -model.gravity])
         _tune_gravity(self.pm, model, truth.gravity_coeffs)
+        if truth.dh_errors is not None:
+            apply_dh_errors(self.pm, model, truth.dh_errors)
         self.pd = self.pm.createData()
         seq = np.random.SeedSequence(seed)
         s_fric, s_noise, s_start = seq.spawn(3)

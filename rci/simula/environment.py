@@ -9,6 +9,10 @@ The world around the simulated arm, as pure functions of the arm's state:
   A ``Plane`` is a box unbounded on all but one side (the floor z < height).
 * ``Conveyor``: a target moving at constant velocity; its travel since t = 0 is published
   the way a conveyor encoder would be, as ADC counts on a spare channel.
+* A touch-trigger probe at the tool point (``tool:...,probe=B``): bit B of ``inport1``
+  is set while the tool point is inside a block by more than its trigger depth, a
+  Gaussian of ``noise`` m (1 sigma; a probe's repeatability) drawn afresh each time the
+  probe is free (the kinematic calibration's touches, calib record kinematics).
 
 ``Environment.joint_torques(pmodel, pdata, q, qd)`` gives the torques the world applies to
 the joints, tau = J_tool^T F (J_tool the tool point's base-frame Jacobian from Pinocchio,
@@ -22,7 +26,7 @@ tool:z=0.05 -p --power-on`` (``parse_environment`` reads the words; docs/simula.
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
@@ -123,6 +127,15 @@ class Environment:
     boxes: tuple[Box, ...] = ()
     conveyor: Conveyor | None = None
     tool: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    probe_bit: int | None = None       # inport1 bit of a touch-trigger probe at the tool point
+    probe_noise: float = 0.0           # m, 1 sigma of the probe's trigger depth
+
+    def depth(self, p: np.ndarray) -> float:
+        """How deep (m) the point p lies inside the deepest block (negative: outside all)."""
+        best = -np.inf
+        for b in self.boxes:
+            best = max(best, float(np.min(np.minimum(p - b.lo, b.hi - p))))
+        return best
 
     def tool_point(self, pmodel: pin.Model, pdata: pin.Data, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(tool point in the base frame, its 3x6 base-frame Jacobian) by Pinocchio."""
@@ -147,6 +160,12 @@ class Environment:
         """(joint torques the world applies, N*m; force on the tool, N base frame) at state (q, qd)."""
         if not self.boxes:
             return np.zeros(len(q)), np.zeros(3)
+        # the Jacobian only when the tool point is inside a block: a free tool feels nothing
+        fid = pmodel.getFrameId("link6")
+        pin.forwardKinematics(pmodel, pdata, q)
+        m = pin.updateFramePlacement(pmodel, pdata, fid)
+        if self.depth(m.translation + m.rotation @ self.tool) <= 0.0:
+            return np.zeros(len(q)), np.zeros(3)
         p, jp = self.tool_point(pmodel, pdata, q)
         f = self.force(p, jp @ qd)
         return jp.T @ f, f
@@ -162,6 +181,7 @@ def parse_environment(specs: list[str]) -> Environment:
     boxes: list[Box] = []
     conveyor = None
     tool = np.zeros(3)
+    probe: tuple[int, float] | None = None
     for spec in specs:
         kind, _, rest = spec.partition(":")
         kv: dict[str, float] = {}
@@ -192,13 +212,23 @@ def parse_environment(specs: list[str]) -> Environment:
                 raise ValueError(f"environment {spec!r}: unknown conveyor keys {sorted(bad)}")
             conveyor = Conveyor(np.array([kv.get(a, 0.0) for a in "xyz"]), np.array([kv.get("v" + a, 0.0) for a in "xyz"]))
         elif kind == "tool":
-            bad = set(kv) - {"x", "y", "z"}
+            bad = set(kv) - {"x", "y", "z", "probe", "noise"}
             if bad:
                 raise ValueError(f"environment {spec!r}: unknown tool keys {sorted(bad)}")
             tool = np.array([kv.get(a, 0.0) for a in "xyz"])
+            if "probe" in kv:
+                bit = kv["probe"]
+                if bit != int(bit) or not 0 <= bit < 16:
+                    raise ValueError(f"environment {spec!r}: probe must be an inport1 bit 0..15")
+                probe = (int(bit), kv.get("noise", 0.0))
+                if not (np.isfinite(probe[1]) and probe[1] >= 0):
+                    raise ValueError(f"environment {spec!r}: noise must be >= 0 m")
+            elif "noise" in kv:
+                raise ValueError(f"environment {spec!r}: noise is the probe's; give probe=<bit> too")
         else:
             raise ValueError(f"environment {spec!r}: kind {kind!r} is not plane, box, conveyor or tool")
-    return Environment(tuple(boxes), conveyor, tool)
+    return Environment(tuple(boxes), conveyor, tool, None if probe is None else probe[0],
+                       0.0 if probe is None else probe[1])
 
 
 class EnvironmentArm(Arm):
@@ -210,6 +240,28 @@ class EnvironmentArm(Arm):
         self.environment = environment
         self.contact_force = np.zeros(3)     # last reaction force on the tool (N, base frame)
         self._env_data = self.pm.createData()
+        self._probe_rng = np.random.default_rng(self.rng.integers(1 << 63)) if environment.probe_bit is not None else None
+        self._trigger_depth = 0.0
+        self._touching = False
+        self._redraw_trigger()
+
+    def _redraw_trigger(self) -> None:
+        if self._probe_rng is not None:
+            self._trigger_depth = self.environment.probe_noise * float(self._probe_rng.standard_normal())
+
+    def probe_touching(self) -> bool:
+        """The touch-trigger probe's state now (False when there is no probe)."""
+        env = self.environment
+        if env.probe_bit is None:
+            return False
+        fid = self.pm.getFrameId("link6")
+        pin.forwardKinematics(self.pm, self._env_data, self.q)
+        m = pin.updateFramePlacement(self.pm, self._env_data, fid)
+        touching = env.depth(m.translation + m.rotation @ env.tool) > self._trigger_depth
+        if self._touching and not touching:
+            self._redraw_trigger()
+        self._touching = touching
+        return touching
 
     def _substep(self, h: float) -> None:
         user = self.ext
@@ -225,6 +277,8 @@ class EnvironmentArm(Arm):
         conv = self.environment.conveyor
         if conv is not None and CONVEYOR_CHANNEL < N_ADC:
             s.adcr[CONVEYOR_CHANNEL] = conv.encoder(self.t)
+        if self.probe_touching():
+            s = replace(s, inport1=s.inport1 | (1 << self.environment.probe_bit))
         return s
 
     def snapshot(self) -> dict:

@@ -5,7 +5,9 @@ parameter file written by ``calib`` (``--params``, schema ``rcci-calib-params/1`
 docs/simula.md) replaces any of: the torque sensitivities (``[motors]``), the friction
 coefficients of eq. 4.27 and the variation of Table 4.4 (``[friction]``), the gravity
 loading coefficients of eq. 4.24 (``[gravity_coeffs]``), the typical static friction of
-Table 4.6 (``[static_friction]``), and simula's own disturbance settings (``[simula]``).
+Table 4.6 (``[static_friction]``), errors of the Denavit-Hartenberg table (``[kinematics]``,
+thesis 3.83: the simulated arm's links differ from the nominal model the controller
+uses), and simula's own disturbance settings (``[simula]``).
 A NaN entry (a joint calib did not fit) keeps the data-file value.
 """
 from __future__ import annotations
@@ -61,6 +63,9 @@ class Truth:
     gravity_coeffs: dict[str, float]   # eq. 4.24 coefficients (N*m / N) the URDF is tuned to
     disturbances: Disturbances = field(default_factory=Disturbances)
     source: str = "data file"
+    # (n, 4) errors of each joint's DH parameters (d theta rad, d d m, d a m, d alpha rad),
+    # added to the data file's table (thesis 3.83); zero: the arm is the nominal model
+    dh_errors: np.ndarray | None = None
 
 
 def truth_from_model(model) -> Truth:
@@ -107,23 +112,39 @@ def _vector(path: str, section: str, key: str, raw: Any, base: np.ndarray, *, no
     return out
 
 
-def load_params(path: str | Path, robot: str, truth: Truth) -> Truth:
-    """``truth`` with the values of a calib parameter file applied; ParamsError names file and field."""
+def read_params_file(path: str | Path) -> dict[str, Any]:
+    """A parameter file's TOML as a dict; ParamsError names the file when it is not readable TOML."""
     path = str(path)
     try:
         with open(path, "rb") as f:
-            data = tomllib.load(f)
+            return tomllib.load(f)
     except OSError as exc:
         raise ParamsError(f"{path}: cannot read parameter file: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParamsError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ParamsError(f"{path}: not a text (UTF-8) parameter file: byte {exc.start} "
+                          f"is {exc.object[exc.start:exc.start + 1]!r}") from None
+
+
+def load_params(path: str | Path, robot: str, truth: Truth) -> Truth:
+    """``truth`` with the values of a calib parameter file applied; ParamsError names file and field."""
+    return apply_params(read_params_file(path), str(path), robot, truth)
+
+
+DH_ERROR_KEYS = ("dtheta", "dd", "da", "dalpha")   # [kinematics]: rad, m, m, rad per joint
+
+
+def apply_params(data: dict[str, Any], path: str, robot: str, truth: Truth) -> Truth:
+    """``truth`` with the values of a parsed parameter file ``data`` applied (``path`` names
+    it in errors); the same checks as ``load_params``."""
     head = data.get("calib")
     if not isinstance(head, dict) or head.get("schema") != PARAMS_SCHEMA:
         raise ParamsError(f"{path}: [calib] schema must be {PARAMS_SCHEMA!r}, got "
                           f"{(head or {}).get('schema') if isinstance(head, dict) else head!r}")
     if head.get("robot") != robot:
         raise ParamsError(f"{path}: parameters are for robot {head.get('robot')!r}, simula runs {robot!r}")
-    known = {"calib", "motors", "friction", "gravity_coeffs", "static_friction", "simula"}
+    known = {"calib", "motors", "friction", "gravity_coeffs", "static_friction", "simula", "kinematics"}
     unknown = set(data) - known
     if unknown:
         raise ParamsError(f"{path}: unknown section(s) {sorted(unknown)} (known: {sorted(known)})")
@@ -155,6 +176,16 @@ def load_params(path: str | Path, robot: str, truth: Truth) -> Truth:
     if extra:
         raise ParamsError(f"{path}: [gravity_coeffs] {extra} are not coefficients of robot {robot!r}")
     kw["gravity_coeffs"] = coeffs
+    kin = data.get("kinematics", {})
+    if any(k in kin for k in DH_ERROR_KEYS):
+        n = len(truth.sigma)
+        base = np.zeros((n, 4)) if truth.dh_errors is None else np.array(truth.dh_errors, dtype=float)
+        for c, key in enumerate(DH_ERROR_KEYS):
+            if key in kin:
+                # NaN (an error the fit could not identify) adds nothing to the nominal table
+                col = _vector(path, "kinematics", key, kin[key], np.full(n, np.nan), nonneg=False)
+                base[:, c] = np.where(np.isfinite(col), col, base[:, c])
+        kw["dh_errors"] = base
     sim = data.get("simula", {})
     if sim:
         names = {f.name: f for f in fields(Disturbances)}

@@ -1,0 +1,76 @@
+"""What gravity does over a friction window on the arm as calibrated (thesis 4.5.4's premise checked).
+
+The friction windows are chosen with the nominal model so that gravity does no net work
+over them (an axis vertical, or a window symmetric about the upright arm). On the real
+arm the DH table is off by its errors (3.83): an axis meant to be vertical leans by a
+few milliradians, the upright arm is a little off upright, and gravity's mean torque over
+the window, g_w, is no longer zero. Each + pass's mean then carries +g_w and each - pass's
+-g_w, which no fit of speeds separates from F_c+ and F_c-: on the PUMA 260 a lean of
+3 mrad gives joint 5 about 0.004 N m, its whole Table 4.2 uncertainty.
+
+``window_gravity`` computes g_w on the arm the parameter file describes: simula's own
+gravity model (Pinocchio on the URDF with centres of mass moved to the fitted gravity
+coefficients, rci.simula.arm) with the fitted ``[kinematics]`` errors applied, over the
+window at the friction pose, weighted as each pass's mean weighs it. Its uncertainty
+comes from the kinematic errors' (a Monte Carlo over their standard deviations). Without a
+kinematic calibration the errors are taken as zero with an a priori spread
+(``DH_TOLERANCE``) and the correction is only an uncertainty.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from calib.work import hann_edge_weights
+
+# a priori spread (1 sd) of DH errors when the parameter file has no kinematic calibration:
+# lengths as Table 3.1's stated uncertainties (0.38-0.64 mm), angles estimated at 0.1 deg
+# (estimate: what Table 3.1's length tolerances imply over the PUMA 260's 0.2 m links)
+DH_TOLERANCE = (np.radians(0.1), 0.0005, 0.0005, np.radians(0.1))
+SAMPLES = 24          # Monte Carlo draws of the kinematic errors for g_w's spread
+POINTS = 121          # positions along the window
+
+
+def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, window: tuple[float, float],
+                   taper: float, seed: int = 0) -> tuple[float, float, str]:
+    """(g_w N m, its standard deviation N m, where the model came from) for ``joint``
+    (1-based) swept over ``window`` (rad) at ``pose`` (rad), tapered as the pass means are."""
+    from rci.robot_model import load_robot
+    from rci.simula.arm import Arm
+    from rci.simula.params import apply_params, truth_from_model
+
+    model = load_robot(robot)
+    n = model.n_joints
+    head = {"calib": params.get("calib", {"schema": "rcci-calib-params/1", "robot": robot})}
+    grav = {k: v for k, v in params.get("gravity_coeffs", {}).items()
+            if not k.endswith(("_error", "unit")) and np.isfinite(float(v))} if "gravity_coeffs" in params else {}
+    kin = params.get("kinematics", {})
+    have_kin = all(k in kin for k in ("dtheta", "dd", "da", "dalpha"))
+    base = truth_from_model(model)
+    if grav:
+        base = apply_params({**head, "gravity_coeffs": grav}, "the parameter file", robot, base)
+    if have_kin:
+        e = np.nan_to_num(np.array([kin[k] for k in ("dtheta", "dd", "da", "dalpha")], dtype=float).T)
+        sd = np.array([kin.get(f"{k}_std", [np.nan] * n) for k in ("dtheta", "dd", "da", "dalpha")], dtype=float).T
+        sd = np.nan_to_num(sd)
+        source = "the fitted kinematics" + ("" if grav else " and the data file's gravity coefficients")
+    else:
+        e = np.zeros((n, 4))
+        sd = np.tile(DH_TOLERANCE, (n, 1))
+        source = ("no kinematic calibration: an a priori DH spread (0.1 deg, 0.5 mm)"
+                  + ("" if grav else " and the data file's gravity coefficients"))
+    th = np.linspace(window[0], window[1], POINTS)
+    w = hann_edge_weights(th, window[0], window[1], taper)
+    q = np.tile(np.asarray(pose, dtype=float), (POINTS, 1))
+    q[:, joint - 1] = th
+
+    def mean_gravity(errors: np.ndarray) -> float:
+        from dataclasses import replace
+
+        arm = Arm(model, replace(base, dh_errors=errors), seed=0, start="ready")
+        tau = np.array([arm.gravity(x)[joint - 1] for x in q])
+        return float(np.sum(w * tau) / np.sum(w))
+
+    g = mean_gravity(e) if have_kin else 0.0      # the nominal windows are gravity-free by design
+    rng = np.random.default_rng(seed)
+    draws = [mean_gravity(e + sd * rng.standard_normal(e.shape)) for _ in range(SAMPLES)]
+    return g, float(np.std(draws, ddof=1)), source
