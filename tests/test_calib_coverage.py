@@ -50,9 +50,10 @@ def calibrated(request, tmp_path_factory):
     for j, speeds in ((2, (15, 25, 60, 100, 150)), (6, (20, 30, 80, 150, 250))):
         with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
             _record(sim, friction_plans([j], speeds_deg=speeds, trips=(1, 1, 2, 2, 3)), out, seed, args)
-    with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
+    with SimulaProcess("-p", *args, "--test-channel", lockstep=True, seed=seed) as sim:
         # the pulley's mass hung on and taken off between runs (simula's control channel),
-        # as a lab would, instead of a simula per loaded run as regen-logs starts
+        # as a lab would (the channel's load command needs --test-channel), instead of a simula
+        # per loaded run as regen-logs starts
         for plan in sensitivity_plans(None, 0.05, joints=(2, 3, 5, 6), speeds_deg=(25, 40), trips=3):
             load = plan.meta["load"]
             spec = (f"pulley:joint={plan.meta['joint']},mass={load['mass_kg']},radius={load['radius_m']}"
