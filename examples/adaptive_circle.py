@@ -131,7 +131,7 @@ def _cli(argv: list[str]) -> int:
     arm, fn, r_p0, r_stop, _ = run_main(main, args.url)
     print(f"trace_circle called {fn.calls} times; functional changes limited in {arm.gen.functional.limited} samples")
     if args.plot:
-        print("wrote", plot(arm, _end_time(arm, r_p0)))
+        print("wrote", plot(arm, _end_time(arm, r_p0), args.out or REPORT))
     return 0
 
 

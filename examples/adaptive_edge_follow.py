@@ -138,7 +138,7 @@ def _cli(argv: list[str]) -> int:
     print(f"contact force while sliding: mean {f[sliding, 2].mean():.2f} N, sd {f[sliding, 2].std():.2f} N "
           f"(asked {FORCE_N:g} N); at rest before the slide: {f[(t > t_settled - 0.5) & (t < t_settled), 2].mean():.2f} N")
     if args.plot:
-        print("wrote", plot(arm, reqs, t_settled))
+        print("wrote", plot(arm, reqs, t_settled, args.out))
     return 0 if end is not None else 1
 
 

@@ -38,7 +38,8 @@ def example_args(doc: str, argv: list[str], plot: bool = False) -> argparse.Name
                     help="robot link (pyserial URL or device, e.g. socket://127.0.0.1:7600); "
                          "default: start a lockstep simula in the example's environment")
     if plot:
-        ap.add_argument("--plot", action="store_true", help="write the example's figure to reports/")
+        ap.add_argument("--plot", action="store_true", help="write the example's figure (reports/ unless --out)")
+        ap.add_argument("--out", type=Path, metavar="PNG", help="with --plot: write the figure here instead")
     return ap.parse_args(argv)
 
 
