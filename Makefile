@@ -37,13 +37,20 @@ derive-if-needed: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# The demo's results go to $(DEMO_OUT)/ (untracked): timings and thread interleavings differ
+# from run to run, so the committed reports/ are rebuilt only by their own commands (each
+# report names it) and `git status` stays clean after a demo.
+DEMO_OUT := demo-out
+
 demo: derive-if-needed
-	$(PY) -m derive.crosscheck --samples 2000
-	$(PY) -m rccl.plots
-	$(VENV)/bin/calib report
+	mkdir -p $(DEMO_OUT)
+	$(PY) -m derive.crosscheck --samples 2000 --out $(DEMO_OUT)/crosscheck.md
+	$(PY) -m rccl.plots --out $(DEMO_OUT)
+	$(VENV)/bin/calib report --out $(DEMO_OUT)/calibration.md
 	$(PY) examples/zero_gravity.py --simula "-c --warm" --cycles 180
-	$(PY) examples/adaptive_circle.py --plot
-	$(PY) examples/adaptive_press.py --plot
+	$(PY) examples/adaptive_circle.py --plot --out $(DEMO_OUT)/adaptive-circle.png
+	$(PY) examples/adaptive_press.py --plot --out $(DEMO_OUT)/adaptive-press.png
+	@echo "demo: results in $(DEMO_OUT)/: $$(ls $(DEMO_OUT) | tr '\n' ' ')"
 
 bench: $(STAMP)
 	$(PY) bench/rci_loop.py

@@ -26,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench.output import emit  # noqa: E402
+from bench.output import emit, progress  # noqa: E402
 from rci.simula.faults import CASES, RATE_HZ, Result, case, run_case  # noqa: E402
 
 
@@ -114,14 +114,14 @@ def main(argv: list[str] | None = None) -> int:
              "lockstep": [("lockstep", True)]}[args.mode]
     load0 = os.getloadavg()[0]
     results: dict[str, list[Result]] = {}
-    for name, lockstep in modes:
-        for c in cases:
-            r = run_case(c, lockstep=lockstep, rate_hz=args.rate)
-            print(f"{name:9s} {r.case:20s} {r.outcome:8s} {r.code_name:12s} detect {_f(r.detect_ms, 2):>8s} ms "
-                  f"J1 {_f(r.motion_cur_deg)} J2 {_f(r.motion_pos_deg)} bound {_f(r.period_travel_deg)} "
-                  f"power {r.power_after or '-'} {'ok' if r.ok else 'RULE BROKEN'}"
-                  f"{' INVALID: ' + r.invalid if r.invalid else ''}", file=sys.stderr, flush=True)
-            results.setdefault(name, []).append(r)
+    runs = [(name, lockstep, c) for name, lockstep in modes for c in cases]
+    for name, lockstep, c in progress(runs, "fault cases"):
+        r = run_case(c, lockstep=lockstep, rate_hz=args.rate)
+        print(f"{name:9s} {r.case:20s} {r.outcome:8s} {r.code_name:12s} detect {_f(r.detect_ms, 2):>8s} ms "
+              f"J1 {_f(r.motion_cur_deg)} J2 {_f(r.motion_pos_deg)} bound {_f(r.period_travel_deg)} "
+              f"power {r.power_after or '-'} {'ok' if r.ok else 'RULE BROKEN'}"
+              f"{' INVALID: ' + r.invalid if r.invalid else ''}", file=sys.stderr, flush=True)
+        results.setdefault(name, []).append(r)
     command = "python -m bench.faults" + ("" if argv is None and len(sys.argv) == 1 else
                                           " " + " ".join(sys.argv[1:] if argv is None else argv))
     emit(render(results, command, (load0, os.getloadavg()[0]), args.rate), args.out)

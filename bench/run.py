@@ -28,6 +28,7 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench.output import progress  # noqa: E402
 from rccl.kinematics import backend  # noqa: E402
 
 COMMAND = "make bench  (python -m bench.run)"
@@ -428,7 +429,7 @@ def main(argv: list[str] | None = None) -> int:
     # the Pinocchio loop runs the full N (the brief asks for it); it dominates the run time
     n_pin = {n: n for n in sizes}
     Q1 = random_q(mod, 10, rng)
-    for op in ops:
+    for op in progress(ops, "kinematics"):
         t0 = time.perf_counter()
         measure_op(op, Q1, big, n_pin)
         print(f"bench: {op.name}: {time.perf_counter() - t0:.1f} s", flush=True)

@@ -207,7 +207,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register record / regen-logs / report on the `calib` parser."""
     rec = sub.add_parser("record", help="run a measurement program against a robot or simula and log it")
     rec.add_argument("kind", choices=RECORD_KINDS)
-    rec.add_argument("--url", help="robot link, e.g. socket://127.0.0.1:5555 or /dev/ttyUSB0")
+    rec.add_argument("--url", help="robot link, e.g. socket://127.0.0.1:7600 (simula's default) or /dev/ttyUSB0")
     rec.add_argument("--against", default="robot", metavar="TRUTH",
                      help="with --url, what the log says it was recorded against: 'robot' (default: no "
                           "ground truth) or 'simula:seed=N[,params=FILE]' for a simula you started so")
@@ -215,7 +215,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                      help="instead of --url: start lockstep simulas with these options (--seed N, "
                           "--params FILE) and record against them; the logs carry that truth")
     rec.add_argument("--out", default=".", help="folder for the logs")
-    rec.add_argument("--robot", default="puma260")
+    rec.add_argument("--robot", default="puma260",
+                     help="the arm's model (models/ROBOT.toml), default puma260")
     rec.add_argument("--rate", type=int, default=None,
                      help="sample rate (Hz); default the program's own (36, 72 or 1000 Hz)")
     rec.add_argument("--joints", help="comma-separated joints (default all)")
@@ -229,14 +230,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                      help="kinematics: touches in all (spread over the fixture's three faces)")
     rec.set_defaults(func=_record)
     rep = sub.add_parser("report", help="fit the shipped logs and write reports/calibration.md")
-    rep.add_argument("--logs", default=LOG_DIR)
-    rep.add_argument("--out", default=REPORT)
+    rep.add_argument("--logs", default=LOG_DIR, metavar="DIR", help=f"folder of the logs to fit (default {LOG_DIR})")
+    rep.add_argument("--out", default=REPORT, metavar="FILE", help=f"report to write (default {REPORT})")
     rep.add_argument("--params", help="also keep the fitted parameter file here")
     rep.add_argument("--assume-datafile", action="store_true",
                      help="let fits whose inputs the logs do not provide use the data file's (announced)")
     rep.add_argument("--no-accuracy", action="store_true",
                      help="skip RCCL's positioning run on simula (the kinematic section's before/after)")
-    rep.add_argument("-q", "--quiet", action="store_true")
+    rep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=_report)
     from calib.regen import add_regen
     add_regen(sub)

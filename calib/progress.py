@@ -1,33 +1,43 @@
-"""A one-line progress bar on stderr for long fits (silent when stderr is not a terminal)."""
+"""Progress of long calibration work (reading logs, recording them) as a rich progress bar.
+
+Drawn on stderr only for a person watching: not when stderr is a pipe or a file, not in
+CI (``$CI`` set), not under ``-q``. The bar is removed when the work is done, so the
+printed tables that follow stay clean.
+"""
 from __future__ import annotations
 
+import os
 import sys
-import time
 from collections.abc import Iterable, Iterator
 from typing import TextIO, TypeVar
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 T = TypeVar("T")
 
 
+def wanted(stream: TextIO | None = None) -> bool:
+    """True when a progress display helps: ``stream`` (stderr) is a terminal and not in CI."""
+    out = stream or sys.stderr
+    return out.isatty() and not os.environ.get("CI")
+
+
 def progress(items: Iterable[T], total: int, label: str, enabled: bool | None = None,
              stream: TextIO | None = None) -> Iterator[T]:
-    """Yield ``items``, drawing ``label [#####.....] k/total  elapsed`` as they go.
+    """Yield ``items`` while a bar ``label ━━━━  k/total  elapsed`` advances on ``stream``.
 
-    ``enabled=None`` draws only when the stream is a terminal, so logs and pipes stay
-    clean; the bar is erased at the end.
+    ``enabled=None`` decides with :func:`wanted`; ``False`` (``-q``) never draws.
     """
     out = stream or sys.stderr
-    on = out.isatty() if enabled is None else enabled
-    start = time.monotonic()
-    width = 30
-    k = 0
-    for k, item in enumerate(items, 1):
-        yield item
-        if on:
-            filled = int(width * k / max(total, 1))
-            out.write(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {k}/{total}"
-                      f"  {time.monotonic() - start:5.1f} s")
-            out.flush()
-    if on:
-        out.write("\r" + " " * (len(label) + width + 30) + "\r")
-        out.flush()
+    on = wanted(out) if enabled is None else enabled
+    if not on:
+        yield from items
+        return
+    console = Console(file=out, force_terminal=bool(enabled))
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=True) as bar:
+        task = bar.add_task(label, total=total)
+        for item in items:
+            yield item
+            bar.advance(task)

@@ -124,8 +124,12 @@ def _kinematics(out_dir: str, work: str, seed: int, params: str | None) -> None:
     _report_log("kinematics", n, _store(raw, out_dir), t0)
 
 
-def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = None) -> None:
-    """Record every log of ``kinds`` into ``out_dir`` (against simula with ``params``)."""
+def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = None,
+          quiet: bool = False) -> None:
+    """Record every log of ``kinds`` into ``out_dir`` (against simula with ``params``); a
+    progress bar over the simula programs unless ``quiet`` (calib.progress)."""
+    from calib.progress import progress
+
     info = robot_info("puma260")
     os.makedirs(out_dir, exist_ok=True)
     work = os.path.join(out_dir, ".work")
@@ -148,7 +152,7 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
         if "breakaway" in kinds:
             # on a simula of its own, so that `--kinds breakaway` alone records the same logs
             _breakaway(out_dir, work, seed, info, params)
-        for args, plan in plans:
+        for args, plan in progress(plans, len(plans), "recording logs", enabled=False if quiet else None):
             if args not in sims:
                 if args:           # a pulley simula lives for its one program
                     for key in [k for k in sims if k]:
@@ -175,7 +179,7 @@ def _main(args: argparse.Namespace) -> int:
             load_params(args.params, "puma260", truth_from_model(load_robot("puma260")))
         except ParamsError as exc:
             raise CalibError(str(exc)) from None
-    regen(args.out, args.seed, kinds, args.params)
+    regen(args.out, args.seed, kinds, args.params, quiet=args.quiet)
     return 0
 
 
@@ -184,9 +188,11 @@ def add_regen(sub: argparse._SubParsersAction) -> None:
     from calib.cli_extra import LOG_DIR
 
     p = sub.add_parser("regen-logs", help="record the shipped logs on simula (lockstep) from scratch")
-    p.add_argument("--out", default=LOG_DIR)
+    p.add_argument("--out", default=LOG_DIR, metavar="DIR",
+                   help=f"folder the logs are written to (created if missing; default {LOG_DIR})")
     p.add_argument("--seed", type=int, default=1985, help="simula's seed (reproducible logs)")
     p.add_argument("--kinds", help=f"comma-separated subset of {','.join(KINDS)}")
     p.add_argument("--params", metavar="FILE",
                    help="simula parameter file: the truth to record against (default: the robot data file)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_main)

@@ -6,9 +6,13 @@ Back ends are functions ``emit(kernels, robot, out_dir)``; add one to ``BACKENDS
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from derive import emit_c, emit_casadi, emit_python
 from derive.derivation import ROBOT_NAMES, derive_robot
@@ -26,29 +30,51 @@ BACKENDS = [
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m derive", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m derive", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog=f"Generated files go to {OUT_DIR.relative_to(ROOT)}/ "
+                                        f"(python, C, CasADi per robot); inputs are derive/*.py and models/.")
     ap.add_argument("--robot", choices=ROBOT_NAMES, action="append",
                     help="derive only this robot (repeatable); default both")
     ap.add_argument("--no-report", action="store_true", help="skip reports/thesis-equations.md")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
     robots = args.robot or list(ROBOT_NAMES)
+    report = not args.no_report and set(robots) == set(ROBOT_NAMES)
     derivations = {}
-    for name in robots:
-        t0 = time.perf_counter()
-        d = derive_robot(name)
-        kernels = build_kernels(d)
-        derivations[name] = d
-        for backend, emit in BACKENDS:
-            files = emit(kernels, name, OUT_DIR)
-            for f in files:
-                print(f"derive: {name}: {backend}: {Path(f).relative_to(ROOT)}")
-        print(f"derive: {name}: {len(kernels)} kernels in {time.perf_counter() - t0:.1f} s")
-    if not args.no_report and set(robots) == set(ROBOT_NAMES):
-        from derive.report import write_report
+    with _progress(args.quiet) as bar:
+        task = bar.add_task("derive", total=len(robots) * (2 + len(BACKENDS)) + report)
+        for name in robots:
+            t0 = time.perf_counter()
+            bar.update(task, description=f"derive {name}: SymPy")
+            d = derive_robot(name)
+            bar.advance(task)
+            bar.update(task, description=f"derive {name}: kernels")
+            kernels = build_kernels(d)
+            bar.advance(task)
+            derivations[name] = d
+            for backend, emit in BACKENDS:
+                bar.update(task, description=f"derive {name}: {backend}")
+                files = emit(kernels, name, OUT_DIR)
+                for f in files:
+                    print(f"derive: {name}: {backend}: {Path(f).relative_to(ROOT)}")
+                bar.advance(task)
+            print(f"derive: {name}: {len(kernels)} kernels in {time.perf_counter() - t0:.1f} s")
+        if report:
+            from derive.report import write_report
 
-        path = write_report(derivations, ROOT / "reports" / "thesis-equations.md")
-        print(f"derive: {path.relative_to(ROOT)}")
+            bar.update(task, description="derive: report")
+            path = write_report(derivations, ROOT / "reports" / "thesis-equations.md")
+            bar.advance(task)
+            print(f"derive: {path.relative_to(ROOT)}")
     return 0
+
+
+def _progress(quiet: bool) -> Progress:
+    """A rich progress bar on stderr, drawn only for a person at a terminal (not -q, not CI)."""
+    shown = not quiet and sys.stderr.isatty() and not os.environ.get("CI")
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                    console=Console(stderr=True), transient=True, disable=not shown)
 
 
 if __name__ == "__main__":

@@ -124,12 +124,14 @@ def plot(arm, r_p0_end_t: float, out: Path = REPORT) -> Path:
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import run_main
+    from adaptive_sim import example_args, run_main
 
-    arm, fn, r_p0, r_stop, _ = run_main(main, argv)
+    args = example_args(__doc__, argv, plot=True)
+
+    arm, fn, r_p0, r_stop, _ = run_main(main, args.url)
     print(f"trace_circle called {fn.calls} times; functional changes limited in {arm.gen.functional.limited} samples")
-    if "--plot" in argv:
-        print("wrote", plot(arm, _end_time(arm, r_p0)))
+    if args.plot:
+        print("wrote", plot(arm, _end_time(arm, r_p0), args.out or REPORT))
     return 0
 
 

@@ -103,9 +103,11 @@ def tracking_error(arm, track) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import run_main
+    from adaptive_sim import example_args, run_main
 
-    arm, enc, track = run_main(main, argv, *ENV)
+    args = example_args(__doc__, argv, plot=False)
+
+    arm, enc, track = run_main(main, args.url, *ENV)
     ts, err = tracking_error(arm, track)
     print(f"tracked the belt for {TRACK_S} s; belt travel at the end {enc.travel():.4f} m; "
           f"tracking error over {len(ts)} samples: mean {1000 * err.mean():.2f} mm, max {1000 * err.max():.2f} mm")

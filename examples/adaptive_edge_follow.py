@@ -125,9 +125,11 @@ def plot(arm, reqs, t_settled, out: Path | None = None) -> Path:
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import run_main
+    from adaptive_sim import example_args, run_main
 
-    arm, reqs, t_settled = run_main(main, argv, *ENV)
+    args = example_args(__doc__, argv, plot=True)
+
+    arm, reqs, t_settled = run_main(main, args.url, *ENV)
     end = reqs["slide"].hooks.get("ended")
     print("slide:", "completed (no slip seen)" if end is None else f"ended by {end}")
     print("force-servoed joint(s) used:", sorted({j + 1 for x in arm.adaptive_trace for j in x[4]}))
@@ -135,8 +137,8 @@ def _cli(argv: list[str]) -> int:
     sliding = (t > t_settled + 0.5) & (p[:, 0] < EDGE_X - 0.003) & (t < (end.t if end else t[-1]))
     print(f"contact force while sliding: mean {f[sliding, 2].mean():.2f} N, sd {f[sliding, 2].std():.2f} N "
           f"(asked {FORCE_N:g} N); at rest before the slide: {f[(t > t_settled - 0.5) & (t < t_settled), 2].mean():.2f} N")
-    if "--plot" in argv:
-        print("wrote", plot(arm, reqs, t_settled))
+    if args.plot:
+        print("wrote", plot(arm, reqs, t_settled, args.out))
     return 0 if end is not None else 1
 
 

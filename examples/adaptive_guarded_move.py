@@ -48,9 +48,11 @@ def main(url: str):
 
 
 def _cli(argv: list[str]) -> int:
-    from adaptive_sim import run_main
+    from adaptive_sim import example_args, run_main
 
-    arm, r_down, _ = run_main(main, argv, *ENV)
+    args = example_args(__doc__, argv, plot=False)
+
+    arm, r_down, _ = run_main(main, args.url, *ENV)
     end = r_down.hooks.get("ended")
     print("down motion:", "completed (no contact?)" if end is None else f"ended by {end}")
     return 0 if end is not None else 1

@@ -169,12 +169,13 @@ def _cli(argv: list[str]) -> int:
     ap.add_argument("--half-period", type=float, help="dither half period, s (default 0.002; forces it on)")
     ap.add_argument("--table", action="store_true", help="run the comparison table of docs/adaptive.md")
     ap.add_argument("--plot", action="store_true", help="write reports/adaptive-press.png (36 vs 500 Hz)")
+    ap.add_argument("--out", type=Path, metavar="PNG", help="with --plot: write the figure here instead")
     a = ap.parse_args(argv)
     if a.table:
         table()
         return 0
     if a.plot:
-        print("wrote", plot())
+        print("wrote", plot(a.out))
         return 0
     opts: dict = {"none": {"max_half_period": 0.0}, "breakaway": {"mode": "breakaway"}}.get(a.correction, {})
     if a.half_period is not None and a.correction == "dither":

@@ -6,6 +6,7 @@
 """
 from __future__ import annotations
 
+import argparse
 import sys
 import warnings
 from pathlib import Path
@@ -26,16 +27,25 @@ def environment_simula(*env: str, **kw) -> EnvironmentSimula:
     return EnvironmentSimula(*env, **kw)
 
 
-def url_from_argv(argv: list[str]) -> str | None:
-    """A ``socket://`` or device argument, if the user gave one."""
-    rest = [a for a in argv if not a.startswith("--")]
-    return rest[0] if rest else None
+def example_args(doc: str, argv: list[str], plot: bool = False) -> argparse.Namespace:
+    """The command line shared by the adaptive examples: an optional robot link URL (default:
+    a simula started for the run) and, if the example draws one, ``--plot``.
+
+    ``--help`` prints the example's docstring and exits; an unknown option is an error
+    naming it (argparse), never taken for a link URL."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("url", nargs="?", default=None,
+                    help="robot link (pyserial URL or device, e.g. socket://127.0.0.1:7600); "
+                         "default: start a lockstep simula in the example's environment")
+    if plot:
+        ap.add_argument("--plot", action="store_true", help="write the example's figure (reports/ unless --out)")
+        ap.add_argument("--out", type=Path, metavar="PNG", help="with --plot: write the figure here instead")
+    return ap.parse_args(argv)
 
 
-def run_main(main, argv: list[str], *env: str):
-    """``main(url)`` on the robot the user named in ``argv``, else on an environment simula
-    (``env`` words) started for the run and stopped after it; returns what ``main`` returns."""
-    url = url_from_argv(argv)
+def run_main(main, url: str | None, *env: str):
+    """``main(url)`` on the robot at ``url``, else on an environment simula (``env`` words)
+    started for the run and stopped after it; returns what ``main`` returns."""
     if url:
         return main(url)
     with environment_simula(*env) as sim:
@@ -54,6 +64,8 @@ def save_figure(fig, out: Path) -> Path:
 
 
 if __name__ == "__main__":  # pragma: no cover - a quick check that the environment simula starts
+    argparse.ArgumentParser(description=__doc__.splitlines()[0] + " Run alone: start one in front "
+                            "of a plane and print its contact force.").parse_args()
     with environment_simula("plane:z=0.12", "tool:z=0.05") as sim:
         print(sim.url, sim.command("state")["state"]["contact_force"])
     sys.exit(0)

@@ -45,11 +45,17 @@ P0_T6 = None
 
 
 def _cli(argv: list[str]) -> int:
+    import argparse
     import warnings
-    plot = "--plot" in argv
-    args = [a for a in argv if a != "--plot"]
-    if args:
-        arm = main(args[0], record=plot)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("url", nargs="?", default=None,
+                    help="robot link of a powered arm (e.g. socket://127.0.0.1:7600 of `simula -p --power-on`); "
+                         "default: start a lockstep simula for the run")
+    ap.add_argument("--plot", action="store_true", help="write the path plot to reports/rccl-program-534.png")
+    a = ap.parse_args(argv)
+    plot = a.plot
+    if a.url:
+        arm = main(a.url, record=plot)
     else:
         from rci.simula.process import SimulaProcess
         with warnings.catch_warnings():

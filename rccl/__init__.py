@@ -2,7 +2,7 @@
 
     import rccl
     from rccl import T6, EQ, TL, Trsf, makeposition
-    with rccl.open("socket://127.0.0.1:7000", robot="puma260") as arm:
+    with rccl.open("socket://127.0.0.1:7600", robot="puma260") as arm:
         t = Trsf.trsl("T", 0.15, 0.15, 0.197)
         r = Trsf.rot("B", "y", math.pi)
         p0 = makeposition("P0", t, T6, EQ, r, TL, T6)

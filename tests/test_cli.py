@@ -1,0 +1,81 @@
+"""What a person typing at a shell meets: `--help` everywhere, and the README's first program.
+
+Every example, `python -m derive`, `simula` and the `calib` subcommands answer `--help`
+with a usage text and exit 0, without opening a link or starting a simulator; the
+README's first program runs as printed against a real simula process and says what
+happened.
+"""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rci.simula.process import SimulaProcess
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = sorted(p.name for p in (ROOT / "examples").glob("*.py"))
+BIN = Path(sys.executable).parent
+
+
+def _run(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    return subprocess.run([*args], capture_output=True, text=True, timeout=timeout, cwd=ROOT,
+                          stdin=subprocess.DEVNULL)
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_every_example_answers_help(name):
+    r = _run(sys.executable, f"examples/{name}", "--help", timeout=30)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("usage:"), r.stdout[:200]
+    assert "simula:" not in r.stderr + r.stdout          # no simulator was started for --help
+
+
+@pytest.mark.parametrize("name", ["adaptive_circle.py", "rccl_program_534.py"])
+def test_an_unknown_option_is_an_error_not_a_link(name):
+    r = _run(sys.executable, f"examples/{name}", "--no-such-option", timeout=30)
+    assert r.returncode == 2 and "unrecognized arguments: --no-such-option" in r.stderr
+
+
+@pytest.mark.parametrize("cmd, needles", [
+    ((sys.executable, "-m", "derive", "--help"), ("--robot", "--no-report", "-q", "rccl/kinematics/")),
+    ((str(BIN / "simula"), "--help"), ("--port", "--lockstep", "--test-channel")),
+    ((str(BIN / "calib"), "record", "--help"), ("--robot ROBOT         the arm's model", "socket://127.0.0.1:7600")),
+    ((str(BIN / "calib"), "regen-logs", "--help"), ("--out DIR", "folder the logs are written to", "-q")),
+    ((str(BIN / "calib"), "report", "--help"), ("--logs DIR", "--out FILE", "no progress bar")),
+])
+def test_command_line_help_is_complete(cmd, needles):
+    r = _run(*cmd, timeout=60)
+    assert r.returncode == 0, r.stderr
+    text = " ".join(r.stdout.split())
+    for n in needles:
+        assert " ".join(n.split()) in text, (n, r.stdout)
+
+
+def test_one_default_port_in_the_docs():
+    """simula listens on 7600 by default; the docs and docstrings say the same."""
+    from rci.simula.__main__ import DEFAULT_PORT
+
+    files = [*ROOT.glob("docs/*.md"), ROOT / "README.md", *ROOT.glob("rci/**/*.py"), *ROOT.glob("rccl/**/*.py"),
+             *ROOT.glob("calib/*.py"), *ROOT.glob("examples/*.py")]
+    ports = {int(m) for f in files for m in re.findall(r"socket://127\.0\.0\.1:(\d+)", f.read_text())}
+    assert ports <= {DEFAULT_PORT, DEFAULT_PORT + 1}, ports      # 7601: the second arm of two_arms
+
+
+def test_readme_first_program_runs_and_prints_what_happened():
+    src = re.search(r"## A first program\s+```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S).group(1)
+    assert "socket://127.0.0.1:7600" in src
+    with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
+        code = src.replace("socket://127.0.0.1:7600", sim.url)
+        r = _run(sys.executable, "-c", code, timeout=120)
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"p0 reached in ([\d.]+) s: T6 at \(([-\d.]+), ([-\d.]+), ([-\d.]+)\) m", r.stdout)
+    assert m, r.stdout
+    # T T6 = B with T = trsl(0.15, 0.15, 0.1973) and B a half turn about y: T6 = T^-1 B
+    assert np.allclose([float(m.group(i)) for i in (2, 3, 4)], [-0.15, -0.15, -0.1973], atol=5e-4)
+    assert float(m.group(1)) > 0
+    assert "back at park, joints (deg): [0.0, 90.0, -180.0, 0.0, -90.0, 0.0]" in r.stdout
