@@ -6,7 +6,7 @@ Cartesian limits; the defaults below are ``estimate``s, with their reasoning bes
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -51,3 +51,15 @@ def load_limits(robot: str) -> Limits:
     vel = np.array(model.max_velocity, dtype=float)
     return Limits(np.array(model.lower, dtype=float), np.array(model.upper, dtype=float), vel,
                   vel / ACCEL_RAMP_S, source=str(model.path))
+
+
+def for_link(limits: Limits, rounding: np.ndarray, period: float) -> Limits:
+    """``limits`` with each joint's speed lowered by what encoder rounding can add to a step
+    (``rounding`` rad / m per joint, rci.conversions.Conversions.rounding_step, over a
+    ``period`` s): trajectories planned with them command counts that RCI's R_REQVEL check
+    (the data file's ``max_velocity``) always accepts, at every sample rate."""
+    slower = limits.joint_velocity - np.asarray(rounding, dtype=float) / float(period)
+    if not np.all(slower > 0):
+        raise ValueError(f"at {1 / period:.0f} Hz, encoder rounding ({rounding} per step) leaves no joint speed "
+                         f"below the limits {limits.joint_velocity}")
+    return replace(limits, joint_velocity=slower)

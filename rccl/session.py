@@ -26,7 +26,7 @@ from rci.conversions import Conversions
 from rci.session import Session
 
 from .exceptions import NotRunning
-from .limits import Limits, load_limits
+from .limits import Limits, for_link, load_limits
 from .planner import Planner
 from .position import Position, joint_position
 from .trajectory import Kinematics, TrajectoryGenerator
@@ -97,6 +97,8 @@ class Arm(Planner):
                 return
             q0 = self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))
             period = 1.0 / float(how.rate_hz or self.rate_hz)
+            # plans whose rounded counts RCI's R_REQVEL check accepts
+            self._limits = for_link(self._limits, self.conv.rounding_step(), period)
             gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
             self.gen = gen
             return

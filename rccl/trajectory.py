@@ -68,7 +68,7 @@ from .queue import MotionQueue
 from .transform import T6, axis_angle, inverse
 
 ACC_PEAK = 0.75          # peak of the quartic's acceleration: ACC_PEAK * |v2 - v1| / tau
-STEP_MARGIN = 1.25       # a commanded step may exceed v_max * dt by this factor before it is a fault
+STEP_MARGIN = 1.25       # a step up to this factor over v_max * dt is slowed to the limit; beyond, a fault
 SINGULAR_SLOWDOWN = 10.0  # a Cartesian path needing > 10x its requested time for joint speed is singular
 MIN_BLEND_SCALE = 0.5    # below this speed factor a corner is taken by stopping at it instead (see plan_segment)
 MAX_CHECK_POINTS = 200   # samples of a Cartesian path checked by move() before its motion starts
@@ -648,6 +648,9 @@ class TrajectoryGenerator:
 
     def __init__(self, kin: Kinematics, limits: Limits, dt: float, q0: np.ndarray,
                  queue: MotionQueue[Request] | None = None) -> None:
+        """Commanded steps are kept within ``limits.joint_velocity * dt``: with the limits of
+        :func:`rccl.limits.for_link` (the speeds less what rounding to encoder counts can add),
+        the counts sent never trip RCI's R_REQVEL check."""
         self.kin = kin
         self.limits = limits
         self.dt = float(dt)
@@ -661,10 +664,15 @@ class TrajectoryGenerator:
         self.samples = 0
         self.ended: list[tuple[Request, MotionEnd]] = []   # requests ended early, with why
         self._abort: MotionEnd | None = None
-        self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
+        # the largest step commanded, and the largest planned step slowed down to it (a Cartesian
+        # path's sampled speed estimate, a moving target); a planned step beyond it is a fault
+        self._step_ok = limits.joint_velocity * self.dt * (1 + 1e-9)   # (a plan at full speed, rounded)
+        self._step_bound = self._step_ok * STEP_MARGIN + 1e-9
+        self.q_planned = self.q.copy()   # the last sample as planned, before any slowing
+        self.slowed = 0          # samples whose step was slowed to the limit (counted, see _check_step)
         self._lo = limits.lower - 1e-9
         self._hi = limits.upper + 1e-9
-        self._step_list, self._lo_list, self._hi_list = self._step_bound.tolist(), self._lo.tolist(), self._hi.tolist()
+        self._step_list, self._lo_list, self._hi_list = self._step_ok.tolist(), self._lo.tolist(), self._hi.tolist()
         self._hold_here(0.0)
 
     def _hold_here(self, t: float) -> None:
@@ -711,8 +719,7 @@ class TrajectoryGenerator:
             elif _holds_still(seg) and _holds_still(tr.prev) and len(self.queue):
                 self._start_from_hold()     # from one hold segment into the next: the same point
             self._update_functional()
-            q = self._evaluate(t)
-            self._check_step(q)
+            q = self._check_step(self._evaluate(t))
         except (MotionError, ValueError, ArithmeticError) as exc:
             self._freeze(exc)
             return self.q
@@ -815,14 +822,41 @@ class TrajectoryGenerator:
         self.trans = Transition(prev, t_b - tau, tau, q_b, self.q.copy())
         self.seg = seg
 
-    def _check_step(self, q: np.ndarray) -> None:
-        """Refuse a commanded step above the joint velocity limit, outside a joint range, or not finite."""
+    def _check_step(self, q: np.ndarray) -> np.ndarray:
+        """The joints to command for the planned sample ``q``.
+
+        Normally ``q`` itself. A step over ``limits.joint_velocity * dt`` (the limits already
+        leave room for encoder rounding, see rccl.limits.for_link) is slowed to it when the
+        planned step (from the last planned sample) is at most STEP_MARGIN over it: a
+        Cartesian path's sampled speed estimate, a moving target; the next samples catch up
+        (counted in ``slowed``). Refuses a larger planned step, a point outside a joint range,
+        or values that are not finite.
+        """
         # plain floats: on six numbers this is several times cheaper than numpy's temporaries
         for a, b, lim, lo, hi in zip(q.tolist(), self.q.tolist(), self._step_list, self._lo_list, self._hi_list):
             if not (abs(a - b) <= lim and lo <= a <= hi):
                 break    # (NaN fails every comparison, so it is diagnosed below)
         else:
-            return
+            self.q_planned = q
+            return q
+        units = self.kin.units
+        if not np.all(np.isfinite(q)):
+            raise Unreachable(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
+                              "arm stopped")
+        step = np.abs(q - self.q_planned)
+        bound = self._step_bound
+        bad = np.nonzero(~(step <= bound))[0]
+        if bad.size:
+            i = int(bad[0])
+            raise SingularPath(f"{self.seg.where}: joint {i + 1} would move {step[i]:.4f} {units[i]} in one sample "
+                               f"(limit {bound[i]:.4f} {units[i]} at {1 / self.dt:.0f} Hz): a singularity or a target "
+                               "moving too fast; arm stopped")
+        _check_range(self.limits, q, self.seg.where, "the commanded point", units)
+        self.q_planned = q
+        if np.any(np.abs(q - self.q) > self._step_ok):
+            q = self.q + np.clip(q - self.q, -self._step_ok, self._step_ok)
+            self.slowed += 1
+        return q
         units = self.kin.units
         if not np.all(np.isfinite(q)):
             raise Unreachable(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
@@ -835,7 +869,11 @@ class TrajectoryGenerator:
             raise SingularPath(f"{self.seg.where}: joint {i + 1} would move {step[i]:.4f} {units[i]} in one sample "
                                f"(limit {bound[i]:.4f} {units[i]} at {1 / self.dt:.0f} Hz): a singularity or a target "
                                "moving too fast; arm stopped")
+        if np.any(step > self._step_ok):
+            q = self.q + np.clip(q - self.q, -self._step_ok, self._step_ok)
+            self.slowed += 1
         _check_range(self.limits, q, self.seg.where, "the commanded point", units)
+        return q
 
     # -- early exit (thesis 5.4.1, 5.4.2, 5.6.3) -------------------------------------------
     def abort(self, end: MotionEnd) -> None:

@@ -166,6 +166,16 @@ class Conversions:
         """Encoder counts rounded to the nearest integer (int64), as ``chg`` POS values need."""
         return np.rint(self.angles_to_counts(q)).astype(np.int64)
 
+    def rounding_step(self) -> np.ndarray:
+        """Most (rad / m, per joint) by which rounding positions to whole counts can lengthen a step.
+
+        A POS step between two rounded commands differs from the unrounded step by at most one
+        count on every motor (half a count at each end); through Theta = R^-1 e that is
+        sum_m |R^-1[j, m]| on joint j (the wrist's coupled motors add up). A generator that plans
+        steps at most ``v_max * T - rounding_step()`` never trips RCI's R_REQVEL check.
+        """
+        return np.abs(self.R_inv).sum(axis=1)
+
     def joint_to_motor_angles(self, q: np.ndarray) -> np.ndarray:
         """Motor shaft angles Theta_s = G Theta (rad)."""
         return _rows(q, self.n, "joint values") @ self.G.T

@@ -521,3 +521,16 @@ def test_functional_transform_shared_by_two_positions_runs_once_per_sample():
     assert ra.status == "done"
     assert len(calls) == len(set(calls))          # never twice in one sample, transitions included
     assert len(calls) >= n - 2
+
+
+def test_a_step_a_little_over_the_speed_limit_is_slowed_and_caught_up_a_large_one_is_refused():
+    gen, _ = make()
+    ok = LIM.joint_velocity * gen.dt
+    planned = Q0 + 1.1 * ok * np.eye(6)[0]             # 10 % over on joint 1: a sampled-path estimate's error
+    q = gen._check_step(planned)
+    assert gen.slowed == 1 and np.isclose(q[0] - Q0[0], ok[0]) and np.allclose(q[1:], Q0[1:])
+    gen.q_prev, gen.q = gen.q, q
+    q2 = gen._check_step(planned + 0.5 * ok * np.eye(6)[0])   # the next planned step is slow: it catches up
+    assert gen.slowed == 1 and np.allclose(q2, planned + 0.5 * ok * np.eye(6)[0])
+    with pytest.raises(SingularPath, match="would move"):
+        gen._check_step(q2 + 1.3 * ok * np.eye(6)[0])     # beyond STEP_MARGIN of the planned step: a fault
