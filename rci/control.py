@@ -221,13 +221,15 @@ class ControlTask(threading.Thread):
         t_base = None
         seq_base = 0
         robot_over0 = None
+        old_period = 0.0                       # the period before a rate change, until the next HOW
         while True:
             if self.ended:
                 return
             if self.release_requested:
                 self._send_release()
                 return
-            timeout = first_timeout if not self.started.is_set() else s.timeout_for(self.period)
+            # the HOW that follows a rate change ends the cycle already running, at the old rate
+            timeout = first_timeout if not self.started.is_set() else s.timeout_for(max(self.period, old_period))
             t_wait = time.monotonic()
             try:
                 frame = link.recv(timeout)
@@ -283,6 +285,7 @@ class ControlTask(threading.Thread):
                 return
             self.seq = frame.seq
             self.answered = False
+            old_period = 0.0
             try:
                 protocol.decode_how(frame.payload, frame.seq, into=buf)
                 if buf.nj != s.nj:
@@ -348,8 +351,8 @@ class ControlTask(threading.Thread):
                                f"link lost: {e}", link_ok=False)
                 return
             if new_rate is not None and new_rate != s.rate_hz:
-                s.rate_hz = new_rate           # the next HOW comes at the new rate
-                self.period = 1.0 / new_rate
+                s.rate_hz = new_rate           # the HOW after next comes at the new rate (docs/protocol.md)
+                old_period, self.period = self.period, 1.0 / new_rate
                 t_base = None
             # --- user function 2 ----------------------------------------------------
             if self.f2 is not None:

@@ -91,3 +91,21 @@ def test_default_handler_prints_terminate_and_exits_nonzero():
     assert proc.returncode == 1
     assert err.startswith("TERMINATE/ ")
     assert err.rstrip().endswith(("/ robot communication link failure", "/ control task timed out, no response from robot"))
+
+
+@pytest.mark.parametrize("new_rate", [250, 500, 1000])
+def test_a_rate_change_from_36_hz_runs_on_a_real_time_simula(new_rate):
+    """The HOW that follows a rate command ends the cycle already running at 36 Hz: the
+    controller waits for it by the old period, not the new one (it ended with R_TIMEOUT)."""
+    with SimulaProcess("-p", "--power-on", lockstep=False) as sim:
+        with Session(sim.url, "puma260", rate_hz=36, on_error="raise", signals=False, lock_memory=False) as s:
+            n = {"cycles": 0}
+
+            def f1():
+                n["cycles"] += 1
+                if n["cycles"] == 5:
+                    s.chg.rate.issue(1, new_rate)
+            s.control(f1)
+            assert s.wait(5.0, until=lambda: s.how.rate_hz == new_rate and n["cycles"] > 5 + new_rate // 2)
+            assert s.termination is None and s.in_control
+            s.release()
