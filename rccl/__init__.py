@@ -15,7 +15,7 @@ docs/rccl.md maps every RCCL primitive of the thesis to its Python spelling.
 """
 from __future__ import annotations
 
-from .exceptions import (BadRequest, ConfigurationChange, ConstTransformError, MotionError, NotRunning,
+from .exceptions import (BadRequest, ConfigurationChange, ConstTransformError, MotionError, NotRunning, PowerOff,
                          PositionError, RCCLError, SingularPath, TrajectoryFault, TransformError, Unreachable)
 from .position import EQ, TL, Position, joint_position, makeposition
 from .sync import Event
@@ -33,5 +33,5 @@ __all__ = [
     "open", "makeposition", "joint_position", "Position", "EQ", "TL", "T6", "t6", "Trsf", "Event",
     "xunit", "yunit", "zunit", "gentr_trsl", "gentr_rot", "gentr_rpy", "gentr_eul", "gentr_noap", "RCCLError", "TransformError", "ConstTransformError", "PositionError",
     "MotionError", "BadRequest", "Unreachable", "SingularPath", "ConfigurationChange", "TrajectoryFault",
-    "NotRunning",
+    "NotRunning", "PowerOff",
 ]

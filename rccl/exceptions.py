@@ -38,6 +38,10 @@ class ConfigurationChange(MotionError):
     """A Cartesian-mode move would need a different arm configuration; use joint mode and setconf()."""
 
 
+class PowerOff(MotionError):
+    """The arm's power is off: a move would command joints that cannot turn. ``arm.power_on()``."""
+
+
 class TrajectoryFault(MotionError):
     """The trajectory generator stopped the arm at the control level; the planning level sees this."""
 

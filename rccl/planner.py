@@ -114,6 +114,9 @@ class Planner:
     def setconf(self, spec=None) -> None:
         """Arm configuration for the next joint-mode moves (e.g. "ru", "flip", a Config); None keeps the current."""
         wanted = parse_config(spec)
+        if wanted is not None and not isinstance(wanted, (dict, self.kin.Config)):
+            raise BadRequest(f"setconf({spec!r}): not a configuration of the {self.kin.name}: give letters "
+                             f"(e.g. 'ru', 'right up flip': l/r, u/d, n/f), a {self.kin.Config.__name__}, or None")
         fields = getattr(self.kin.Config, "_fields", None) or getattr(self.kin.Config, "__dataclass_fields__", None)
         if isinstance(wanted, dict) and fields is not None:
             unknown = sorted(set(wanted) - set(fields))
@@ -134,6 +137,7 @@ class Planner:
             raise BadRequest(f"move: {position!r} is not a position (use makeposition)")
         req = Request(position, position.snapshot(), replace(self.params), next(self._serial))
         self._precheck(req)
+        position.end.expect()
         self.queue.put(req)
         self.last = req
         return req
@@ -152,8 +156,15 @@ class Planner:
             self.params = saved
 
     def waitfor(self, event: Event | Request, timeout: float | None = None) -> None:
-        """Block until ``event`` (a position's ``end``) drops below one, or a request completes (5.3.3)."""
+        """Block until ``event`` (a position's ``end``) drops below one, or a request completes (5.3.3).
+
+        ``timeout`` (s, default none) raises TimeoutError naming the event if it has not come by
+        then (the motion goes on). Raises BadRequest at once for a position's ``end`` that no
+        queued or running motion will signal (it would block forever).
+        """
         self.check()
+        if timeout is not None and not (isinstance(timeout, (int, float)) and timeout >= 0):
+            raise BadRequest(f"waitfor: timeout={timeout!r} must be a number of seconds >= 0 (or None: no limit)")
         if isinstance(event, Request):
             while not event.wait(0.02):
                 self.check()
@@ -165,6 +176,9 @@ class Planner:
             return
         if not isinstance(event, Event):
             raise BadRequest(f"waitfor: {event!r} is not an event (e.g. position.end) or a request")
+        if not event.will_signal():
+            raise BadRequest(f"waitfor({event.name}): no motion to it is queued or running, so it would never "
+                             "come; move() to the position first")
         event.wait(fault=self.check, timeout=timeout)
         self.check()
 

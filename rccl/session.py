@@ -25,7 +25,7 @@ from rci import codes
 from rci.conversions import Conversions
 from rci.session import Session
 
-from .exceptions import NotRunning
+from .exceptions import NotRunning, PowerOff
 from .limits import Limits, for_link, load_limits
 from .planner import Planner
 from .position import Position, joint_position
@@ -36,8 +36,21 @@ PARK_POSE = "ready"
 
 
 def load_kinematics(robot: str) -> Kinematics:
-    """The generated kinematics module of ``robot`` (rccl.kinematics.<robot>), wrapped for RCCL."""
-    return Kinematics(importlib.import_module(f"rccl.kinematics.{robot}"))
+    """The generated kinematics module of ``robot`` (rccl.kinematics.<robot>), wrapped for RCCL.
+
+    Raises ValueError naming the robots there are (a data file each in models/) for an unknown
+    name, or saying that the robot's kinematics have not been generated (``make derive``).
+    """
+    from rci.robot_model import available_robots
+
+    known = available_robots()
+    if not isinstance(robot, str) or robot not in known:
+        raise ValueError(f"robot={robot!r}: no such robot; known: {', '.join(known)} (models/ROBOT.toml)")
+    try:
+        return Kinematics(importlib.import_module(f"rccl.kinematics.{robot}"))
+    except ModuleNotFoundError:
+        raise ValueError(f"robot={robot!r}: no generated kinematics (rccl/kinematics/{robot}.py); "
+                         "run `make derive`") from None
 
 
 class Arm(Planner):
@@ -102,6 +115,8 @@ class Arm(Planner):
             gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
             self.gen = gen
             return
+        if not how.power:            # the brakes hold the arm: follow them, end any motion
+            gen.follow_unpowered(self.conv.counts_to_angles(np.asarray(how.pos, dtype=float)))
         q = gen.step()
         counts = self.conv.angles_to_counts_int(q)
         motion = chg.motion
@@ -109,6 +124,47 @@ class Arm(Planner):
             motion[i].issue(chgmod.POS, int(counts[i]))
         if self.trace is not None:
             self.trace.append((gen.t, q, self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))))
+
+    # -- arm power (thesis A.4 power_on / power_off) ------------------------------------------
+    @property
+    def powered(self) -> bool:
+        """True while the robot reports the arm's power on (``how``)."""
+        return bool(self.rci.how.power)
+
+    def power_on(self, timeout: float = 2.0) -> None:
+        """Switch the arm's power on and wait until the robot reports it (at most ``timeout`` s).
+
+        The arm starts holding where its brakes kept it. Raises PowerOff if the robot does not
+        report power within ``timeout`` (e.g. an emergency stop is pressed).
+        """
+        self.check()
+        if self.powered:
+            return
+        with self.rci.chg.lock:
+            self.rci.chg.power_on.issue()
+        if not self.rci.wait(timeout, until=lambda: self.powered):
+            raise PowerOff(f"{self.url}: power_on(): the robot did not report power on within {timeout} s "
+                           f"(how.state = {self.rci.how.state:#x})")
+
+    def power_off(self, timeout: float = 2.0) -> None:
+        """Switch the arm's power off (the brakes hold it) and wait until the robot reports it.
+
+        A motion still running ends with a fault (PowerOff; ``recover()`` clears it); moves are
+        refused until ``power_on()``.
+        """
+        self.check()
+        with self.rci.chg.lock:
+            self.rci.chg.power_off.issue()
+        if not self.rci.wait(timeout, until=lambda: not self.powered):
+            raise PowerOff(f"{self.url}: power_off(): the robot still reports power on after {timeout} s")
+
+    def move(self, position: Position) -> Request:
+        """Planner.move, refused with PowerOff while the arm's power is off (it would not turn)."""
+        self.check()
+        if not self.powered:
+            raise PowerOff(f"move({getattr(position, 'name', position)!r}): the arm's power is off, "
+                           "it would not move; call arm.power_on() first")
+        return Planner.move(self, position)
 
     def close(self, power_off: bool = False, wait: bool = True) -> None:
         """rccl_close: wait for queued motions to end (``wait``), release the control and close the link."""

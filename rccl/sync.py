@@ -19,21 +19,37 @@ from typing import Callable
 class Event:
     """An RCCL event flag (a counter); thread safe."""
 
-    __slots__ = ("name", "_count", "_cond")
+    __slots__ = ("name", "_count", "_pending", "_cond")
 
     def __init__(self, name: str = "event") -> None:
         self.name = name
         self._count = 0
+        self._pending = 0          # queued motions that will signal it (see ``expect``)
         self._cond = threading.Condition()
 
     @property
     def count(self) -> int:
         return self._count
 
+    @property
+    def pending(self) -> int:
+        """Motions queued or running that will signal this event when they end."""
+        return self._pending
+
+    def expect(self) -> None:
+        """A motion that signals this event at its end was queued (planning level)."""
+        with self._cond:
+            self._pending += 1
+
+    def will_signal(self) -> bool:
+        """Whether a ``wait`` can end: a signal not yet waited for, or a motion that will signal."""
+        return self._count < 0 or self._pending > 0
+
     def signal(self) -> None:
         """Decrement (called by the trajectory level when a motion completes) and wake waiters."""
         with self._cond:
             self._count -= 1
+            self._pending = max(0, self._pending - 1)
             self._cond.notify_all()
 
     def wait(self, fault: Callable[[], None] | None = None, timeout: float | None = None,

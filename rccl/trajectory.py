@@ -60,7 +60,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .ending import MotionEnd
-from .exceptions import ConfigurationChange, MotionError, SingularPath, TrajectoryFault, Unreachable
+from .exceptions import ConfigurationChange, MotionError, PowerOff, SingularPath, TrajectoryFault, Unreachable
 from .limits import Limits
 from .motion import MotionParams, Request
 from .position import joint_position
@@ -685,9 +685,23 @@ class TrajectoryGenerator:
     def restart(self) -> None:
         """Clear a fault (planning level): the arm holds where it was frozen and accepts new requests."""
         self.queue.clear()
-        self.faulted = None
         self.q_prev = self.q.copy()
         self._hold_here(self.t)
+        self.faulted = None          # last: the control level sees the fault until the hold is set up
+
+    def follow_unpowered(self, q: np.ndarray) -> None:
+        """The arm's power is off (control level, each sample): a motion in progress ends with a
+        fault (PowerOff), and the commands follow ``q``, the joints the brakes hold (measured),
+        so that power coming back starts from where the arm is, not from where it was sent."""
+        if self.faulted is None and self.busy:
+            self._freeze(PowerOff("the arm's power went off during the motion"))
+        if np.array_equal(q, self.q):
+            return
+        self.q = np.array(q, dtype=float)
+        self.q_prev = self.q.copy()
+        self.q_planned = self.q.copy()
+        if self.faulted is None:
+            self._hold_here(self.t)
 
     # -- the per-sample entry point ---------------------------------------------------
     def step(self) -> np.ndarray:

@@ -75,8 +75,16 @@ class Session:
                  signals: bool = True, watchdog: bool = True, max_commands: int = 16,
                  on_error: Callable[[codes.Termination], Any] | str | None = None,
                  on_interrupt: Callable[[], Any] | None = None, client: str = "rci") -> None:
-        if not (4 <= int(rate_hz) <= MAX_RATE_HZ):
-            raise ValueError(f"rate_hz must be 4..{MAX_RATE_HZ}, not {rate_hz}")
+        if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (4 <= rate_hz <= MAX_RATE_HZ):
+            raise ValueError(f"rate_hz must be 4..{MAX_RATE_HZ} (Hz), not {rate_hz!r}")
+        for name, value, none_means in (("timeout", timeout, "twice the period, at least min_timeout"),
+                                        ("min_timeout", min_timeout, None), ("start_timeout", start_timeout, None),
+                                        ("lockstep_timeout", lockstep_timeout, None)):
+            if value is None and none_means:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value < float("inf")):
+                alt = f" or None ({none_means})" if none_means else ""
+                raise ValueError(f"{name} must be a number of seconds > 0{alt}, not {value!r}")
         if overrun not in ("error", "count", "auto"):
             raise ValueError(f"overrun must be 'error', 'count' or 'auto', not {overrun!r}")
         if late_limit is not None and (isinstance(late_limit, bool) or not isinstance(late_limit, int)

@@ -17,6 +17,6 @@ SLACK = {"lockstep_timeout": 2.0}
 @pytest.fixture(scope="module")
 def sims():
     """(puma, microbo) SimulaProcess pair, powered on, lockstep; one pair per test module."""
-    with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
-            SimulaProcess("-p", robot="microbo", lockstep=True) as m:
+    with SimulaProcess("-p", "--power-on", robot="puma260", lockstep=True) as p, \
+            SimulaProcess("-p", "--power-on", robot="microbo", lockstep=True) as m:
         yield p, m

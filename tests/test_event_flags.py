@@ -39,6 +39,15 @@ def arms(sims):
             ev.detach(mic)
 
 
+def assert_arrived(arm, q: np.ndarray, tol: float = 2e-3, timeout: float = 10.0) -> None:
+    """The arm itself (its encoders in ``how``, not only its commands) settles at ``q`` (rad):
+    simula runs with power on, so the arms do move."""
+    deadline = time.monotonic() + timeout
+    while np.max(np.abs(arm.measured_q() - q)) > tol:
+        assert time.monotonic() < deadline, f"measured {arm.measured_q()}, commanded to {q}"
+        time.sleep(0.01)
+
+
 def waist(arm, delta: float, name: str):
     """A position with the waist turned by ``delta`` rad (towards the middle of its range)."""
     q = arm.q.copy()
@@ -64,6 +73,8 @@ def test_a_motion_of_one_arm_waits_for_the_end_of_the_others(arms):
     assert a1.status == DONE and b1.start == START
     assert a1.t_ended <= b1.t_started < a1.t_ended + 0.1      # started by A's trajectory level, at once
     np.testing.assert_allclose(mic.q, qb, atol=END_TOL)
+    assert_arrived(mic, qb)
+    assert_arrived(puma, pa.joints)
 
 
 def test_start_ev_starts_two_arms_together(arms):
@@ -76,12 +87,18 @@ def test_start_ev_starts_two_arms_together(arms):
     assert (a.status, b.status) == (NULL, NULL)
     np.testing.assert_array_equal(puma.q, q0[0])
     np.testing.assert_array_equal(mic.q, q0[1])
+    t_a, t_b = puma.gen.t, mic.gen.t             # each arm's own clock when the flag is set
     ev.start_ev(7, a, b)
     assert ev.wait_ev(a, timeout=20) == DONE and ev.wait_ev(b, timeout=20) == DONE
     assert (a.start, b.start) == (7, 7)
-    assert abs(a.t_started - b.t_started) < 0.05
+    # together: each motion begins in the first sample of its arm's clock after the flag (not a
+    # wall-clock bound between two lockstep processes, see test_stop_ev_stops_two_arms_together)
+    assert 0 <= a.traj_started - t_a <= puma.gen.dt + 1e-9
+    assert 0 <= b.traj_started - t_b <= mic.gen.dt + 1e-9
     np.testing.assert_allclose(puma.q, qa, atol=END_TOL)
     np.testing.assert_allclose(mic.q, qb, atol=END_TOL)
+    assert_arrived(puma, qa)
+    assert_arrived(mic, qb)
 
 
 def test_stop_flag_halts_a_running_motion_and_the_next_one_runs(arms):
@@ -109,14 +126,27 @@ def test_stop_ev_stops_two_arms_together(arms):
     puma, mic = arms
     fa, qa = waist(puma, 0.6, "fa")
     fb, qb = waist(mic, 0.6, "fb")
+    q0a, q0b = puma.measured_q(), mic.measured_q()
     puma.settime(0.2, 20.0)
     mic.settime(0.2, 20.0)
     a, b = ev.move_ev(puma, fa), ev.move_ev(mic, fb)
     ev.wait_ev(a, started=True, timeout=10)
     ev.wait_ev(b, started=True, timeout=10)
+    deadline = time.monotonic() + 10
+    while min(abs(puma.measured_q()[0] - q0a[0]), abs(mic.measured_q()[0] - q0b[0])) < 0.02:
+        assert time.monotonic() < deadline, "the arms did not move"
+        time.sleep(0.005)
+    t_a, t_b = puma.gen.t, mic.gen.t             # each arm's own clock when the flag is set
     ev.stop_ev(-4, a, b)
     assert ev.wait_ev(a, timeout=10) == -4 and ev.wait_ev(b, timeout=10) == -4
-    assert abs(a.t_ended - b.t_ended) < 0.05
+    # together: each arm's motion ends at the first sample of its own clock after the flag (in
+    # lockstep an arm's samples are not wall-clock time: a loaded machine delays one simula
+    # process or the other, which a wall-clock bound between the two arms would read as a fault)
+    assert 0 <= a.request.hooks["finished_t"] - t_a <= puma.gen.dt + 1e-9
+    assert 0 <= b.request.hooks["finished_t"] - t_b <= mic.gen.dt + 1e-9
+    for arm, q0, q_far in ((puma, q0a, qa), (mic, q0b, qb)):   # each arm did move, and stopped short
+        assert_arrived(arm, arm.q)
+        assert 0.02 < abs(arm.measured_q()[0] - q0[0]) < abs(q_far[0] - q0[0]) - 0.1
     assert a.request.hooks["finished_t"] < 10.0 and b.request.hooks["finished_t"] < 10.0   # halfway at most
     time.sleep(0.05)
     assert abs(puma.q[0] - qa[0]) > 0.2 and abs(mic.q[0] - qb[0]) > 0.2
@@ -263,8 +293,8 @@ def test_in_a_lockstep_workcell_the_follower_starts_within_one_sample_of_the_lea
     from rccl.adaptive.session import AdaptiveArm
     from rci.multi import Workcell
 
-    with SimulaProcess("-p", robot="puma260", lockstep=True) as sp, \
-            SimulaProcess("-p", robot="microbo", lockstep=True) as sm:
+    with SimulaProcess("-p", "--power-on", robot="puma260", lockstep=True) as sp, \
+            SimulaProcess("-p", "--power-on", robot="microbo", lockstep=True) as sm:
         puma, mic = AdaptiveArm(sp.url, "puma260", **SLACK), AdaptiveArm(sm.url, "microbo", **SLACK)
         cell = Workcell({"puma": puma.rci, "microbo": mic.rci}, sync="lockstep", on_error="raise")
         cell.start(puma.open, mic.open)          # both generators' first samples meet at the barrier

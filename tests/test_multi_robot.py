@@ -66,8 +66,8 @@ def test_lockstep_at_different_rates_meets_every_slow_sample(sims):
 def test_free_mode_readers_see_whole_values_never_torn():
     # free sync: each arm on its own robot clock, so real-time simulas (lockstep ones left free
     # would each run as fast as it is answered, and the mirror would step too fast)
-    with SimulaProcess("-p", robot="puma260", lockstep=False) as p, \
-            SimulaProcess("-p", robot="microbo", lockstep=False) as m:
+    with SimulaProcess("-p", "--power-on", robot="puma260", lockstep=False) as p, \
+            SimulaProcess("-p", "--power-on", robot="microbo", lockstep=False) as m:
         # overruns counted, not errors: this test is about the data, on a shared, loaded machine
         cell, log = two_arms.main(p.url, m.url, seconds=1.0, sync="free", overrun="count")
     published = {arr.tobytes() for arr in log.puma_q}
@@ -204,8 +204,8 @@ def test_rccl_arms_in_a_workcell_a_dead_link_names_the_arm_and_releases_the_othe
     from rccl.position import joint_position
     from rccl.session import Arm
 
-    with SimulaProcess("-p", robot="puma260", lockstep=True) as p, \
-            SimulaProcess("-p", robot="microbo", lockstep=True) as m:
+    with SimulaProcess("-p", "--power-on", robot="puma260", lockstep=True) as p, \
+            SimulaProcess("-p", "--power-on", robot="microbo", lockstep=True) as m:
         puma = AdaptiveArm(p.url, "puma260", **SLACK)
         mic = Arm(m.url, "microbo", **SLACK)
         cell = Workcell({"puma": puma.rci, "microbo": mic.rci}, on_error="raise")

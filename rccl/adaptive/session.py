@@ -90,6 +90,7 @@ class AdaptiveArm(Arm):
             raise SpecError(f"cond: the motion to {self.last.position.name} has already ended")
         req = Request(position, position.snapshot(), _replace(self.params), next(self._serial))
         req.hooks["is_conditional"] = True
+        position.end.expect()
         self.last.hooks.setdefault("conditional", []).append(Conditional(when, req))
         return req
 
