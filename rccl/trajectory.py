@@ -871,23 +871,6 @@ class TrajectoryGenerator:
             q = self.q + np.clip(q - self.q, -self._step_ok, self._step_ok)
             self.slowed += 1
         return q
-        units = self.kin.units
-        if not np.all(np.isfinite(q)):
-            raise Unreachable(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
-                              "arm stopped")
-        step = np.abs(q - self.q)
-        bound = self._step_bound
-        bad = np.nonzero(~(step <= bound))[0]
-        if bad.size:
-            i = int(bad[0])
-            raise SingularPath(f"{self.seg.where}: joint {i + 1} would move {step[i]:.4f} {units[i]} in one sample "
-                               f"(limit {bound[i]:.4f} {units[i]} at {1 / self.dt:.0f} Hz): a singularity or a target "
-                               "moving too fast; arm stopped")
-        if np.any(step > self._step_ok):
-            q = self.q + np.clip(q - self.q, -self._step_ok, self._step_ok)
-            self.slowed += 1
-        _check_range(self.limits, q, self.seg.where, "the commanded point", units)
-        return q
 
     # -- early exit (thesis 5.4.1, 5.4.2, 5.6.3) -------------------------------------------
     def abort(self, end: MotionEnd) -> None:
