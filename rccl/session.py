@@ -49,7 +49,11 @@ class Arm(Planner):
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
                  kinematics: Kinematics | None = None, limits: Limits | None = None,
-                 record: bool = False, **rci_options: Any) -> None:
+                 record: bool = False, trajectory: str = "quartic", **rci_options: Any) -> None:
+        if trajectory not in ("quartic", "ruckig"):
+            raise ValueError(f"rccl.open: trajectory={trajectory!r} is not 'quartic' (the thesis's, default) "
+                             "or 'ruckig' (jerk-limited, rccl.jerk)")
+        self.trajectory = trajectory
         self.url = url
         self.robot = robot
         self.rate_hz = int(rate_hz)
@@ -97,7 +101,11 @@ class Arm(Planner):
                 return
             q0 = self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))
             period = 1.0 / float(how.rate_hz or self.rate_hz)
-            gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
+            if self.trajectory == "ruckig":
+                from .jerk import JerkLimitedGenerator
+                gen = JerkLimitedGenerator(self._kin, self._limits, period, q0)
+            else:
+                gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
             self.gen = gen
             return
         q = gen.step()
