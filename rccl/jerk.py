@@ -105,12 +105,13 @@ def _rotation(v: np.ndarray) -> np.ndarray:
 class _Move:
     """The running request in Ruckig's terms: its mode, reference orientation, tool and configuration."""
 
-    __slots__ = ("req", "mode", "tool", "tool_inv", "config", "r_ref", "q_dest", "where", "static")
+    __slots__ = ("req", "mode", "tool", "tool_inv", "config", "r_ref", "q_dest", "where", "static", "finished")
 
     def __init__(self, req: Request, kin, q: np.ndarray) -> None:
         self.req = req
         self.mode = req.mode
         self.where = f"move({req.position.name})"
+        self.finished = False     # reached (a moving target is still followed until the next request starts)
         plan = req.profile
         self.static = all(t.kind in ("const", "hold") for t in req.position.transforms())
         self.q_dest = getattr(plan, "q_dest", None) if self.static else None
@@ -168,7 +169,7 @@ class JerkLimitedGenerator:
     @property
     def busy(self) -> bool:
         """True while a request is running or queued (or the arm is braking after an abort)."""
-        return bool(len(self.queue)) or self.move is not None or self._braking
+        return bool(len(self.queue)) or (self.move is not None and not self.move.finished) or self._braking
 
     # -- the per-sample entry point ---------------------------------------------------
     def step(self) -> np.ndarray:
@@ -185,11 +186,11 @@ class JerkLimitedGenerator:
                     end = watch(self)
             if end is not None:
                 self._abort = None
-                if mv is not None:
+                if mv is not None and not mv.finished:
                     self._end_now(mv, end)
                     mv = None
-            if mv is None and not self._braking:
-                mv = self._start_next()
+            if (mv is None or mv.finished) and not self._braking and len(self.queue):
+                mv = self._start_next() or mv
             if self._braking:
                 q = self._brake_sample()
             elif mv is None:
@@ -214,7 +215,7 @@ class JerkLimitedGenerator:
         req.status = "running"
         try:
             mv = _Move(req, self.kin, self.q)
-            self._prepare(mv)
+            self._prepare(mv, self.move)
         except (MotionError, ValueError) as exc:
             err = exc if isinstance(exc, MotionError) else MotionError(f"move({req.position.name}): {exc}")
             req.finish(err)
@@ -225,12 +226,15 @@ class JerkLimitedGenerator:
         self.move = mv
         return mv
 
-    def _prepare(self, mv: _Move) -> None:
-        """Fill Ruckig's input record for ``mv`` from the arm at rest at ``self.q``."""
+    def _prepare(self, mv: _Move, prev: _Move | None) -> None:
+        """Fill Ruckig's input record for ``mv`` starting at ``self.q``: at rest, or, after a joint-mode
+        move still following a moving target, with that move's joint velocity and acceleration."""
+        target = self._target(mv)      # first: a refused destination leaves the input record untouched
         inp, lim, params = self._inp, self.jerk, mv.req.params
         inp.control_interface = ControlInterface.Position
-        inp.current_velocity = [0.0] * 6
-        inp.current_acceleration = [0.0] * 6
+        if not (prev is not None and prev.mode == "joint" and mv.mode == "joint"):
+            inp.current_velocity = [0.0] * 6
+            inp.current_acceleration = [0.0] * 6
         inp.target_velocity = [0.0] * 6
         inp.target_acceleration = [0.0] * 6
         inp.minimum_duration = params.travel_time
@@ -250,7 +254,7 @@ class JerkLimitedGenerator:
             inp.max_jerk = [lim.translational[2]] * 3 + [lim.rotational[2]] * 3
             x = self.kin.fk(self.q) @ mv.tool
             inp.current_position = x[:3, 3].tolist() + [0.0, 0.0, 0.0]
-        inp.target_position = self._target(mv)
+        inp.target_position = target
 
     def _target(self, mv: _Move) -> list[float]:
         """The destination in the move's state space: joints (rad), or tool point (m) + rotation vector (rad)."""
@@ -284,10 +288,12 @@ class JerkLimitedGenerator:
             x[:3, :3] = mv.r_ref @ _rotation(np.array(s[3:]))
             x[:3, 3] = s[:3]
             q = self.kin.ik(x @ mv.tool_inv, mv.config, self.q, mv.where)
-        if result == Result.Finished and mv.static:
-            self.move = None
+        if result == Result.Finished and not mv.finished:
+            mv.finished = True
             mv.req.hooks.setdefault("finished_t", self.t + self.dt)
             mv.req.finish()
+        if mv.finished and mv.static:
+            self.move = None       # holding still at a fixed point: nothing more to compute
         return q
 
     def _end_now(self, mv: _Move, end: MotionEnd) -> None:
