@@ -152,6 +152,8 @@ class JerkLimitedGenerator:
         self._inp = InputParameter(6)
         self._out = OutputParameter(6)
         self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
+        self._step_list = self._step_bound.tolist()
+        self._lo_list, self._hi_list = (limits.lower - 1e-9).tolist(), (limits.upper + 1e-9).tolist()
 
     # -- planning-level calls -------------------------------------------------------------
     def restart(self) -> None:
@@ -335,6 +337,12 @@ class JerkLimitedGenerator:
 
     def _check_step(self, q: np.ndarray) -> None:
         """Refuse a commanded step above the joint velocity limit, outside a joint range, or not finite."""
+        # fast path on plain floats (NaN fails every comparison and falls through to the diagnosis)
+        for a, b, bound, lo, hi in zip(q.tolist(), self.q.tolist(), self._step_list, self._lo_list, self._hi_list):
+            if not (abs(a - b) <= bound and lo <= a <= hi):
+                break
+        else:
+            return
         if not np.all(np.isfinite(q)):
             raise Unreachable(f"the commanded joint values are not finite ({q}); arm stopped")
         step = np.abs(q - self.q)
