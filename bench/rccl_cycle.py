@@ -6,7 +6,8 @@ Cartesian mode, over a tour of moves with transitions and holds, and writes
 ``reports/bench-rccl.md``: mean, median, p99 and max per cycle, the cycles that start a
 segment (dequeue and time the next request) on their own, the machine's load average
 before and after, and the ratio to the VAX 750 of Table 5.1 (joint 12.0 ms, Cartesian
-15.5 ms).
+15.5 ms). The jerk-limited generator (``rccl.jerk``, Ruckig) runs the same tour in the same
+run, in its own table beside the quartic's p99.
 
     .venv/bin/python bench/rccl_cycle.py            # writes reports/bench-rccl.md
     .venv/bin/python bench/rccl_cycle.py --cycles 20000 --out -   # print only

@@ -202,3 +202,14 @@ def test_a_fault_freezes_the_arm_with_a_named_error():
     with pytest.raises(TrajectoryFault):
         arm.check()
     assert np.array_equal(q, gen.q)
+
+
+def test_adaptive_arm_refuses_the_jerk_limited_mode():
+    from rccl.adaptive.session import AdaptiveArm
+    with pytest.raises(ValueError, match="quartic generator only"):
+        AdaptiveArm("socket://127.0.0.1:1", trajectory="ruckig")
+
+
+def test_unknown_trajectory_is_named():
+    with pytest.raises(ValueError, match="'bezier' is not 'quartic'"):
+        rccl.open("socket://127.0.0.1:1", trajectory="bezier")
