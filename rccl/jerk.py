@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, Synchronization
+from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
 
 from .ending import MotionEnd
 from .exceptions import BadRequest, MotionError, SingularPath, TrajectoryFault, Unreachable
@@ -64,6 +64,14 @@ class JerkLimits:
     joint_jerk: np.ndarray
     translational: tuple[float, float, float]     # m/s, m/s^2, m/s^3
     rotational: tuple[float, float, float]        # rad/s, rad/s^2, rad/s^3
+
+    def __post_init__(self) -> None:
+        for name in ("joint_velocity", "joint_acceleration", "joint_jerk"):
+            for i, v in enumerate(getattr(self, name)):
+                _check_limit(v, f"joint {i + 1} {name.split('_')[1]} limit")
+        for name in ("translational", "rotational"):
+            for what, v in zip(("velocity", "acceleration", "jerk"), getattr(self, name)):
+                _check_limit(v, f"{name} {what} limit")
 
     @staticmethod
     def from_limits(limits: Limits, ramp_s: float = JERK_RAMP_S) -> "JerkLimits":
@@ -276,11 +284,7 @@ class JerkLimitedGenerator:
         inp, out = self._inp, self._out
         if not mv.static:
             inp.target_position = self._target(mv)    # a moving target: Ruckig re-plans from the present state
-        result = self._otg.update(inp, out)
-        self.result = result
-        if result not in (Result.Working, Result.Finished):
-            raise MotionError(f"{mv.where}: Ruckig refused the motion (result {result.name}) from "
-                              f"{list(inp.current_position)} to {list(inp.target_position)}")
+        result = self._update(mv.where)
         out.pass_to_input(inp)
         s = out.new_position
         if mv.mode == "joint":
@@ -297,6 +301,19 @@ class JerkLimitedGenerator:
         if mv.finished and mv.static:
             self.move = None       # holding still at a fixed point: nothing more to compute
         return q
+
+    def _update(self, where: str) -> Result:
+        """One Ruckig online step; a refusal (result code or Ruckig's input check) is a MotionError."""
+        inp = self._inp
+        try:
+            result = self._otg.update(inp, self._out)
+        except RuckigError as exc:
+            raise MotionError(f"{where}: Ruckig refused the input: {str(exc).strip()}") from exc
+        self.result = result
+        if result not in (Result.Working, Result.Finished):
+            raise MotionError(f"{where}: Ruckig refused the motion (result {result.name}) from "
+                              f"{list(inp.current_position)} to {list(inp.target_position)}")
+        return result
 
     def _end_now(self, mv: _Move, end: MotionEnd) -> None:
         """Finish ``mv`` with ``end`` and brake the joints to rest (Ruckig's velocity interface)."""
@@ -326,10 +343,7 @@ class JerkLimitedGenerator:
 
     def _brake_sample(self) -> np.ndarray:
         inp, out = self._inp, self._out
-        result = self._otg.update(inp, out)
-        self.result = result
-        if result not in (Result.Working, Result.Finished):
-            raise MotionError(f"braking after an abort: Ruckig refused (result {result.name})")
+        result = self._update("braking after an early exit")
         out.pass_to_input(inp)
         if result == Result.Finished:
             self._braking = False

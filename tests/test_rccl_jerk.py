@@ -213,3 +213,26 @@ def test_adaptive_arm_refuses_the_jerk_limited_mode():
 def test_unknown_trajectory_is_named():
     with pytest.raises(ValueError, match="'bezier' is not 'quartic'"):
         rccl.open("socket://127.0.0.1:1", trajectory="bezier")
+
+
+def test_bad_jerk_record_is_named():
+    with pytest.raises(BadRequest, match="joint 2 jerk limit"):
+        JerkLimits(JERK.joint_velocity, JERK.joint_acceleration, np.array([1.0, math.nan, 1, 1, 1, 1]),
+                   JERK.translational, JERK.rotational)
+    with pytest.raises(BadRequest, match="rotational jerk limit"):
+        JerkLimits(JERK.joint_velocity, JERK.joint_acceleration, JERK.joint_jerk, JERK.translational, (1.0, 1.0, 0.0))
+
+
+def test_a_ruckig_refusal_freezes_the_arm_with_the_move_named():
+    """Ruckig's own input check (a NaN in the target) becomes a named fault; the arm holds."""
+    kin = rccl.session.load_kinematics("puma260")
+    gen = JerkLimitedGenerator(kin, LIM, 1 / RATE, START)
+    from rccl.planner import Planner
+    arm = Planner(kin, LIM, gen)
+    req = arm.move(makeposition("goal", T6, EQ, Trsf("G", trsl(0.03, 0.0, 0.0) @ kin.fk(START)), TL, T6))
+    for _ in range(3):
+        gen.step()
+    gen._inp.target_position = [math.nan] * 6       # what a broken target would hand Ruckig
+    q = gen.q.copy()
+    assert np.array_equal(gen.step(), q)
+    assert req.status == "failed" and "move(goal): Ruckig refused the input" in str(gen.faulted)
