@@ -44,7 +44,8 @@ class Arm(Planner):
     """One robot under RCCL control: the planning-level primitives plus open/close.
 
     Attributes: ``park`` (a Position), ``rci`` (the RCI Session), ``gen`` (the trajectory
-    generator, running at the control level), ``rate_hz``.
+    generator, running at the control level), ``rate_hz``. ``trajectory`` picks the generator:
+    "quartic" (the thesis's, default) or "ruckig" (jerk-limited, ``rccl.jerk``).
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
@@ -59,6 +60,10 @@ class Arm(Planner):
         self.rate_hz = int(rate_hz)
         self._kin = kinematics or load_kinematics(robot)
         self._limits = limits or load_limits(robot)
+        self._jerk = None
+        if trajectory == "ruckig":   # check the limits here, before anything opens (rccl/jerk.py)
+            from .jerk import JerkLimits
+            self._jerk = JerkLimits.from_limits(self._limits)
         self.conv = Conversions.for_robot(robot)
         self.rci = Session(url, robot, rate_hz=self.rate_hz, **rci_options)
         self.gen: TrajectoryGenerator | None = None
@@ -103,7 +108,7 @@ class Arm(Planner):
             period = 1.0 / float(how.rate_hz or self.rate_hz)
             if self.trajectory == "ruckig":
                 from .jerk import JerkLimitedGenerator
-                gen = JerkLimitedGenerator(self._kin, self._limits, period, q0)
+                gen = JerkLimitedGenerator(self._kin, self._limits, period, q0, jerk=self._jerk)
             else:
                 gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
             self.gen = gen

@@ -153,6 +153,8 @@ def test_bad_limits_are_named(bad):
         JerkLimitedGenerator(rccl.session.load_kinematics("puma260"), lim, 1 / RATE, START)
     with pytest.raises(BadRequest, match="jerk ramp time"):
         JerkLimits.from_limits(LIM, ramp_s=bad)
+    with pytest.raises(BadRequest, match="joint 3 velocity limit"):     # refused before any link is opened
+        rccl.open("socket://127.0.0.1:1", limits=lim, trajectory="ruckig")
 
 
 def test_moving_target_replans_every_sample():
