@@ -259,11 +259,16 @@ class JerkLimitedGenerator:
             inp.synchronization = Synchronization.Phase
             vt = min(lim.translational[0], _check_limit(params.translational_velocity, "requested velocity (setvel)"))
             vr = min(lim.rotational[0], _check_limit(params.rotational_velocity, "requested rotational velocity"))
-            inp.max_velocity = [vt] * 3 + [vr] * 3
-            inp.max_acceleration = [lim.translational[1]] * 3 + [lim.rotational[1]] * 3
-            inp.max_jerk = [lim.translational[2]] * 3 + [lim.rotational[2]] * 3
             x = self.kin.fk(self.q) @ mv.tool
-            inp.current_position = x[:3, 3].tolist() + [0.0, 0.0, 0.0]
+            start = x[:3, 3].tolist() + [0.0, 0.0, 0.0]
+            # Ruckig's limits are per coordinate, the tool's are on the norm of its translation and of
+            # its rotation: each coordinate gets limit / sqrt(3), so the norm stays within the limit in
+            # any direction, a moving target's included (up to sqrt(3) slower than needed on an axis)
+            c = 1.0 / math.sqrt(3.0)
+            inp.max_velocity = [c * vt] * 3 + [c * vr] * 3
+            inp.max_acceleration = [c * lim.translational[1]] * 3 + [c * lim.rotational[1]] * 3
+            inp.max_jerk = [c * lim.translational[2]] * 3 + [c * lim.rotational[2]] * 3
+            inp.current_position = start
         inp.target_position = target
 
     def _target(self, mv: _Move) -> list[float]:

@@ -102,6 +102,30 @@ def test_joint_mode_keeps_velocity_acceleration_and_jerk_within_the_limits(sim):
         assert rj.max() > 0.9
 
 
+def test_cartesian_mode_keeps_the_tool_within_its_limits_on_a_straight_line(sim):
+    with open_arm(sim) as arm:
+        base = go_start(arm)
+        arm.setmod("cartesian")
+        arm.setvel(0.5, 3.0)            # the Cartesian limits bind
+        n0 = len(arm.trace)
+        goal = makeposition("goal", T6, EQ, Trsf("G", trsl(0.06, -0.04, 0.03) @ base), TL, T6)
+        arm.move(goal)
+        arm.waitfor(goal.end)
+        q = np.array([x[1] for x in arm.trace[n0:]])
+        p = np.array([arm._kin.fk(qi)[:3, 3] for qi in q])
+        v, a, j = derivatives(p, 1.0 / RATE)
+        vt, at, jt = JERK.translational
+        # the norms (each coordinate has limit / sqrt(3), rccl.jerk)
+        assert np.linalg.norm(v, axis=1).max() <= vt * TOL
+        assert np.linalg.norm(a, axis=1).max() <= at * TOL
+        assert np.linalg.norm(j, axis=1).max() <= jt * TOL
+        assert np.linalg.norm(j, axis=1).max() > 0.5 * jt          # the jerk limit binds (on one coordinate)
+        # a straight line: every commanded point on the segment from start to goal
+        d = p[-1] - p[0]
+        off = np.cross(p - p[0], d / np.linalg.norm(d))
+        assert np.linalg.norm(off, axis=1).max() < 1e-9
+
+
 def test_abort_mid_motion_brakes_to_rest_and_next_move_runs(sim):
     with open_arm(sim) as arm:
         base = go_start(arm)
