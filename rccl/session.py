@@ -57,17 +57,26 @@ class Arm(Planner):
     """One robot under RCCL control: the planning-level primitives plus open/close.
 
     Attributes: ``park`` (a Position), ``rci`` (the RCI Session), ``gen`` (the trajectory
-    generator, running at the control level), ``rate_hz``.
+    generator, running at the control level), ``rate_hz``. ``trajectory`` picks the generator:
+    "quartic" (the thesis's, default) or "ruckig" (jerk-limited, ``rccl.jerk``).
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
                  kinematics: Kinematics | None = None, limits: Limits | None = None,
-                 record: bool = False, **rci_options: Any) -> None:
+                 record: bool = False, trajectory: str = "quartic", **rci_options: Any) -> None:
+        if trajectory not in ("quartic", "ruckig"):
+            raise ValueError(f"rccl.open: trajectory={trajectory!r} is not 'quartic' (the thesis's, default) "
+                             "or 'ruckig' (jerk-limited, rccl.jerk)")
+        self.trajectory = trajectory
         self.url = url
         self.robot = robot
         self.rate_hz = int(rate_hz)
         self._kin = kinematics or load_kinematics(robot)
         self._limits = limits or load_limits(robot)
+        self._jerk = None
+        if trajectory == "ruckig":   # check the limits here, before anything opens (rccl/jerk.py)
+            from .jerk import JerkLimits
+            self._jerk = JerkLimits.from_limits(self._limits)
         self.conv = Conversions.for_robot(robot)
         self.rci = Session(url, robot, rate_hz=self.rate_hz, **rci_options)
         self.gen: TrajectoryGenerator | None = None
@@ -112,7 +121,11 @@ class Arm(Planner):
             period = 1.0 / float(how.rate_hz or self.rate_hz)
             # plans whose rounded counts RCI's R_REQVEL check accepts
             self._limits = for_link(self._limits, self.conv.rounding_step(), period)
-            gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
+            if self.trajectory == "ruckig":
+                from .jerk import JerkLimitedGenerator
+                gen = JerkLimitedGenerator(self._kin, self._limits, period, q0, jerk=self._jerk)
+            else:
+                gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
             self.gen = gen
             return
         if not how.power:            # the brakes hold the arm: follow them, end any motion

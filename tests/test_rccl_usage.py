@@ -44,9 +44,10 @@ def test_a_move_with_power_off_is_refused_and_power_on_makes_it_run():
             assert np.allclose(settle(arm), q, atol=2e-3) and abs(arm.measured_q()[0] - q0[0]) > 0.29
 
 
-def test_power_off_during_a_motion_ends_it_and_power_on_starts_from_where_the_brakes_held():
+@pytest.mark.parametrize("trajectory", ["quartic", "ruckig"])
+def test_power_off_during_a_motion_ends_it_and_power_on_starts_from_where_the_brakes_held(trajectory):
     with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
-        with rccl.open(sim.url, robot="puma260", timeout=2.0) as arm:
+        with rccl.open(sim.url, robot="puma260", timeout=2.0, trajectory=trajectory) as arm:
             q0 = arm.measured_q()
             p, q = waist_turn(arm, 1.0, "far")
             arm.settime(0.2, 5.0)

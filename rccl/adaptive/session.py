@@ -36,6 +36,9 @@ class AdaptiveArm(Arm):
     """An RCCL Arm whose generator has the adaptive features of thesis 5.4."""
 
     def __init__(self, url: str, robot: str = "puma260", **options: Any) -> None:
+        if options.get("trajectory", "quartic") != "quartic":
+            raise ValueError(f"rccl.adaptive.open: trajectory={options['trajectory']!r}: the adaptive features run "
+                             "on the thesis's quartic generator only (the jerk-limited mode is rccl.open's)")
         super().__init__(url, robot, **options)
         self.adaptive = AdaptiveControl(self._kin.module, JointModel.for_robot(robot, self.conv))
         self._q_meas: np.ndarray | None = None
