@@ -9,7 +9,9 @@ corruption. After a crash the log is readable up to the last block that reached 
 """
 from __future__ import annotations
 
+import gzip
 import json
+import lzma
 import os
 import struct
 import sys
@@ -301,7 +303,7 @@ class Log:
 def read_log(path: str | os.PathLike, *, strict: bool = False) -> Log:
     """Read a recorder log.
 
-    A final block cut short (a crash while writing) is ignored and reported in
+    ``.xz`` and ``.gz`` files are decompressed first. A final block cut short (a crash while writing) is ignored and reported in
     ``Log.truncated_bytes`` / ``Log.complete``; with ``strict=True`` it raises instead.
     Damage anywhere else raises ``LogFormatError`` naming the file, the block and the
     records it held.
@@ -312,6 +314,11 @@ def read_log(path: str | os.PathLike, *, strict: bool = False) -> Log:
             data = f.read()
     except OSError as e:
         raise LogFormatError(path, "file", f"cannot read: {e.strerror}") from None
+    if path.endswith((".xz", ".gz")):             # a compressed log (calib/logs/ ships .xz)
+        try:
+            data = lzma.decompress(data) if path.endswith(".xz") else gzip.decompress(data)
+        except (OSError, EOFError, lzma.LZMAError, zlib.error) as e:
+            raise LogFormatError(path, "file", f"not a readable {path.rsplit('.', 1)[1]} file: {e}") from None
     if len(data) < len(MAGIC) + 4:
         raise LogFormatError(path, "header", f"file is {len(data)} bytes, too short for a log header")
     if data[:6] != MAGIC[:6]:
