@@ -8,7 +8,8 @@ flag triples, from which the static check builds the program's Petri net and pro
 free of deadlocks before anything moves.
 
     python examples/two_arm_flags.py --check-only       # the static check alone: prints the net's report
-    python examples/two_arm_flags.py --simula           # check, then run on two lockstep simulas
+    python examples/two_arm_flags.py --simula           # check, then run on two lockstep, powered simulas
+    python examples/two_arm_flags.py URL_PUMA URL_MICROBO  # two powered arms (simula -p --power-on, or real)
     python -m rccl.petri examples/two_arm_flags.py:plan puma microbo     # the same check, from the shell
 """
 from __future__ import annotations
@@ -66,8 +67,8 @@ def run(url_puma: str, url_microbo: str, **options) -> dict:
 
 def _cli(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("urls", nargs="*", help="PUMA link URL, Microbo link URL")
-    ap.add_argument("--simula", action="store_true", help="start two lockstep simulas (-p) for the run")
+    ap.add_argument("urls", nargs="*", help="PUMA link URL, Microbo link URL (arms with power on)")
+    ap.add_argument("--simula", action="store_true", help="start two lockstep simulas (-p --power-on) for the run")
     ap.add_argument("--check-only", action="store_true", help="only the static Petri-net check")
     a = ap.parse_args(argv)
     result = petri.analyse(petri.record(plan, "puma", "microbo").net())
@@ -77,7 +78,7 @@ def _cli(argv: list[str] | None = None) -> int:
     with ExitStack() as stack:
         if a.simula:
             from rci.simula.process import SimulaProcess
-            urls = [stack.enter_context(SimulaProcess("-p", robot=r, lockstep=True)).url for r in ("puma260", "microbo")]
+            urls = [stack.enter_context(SimulaProcess("-p", "--power-on", robot=r, lockstep=True)).url for r in ("puma260", "microbo")]
         elif len(a.urls) == 2:
             urls = a.urls
         else:
