@@ -67,7 +67,7 @@ class Arm(Planner):
     # -- rccl_open / rccl_control / rccl_close --------------------------------------------
     def open(self) -> "Arm":
         """Open the RCI session and start the trajectory generator as its control function."""
-        from rci.robot_model import load_robot
+        from models import load_robot
 
         self.rci.open()
         try:

@@ -143,7 +143,7 @@ class Conversions:
     @classmethod
     def for_robot(cls, name: str = "puma260", **kw) -> "Conversions":
         """Constants of a named robot (``"puma260"``, ``"microbo"``) from its data file."""
-        from .robot_model import load_robot
+        from models import load_robot
         return cls.from_model(load_robot(name), **kw)
 
     @property
