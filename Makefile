@@ -4,9 +4,10 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-# The derivation's inputs; their hash is kept beside the generated code so that
-# `make demo` re-derives exactly when an input's content changed (not its file time).
-DERIVE_SRC   := $(sort $(wildcard derive/*.py models/*.toml models/urdf/*.urdf))
+# The derivation's inputs (derive/ and the models package: its loader, the kinematics contract,
+# the robot files); their hash is kept beside the generated code so that `make demo`
+# re-derives exactly when an input's content changed (not its file time).
+DERIVE_SRC   := $(sort $(wildcard derive/*.py models/*.py models/*.toml models/urdf/*.urdf))
 DERIVE_STAMP := rccl/kinematics/derived-from.sha256
 
 .PHONY: all venv derive derive-if-needed test demo bench clean
@@ -17,7 +18,7 @@ venv: $(STAMP)
 
 $(STAMP): pyproject.toml $(wildcard setup.py)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet --upgrade pip 'setuptools>=77'   # builds the wheel in tests/test_packaging.py
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 

@@ -437,7 +437,7 @@ def main(argv: list[str] | None = None) -> int:
     pin = {op.name: op.results["pin_call"] for op in ops}
     c_vec = np.array([0.5] * len(mod.GRAVITY_COEFFS))
     c_map = dict(zip(mod.GRAVITY_COEFFS, c_vec))
-    from rci.robot_model import load_robot
+    from models import load_robot
     model_coeffs = load_robot(args.robot).gravity_coeffs  # what rccl.adaptive passes
     v = np.linspace(0.1, 0.6, 6)
     public = {

@@ -115,7 +115,7 @@ def friction_top_speed(joint: int, lo: float, hi: float, lower: np.ndarray,
 
 
 def _robot_limits() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from rci.robot_model import load_robot
+    from models import load_robot
 
     m = load_robot("puma260")
     return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)

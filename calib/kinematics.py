@@ -134,7 +134,7 @@ def fk_function(dh: np.ndarray) -> ca.Function:
 
 def nominal_dh(robot: str = "puma260") -> np.ndarray:
     """The data file's DH table, (n, 4) rows (theta offset rad, d m, a m, alpha rad)."""
-    from rci.robot_model import load_robot
+    from models import load_robot
 
     return np.array([[j.theta, j.d, j.a, j.alpha] for j in load_robot(robot).joints])
 

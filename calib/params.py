@@ -11,35 +11,25 @@ import datetime as _dt
 import math
 import os
 import tempfile
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+import models.params
 from calib.errors import CalibError
-
-SCHEMA = "rcci-calib-params/1"
+from models import FRICTION_KEYS, JointFriction, ModelError
+from models.params import SCHEMA
 
 
 def read_params(path: str) -> dict[str, Any]:
-    """A parameter file as a dict; CalibError naming the file when it is not one."""
+    """A parameter file as a dict (``models.params``, the one reader); CalibError naming the
+    file when it is not one."""
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except OSError as exc:
-        raise CalibError(f"{path}: cannot read parameter file: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CalibError(f"{path}: not a valid TOML parameter file: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise CalibError(f"{path}: not a text (UTF-8) TOML parameter file: byte {exc.start} is "
-                         f"{exc.object[exc.start:exc.start + 1]!r}") from None
-    if not isinstance(data.get("calib"), dict) or data["calib"].get("schema") != SCHEMA:
-        head = data.get("calib")
-        raise CalibError(f"{path}: [calib] schema is {head.get('schema') if isinstance(head, dict) else None!r}, "
-                         f"expected {SCHEMA!r}")
-    return data
+        return models.params.read_params(path)
+    except ModelError as exc:
+        raise CalibError(str(exc)) from None
 
 
 def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any]],
@@ -127,18 +117,13 @@ def _value(v: Any) -> str:
 
 
 @dataclass(frozen=True)
-class Fitted:
+class Fitted(JointFriction):
     """The values a runtime program needs (zero gravity, compliance, 4.37/4.38), SI units:
-    fitted where the parameter file has them, the robot data file's elsewhere."""
+    fitted where the parameter file has them, the robot data file's elsewhere. The friction
+    of eq. 4.27 is the fields of ``JointFriction``."""
 
     robot: str
     sigma: np.ndarray
-    coulomb_pos: np.ndarray
-    coulomb_neg: np.ndarray
-    viscous_pos: np.ndarray
-    viscous_neg: np.ndarray
-    static_pos: np.ndarray
-    static_neg: np.ndarray
     gravity_coeffs: dict[str, float]
     source: str
     # the values that are the data file's, not fitted ("friction.coulomb_pos[3]", ...),
@@ -184,6 +169,5 @@ def load_fitted(path: str | None, robot: str) -> Fitted:
             assumed.append(f"gravity_coeffs.{k}")
     return Fitted(robot=robot,
                   sigma=vec("motors", "torque_sensitivity", nominal["motors"]["torque_sensitivity"]["values"]),
-                  **{k: vec("friction", k, fr[k]["values"]) for k in
-                     ("coulomb_pos", "coulomb_neg", "viscous_pos", "viscous_neg", "static_pos", "static_neg")},
+                  **{k: vec("friction", k, fr[k]["values"]) for k in FRICTION_KEYS},
                   gravity_coeffs=grav, source=path or "robot data file", assumed=tuple(assumed))

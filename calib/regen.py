@@ -171,7 +171,7 @@ def _main(args: argparse.Namespace) -> int:
     if bad:
         raise SystemExit(f"calib regen-logs: unknown kind(s) {sorted(bad)}; known: {', '.join(KINDS)}")
     if args.params:
-        from rci.robot_model import load_robot
+        from models import load_robot
         from rci.simula.exceptions import ParamsError
         from rci.simula.params import load_params, truth_from_model
 

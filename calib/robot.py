@@ -1,6 +1,6 @@
 """What calib needs to know about a robot: its drive conversions and its gravity model.
 
-Both come from the runtime (rci.conversions and rci.robot_model for the drive, the
+Both come from the runtime (rci.conversions and the models package for the drive, the
 generated rccl.kinematics module for the gravity regressor of 4.24), so calib fits the
 very model the controller uses; until the generated module offers a regressor, calib
 uses 4.24 in the form the data file documents (thesis_regressor).
@@ -18,7 +18,6 @@ import numpy as np
 from calib.drive import Drive
 from calib.errors import CalibError
 
-MODELS = Path(__file__).resolve().parent.parent / "models"
 GRAVITY_NAMES = ("c12", "c13", "c15")
 
 
@@ -39,13 +38,14 @@ class RobotInfo:
         return lambda q: np.asarray(self.regressor(q)) @ c
 
 
-def _data_file(name: str) -> dict:
-    path = MODELS / f"{name}.toml"
+def _data_file(path: Path) -> dict:
+    """The data file's raw tables (its own units), read from where ``models.load_robot``
+    found and validated it (``$RCCI_MODELS`` or the models package)."""
     try:
         with open(path, "rb") as f:
             return tomllib.load(f)
-    except OSError:
-        raise CalibError(f"no robot data file {path} for robot {name!r}") from None
+    except OSError as exc:
+        raise CalibError(f"{path}: cannot read robot data file: {exc.strerror}") from None
 
 
 def thesis_regressor(q: np.ndarray) -> np.ndarray:
@@ -76,11 +76,10 @@ def robot_info(name: str) -> RobotInfo:
     """Drive conversions, gravity regressor and nominal parameters of robot ``name``.
 
     The drive is rci.conversions' (the encoder ratio matrix in the form the runtime
-    uses), the ranges rci.robot_model's; the nominal values are the data file's.
+    uses), the ranges the models package's; the nominal values are the data file's.
     """
     from rci.conversions import Conversions
-    from rci.exceptions import ModelError
-    from rci.robot_model import load_robot
+    from models import ModelError, load_robot
 
     try:
         model = load_robot(name)
@@ -90,5 +89,5 @@ def robot_info(name: str) -> RobotInfo:
     drive = Drive(R=np.array(conv.R), G=np.array(conv.G),
                   amps_per_adc=conv.v_g / np.array(conv.sense_resistance),
                   sigma=np.array(conv.sigma), encoder_offset=np.array(conv.encoder_offset))
-    return RobotInfo(name, drive, _regressor(name), _data_file(name),
+    return RobotInfo(name, drive, _regressor(name), _data_file(model.path),
                      np.array(model.lower, dtype=float), np.array(model.upper, dtype=float))

@@ -263,7 +263,7 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER
     grouped by face and configuration (so that the arm changes configuration at a hub only)."""
     import importlib
 
-    from rci.robot_model import load_robot
+    from models import load_robot
 
     kin = importlib.import_module(f"rccl.kinematics.{robot}")
     model = load_robot(robot)

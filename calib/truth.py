@@ -24,20 +24,16 @@ import numpy as np
 
 from calib.errors import CalibError, LogError
 from calib.robot import RobotInfo
+from models import FRICTION_KEYS, JointFriction
 
 
 @dataclass(frozen=True)
-class Truth:
-    """Ground truth in SI units; ``gravity_fit_residual`` (N m) says how exactly the
-    simulated arm's gravity follows 4.24 (DH errors bend it a little)."""
+class Truth(JointFriction):
+    """Ground truth in SI units (the friction of eq. 4.27: the fields of ``JointFriction``);
+    ``gravity_fit_residual`` (N m) says how exactly the simulated arm's gravity follows 4.24
+    (DH errors bend it a little)."""
 
     sigma: np.ndarray
-    coulomb_pos: np.ndarray
-    coulomb_neg: np.ndarray
-    viscous_pos: np.ndarray
-    viscous_neg: np.ndarray
-    static_pos: np.ndarray
-    static_neg: np.ndarray
     variation: np.ndarray
     hold_mean: np.ndarray
     hold_std: np.ndarray
@@ -125,7 +121,7 @@ def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "
     """Ground truth of a simula built from the data file and the parsed parameter file ``params``."""
     import pinocchio as pin
 
-    from rci.robot_model import load_robot
+    from models import load_robot
     from rci.simula.arm import Arm
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import apply_params, truth_from_model
@@ -148,9 +144,7 @@ def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "
     A, y = np.vstack(A), np.concatenate(y)
     c, *_ = np.linalg.lstsq(A, y, rcond=None)
     n = model.n_joints
-    return Truth(sigma=np.array(t.sigma), coulomb_pos=np.array(t.coulomb_pos), coulomb_neg=np.array(t.coulomb_neg),
-                 viscous_pos=np.array(t.viscous_pos), viscous_neg=np.array(t.viscous_neg),
-                 static_pos=np.array(t.static_pos), static_neg=np.array(t.static_neg),
+    return Truth(sigma=np.array(t.sigma), **{k: np.array(getattr(t, k)) for k in FRICTION_KEYS},
                  variation=np.array(t.variation), hold_mean=np.array(t.hold_mean), hold_std=np.array(t.hold_std),
                  gravity=c, gravity_fit_residual=float(np.abs(A @ c - y).max()),
                  dh_errors=np.zeros((n, 4)) if t.dh_errors is None else np.array(t.dh_errors),
@@ -175,7 +169,7 @@ def simula_pattern(robot: str, seed: int, joint: int, window: tuple[float, float
                    params: dict | None = None, points: int = 4000) -> tuple[np.ndarray, np.ndarray]:
     """(angles, relative Coulomb variation v p(q)) of ``joint`` over ``window`` in a simula
     started with ``seed``."""
-    from rci.robot_model import load_robot
+    from models import load_robot
     from rci.simula.arm import Arm
     from rci.simula.params import apply_params, truth_from_model
 

@@ -34,7 +34,7 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
                    taper: float, seed: int = 0) -> tuple[float, float, str]:
     """(g_w N m, its standard deviation N m, where the model came from) for ``joint``
     (1-based) swept over ``window`` (rad) at ``pose`` (rad), tapered as the pass means are."""
-    from rci.robot_model import load_robot
+    from models import load_robot
     from rci.simula.arm import Arm
     from rci.simula.params import apply_params, truth_from_model
 

@@ -20,7 +20,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from derive.kernel import Kernel
 from derive.robots import RobotSpec, load_spec
-from rccl.kinematics import runtime as _rt
+from models.kinematics import PUBLIC
 
 COMMAND = "make derive  (python -m derive)"
 
@@ -191,7 +191,7 @@ Forward and inverse kinematics, the link-4 and frame-6 Jacobians with their four
 computations, and the gravity vector, derived with SymPy from the DH table of
 {spec.model_path.split("/")[-1]} (J. Lloyd 1985, chapters 3 and 4). SI units, radians; every
 function accepts one configuration or a batch along a leading axis. Contract:
-notes/kin_contract.md; runtime helpers: rccl.kinematics.runtime.
+models.kinematics; runtime helpers: rccl.kinematics.runtime.
 """
 # fmt: off
 # ruff: noqa
@@ -220,7 +220,7 @@ CONFIGS = Config.all()
         lowered = _lower(k)
         funcs.append(_function(k, lowered, many=False))
         funcs.append(_function(k, lowered, many=True))
-    names = list(_rt.PUBLIC)
+    names = list(PUBLIC)
     binds = "(" + ", ".join(names[:8]) + ",\n " + ", ".join(names[8:]) + ") = _API"
     api = f'''
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)

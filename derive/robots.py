@@ -2,7 +2,7 @@
 
 The symbolic DH tables of ``derive.dh`` fix the structure (which parameters are zero,
 the alpha signs, joint kinds); the numbers (a2, d3, d4, gravity, joint ranges) come from
-``models/<robot>.toml`` through ``rci.robot_model.load_robot``. Before anything is
+``models/<robot>.toml`` through ``models.load_robot``. Before anything is
 emitted, every DH entry of the data file is compared with the symbolic table, so a model
 file that disagrees with the derivation stops ``make derive`` with a clear message.
 """
@@ -43,7 +43,7 @@ def _dh_value(link, field: str, params: dict[sp.Symbol, float]) -> float | None:
 
 def load_spec(name: str) -> RobotSpec:
     """Read ``models/<name>.toml`` and check it against the symbolic DH table."""
-    from rci.robot_model import load_robot
+    from models import load_robot
 
     model = load_robot(name)
     dh = {"puma260": PUMA260, "microbo": MICROBO}[name]

@@ -27,7 +27,7 @@ import numpy as np
 
 from rci.chg import POS
 from rci.conversions import Conversions
-from rci.robot_model import load_robot
+from models import load_robot
 from rci.session import Session
 
 

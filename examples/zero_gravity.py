@@ -22,7 +22,7 @@ import numpy as np
 from rccl.kinematics import puma260 as kinematics
 from rci.chg import CUR
 from rci.conversions import Conversions
-from rci.robot_model import load_robot
+from models import load_robot
 from rci.session import Session
 
 

@@ -41,7 +41,7 @@ def load_kinematics(robot: str) -> Kinematics:
     Raises ValueError naming the robots there are (a data file each in models/) for an unknown
     name, or saying that the robot's kinematics have not been generated (``make derive``).
     """
-    from rci.robot_model import available_robots
+    from models import available_robots
 
     known = available_robots()
     if not isinstance(robot, str) or robot not in known:
@@ -89,7 +89,7 @@ class Arm(Planner):
     # -- rccl_open / rccl_control / rccl_close --------------------------------------------
     def open(self) -> "Arm":
         """Open the RCI session and start the trajectory generator as its control function."""
-        from rci.robot_model import load_robot
+        from models import load_robot
 
         self.rci.open()
         try:

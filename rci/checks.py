@@ -18,7 +18,7 @@ import numpy as np
 from . import codes
 from .chg import CUR, DAC_MAX, DAC_MIN, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd, Flag
 from .chg import MOTION_NAMES, rate_hz
-from .exceptions import ModelError
+from models import ModelError
 from .how import How
 
 
@@ -62,13 +62,13 @@ class Limits:
 
     @classmethod
     def for_robot(cls, name: str) -> "Limits":
-        """Limits from the robot model (``rci.robot_model``) and its conversions (``rci.conversions``).
+        """Limits from the robot model (``models``) and its conversions (``rci.conversions``).
 
         Current limits: the model's ``max_current`` (A) in ADC counts (``currents_to_adc``)
         and in DAC counts (kappa times the ADC value, eq. 4.34), capped at the 12-bit range.
         """
         from .conversions import Conversions
-        from .robot_model import load_robot
+        from models import load_robot
         model = load_robot(name)
         conv = Conversions.from_model(model)
         adc = np.abs(np.asarray(conv.currents_to_adc(np.asarray(model.max_current, float)), float))

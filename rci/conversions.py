@@ -32,7 +32,7 @@ torque vector f (eq. 4.27) becomes ``f_adc = K_adc^-1 G^-T f`` and ``f_dac = K_d
 
 Every function takes arrays whose last axis is the joint axis, ``(..., n)``, and is
 vectorised over any leading axes. Units: rad / m, N*m / N, A, ADC and DAC counts. The
-constants come from :mod:`rci.robot_model` (``Conversions.for_robot("puma260")``).
+constants come from :mod:`models` (``Conversions.for_robot("puma260")``).
 """
 from __future__ import annotations
 
@@ -118,7 +118,7 @@ class Conversions:
     # --- construction -------------------------------------------------------------
     @classmethod
     def from_model(cls, model, *, sigma: np.ndarray | None = None, consistent_encoders: bool = True) -> "Conversions":
-        """Constants from a :class:`rci.robot_model.RobotModel`.
+        """Constants from a :class:`models.RobotModel`.
 
         ``sigma`` overrides the torque sensitivities (e.g. values fitted by ``calib``).
         ``consistent_encoders`` uses ``encoder_ratio_consistent`` when the data file has it
@@ -143,7 +143,7 @@ class Conversions:
     @classmethod
     def for_robot(cls, name: str = "puma260", **kw) -> "Conversions":
         """Constants of a named robot (``"puma260"``, ``"microbo"``) from its data file."""
-        from .robot_model import load_robot
+        from models import load_robot
         return cls.from_model(load_robot(name), **kw)
 
     @property

@@ -49,7 +49,7 @@ class Session:
     """One RCI session with one robot (or simula) over one link.
 
     Parameters (SI units): ``rate_hz`` sample rate (4..1000 Hz; the thesis's 9/18/36/72 are
-    all valid); ``limits`` for the A.5.1 checks: ``"model"`` (from ``rci.robot_model`` and
+    all valid); ``limits`` for the A.5.1 checks: ``"model"`` (from ``models`` and
     ``rci.conversions``), a ``Limits``, or None (range checks off); ``timeout`` s without a
     HOW before R_TIMEOUT (default two periods, at least ``min_timeout``; against a lockstep
     simulator at least ``lockstep_timeout``, since its cycles are not wall-clock time);

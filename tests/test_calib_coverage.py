@@ -130,7 +130,7 @@ def test_kinematic_errors_within_their_printed_uncertainty(calibrated):
 def test_the_parameter_file_is_a_truth_simula_and_rccl_take(calibrated):
     """What calib wrote loads in simula (--params) and in RCCL (rccl.calibrated)."""
     from rccl.calibrated import load_calibrated
-    from rci.robot_model import load_robot
+    from models import load_robot
     from rci.simula.params import load_params, truth_from_model
 
     path = os.path.join(os.path.dirname(calibrated["traces"][0].path), "fitted.toml")

@@ -95,7 +95,7 @@ def test_sensitivity_of_some_joints_leaves_the_others_unfitted_nan(tmp_path, cap
 
 
 def test_simula_keeps_its_own_value_where_the_file_says_nan(tmp_path):
-    from rci.robot_model import load_robot
+    from models import load_robot
     from rci.simula.params import load_params, truth_from_model
 
     params = str(tmp_path / "fitted.toml")

@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 from calib.kinematics import fk_function, nominal_dh
-from rci.robot_model import load_robot
+from models import load_robot
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TRUTH = os.path.join(ROOT, "calib", "logs", "simula-truth.toml")

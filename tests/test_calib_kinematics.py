@@ -5,7 +5,7 @@ import numpy as np
 
 from calib.__main__ import main
 from calib.kinematics import fit_kinematics, fk_function
-from rci.robot_model import load_robot
+from models import load_robot
 
 MODEL = load_robot("puma260")
 DH = np.array([[j.theta, j.d, j.a, j.alpha] for j in MODEL.joints])

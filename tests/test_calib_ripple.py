@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rci.robot_model import load_robot
+from models import load_robot
 from rci.simula.arm import Arm
 from rci.simula.params import truth_from_model
 

@@ -16,7 +16,7 @@ import pytest
 from rci import codes, protocol
 from rci.how import How
 from rci.link import open_link
-from rci.robot_model import load_robot
+from models import load_robot
 from rci.session import Session
 from rci.simula.arm import Arm
 from rci.simula.params import truth_from_model

@@ -16,7 +16,7 @@ from rci import codes, protocol
 from rci.chg import CUR, POS, STOPCAL, Chg
 from rci.conversions import Conversions
 from rci.link import open_link
-from rci.robot_model import load_robot
+from models import load_robot
 from rci.simula.process import SimulaProcess
 
 PUMA = load_robot("puma260")

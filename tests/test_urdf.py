@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 import yourdfpy
 
-from rci.robot_model import RobotModel, load_robot
+from models import RobotModel, load_robot
 
 ROBOTS = ("puma260", "microbo")
 N_SAMPLES = 300

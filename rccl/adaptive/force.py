@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from models import JointFriction, load_robot
 from rci.conversions import Conversions, friction_torque
 
 from ..transform import force_map
@@ -31,18 +32,13 @@ MAX_CONDITION = 1.0e3
 
 
 @dataclass(frozen=True)
-class JointModel:
+class JointModel(JointFriction):
     """What the controller believes about the joints: conversions (4.28-4.38), gravity coefficients (4.24),
-    friction of eq. 4.27 (Tables 4.2/4.3/4.5) and its variation (Table 4.4). SI, joint level."""
+    friction of eq. 4.27 (Tables 4.2/4.3/4.5; the fields of ``JointFriction``) and its variation
+    (Table 4.4). SI, joint level."""
 
     conv: Conversions
     gravity_coeffs: dict
-    coulomb_pos: np.ndarray
-    coulomb_neg: np.ndarray
-    viscous_pos: np.ndarray
-    viscous_neg: np.ndarray
-    static_pos: np.ndarray
-    static_neg: np.ndarray
     variation: np.ndarray
     max_dac: np.ndarray        # DAC counts of the motor current limit (as rci.checks computes it, A.5.1)
     dac_per_joint_torque: np.ndarray = None   # K_dac G^-T (4.35), 6x6, derived from conv
@@ -54,9 +50,7 @@ class JointModel:
 
     @classmethod
     def for_robot(cls, robot: str = "puma260", conv: Conversions | None = None) -> "JointModel":
-        """Thesis values from the robot data file (``rci.robot_model``)."""
-        from rci.robot_model import load_robot
-
+        """Thesis values from the robot data file (``models``)."""
         m = load_robot(robot)
         fr = m.friction
         n = m.n_joints
@@ -64,11 +58,8 @@ class JointModel:
         conv = conv or Conversions.from_model(m)
         adc = np.abs(conv.currents_to_adc(np.asarray(m.max_current, float)))
         max_dac = np.minimum(adc * conv.kappa, 2047.0)
-        return cls(conv, {k: v.value for k, v in m.gravity_coeffs.items()},
-                   np.array(fr.coulomb_pos.values, float), np.array(fr.coulomb_neg.values, float),
-                   np.array(fr.viscous_pos.values, float), np.array(fr.viscous_neg.values, float),
-                   np.array(fr.static_pos.values, float), np.array(fr.static_neg.values, float),
-                   np.array(var, float), np.floor(max_dac))
+        return cls(conv=conv, gravity_coeffs={k: v.value for k, v in m.gravity_coeffs.items()},
+                   **JointFriction.arrays(fr), variation=np.array(var, float), max_dac=np.floor(max_dac))
 
     def friction(self, qd: np.ndarray) -> np.ndarray:
         """Kinetic friction torque of eq. 4.27 at joint velocities qd (rad/s), 0 at rest."""

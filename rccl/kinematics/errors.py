@@ -1,18 +1,6 @@
-"""Exceptions of the generated kinematics modules (one module for the package)."""
+"""Exceptions of the generated kinematics modules: the contract's (``models.kinematics``), named here."""
 from __future__ import annotations
 
+from models.kinematics import InvalidInput, KinematicsError, Singular, Unreachable
 
-class KinematicsError(ValueError):
-    """Base class: the input lies outside the domain of a kinematic function."""
-
-
-class Unreachable(KinematicsError):
-    """No joint configuration reaches the pose (out of reach or outside a joint range)."""
-
-
-class Singular(KinematicsError):
-    """The configuration is singular: the solution is not unique or does not exist."""
-
-
-class InvalidInput(KinematicsError):
-    """An argument has the wrong shape, is not finite, or is not a rigid transform."""
+__all__ = ["KinematicsError", "Unreachable", "Singular", "InvalidInput"]

@@ -4,7 +4,7 @@ Forward and inverse kinematics, the link-4 and frame-6 Jacobians with their four
 computations, and the gravity vector, derived with SymPy from the DH table of
 puma260.toml (J. Lloyd 1985, chapters 3 and 4). SI units, radians; every
 function accepts one configuration or a batch along a leading axis. Contract:
-notes/kin_contract.md; runtime helpers: rccl.kinematics.runtime.
+models.kinematics; runtime helpers: rccl.kinematics.runtime.
 """
 # fmt: off
 # ruff: noqa

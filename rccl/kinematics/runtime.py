@@ -17,6 +17,7 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
+from models.kinematics import PUBLIC  # the contract's public functions, in binding order
 from rccl.kinematics import errors
 
 #: two solutions closer than this (rad or m, per joint) are the same solution: at a
@@ -444,12 +445,6 @@ class Robot:
 
 
 # -- the public functions ------------------------------------------------------------------
-
-#: the contract's public functions, in the order the generated modules bind them
-PUBLIC = ("fk", "ik", "ik_all", "config_of", "jacobian4", "jacobian6", "cartesian_from_joint",
-          "torque_from_force", "joint_from_cartesian", "force_from_torque", "gravity", "gravity_regressor",
-          "gravity_links", "coefficients_from_links", "tool_load")
-
 
 PublicAPI = NamedTuple("PublicAPI", [(n, Callable) for n in PUBLIC])
 PublicAPI.__doc__ = "The contract's public functions of one robot, by name, in the order of PUBLIC."

@@ -18,8 +18,8 @@ import signal
 import sys
 from dataclasses import replace
 
-from ..exceptions import ModelError
-from ..robot_model import load_robot
+from models import ModelError
+from models import load_robot
 from .arm import Arm
 from .control import ControlChannel
 from .exceptions import SimulaError

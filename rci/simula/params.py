@@ -1,6 +1,6 @@
 """Ground truth of the simulated arm: thesis constants, fitted overrides, and disturbance settings.
 
-The simulator's truth is the robot data file (thesis values, ``rci.robot_model``). A
+The simulator's truth is the robot data file (thesis values, ``models``). A
 parameter file written by ``calib`` (``--params``, schema ``rcci-calib-params/1``, see
 docs/simula.md) replaces any of: the torque sensitivities (``[motors]``), the friction
 coefficients of eq. 4.27 and the variation of Table 4.4 (``[friction]``), the gravity
@@ -13,16 +13,18 @@ A NaN entry (a joint calib did not fit) keeps the data-file value.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from models import JointFriction, ModelError
+from models.params import SCHEMA, check_schema, read_toml
+
 from .exceptions import ParamsError
 
-PARAMS_SCHEMA = "rcci-calib-params/1"
+PARAMS_SCHEMA = SCHEMA   # the one schema, models.params
 
 
 @dataclass(frozen=True)
@@ -47,16 +49,11 @@ class Disturbances:
 
 
 @dataclass(frozen=True)
-class Truth:
-    """Per-joint ground-truth constants the simulated arm uses (SI, joint level)."""
+class Truth(JointFriction):
+    """Per-joint ground-truth constants the simulated arm uses (SI, joint level): the friction
+    of eq. 4.27 (Tables 4.2, 4.3, 4.5; the fields of ``JointFriction``) and the following."""
 
     sigma: np.ndarray                  # N*m/A, motor torque sensitivities (Table 4.1)
-    coulomb_pos: np.ndarray            # N*m or N (Table 4.2)
-    coulomb_neg: np.ndarray
-    viscous_pos: np.ndarray            # N*m*s/rad or N*s/m (Table 4.3)
-    viscous_neg: np.ndarray
-    static_pos: np.ndarray             # Table 4.5
-    static_neg: np.ndarray
     variation: np.ndarray              # relative (Table 4.4)
     hold_mean: np.ndarray              # typical static friction at a halt (Table 4.6 mean)
     hold_std: np.ndarray               # (Table 4.6 standard deviation)
@@ -82,12 +79,7 @@ def truth_from_model(model) -> Truth:
     variation = np.array(fr.variation.values, dtype=float) if fr.variation is not None else np.zeros(n)
     return Truth(
         sigma=np.array(model.motors.torque_sensitivity.values, dtype=float),
-        coulomb_pos=np.array(fr.coulomb_pos.values, dtype=float),
-        coulomb_neg=np.array(fr.coulomb_neg.values, dtype=float),
-        viscous_pos=np.array(fr.viscous_pos.values, dtype=float),
-        viscous_neg=np.array(fr.viscous_neg.values, dtype=float),
-        static_pos=np.array(fr.static_pos.values, dtype=float),
-        static_neg=np.array(fr.static_neg.values, dtype=float),
+        **JointFriction.arrays(fr),
         variation=variation,
         hold_mean=hold_mean,
         hold_std=hold_std,
@@ -113,18 +105,12 @@ def _vector(path: str, section: str, key: str, raw: Any, base: np.ndarray, *, no
 
 
 def read_params_file(path: str | Path) -> dict[str, Any]:
-    """A parameter file's TOML as a dict; ParamsError names the file when it is not readable TOML."""
-    path = str(path)
+    """A parameter file's TOML as a dict (``models.params``, the one reader); ParamsError
+    names the file when it is not readable TOML."""
     try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
-    except OSError as exc:
-        raise ParamsError(f"{path}: cannot read parameter file: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParamsError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise ParamsError(f"{path}: not a text (UTF-8) parameter file: byte {exc.start} "
-                          f"is {exc.object[exc.start:exc.start + 1]!r}") from None
+        return read_toml(path)
+    except ModelError as exc:
+        raise ParamsError(str(exc)) from None
 
 
 def load_params(path: str | Path, robot: str, truth: Truth) -> Truth:
@@ -138,10 +124,10 @@ DH_ERROR_KEYS = ("dtheta", "dd", "da", "dalpha")   # [kinematics]: rad, m, m, ra
 def apply_params(data: dict[str, Any], path: str, robot: str, truth: Truth) -> Truth:
     """``truth`` with the values of a parsed parameter file ``data`` applied (``path`` names
     it in errors); the same checks as ``load_params``."""
-    head = data.get("calib")
-    if not isinstance(head, dict) or head.get("schema") != PARAMS_SCHEMA:
-        raise ParamsError(f"{path}: [calib] schema must be {PARAMS_SCHEMA!r}, got "
-                          f"{(head or {}).get('schema') if isinstance(head, dict) else head!r}")
+    try:
+        head = check_schema(data, path)
+    except ModelError as exc:
+        raise ParamsError(str(exc)) from None
     if head.get("robot") != robot:
         raise ParamsError(f"{path}: parameters are for robot {head.get('robot')!r}, simula runs {robot!r}")
     known = {"calib", "motors", "friction", "gravity_coeffs", "static_friction", "simula", "kinematics"}

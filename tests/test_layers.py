@@ -1,0 +1,72 @@
+"""The floors of the house, read from the source (AST, no imports executed).
+
+``models`` (the robot description) is the ground floor: it imports none of the project's
+other packages. ``derive`` and ``rci`` stand on it and not on each other; ``rccl`` and
+``calib`` stand above. A package may import only from its own floor or below (``calib``
+uses ``rccl``'s kinematics and calibrated arm, which share its floor).
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+FLOOR = {"models": 0, "derive": 1, "rci": 1, "rccl": 2, "calib": 2}
+#: same-floor imports that are part of the design
+ALLOWED_SIDEWAYS = {("calib", "rccl")}
+
+
+def _imports(path: Path, module: str) -> set[str]:
+    """Absolute names of the project modules that ``path`` (module ``module``) imports."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - (node.level - 1)]
+                out.add(".".join(base + ([node.module] if node.module else [])))
+            elif node.module:
+                out.add(node.module)
+    return {name for name in out if name.split(".")[0] in FLOOR}
+
+
+def _graph() -> dict[str, set[str]]:
+    """Package -> the project packages its modules import."""
+    graph: dict[str, set[str]] = {pkg: set() for pkg in FLOOR}
+    for pkg in FLOOR:
+        for path in (ROOT / pkg).rglob("*.py"):
+            rel = path.relative_to(ROOT).with_suffix("")
+            module = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+            graph[pkg].update(name.split(".")[0] for name in _imports(path, module))
+        graph[pkg].discard(pkg)
+    return graph
+
+
+def test_no_package_imports_a_higher_floor_or_sideways():
+    bad = [f"{pkg} -> {dep}" for pkg, deps in _graph().items() for dep in sorted(deps)
+           if FLOOR[dep] > FLOOR[pkg] or (FLOOR[dep] == FLOOR[pkg] and (pkg, dep) not in ALLOWED_SIDEWAYS)]
+    assert not bad, "imports against the layering: " + ", ".join(bad)
+
+
+def test_the_robot_description_is_the_ground_floor():
+    graph = _graph()
+    assert graph["models"] == set()
+    assert graph["derive"] == {"models"}
+    assert "models" in graph["rci"] and "models" in graph["rccl"] and "models" in graph["calib"]
+
+
+def test_no_module_of_the_project_imports_the_old_robot_model_path():
+    """``rci.robot_model`` stays for users' programs; the project's own code uses ``models``."""
+    users = []
+    for pkg in (*FLOOR, "bench", "examples"):
+        for path in (ROOT / pkg).rglob("*.py"):
+            if path == ROOT / "rci" / "robot_model.py":
+                continue
+            tree = ast.parse(path.read_text(), str(path))
+            for node in ast.walk(tree):
+                if isinstance(node, ast.ImportFrom) and node.module and node.module.endswith("robot_model"):
+                    users.append(str(path.relative_to(ROOT)))
+    assert not users, users
