@@ -322,6 +322,12 @@ class Monitor:
             msg = protocol.ErrorMsg(codes.ST_BUSY, f"robot busy: owned by the controller at {self._owner}; "
                                                    f"one controller at a time")
             conn.sendall(protocol.encode_frame(protocol.ERROR, 0, msg.encode()))
+            # read what the newcomer sent (its HELLO) before closing: a socket closed with
+            # unread data resets the connection, and the reset can overtake the refusal
+            conn.shutdown(socket.SHUT_WR)
+            conn.settimeout(0.2)
+            while conn.recv(4096):
+                pass
         except OSError:
             pass
         conn.close()
