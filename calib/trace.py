@@ -8,8 +8,6 @@ import numpy as np
 
 from calib.errors import LogError
 
-EXPERIMENTS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
-
 
 @dataclass
 class Trace:
