@@ -8,7 +8,7 @@ import sys
 
 from calib import registry
 from calib.cli_extra import add_commands
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.fitting import run_fit
 from calib.logs import load_trace
 from calib.params import read_params, update_params

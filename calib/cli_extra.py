@@ -9,7 +9,7 @@ import tempfile
 from typing import Any
 
 from calib import registry
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.logs import LOG_DIR
 
 REPORT = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reports", "calibration.md")

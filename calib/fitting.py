@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from calib import registry
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.logs import motors_of
 from calib.robot import GRAVITY_NAMES, RobotInfo
 from calib.trace import Trace

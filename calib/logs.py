@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from calib.errors import LogError, MixedLogsError
+from calib.exceptions import LogError, MixedLogsError
 from calib import registry
 from calib.trace import Trace, check_samples
 from rci.exceptions import LogFormatError

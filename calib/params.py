@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 import models.params
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from models import FRICTION_KEYS, JointFriction, ModelError
 from models.params import SCHEMA
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.experiments import ACCEL, Plan
 from calib.paths import Path, Segment
 from rci import codes

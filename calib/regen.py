@@ -23,7 +23,7 @@ import time
 from typing import Any
 
 from calib import registry
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.experiments import Plan
 from calib.logs import LOG_DIR
 from calib.program import run_plan

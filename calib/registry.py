@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, Any, Callable
 
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 
 if TYPE_CHECKING:   # annotations only: the records these callables take and give
     from calib.experiments import Plan

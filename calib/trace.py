@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.errors import LogError
+from calib.exceptions import LogError
 
 
 @dataclass

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.errors import CalibError, LogError
+from calib.exceptions import CalibError, LogError
 from calib.robot import RobotInfo
 from models import FRICTION_KEYS, JointFriction
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from calib import registry
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.logs import LOG_DIR
 
 ROOT = Path(__file__).resolve().parent.parent

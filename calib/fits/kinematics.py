@@ -7,7 +7,7 @@ import tempfile
 
 import numpy as np
 
-from calib.errors import FitError
+from calib.exceptions import FitError
 from calib.fitting import FitOutcome
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
 
