@@ -79,7 +79,7 @@ def main() -> None:
                   f"({'OK' if best < 2.0 else 'SLOW'})")
             del out
     # the shipped joint-5 logs, whose fast passes are read at every servo tick (1 kHz)
-    from calib.cli_extra import LOG_DIR
+    from calib.logs import LOG_DIR
     from calib.logs import load_traces
 
     j5 = sorted(str(p) for p in Path(LOG_DIR).glob("friction-j5*.rcilog.*"))

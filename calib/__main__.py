@@ -6,28 +6,25 @@ import os
 import shlex
 import sys
 
+from calib import registry
 from calib.cli_extra import add_commands
-from calib.errors import CalibError
-from calib.fitting import KINDS, run_fit
+from calib.exceptions import CalibError
+from calib.fitting import run_fit
 from calib.logs import load_trace
 from calib.params import read_params, update_params
 from calib.progress import progress
 from calib.robot import robot_info
 
 
-def _fit_kinematic_poses(args: argparse.Namespace) -> int:
-    """``calib fit kinematics POSES.csv``: end poses measured by an external instrument."""
-    import numpy as np
-
-    from calib.kinematics import fit_kinematics, nominal_dh, read_poses, section, table
-
-    Q, T = zip(*(read_poses(p) for p in args.logs))
-    fit = fit_kinematics(nominal_dh("puma260"), np.vstack(Q), np.concatenate(T))
-    print(f"calib fit kinematics: {sum(len(q) for q in Q)} poses of robot puma260\n")
-    print(table(fit))
+def _fit_files(args: argparse.Namespace, kind) -> int:
+    """``calib fit KIND FILES``: a kind's inputs that are not logs (kinematics: CSV files of
+    end poses measured by an external instrument)."""
+    _, table, sections = kind.fit_files(args.logs)
+    print(f"calib fit {kind.name}: {len(args.logs)} file(s) of robot puma260\n")
+    print(table)
     if args.params:
         _existing_params(args.params, "puma260")
-        update_params(args.params, "puma260", {"kinematics": section(fit)}, _command(), "kinematics", [])
+        update_params(args.params, "puma260", sections, _command(), kind.name, [])
         print(f"\nwrote {args.params}")
     return 0
 
@@ -63,9 +60,12 @@ def print_outcome(outcome) -> None:
 
 
 def _fit(args: argparse.Namespace) -> int:
-    if args.kind == "kinematics" and not any(_is_log(p) for p in args.logs):
-        return _fit_kinematic_poses(args)
-    if args.plots:
+    kind = registry.kind(args.kind)
+    if kind.fit_files and not any(_is_log(p) for p in args.logs):
+        return _fit_files(args, kind)
+    if args.plots and kind.plot is None:
+        print(f"calib fit {kind.name}: makes no plots; --plots {args.plots} ignored", file=sys.stderr)
+    elif args.plots:
         try:   # before the fit: a folder that cannot be made must not cost the fit
             os.makedirs(args.plots, exist_ok=True)
         except OSError as exc:
@@ -91,9 +91,8 @@ def _fit(args: argparse.Namespace) -> int:
     if args.params:
         update_params(args.params, robot, outcome.sections, _command(), args.kind, outcome.assumed)
         print(f"\nwrote {args.params}" + (" (with [calib] assumed)" if outcome.assumed else ""))
-    if args.plots and args.kind == "friction":
-        from calib.plots import friction_plots
-        for path in friction_plots(outcome.results, outcome.extra["points"], args.plots):
+    if args.plots and kind.plot:
+        for path in kind.plot(outcome, args.plots, f"calib-{kind.name}-j"):
             print(f"wrote {path}")
     return 0
 
@@ -104,13 +103,14 @@ def main(argv: list[str] | None = None) -> int:
         "chapter 4) and its kinematic errors (3.84) from recorded logs. See docs/calib.md."))
     sub = parser.add_subparsers(dest="command", required=True)
     fit = sub.add_parser("fit", help="fit one kind of parameter from logs and print the thesis table")
-    fit.add_argument("kind", choices=KINDS)
+    fit.add_argument("kind", choices=registry.names(),
+                     help="; ".join(f"{k.name}: {k.title}" for k in registry.kinds()))
     fit.add_argument("logs", nargs="+", metavar="LOG",
                      help="recorder logs (.rcilog[.xz|.gz]); for kinematics also CSV files of measured poses")
     fit.add_argument("-p", "--params", metavar="FILE",
                      help="parameter file (TOML): fitted inputs are read from it and the "
                           "results merged into it, atomically")
-    fit.add_argument("--plots", metavar="DIR", help="write friction-against-speed PNGs here (friction)")
+    fit.add_argument("--plots", metavar="DIR", help="write the fit's plots here (friction: friction against speed)")
     fit.add_argument("--assume-datafile", action="store_true",
                      help="where the fit needs an earlier fit's values (torque sensitivities, gravity "
                           "coefficients) that -p does not hold, use the robot data file's (the thesis's "

@@ -6,18 +6,18 @@ import glob
 import os
 import shlex
 import tempfile
+from typing import Any
 
-from calib.errors import CalibError
+from calib import registry
+from calib.exceptions import CalibError
+from calib.logs import LOG_DIR
 
-LOG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "logs")
 REPORT = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reports", "calibration.md")
-RECORD_KINDS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
-ACCURACY_TARGETS = 20   # target poses of the before/after positioning run
 
 
 def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_datafile: bool = False) -> dict:
-    """Fit every kind present among ``paths`` in calib.fitting.ORDER, chaining through ``params_path``."""
-    from calib.fitting import ORDER, run_fit
+    """Fit every kind present among ``paths`` in the registry's ``order``, chaining through ``params_path``."""
+    from calib.fitting import run_fit
     from calib.logs import load_traces
     from calib.params import read_params, update_params
     from calib.progress import progress
@@ -27,7 +27,7 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
                                               enabled=False if quiet else None)])
     info = robot_info(traces[0].robot)
     outcomes = {}
-    for kind in ORDER:
+    for kind in registry.names("order"):
         sel = [t for t in traces if t.experiment == kind]
         if not sel:
             continue
@@ -39,10 +39,9 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
 
 
 def _report(args: argparse.Namespace) -> int:
-    from calib.params import _atomic_write
-    from calib.plots import friction_plots
+    from calib.params import atomic_write
     from calib.report import render
-    from calib.truth import log_truth, simula_variation, truth_of
+    from calib.truth import truth_of
 
     paths = sorted(glob.glob(os.path.join(args.logs, "*.rcilog*")))
     if not paths:
@@ -52,33 +51,20 @@ def _report(args: argparse.Namespace) -> int:
         params = args.params or os.path.join(tmp, "fitted.toml")
         res = fit_all(paths, params, quiet=args.quiet, assume_datafile=args.assume_datafile)
         info, outcomes = res["info"], res["outcomes"]
-        truth = truth_of(res["traces"], info)
-        plots = []
-        if "friction" in outcomes:
-            plots = friction_plots(outcomes["friction"].results, outcomes["friction"].extra["points"],
-                                   out_dir, prefix="calib-friction-j")
-        vt = {}
-        for tr in res["traces"]:
-            t = log_truth(tr)
-            if tr.experiment == "friction" and t["kind"] == "simula":
-                import tomllib
-                data = tomllib.loads(t["params_toml"]) if t.get("params_toml") else None
-                vt[tr.meta["joint"]] = simula_variation(info.name, int(t["seed"]), tr.meta["joint"],
-                                                        tuple(tr.meta["window"]), data)
-        accuracy = None
-        if "kinematics" in outcomes and truth is not None and not args.no_accuracy:
-            accuracy = _accuracy(res["traces"], params, args.quiet)
+        plots = {name: registry.kind(name).plot(out, out_dir, f"calib-{name}-j")
+                 for name, out in outcomes.items() if registry.kind(name).plot}
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         rel = [os.path.relpath(os.path.abspath(p), root) for p in paths]
-        regen = _regen_command(res["traces"])
-        text = render(info, truth, outcomes, "calib report", regen, rel,
-                      [os.path.relpath(p, out_dir) for p in plots], vt, accuracy)
-    _atomic_write(args.out, text)
+        text = render(info, truth_of(res["traces"], info), outcomes, "calib report", _regen_command(res["traces"]),
+                      rel, {k: [os.path.relpath(p, out_dir) for p in v] for k, v in plots.items()},
+                      res["traces"], params, quiet=args.quiet, no_accuracy=args.no_accuracy)
+    atomic_write(args.out, text)
     for kind, out in outcomes.items():
         print(out.table + "\n")
         for note in out.notes:
             print(f"warning: {note}\n")
-    print(f"wrote {args.out}" + (f" and {len(plots)} plots" if plots else ""))
+    n_plots = sum(len(v) for v in plots.values())
+    print(f"wrote {args.out}" + (f" and {n_plots} plots" if n_plots else ""))
     if args.params:
         print(f"wrote {args.params}")
     return 0
@@ -99,32 +85,8 @@ def _regen_command(traces) -> str:
     return cmd
 
 
-def _accuracy(traces, fitted: str, quiet: bool) -> dict:
-    """RCCL's positioning error before/after on a simula of the logs' truth, and the cost."""
-    from calib.accuracy import cycle_cost, ik_cost, positioning_error
-    from calib.truth import log_truth
-    from rccl.calibrated import calibrated_kinematics, load_calibrated
-    from rccl.session import load_kinematics
-    import rccl.kinematics.puma260 as nominal
-
-    t = log_truth(next(tr for tr in traces if tr.experiment == "kinematics"))
-    with tempfile.TemporaryDirectory(prefix="calib-truth-") as tmp:
-        truth_file = os.path.join(tmp, "truth.toml")
-        with open(truth_file, "w", encoding="utf-8") as f:
-            f.write(t.get("params_toml") or "[calib]\nschema = \"rcci-calib-params/1\"\nrobot = \"puma260\"\n")
-        if "[kinematics]" not in (t.get("params_toml") or ""):
-            return {"skipped": "the logs' truth has no DH errors: the nominal model is exact"}
-        rows = positioning_error(truth_file, fitted, n=ACCURACY_TARGETS, seed=int(t["seed"]))
-    load = os.getloadavg()
-    cost = {"nominal": cycle_cost(load_kinematics("puma260")), "calibrated": cycle_cost(calibrated_kinematics(fitted)),
-            "ik_nominal": ik_cost(nominal), "ik_calibrated": ik_cost(load_calibrated(fitted)),
-            "load": (load, os.getloadavg())}
-    return {"rows": rows, "cost": cost, "targets": ACCURACY_TARGETS}
-
-
 def _record(args: argparse.Namespace) -> int:
-    from calib.experiments import friction_plans, gravity_plans, sensitivity_plans, static_plan
-    from calib.program import run_plan
+    from calib.registry import RecordRequest
     from calib.robot import robot_info
     from calib.truth import parse_against
 
@@ -136,39 +98,9 @@ def _record(args: argparse.Namespace) -> int:
     os.makedirs(args.out, exist_ok=True)
     if args.simula is not None:
         return _record_on_own_simula(args)
-    truth = parse_against(args.against)
-    extra = {"truth": truth}
-    if args.kind == "kinematics":
-        from calib.touch import touch_plan
-        from calib.touch_program import run_touches
-
-        plan = touch_plan(max(1, args.touches // 3))
-        path = os.path.join(args.out, plan.name + ".rcilog")
-        n = run_touches(args.url, plan, path, args.robot, extra_meta=extra)
-        print(f"{plan.name}: {n} records -> {path}")
-        return 0
-    if args.kind == "breakaway":
-        from calib.breakaway_program import breakaway_plans, run_breakaway
-
-        static = info.nominal["friction"]["static_pos"]["values"]
-        for bplan in breakaway_plans(static, info.drive.G, joints):
-            path = os.path.join(args.out, bplan.name + ".rcilog")
-            n = run_breakaway(args.url, bplan, path, args.robot, extra_meta=extra)
-            print(f"{bplan.name}: {n} records -> {path}")
-        return 0
-    if args.kind == "friction":
-        plans = friction_plans(joints)
-    elif args.kind == "sensitivity":
-        plans = [p for p in sensitivity_plans(args.mass, args.radius, joints)
-                 if (p.meta["load"]["mass_kg"] > 0) == args.loaded]
-    elif args.kind == "gravity":
-        plans = gravity_plans(info.regressor, info.lower, info.upper)
-    else:
-        plans = [static_plan(info.lower, info.upper, halts=args.halts)]
-    for plan in plans:
-        path = os.path.join(args.out, plan.name + ".rcilog")
-        run = run_plan(args.url, plan, path, args.robot, args.rate or plan.rate_hz, extra_meta=extra)
-        print(f"{plan.name}: {run.records} records -> {path}")
+    request = RecordRequest(args.url, args.out, args.robot, info, joints, args,
+                            {"truth": parse_against(args.against)})
+    registry.kind(args.kind).record(request)
     return 0
 
 
@@ -203,10 +135,10 @@ def _record_on_own_simula(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
-    """Register record / regen-logs / report on the `calib` parser."""
+def add_commands(sub: Any) -> None:
+    """Register record / regen-logs / report on the `calib` parser (``sub``: its subparsers)."""
     rec = sub.add_parser("record", help="run a measurement program against a robot or simula and log it")
-    rec.add_argument("kind", choices=RECORD_KINDS)
+    rec.add_argument("kind", choices=registry.names())
     rec.add_argument("--url", help="robot link, e.g. socket://127.0.0.1:7600 (simula's default) or /dev/ttyUSB0")
     rec.add_argument("--against", default="robot", metavar="TRUTH",
                      help="with --url, what the log says it was recorded against: 'robot' (default: no "

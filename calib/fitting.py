@@ -1,5 +1,8 @@
 """One fit of one kind over a set of logs: the results, their table, their parameter sections.
 
+The kinds themselves are the modules of :mod:`calib.fits` (calib.registry); this module
+runs one of them with the inputs it needs from earlier fits.
+
 A fit that needs values from an earlier fit (the torque sensitivities turn currents into
 torques; the gravity coefficients are subtracted at a halt or a breakaway) takes them from
 the parameter file, and only from there: when the file lacks them the fit is refused
@@ -17,19 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from calib.errors import CalibError, FitError
-from calib.friction import fit_friction
-from calib.gravity import fit_gravity
+from calib import registry
+from calib.exceptions import CalibError
 from calib.logs import motors_of
 from calib.robot import GRAVITY_NAMES, RobotInfo
-from calib.sensitivity import fit_sensitivity
-from calib.static import fit_static
-from calib.tables import table_4_1, table_4_2_4_3, table_4_5, table_4_6, table_4_8_4_9
 from calib.trace import Trace
 
-KINDS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
-# the order that builds one parameter file, each fit's inputs fitted before it
-ORDER = ("sensitivity", "kinematics", "gravity", "friction", "static", "breakaway")
 # what fits each input, for the refusal's message
 PROVIDER = {"sigma": "sensitivity", "gravity": "gravity"}
 
@@ -141,7 +137,7 @@ class Inputs:
         return vals
 
 
-def _merge(old: dict | None, key: str, joints: list[int], new: list[float], n: int = 6) -> list[float]:
+def merge_joint_values(old: dict | None, key: str, joints: list[int], new: list[float], n: int = 6) -> list[float]:
     """A per-joint list: the file's old values (NaN where it had none: not fitted), with
     the fitted ``joints`` (1-based) replaced."""
     arr = np.array(old[key], dtype=float) if old and key in old else np.full(n, np.nan)
@@ -161,145 +157,19 @@ def log_set_notes(traces: list[Trace]) -> list[str]:
             if (tr.experiment, other) not in names and other not in seen:
                 seen.add(other)
                 notes.append(f"{tr.path}: recorded together with log {other!r}, which is not among the "
-                             f"inputs: {_consequence(tr.experiment)}")
+                             f"inputs: {registry.kind(tr.experiment).missing_log}")
     return notes
-
-
-def _consequence(kind: str) -> str:
-    return {"friction": "the speeds it holds are missing from the fit, so the viscous coefficient "
-                        "(and its error) rests on the speeds that are left",
-            "gravity": "without the friction-cancelling repeat (4.49-4.51) the row keeps the friction "
-                       "difference between the segments",
-            "sensitivity": "the loaded and unloaded runs cancel friction only together (4.43)"}.get(
-        kind, "the fit lacks its measurements")
 
 
 def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None,
             assume_datafile: bool = False, params_name: str | None = None) -> FitOutcome:
-    """Fit ``kind`` on ``traces``; inputs from ``params`` (see the module docstring)."""
-    if kind not in KINDS:
-        raise CalibError(f"unknown fit kind {kind!r}; one of {', '.join(KINDS)}")
+    """Fit ``kind`` (a name in calib.registry) on ``traces``; inputs from ``params`` (see the
+    module docstring)."""
+    fit_kind = registry.kind(kind)
     logs = " ".join(os.path.basename(t.path) for t in traces)
     inputs = Inputs(info, params, kind, assume_datafile, params_name, logs)
     notes = log_set_notes(traces)
-    out = _FITS[kind](traces, info, params or {}, inputs, notes)
+    out = fit_kind.fit(traces, info, params or {}, inputs, notes)
     out.notes = notes + out.notes
     out.assumed = inputs.assumed
     return out
-
-
-def _fit_sensitivity(traces, info, params, inputs, notes) -> FitOutcome:
-    res = fit_sensitivity(traces, info.drive, notes)
-    joints = [r.joint for r in res]
-    old = params.get("motors")
-    sec = {"torque_sensitivity": _merge(old, "torque_sensitivity", joints, [r.mean for r in res]),
-           "torque_sensitivity_std": _merge(old, "torque_sensitivity_std", joints, [r.std for r in res]),
-           "torque_sensitivity_error": _merge(old, "torque_sensitivity_error", joints,
-                                              [r.independent_error for r in res]),
-           "torque_sensitivity_trials": [int(x) if np.isfinite(x) else 0 for x in
-                                         _merge(old, "torque_sensitivity_trials", joints, [r.trials for r in res])],
-           "unit": "N*m/A"}
-    return FitOutcome("sensitivity", table_4_1(res), {"motors": sec}, res)
-
-
-def _fit_friction(traces, info, params, inputs, notes) -> FitOutcome:
-    joints = sorted({t.joint_index() for t in traces})
-    drive = info.drive.with_sigma(inputs.sigma(joints))
-    res, points = fit_friction(traces, drive, notes)
-    res = [r.with_scale_error(inputs.sigma_scale_error([r.joint - 1])) for r in res]
-    res = _window_gravity(res, traces, info, params, notes)
-    js = [r.joint for r in res]
-    old = params.get("friction")
-    sec: dict[str, Any] = dict(old or {})   # breakaway's static_pos/neg stay; none are invented
-    for key, get in (("coulomb_pos", lambda r: r.plus.coulomb), ("coulomb_neg", lambda r: r.minus.coulomb),
-                     ("viscous_pos", lambda r: r.plus.viscous), ("viscous_neg", lambda r: r.minus.viscous),
-                     ("coulomb_pos_error", lambda r: r.plus.coulomb_err),
-                     ("coulomb_neg_error", lambda r: r.minus.coulomb_err),
-                     ("viscous_pos_error", lambda r: r.plus.viscous_err),
-                     ("viscous_neg_error", lambda r: r.minus.viscous_err),
-                     ("variation", lambda r: r.variation)):
-        sec[key] = _merge(old, key, js, [get(r) for r in res])
-    sec["error_is"] = "99.73 % (3 sd; Student's t for few passes; F_c with the position pattern's window mean)"
-    return FitOutcome("friction", table_4_2_4_3(res), {"friction": sec}, res, {"points": points})
-
-
-def _window_gravity(res, traces, info, params, notes) -> list:
-    """Each joint's Coulomb values corrected for gravity's mean over its window on the arm
-    the parameter file describes (calib.window_gravity)."""
-    from calib.friction import TAPER
-    from calib.window_gravity import window_gravity
-
-    out, sources = [], set()
-    for r in res:
-        tr = next(t for t in traces if t.joint_index() == r.joint - 1)
-        lo, hi = (float(x) for x in tr.need("window", (list, tuple)))
-        if "pose" not in tr.meta:
-            notes.append(f"{tr.path}: no metadata 'pose' (the arm's pose during the sweeps): gravity's "
-                         f"mean over joint {r.joint}'s window is neither corrected nor in its error")
-            out.append(r)
-            continue
-        pose = np.asarray(tr.need("pose", (list, tuple)), dtype=float)
-        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)))
-        sources.add(source)
-        out.append(r.with_window_gravity(g, sd))
-    if any(not s.startswith("the fitted kinematics") or "data file" in s for s in sources):
-        notes.append("gravity's mean over the friction windows (their axes lean by the DH errors) from "
-                     + "; ".join(sorted(sources)) + ": fit kinematics and gravity first to correct for it")
-    return out
-
-
-def _fit_gravity(traces, info, params, inputs, notes) -> FitOutcome:
-    joints = sorted({t.joint_index() for t in traces})
-    drive = info.drive.with_sigma(inputs.sigma(joints))
-    res = fit_gravity(traces, drive, inputs.regressor(), GRAVITY_NAMES, notes=notes)
-    res = res.with_scale_error(inputs.sigma_scale_error(joints))
-    sec: dict[str, Any] = {n: float(v) for n, v in zip(res.names, res.value)}
-    sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
-    sec.update({f"{n}_friction_error": float(e) for n, e in zip(res.names, res.friction_error)})
-    sec["unit"] = "N*m"
-    return FitOutcome("gravity", table_4_8_4_9(res), {"gravity_coeffs": sec}, res)
-
-
-def _fit_breakaway(traces, info, params, inputs, notes) -> FitOutcome:
-    from calib.breakaway import fit_breakaway
-
-    joints = sorted({t.joint_index() for t in traces})
-    drive = info.drive.with_sigma(inputs.sigma(joints))
-    res, pts = fit_breakaway(traces, drive, inputs.gravity_model(), notes)
-    js = [r.joint for r in res]
-    old = dict(params.get("friction") or {})
-    sec = dict(old)
-    for key, get in (("static_pos", lambda r: r.plus), ("static_neg", lambda r: r.minus)):
-        sec[key] = _merge(old, key, js, [get(r) for r in res])
-    return FitOutcome("breakaway", table_4_5(res), {"friction": sec}, res, {"points": pts})
-
-
-def _fit_static(traces, info, params, inputs, notes) -> FitOutcome:
-    drive = info.drive.with_sigma(inputs.sigma(list(range(6))))
-    res, samples = fit_static(traces, drive, inputs.gravity_model(), notes)
-    sec = {"samples": int(res[0].samples),
-           "maximum": [r.maximum for r in res], "minimum": [r.minimum for r in res],
-           "mean": [r.mean for r in res], "std": [r.std for r in res], "unit": "N*m"}
-    return FitOutcome("static", table_4_6(res), {"static_friction": sec}, res, {"samples": samples})
-
-
-def _fit_kinematics(traces, info, params, inputs, notes) -> FitOutcome:
-    from calib.kinematics import Touches, fit_touches, nominal_dh, section, table, touches_from_trace
-
-    parts = [touches_from_trace(tr, info.drive) for tr in traces]
-    if len({tuple(p.tip) for p in parts}) > 1:
-        raise FitError("the kinematics logs were made with different probe tips: fit them separately")
-    t = Touches(np.vstack([p.q for p in parts]), np.vstack([p.normals for p in parts]),
-                np.concatenate([p.offsets for p in parts]), parts[0].tip,
-                np.concatenate([p.index for p in parts]))
-    if len(t.q) < 4 * len(nominal_dh(info.name)):
-        notes.append(f"{len(t.q)} touches for {4 * len(nominal_dh(info.name))} error parameters: "
-                     "parameters beyond what they determine are left at their minimum-norm values")
-    fit = fit_touches(nominal_dh(info.name), t)
-    sec = section(fit)
-    sec["tip"] = [float(x) for x in t.tip]
-    return FitOutcome("kinematics", table(fit), {"kinematics": sec}, fit, {"touches": t})
-
-
-_FITS = {"sensitivity": _fit_sensitivity, "friction": _fit_friction, "gravity": _fit_gravity,
-         "breakaway": _fit_breakaway, "static": _fit_static, "kinematics": _fit_kinematics}

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calib.drive import Drive
-from calib.errors import FitError, LogError
+from calib.exceptions import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
 from calib.lsq import PRINTED_SD, bounded_lsq, coverage_factor
 from calib.trace import Trace

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.drive import Drive
-from calib.errors import FitError, LogError
+from calib.exceptions import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
 from calib.lsq import bounded_lsq
 from calib.trace import Trace

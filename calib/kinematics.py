@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from calib.errors import FitError, LogError
+from calib.exceptions import FitError, LogError
 from calib.trace import Trace
 
 PARAM_NAMES = ("dtheta", "dd", "da", "dalpha")

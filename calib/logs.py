@@ -3,17 +3,21 @@ from __future__ import annotations
 
 import gzip
 import lzma
+import os
 import tempfile
 import zlib
 from collections.abc import Sequence
 
 import numpy as np
 
-from calib.errors import LogError, MixedLogsError
-from calib.trace import EXPERIMENTS, Trace, check_samples
+from calib.exceptions import LogError, MixedLogsError
+from calib import registry
+from calib.trace import Trace, check_samples
 from rci.exceptions import LogFormatError
 from rci.recorder import read_log
 
+#: the shipped logs (``calib regen-logs`` writes them, ``calib report`` reads them)
+LOG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "logs")
 # ADC readings are 12-bit signed (docs/log-format.md): at the rails the current is unknown.
 ADC_RAIL = 2047
 
@@ -35,9 +39,9 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
         raise LogError(path, None, "header has no run metadata object 'meta' "
                        "(was the log written by a calib measurement program?)")
     experiment = meta.get("experiment")
-    if experiment not in EXPERIMENTS:
+    if experiment not in registry.names():
         raise LogError(path, None, f"metadata 'experiment' = {experiment!r} "
-                       f"is not one of {', '.join(EXPERIMENTS)}")
+                       f"is not one of {', '.join(registry.names())}")
     rec = log.records
     names = rec.dtype.names or ()
     for col in ("cycle", "rate_hz", "how_pos", "how_adcr"):

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 import models.params
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from models import FRICTION_KEYS, JointFriction, ModelError
 from models.params import SCHEMA
 
@@ -66,11 +66,11 @@ def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any
         head += ("# NOT ALL MEASURED: [calib].assumed lists values taken from the robot data file\n"
                  "# (--assume-datafile) where a fit needed an earlier fit's result.\n")
     text = head + "\n" + dumps(data)
-    _atomic_write(path, text)
+    atomic_write(path, text)
     return data
 
 
-def _atomic_write(path: str, text: str) -> None:
+def atomic_write(path: str, text: str) -> None:
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".calib-", suffix=".tmp", dir=folder)
     try:

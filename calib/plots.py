@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from calib.errors import CalibError  # noqa: E402
+from calib.exceptions import CalibError  # noqa: E402
 from calib.friction import FrictionPoint, FrictionResult  # noqa: E402
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.experiments import ACCEL, Plan
 from calib.paths import Path, Segment
 from rci import codes
@@ -121,3 +121,15 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
 
     drive_recorded(session, f1, done, rec, plan.name, url, lambda: f"after {max(state['k'], 0)} cycles")
     return RunInfo(log_path, rec.written, state["k"] + 1)
+
+
+def record_plans(request, plans: list[Plan]) -> None:
+    """``calib record``: run each of ``plans`` on the robot of ``request`` (a
+    calib.registry.RecordRequest), one log per plan in its folder, and say so."""
+    import os
+
+    for plan in plans:
+        path = os.path.join(request.out, plan.name + ".rcilog")
+        run = run_plan(request.url, plan, path, request.robot, request.args.rate or plan.rate_hz,
+                       extra_meta=request.extra_meta)
+        print(f"{plan.name}: {run.records} records -> {path}")

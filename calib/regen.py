@@ -20,15 +20,17 @@ import os
 import shutil
 import time
 
-from calib.errors import CalibError
-from calib.experiments import (Plan, friction_plans, gravity_plans, sensitivity_plans,
-                               static_plan)
+from typing import Any
+
+from calib import registry
+from calib.exceptions import CalibError
+from calib.experiments import Plan
+from calib.logs import LOG_DIR
 from calib.program import run_plan
+from calib.registry import RegenContext
 from calib.robot import robot_info
 from calib.truth import truth_meta
 
-KINDS = ("friction", "gravity", "static", "sensitivity", "breakaway", "kinematics")
-RADIUS_M = 0.05  # pulley drum radius (estimate: a 10 cm drum, Figure 4.2 is lost)
 KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable errors
 
 
@@ -87,19 +89,19 @@ class _Simula:
         self.sim.stop()
 
 
-def _breakaway(out_dir: str, work: str, seed: int, info, params: str | None) -> None:
+def record_breakaway(ctx: RegenContext) -> None:
     """Table 4.5's breakaway ramps, every joint, on a fresh lockstep simula."""
     from calib.breakaway_program import breakaway_plans, run_breakaway
     from rci.simula.process import SimulaProcess
 
-    static = info.nominal["friction"]["static_pos"]["values"]
-    args = _simula_args(params, [])
-    with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
-        for plan in breakaway_plans(static, info.drive.G):
+    static = ctx.info.nominal["friction"]["static_pos"]["values"]
+    args = _simula_args(ctx.params, [])
+    with SimulaProcess("-p", *args, lockstep=True, seed=ctx.seed) as sim:
+        for plan in breakaway_plans(static, ctx.info.drive.G):
             t0 = time.monotonic()
-            raw = os.path.join(work, plan.name + ".rcilog")
-            n = run_breakaway(sim.url, plan, raw, extra_meta={"truth": truth_meta(seed, params, args)})
-            _report_log(plan.name, n, _store(raw, out_dir), t0)
+            raw = os.path.join(ctx.work, plan.name + ".rcilog")
+            n = run_breakaway(sim.url, plan, raw, extra_meta={"truth": truth_meta(ctx.seed, ctx.params, args)})
+            _report_log(plan.name, n, _store(raw, ctx.out_dir), t0)
 
 
 def record_kinematics(out_path: str, seed: int, params: str | None,
@@ -117,11 +119,12 @@ def record_kinematics(out_path: str, seed: int, params: str | None,
         return run_touches(sim.url, plan, out_path, extra_meta={"truth": truth_meta(seed, params, args)})
 
 
-def _kinematics(out_dir: str, work: str, seed: int, params: str | None) -> None:
+def record_kinematics_log(ctx: RegenContext) -> None:
+    """The shipped kinematics log: :func:`record_kinematics`, compressed into ``ctx.out_dir``."""
     t0 = time.monotonic()
-    raw = os.path.join(work, "kinematics.rcilog")
-    n = record_kinematics(raw, seed, params)
-    _report_log("kinematics", n, _store(raw, out_dir), t0)
+    raw = os.path.join(ctx.work, "kinematics.rcilog")
+    n = record_kinematics(raw, ctx.seed, ctx.params)
+    _report_log("kinematics", n, _store(raw, ctx.out_dir), t0)
 
 
 def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = None,
@@ -134,24 +137,15 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
     os.makedirs(out_dir, exist_ok=True)
     work = os.path.join(out_dir, ".work")
     os.makedirs(work, exist_ok=True)
+    ctx = RegenContext(out_dir, work, seed, params, info)
     plans: list[tuple[tuple[str, ...], Plan]] = []
-    if "friction" in kinds:
-        plans += [((), p) for p in friction_plans()]
-    if "gravity" in kinds:
-        plans += [((), p) for p in gravity_plans(info.regressor, info.lower, info.upper)]
-    if "static" in kinds:
-        plans.append(((), static_plan(info.lower, info.upper)))
-    if "sensitivity" in kinds:
-        sens = sensitivity_plans(None, RADIUS_M)
-        plans += [((), p) for p in sens if not p.simula_args]        # without the mass
-        plans += [(tuple(p.simula_args), p) for p in sens if p.simula_args]
     sims: dict[tuple[str, ...], _Simula] = {}
     try:
-        if "kinematics" in kinds:
-            _kinematics(out_dir, work, seed, params)
-        if "breakaway" in kinds:
-            # on a simula of its own, so that `--kinds breakaway` alone records the same logs
-            _breakaway(out_dir, work, seed, info, params)
+        # in record_order: kinds on simulas of their own record as they are asked; the
+        # others' plans then run in that order on simulas shared by their options
+        for kind in registry.kinds("record_order"):
+            if kind.name in kinds:
+                plans += kind.regen(ctx)
         for args, plan in progress(plans, len(plans), "recording logs", enabled=False if quiet else None):
             if args not in sims:
                 if args:           # a pulley simula lives for its one program
@@ -166,10 +160,11 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
 
 
 def _main(args: argparse.Namespace) -> int:
-    kinds = tuple(args.kinds.split(",")) if args.kinds else KINDS
-    bad = set(kinds) - set(KINDS)
+    known = registry.names("record_order")
+    kinds = tuple(args.kinds.split(",")) if args.kinds else known
+    bad = set(kinds) - set(known)
     if bad:
-        raise SystemExit(f"calib regen-logs: unknown kind(s) {sorted(bad)}; known: {', '.join(KINDS)}")
+        raise SystemExit(f"calib regen-logs: unknown kind(s) {sorted(bad)}; known: {', '.join(known)}")
     if args.params:
         from models import load_robot
         from rci.simula.exceptions import ParamsError
@@ -183,15 +178,13 @@ def _main(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_regen(sub: argparse._SubParsersAction) -> None:
-    """Register `regen-logs` on the `calib` parser."""
-    from calib.cli_extra import LOG_DIR
-
+def add_regen(sub: Any) -> None:
+    """Register `regen-logs` on the `calib` parser (``sub``: its subparsers)."""
     p = sub.add_parser("regen-logs", help="record the shipped logs on simula (lockstep) from scratch")
     p.add_argument("--out", default=LOG_DIR, metavar="DIR",
                    help=f"folder the logs are written to (created if missing; default {LOG_DIR})")
     p.add_argument("--seed", type=int, default=1985, help="simula's seed (reproducible logs)")
-    p.add_argument("--kinds", help=f"comma-separated subset of {','.join(KINDS)}")
+    p.add_argument("--kinds", help=f"comma-separated subset of {','.join(registry.names('record_order'))}")
     p.add_argument("--params", metavar="FILE",
                    help="simula parameter file: the truth to record against (default: the robot data file)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

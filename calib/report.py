@@ -2,18 +2,19 @@
 (3.84), and the ground truth the logs say they were recorded against."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from calib.fitting import FitOutcome
-from calib.gravity import row_result
+from calib import registry
+from calib.registry import ReportContext
 from calib.robot import RobotInfo
-from calib.truth import Truth
+from calib.truth import GroundTruth
 
-THESIS_4_8 = {  # Table 4.8 as printed: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2)
-    ("j5", 5): ("c15", -1.191), ("j4", 4): ("c15", -1.193), ("j3B", 3): ("c13", -1.744),
-    ("j2", 2): ("c12", 5.509), ("j3B", 2): ("c12 - c13", 7.288), ("j3A", 3): ("c13 + c15", -1.938),
-}
-THESIS_4_9 = {"c12": (5.509, 0.15, 0.080), "c13": (-1.762, 0.04, 0.010), "c15": (-1.192, 0.005, 0.010)}
+if TYPE_CHECKING:
+    from calib.fitting import FitOutcome
+    from calib.trace import Trace
+
 SD = "99.73 %: 3 sd, Student's t for few points"
 
 
@@ -21,7 +22,8 @@ def _ok(flag: bool) -> str:
     return "yes" if flag else "**no**"
 
 
-def _vec(info: RobotInfo, *keys: str) -> np.ndarray:
+def nominal_vector(info: RobotInfo, *keys: str) -> np.ndarray:
+    """A per-joint value of the robot data file (its ``values`` where it has them)."""
     node = info.nominal
     for k in keys:
         node = node[k]
@@ -39,11 +41,11 @@ class _Checks:
         return _ok(flag)
 
 
-def render(info: RobotInfo, truth: Truth | None, outcomes: dict[str, FitOutcome], command: str,
-           regen: str, logs: list[str], plots: list[str],
-           variation_truth: dict[int, tuple[float, float]] | None = None,
-           accuracy: dict | None = None) -> str:
-    """The Markdown report (``truth`` None: logs of a robot, no scoring)."""
+def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitOutcome]", command: str,
+           regen: str, logs: list[str], plots: dict[str, list[str]], traces: "list[Trace]",
+           params_path: str, quiet: bool = True, no_accuracy: bool = False) -> str:
+    """The Markdown report (``truth`` None: logs of a robot, no scoring): a section per kind
+    fitted (calib.registry, in ``report_order``), then the warnings and the summary."""
     if truth is None:
         against = ("The logs were recorded against a robot (their metadata says so): there is no "
                    "ground truth, and the tables show the fits alone.")
@@ -66,19 +68,10 @@ def render(info: RobotInfo, truth: Truth | None, outcomes: dict[str, FitOutcome]
     ]
     check = _Checks()
     summary_at = len(L)
-    T = truth
-    if "sensitivity" in outcomes:
-        L += _table_4_1(info, T, outcomes["sensitivity"], check)
-    if "friction" in outcomes:
-        L += _tables_4_2_4_4(info, T, outcomes["friction"], check, variation_truth or {}, plots)
-    if "breakaway" in outcomes:
-        L += _table_4_5(info, T, outcomes["breakaway"], check)
-    if "static" in outcomes:
-        L += _table_4_6(info, T, outcomes["static"])
-    if "gravity" in outcomes:
-        L += _tables_4_8_4_9(T, outcomes["gravity"], check)
-    if "kinematics" in outcomes:
-        L += _kinematics(T, outcomes["kinematics"], check, accuracy)
+    ctx = ReportContext(info, truth, check, traces, plots, params_path, quiet, no_accuracy)
+    for kind in registry.kinds("report_order"):
+        if kind.name in outcomes:
+            L += kind.report(ctx, outcomes[kind.name])
     notes = [(k, n) for k, o in outcomes.items() for n in o.notes + [f"ASSUMED: {a}" for a in o.assumed]]
     if notes:
         L += ["## Warnings and assumptions of the fits", ""] + [f"* {k}: {n}" for k, n in notes] + [""]
@@ -107,271 +100,10 @@ def render(info: RobotInfo, truth: Truth | None, outcomes: dict[str, FitOutcome]
     return "\n".join(L)
 
 
-def _t(truth: Truth | None, attr: str, j: int, fmt: str) -> tuple[str, float]:
+def joint_truth(truth: GroundTruth | None, attr: str, j: int, fmt: str) -> tuple[str, float]:
+    """Joint ``j``'s (0-based) true ``attr`` formatted with ``fmt``, and its value ("-", NaN
+    without a truth)."""
     if truth is None:
         return "-", float("nan")
     v = float(getattr(truth, attr)[j])
     return format(v, fmt), v
-
-
-def _table_4_1(info, truth, out, check) -> list[str]:
-    thesis = _vec(info, "motors", "torque_sensitivity")
-    err = np.asarray(info.nominal["motors"]["torque_sensitivity"]["uncertainty"], float)
-    L = ["## Table 4.1: motor torque sensitivity (N m / A)", "",
-         "The fit's independent error is the thesis's kind (4.5.2): the relative uncertainties of "
-         "the mass, the drum radius and the current scale V_g / R_i combined.", "",
-         "| joint | thesis mean | thesis indep. error | truth | fit mean | fit std | trials | fit indep. error "
-         "| abs(fit - truth) | within thesis bound | within fit error |",
-         "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in out.results:
-        j = r.joint - 1
-        ts, tv = _t(truth, "sigma", j, ".4f")
-        d = abs(r.mean - tv)
-        L.append(f"| {r.joint} | {thesis[j]:.4f} | {err[j]:.4f} | {ts} | {r.mean:.4f} | {r.std:.4f} | "
-                 f"{r.trials} | {r.independent_error:.4f} | {d:.4f} | "
-                 + (f"{check('4.1', d <= err[j])} | {check('4.1 fit', d <= r.independent_error)} |"
-                    if truth is not None else "- | - |"))
-    return L + [""]
-
-
-def _tables_4_2_4_4(info, truth, out, check, vt, plots) -> list[str]:
-    res = out.results
-    fr = info.nominal["friction"]
-    L = ["## Table 4.2: Coulomb friction (N m)", "",
-         f"fit +- {SD}: the fit's standard deviation combined with that of the position pattern's "
-         "mean over the window (the Table 4.4 variation is the same on every pass, so no fit of "
-         "speeds tells its window mean from F_c; estimated from the measured profile as the mean "
-         "a window placed at random along the pattern would carry, docs/calib.md).", "",
-         "| joint | dir | thesis | truth | fit (+- " + SD + ") | of which pattern (1 sd) | abs(fit - truth) "
-         "| within thesis bound | within fit error |",
-         "|---|---|---|---|---|---|---|---|---|"]
-    L += _friction_rows(res, fr, truth, check, "4.2", "coulomb", 1.0, ".3f",
-                        lambda fit: f" | {fit.coulomb_pattern_sd:.4f}")
-    L += ["", "## Table 4.3: viscous friction (N m s / rad, x 1000)", "",
-          "The viscous term is a few per cent of the Coulomb term, so it needs each pass's "
-          "mean friction to a fraction of a per cent (4.5.3: repeatable to under 1 %). What makes "
-          "that possible here (docs/calib.md, 'Viscous friction' and 'Joint 5'): simula's servo "
-          "ripple is the PID's noise-shaped quantisation error, which the 15 ms filter of Appendix "
-          "C averages out; the friction logs are read at 72 Hz over windows as long as each joint's "
-          "range allows, at speeds up to 90 % of its velocity limit, after 200 s of warm-up and with "
-          "no halts at the turns; each reading is paired with the angle 15.5 ms earlier (the "
-          "filter's time constant plus half a servo tick); each pass's mean is taken with Hann "
-          "edges of 0.3 rad; the fast passes of joints 2-6 are read at every servo tick (1 kHz, "
-          "`friction-jN-servo`), where the ripple cancels. The fit weights each pass by the inverse "
-          f"of a variance model per log (a |omega| / rate + b) estimated from the residuals; fit +- {SD}.", "",
-          f"| joint | dir | thesis | truth | fit (+- {SD}) | abs(fit - truth) | within thesis bound | within fit error |",
-          "|---|---|---|---|---|---|---|---|"]
-    L += _friction_rows(res, fr, truth, check, "4.3", "viscous", 1e3, ".2f", lambda fit: "")
-    L += ["", "## Table 4.4: variation of the friction along the path", "",
-          "simula multiplies the Coulomb friction by 1 + v p(q), with v the Table 4.4 value "
-          "(the truth's) and p a seeded pattern of spatial harmonics, |p| <= 1. The fit estimates "
-          "the variation as sqrt(2) x the noise-corrected RMS of the friction's position profile "
-          "(docs/calib.md); its truth is the same statistic of simula's pattern over the same "
-          "window (read from simula with the logs' seed), shown with the pattern's peak.", "",
-          "| joint | thesis | simula bound v | simula peak in window | truth sqrt(2) RMS | fit |",
-          "|---|---|---|---|---|---|"]
-    for r in res:
-        j = r.joint - 1
-        peak, rms = vt.get(r.joint, (float("nan"), float("nan")))
-        vb = "-" if truth is None else f"{100 * truth.variation[j]:.0f} %"
-        L.append(f"| {r.joint} | {100 * fr['variation']['values'][j]:.0f} % | {vb} | {100 * peak:.1f} % | "
-                 f"{100 * rms:.1f} % | {100 * r.variation:.1f} % |")
-    L += ["", "Appendix B: friction against speed per direction (points: passes; line: the fit; "
-          "band: the printed uncertainty of F_c)", ""]
-    L += [f"![{p}]({p.split('/')[-1]})" for p in plots]
-    return L + [""]
-
-
-def _friction_rows(res, fr, truth, check, table: str, what: str, scale: float, fmt: str, extra) -> list[str]:
-    """Rows of Table 4.2 (``what`` coulomb) or 4.3 (viscous, shown x ``scale``): thesis,
-    truth, fit +- error (``extra(fit)`` after it), |fit - truth|, the two checks."""
-    L = []
-    for r in res:
-        j = r.joint - 1
-        for name, fit, d_key in (("+", r.plus, "pos"), ("-", r.minus, "neg")):
-            key = f"{what}_{d_key}"
-            th, te = fr[key]["values"][j], fr[key]["uncertainty"][j]
-            value, err = getattr(fit, what), getattr(fit, f"{what}_err")
-            tv = float("nan") if truth is None else float(getattr(truth, key)[j])
-            d = abs(value - tv)
-            v = lambda x: format(scale * x, fmt)  # noqa: E731
-            L.append(f"| {r.joint} | {name} | {v(th)} +- {v(te)} | {'-' if truth is None else v(tv)} | "
-                     f"{v(value)} +- {v(err)}{extra(fit)} | {v(d)} | "
-                     + (f"{check(table, d <= te)} | {check(table + ' fit', d <= err)} |"
-                        if truth is not None else "- | - |"))
-    return L
-
-
-def _table_4_5(info, truth, out, check) -> list[str]:
-    from calib.breakaway import TOLERANCE
-
-    fr = info.nominal["friction"]
-    L = ["## Table 4.5: static friction coefficients F_s (N m)", "",
-         "The thesis tuned these by hand (4.5.5, first method: the current raised until the "
-         "joint could just be moved). `calib record breakaway` does it without a hand: at "
-         "the friction pose and 20 degrees either side, the joint is switched to current "
-         "mode and its motor torque ramped up from the gravity balance until the encoder "
-         "moves; the torque at that moment (the line through the ramp's last 0.4 s of "
-         "readings, read 15.5 ms later for the filter) minus gravity is F_s. The thesis "
-         "states no uncertainty for Table 4.5; the tolerance is this project's "
-         "(`calib.breakaway.TOLERANCE`: 5 %, 10 % on joint 4, whose single ramps spread "
-         "by 10 %). The truth is simula's breakaway threshold; where Table 4.4's variation lifts "
-         "the kinetic friction above F_s (joint 4), a joint can only move once the torque also "
-         "exceeds that.", "",
-         "| joint | dir | thesis | truth | fit mean | sd of ramps | abs(fit - truth) | tolerance | within |",
-         "|---|---|---|---|---|---|---|---|---|"]
-    for r in out.results:
-        j = r.joint - 1
-        for name, fit, sd, key in (("+", r.plus, r.plus_std, "static_pos"), ("-", r.minus, r.minus_std, "static_neg")):
-            th = fr[key]["values"][j]
-            ts, tv = _t(truth, key, j, ".3f")
-            d, tol = abs(fit - tv), TOLERANCE[r.joint]
-            L.append(f"| {r.joint} | {name} | {th:.3f} | {ts} | {fit:.3f} | {sd:.3f} | {d:.3f} | "
-                     f"{100 * tol:.0f} % | " + (f"{check('4.5', d <= tol * tv)} |" if truth is not None else "- |"))
-    return L + [""]
-
-
-def _table_4_6(info, truth, out) -> list[str]:
-    res = out.results
-    fr = info.nominal["friction"]
-    L = [f"## Table 4.6: typical static friction over {res[0].samples} random halts (N m)", "",
-         "simula leaves a servoed joint that halts holding a residual static friction drawn "
-         "from the truth's Table 4.6 mean and standard deviation (clipped to Table 4.5); the "
-         "extremes depend on the draws.", "",
-         "| joint | thesis max | fit max | thesis min | fit min | thesis mean | truth mean | fit mean "
-         "| thesis std | truth std | fit std |",
-         "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in res:
-        j = r.joint - 1
-        t = [fr[k]["values"][j] for k in ("static_typical_max", "static_typical_min",
-                                           "static_typical_mean", "static_typical_std")]
-        tm, _ = _t(truth, "hold_mean", j, ".3f")
-        ts, _ = _t(truth, "hold_std", j, ".3f")
-        L.append(f"| {r.joint} | {t[0]:.3f} | {r.maximum:.3f} | {t[1]:.3f} | {r.minimum:.3f} | "
-                 f"{t[2]:.3f} | {tm} | {r.mean:.3f} | {t[3]:.3f} | {ts} | {r.std:.3f} |")
-    return L + [""]
-
-
-def _tables_4_8_4_9(truth, out, check) -> list[str]:
-    from calib.tables import _combo
-
-    g = out.results
-    L = ["## Table 4.8: gravity loading measurements", "",
-         "tau0 is the gravity torque at the start of a pass, d (W1 - W2) / 2 minus the same "
-         "for the friction-cancelling repeat (4.51), in N m; the regressor row says which "
-         "combination of coefficients it measures (from 4.24 at that pose). A pass in the "
-         "- direction starts at the other end of the sweep, where the torque has the "
-         "opposite sign. j2 has no repeat: joint 2's axis is always horizontal and a "
-         "zero start torque would need theta2 = +-90 deg at one end of the sweep, outside "
-         "its range (docs/calib.md). Result: the row solved for its leading coefficient "
-         "with the others from the fit of Table 4.9.", "",
-         "| position | joint | dir | tau0 in c | thesis (W_g2 - W_g1)/2 | fit tau0 | uncompensated | result |",
-         "|---|---|---|---|---|---|---|---|"]
-    for r in g.rows:
-        name, val = row_result(r, g)
-        th = THESIS_4_8.get((r.position, r.joint))
-        ths = f"{th[1]:.3f} ({th[0]})" if th else "-"
-        L.append(f"| {r.position} | {r.joint} | {'+' if r.direction > 0 else '-'} | "
-                 f"{_combo(r.row, g.names)} | {ths} | {r.tau0:.3f} | {r.raw_tau0:.3f} | {name} = {val:.3f} |")
-    L += ["", "## Table 4.9: gravity loading coefficients (N m)", "",
-          "fit +- error: sqrt((2 sd of the fit)^2 + (half the difference of the two directions' "
-          "fits)^2), the thesis's combination (4.5.6).", "",
-          "| coefficient | thesis | thesis friction error | truth | fit | fit friction error | abs(fit - truth) "
-          "| within thesis bound | within fit error |",
-          "|---|---|---|---|---|---|---|---|---|"]
-    for k, n in enumerate(g.names):
-        tv, te, tf = THESIS_4_9[n]
-        ts, tt = ("-", float("nan")) if truth is None else (f"{truth.gravity[k]:.3f}", float(truth.gravity[k]))
-        d = abs(g.value[k] - tt)
-        L.append(f"| {n} | {tv:.3f} +- {te:.3f} | {tf:.3f} | {ts} | {g.value[k]:.3f} +- {g.error[k]:.3f} | "
-                 f"{g.friction_error[k]:.3f} | {d:.4f} | "
-                 + (f"{check('4.9', d <= te)} | {check('4.9 fit', d <= g.error[k])} |"
-                    if truth is not None else "- | - |"))
-    return L + [""]
-
-
-def _kinematics(truth, out, check, accuracy) -> list[str]:
-    from calib.kinematics import PARAM_NAMES
-
-    fit = out.results
-    t = out.extra["touches"]
-    conv = {"dtheta": (np.degrees(1) * 1e3, "mdeg"), "dd": (1e3, "mm"), "da": (1e3, "mm"),
-            "dalpha": (np.degrees(1) * 1e3, "mdeg")}
-    L = ["## Kinematic calibration (thesis 3.83-3.84)", "",
-         f"`calib record kinematics` touches the three faces of a fixture (a floor and two walls, "
-         f"known in the base frame) {fit.measurements} times with a touch-trigger probe on the flange "
-         f"(tip at ({', '.join(f'{1e3 * x:.0f}' for x in t.tip)}) mm in link 6, a cranked stylus), "
-         "approaching each face along its normal at 0.8 mm/s and stopping on the cycle the probe's "
-         "switch (inport1) is seen closed; the joint angles between the last open and the first "
-         "closed reading put the tip on the face: one equation n . p(q, e) = h per touch. The touches "
-         "are made in both arm and both wrist configurations. Why touches and not the motor "
-         "currents: thesis 4.7 concludes that friction makes currents inadequate for Cartesian "
-         "force sensing. `calib fit kinematics` solves for the 24 DH errors e of 3.84 (Gauss-Newton "
-         f"on the exact A-matrix product, steps by truncated SVD): {fit.rank} are identifiable; the "
-         "combinations the touches cannot separate are named below (d d2 and d d3 act along the "
-         "same direction because joints 2 and 3 are parallel; a point measures no turn of link 6 "
-         "about the line from the wrist centre to the tip). The result goes to the parameter "
-         "file's `[kinematics]`, which RCCL uses through `rccl.calibrated` (nominal closed-form IK, "
-         "then Newton steps on the calibrated arm) and simula takes as a truth.", "",
-         f"RMS of the touch residuals: {1e3 * fit.rms_position_before:.3f} mm with the nominal table, "
-         f"{1e3 * fit.rms_position_after:.4f} mm after the fit (the encoders' counts, 5 to 50 um of tip "
-         "travel each, set this floor).", "",
-         f"fit +- {fit.factor:.2f} sd (99.73 %, Student's t for {fit.measurements - fit.rank} degrees of freedom).", "",
-         "| parameter | truth | fit | abs(fit - truth) | within fit error |", "|---|---|---|---|---|"]
-    E = None if truth is None else truth.dh_errors.ravel()
-    k = fit.factor
-    for i, name in enumerate(fit.names):
-        key = PARAM_NAMES[i % 4]
-        f, unit = conv[key]
-        if not fit.identifiable[i]:
-            continue
-        if E is None:
-            L.append(f"| {name} ({unit}) | - | {f * fit.e[i]:.3f} +- {f * k * fit.std[i]:.3f} | - | - |")
-            continue
-        d = abs(fit.e[i] - E[i])
-        L.append(f"| {name} ({unit}) | {f * E[i]:.3f} | {f * fit.e[i]:.3f} +- {f * k * fit.std[i]:.3f} | "
-                 f"{f * d:.3f} | {check('kinematic', d <= k * fit.std[i])} |")
-    for name, value, sd, unit, coef in fit.combinations():
-        f = 1e3 if unit == "m" else np.degrees(1) * 1e3
-        u = "mm" if unit == "m" else "mdeg"
-        if E is None:
-            L.append(f"| {name} ({u}) | - | {f * value:.3f} +- {f * k * sd:.3f} | - | - |")
-            continue
-        tv = float(coef @ E)
-        d = abs(value - tv)
-        L.append(f"| {name} ({u}) | {f * tv:.3f} | {f * value:.3f} +- {f * k * sd:.3f} | {f * d:.3f} | "
-                 f"{check('kinematic', d <= k * sd)} |")
-    L.append("")
-    if accuracy and "rows" in accuracy:
-        c = accuracy["cost"]
-        L += ["### RCCL's positioning error before and after", "",
-              f"`calib report` runs RCCL (`rccl.open`, joint-mode moves) on a lockstep simula built from "
-              f"the logs' truth to {accuracy['targets']} target poses of link 6 around the arm's front "
-              "(right arm, elbow up: a region and configuration the touches share only in part), reads "
-              "the encoders after each move and puts them through the truth's exact forward "
-              "kinematics (equal to simula's Pinocchio model to 1e-15 m): the error is how far the "
-              "arm's true T6 (and the probe tip on it) ends from where RCCL was told to put it. The "
-              "floor is the same run with the truth's own DH table: what the joints' commands, whole "
-              "encoder counts, leave.", "",
-              "| kinematics RCCL uses | T6 RMS (mm) | T6 max (mm) | tip RMS (mm) | tip max (mm) | orientation RMS (mrad) |",
-              "|---|---|---|---|---|---|"]
-        for a in accuracy["rows"]:
-            r = a.row()
-            L.append(f"| {a.name} | {1e3 * r[0]:.4f} | {1e3 * r[1]:.4f} | {1e3 * r[2]:.4f} | {1e3 * r[3]:.4f} | "
-                     f"{1e3 * r[4]:.3f} |")
-        (l0, l1) = c["load"]
-        L += ["", "The orientation improves little: the turn of link 6 about the wrist-tip line "
-              "(mostly d theta6) is what point touches cannot measure; a second stylus tip, or "
-              "an instrument that measures orientation (`calib fit kinematics POSES.csv`), would.", "",
-              "Per-cycle cost (CPU time of the trajectory generator's step, Cartesian mode, the tour of "
-              "bench/rccl_cycle.py, best of 3 runs of 3000 cycles; load average "
-              f"{l0[0]:.1f} before, {l1[0]:.1f} after, 2 cores shared):", "",
-              "| kinematics | step mean (us) | step median (us) | step p99 (us) | one ik call on a path (us) |",
-              "|---|---|---|---|---|",
-              f"| nominal (generated, compiled) | {c['nominal']['mean']:.1f} | {c['nominal']['median']:.1f} | "
-              f"{c['nominal']['p99']:.1f} | {c['ik_nominal']:.2f} |",
-              f"| calibrated (rccl.calibrated) | {c['calibrated']['mean']:.1f} | {c['calibrated']['median']:.1f} | "
-              f"{c['calibrated']['p99']:.1f} | {c['ik_calibrated']:.2f} |", ""]
-    elif accuracy and "skipped" in accuracy:
-        L += [f"Positioning run skipped: {accuracy['skipped']}.", ""]
-    return L

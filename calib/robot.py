@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.drive import Drive
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 
 GRAVITY_NAMES = ("c12", "c13", "c15")
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.drive import Drive
-from calib.errors import FitError
+from calib.exceptions import FitError
 from calib.logs import clipped_note, saturated_mask
 from calib.trace import Trace
 

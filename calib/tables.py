@@ -54,7 +54,7 @@ def table_4_6(res: list[StaticResult]) -> str:
     return "\n".join(out)
 
 
-def _combo(row: np.ndarray, names: tuple[str, ...]) -> str:
+def combination(row: np.ndarray, names: tuple[str, ...]) -> str:
     terms = []
     for v, n in zip(row, names):
         if abs(v) < 1e-6:
@@ -71,7 +71,7 @@ def table_4_8_4_9(res: GravityResult) -> str:
     for r in res.rows:
         name, val = row_result(r, res)
         out.append(f"{r.position:>8}  {r.joint:>5}  {'+' if r.direction > 0 else '-':>3}  "
-                   f"{_combo(r.row, res.names):>18}  {r.tau0:10.3f}  {name + f' = {val:.3f}':>18}")
+                   f"{combination(r.row, res.names):>18}  {r.tau0:10.3f}  {name + f' = {val:.3f}':>18}")
     out += ["", "Table 4.9  Final results for the gravity loading coefficients (N m)",
             f"{'Coefficient':>11}  {'Value':>16}  {'Friction error':>14}"]
     for n, v, e, fe in zip(res.names, res.value, res.error, res.friction_error):

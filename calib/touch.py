@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 
 TOUCH_RATE_HZ = 250            # one count of a joint's encoder per cycle at most in the slow approach
 STANDOFF = 0.006               # m from the nominal face where each approach starts (arm errors < 4 mm)

@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from calib.errors import CalibError
+from calib.exceptions import CalibError
 from calib.program import command_joints, drive_recorded, open_measurement
 from calib.touch import (BACKOFF, FAST, OVERTRAVEL, SLOW, STANDOFF, TouchPlan, cartesian_line,
                          hub_pose, joint_route, joint_line, pose_t6, tool_transform)

@@ -6,9 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.errors import LogError
-
-EXPERIMENTS = ("sensitivity", "friction", "static", "gravity", "breakaway", "kinematics")
+from calib.exceptions import LogError
 
 
 @dataclass

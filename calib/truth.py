@@ -22,13 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.errors import CalibError, LogError
+from calib.exceptions import CalibError, LogError
 from calib.robot import RobotInfo
 from models import FRICTION_KEYS, JointFriction
 
 
 @dataclass(frozen=True)
-class Truth(JointFriction):
+class GroundTruth(JointFriction):
     """Ground truth in SI units (the friction of eq. 4.27: the fields of ``JointFriction``);
     ``gravity_fit_residual`` (N m) says how exactly the simulated arm's gravity follows 4.24
     (DH errors bend it a little)."""
@@ -97,7 +97,7 @@ def _arm_key(t: dict) -> str:
     return json.dumps([t.get("kind"), t.get("params_toml")])
 
 
-def truth_of(traces, info: RobotInfo) -> Truth | None:
+def truth_of(traces, info: RobotInfo) -> GroundTruth | None:
     """The ground truth shared by ``traces``; None when any was recorded against a robot.
     CalibError when they were recorded against simulas built from different parameter files."""
     metas = [log_truth(tr) for tr in traces]
@@ -117,7 +117,7 @@ def truth_of(traces, info: RobotInfo) -> Truth | None:
 
 
 def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "simula on robot data file",
-                    seeds: tuple[int, ...] = (), samples: int = 300, seed: int = 0) -> Truth:
+                    seeds: tuple[int, ...] = (), samples: int = 300, seed: int = 0) -> GroundTruth:
     """Ground truth of a simula built from the data file and the parsed parameter file ``params``."""
     import pinocchio as pin
 
@@ -144,7 +144,7 @@ def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "
     A, y = np.vstack(A), np.concatenate(y)
     c, *_ = np.linalg.lstsq(A, y, rcond=None)
     n = model.n_joints
-    return Truth(sigma=np.array(t.sigma), **{k: np.array(getattr(t, k)) for k in FRICTION_KEYS},
+    return GroundTruth(sigma=np.array(t.sigma), **{k: np.array(getattr(t, k)) for k in FRICTION_KEYS},
                  variation=np.array(t.variation), hold_mean=np.array(t.hold_mean), hold_std=np.array(t.hold_std),
                  gravity=c, gravity_fit_residual=float(np.abs(A @ c - y).max()),
                  dh_errors=np.zeros((n, 4)) if t.dh_errors is None else np.array(t.dh_errors),

@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--simula", metavar="ARGS", help="start a lockstep simula with these options and use it")
     ap.add_argument("--params", metavar="FILE", help="parameter file of fitted values (`calib fit`)")
     args = ap.parse_args(argv)
-    from calib.errors import CalibError
+    from calib.exceptions import CalibError
     from calib.params import load_fitted
     try:
         fitted = load_fitted(args.params, args.robot) if args.params else None

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from calib.breakaway import breakaway_points, fit_breakaway
-from calib.errors import LogError
+from calib.exceptions import LogError
 from calib.trace import Trace
 from tests.test_calib_synth import drive
 

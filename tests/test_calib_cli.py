@@ -121,7 +121,7 @@ def test_gzipped_log_fits_like_the_plain_one(tmp_path, capsys):
 
 
 def test_runtime_loads_fitted_values_and_keeps_the_rest_nominal(tmp_path, capsys):
-    from calib.errors import CalibError
+    from calib.exceptions import CalibError
     from calib.params import load_fitted
 
     params = sigma_params(tmp_path)

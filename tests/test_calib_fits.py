@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.errors import FitError, LogError
+from calib.exceptions import FitError, LogError
 from calib.friction import fit_friction
 from calib.gravity import fit_gravity
 from calib.lsq import bounded_lsq

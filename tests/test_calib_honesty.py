@@ -50,7 +50,7 @@ def test_friction_without_fitted_sensitivities_is_refused_with_the_command_that_
 @pytest.mark.parametrize("kind", ["static", "breakaway"])
 def test_fits_that_subtract_gravity_refuse_without_fitted_coefficients(tmp_path, capsys, kind):
     from calib.fitting import run_fit
-    from calib.errors import CalibError
+    from calib.exceptions import CalibError
     from calib.robot import robot_info
     from tests.test_calib_synth import to_trace as tt
 

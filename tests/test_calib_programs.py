@@ -162,7 +162,7 @@ def test_friction_program_on_simula_fits_the_simulated_joint(tmp_path):
 
 def test_program_error_names_the_program_and_keeps_the_partial_log(tmp_path):
     """A robot that cannot be reached: the error says which program and where."""
-    from calib.errors import CalibError
+    from calib.exceptions import CalibError
     from calib.program import run_plan
 
     (plan,) = friction_plans([1], speeds_deg=(30,), trips=1)

@@ -9,7 +9,8 @@ import os
 import numpy as np
 import pytest
 
-from calib.cli_extra import LOG_DIR, fit_all
+from calib.cli_extra import fit_all
+from calib.logs import LOG_DIR
 from calib.params import read_params
 from calib.truth import truth_of
 

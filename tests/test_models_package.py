@@ -45,7 +45,7 @@ def test_calib_reads_the_data_file_from_rcci_models(tmp_path, monkeypatch):
 ])
 def test_one_reader_for_calib_and_simula(tmp_path, text, field):
     """calib and simula refuse the same files with the same message (the one reader's)."""
-    from calib.errors import CalibError
+    from calib.exceptions import CalibError
     from calib.params import read_params as calib_read
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import load_params, truth_from_model

@@ -1,0 +1,84 @@
+"""Gravity loading coefficients (thesis 4.5.6, Tables 4.8 and 4.9): sweeps and their repeats."""
+from __future__ import annotations
+
+from typing import Any
+
+from calib.fitting import FitOutcome
+from calib.gravity import fit_gravity, row_result
+from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from calib.robot import GRAVITY_NAMES
+from calib.tables import combination, table_4_8_4_9
+
+THESIS_4_8 = {  # Table 4.8 as printed: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2)
+    ("j5", 5): ("c15", -1.191), ("j4", 4): ("c15", -1.193), ("j3B", 3): ("c13", -1.744),
+    ("j2", 2): ("c12", 5.509), ("j3B", 2): ("c12 - c13", 7.288), ("j3A", 3): ("c13 + c15", -1.938),
+}
+THESIS_4_9 = {"c12": (5.509, 0.15, 0.080), "c13": (-1.762, 0.04, 0.010), "c15": (-1.192, 0.005, 0.010)}
+
+
+def fit(traces, info, params, inputs, notes) -> FitOutcome:
+    joints = sorted({t.joint_index() for t in traces})
+    drive = info.drive.with_sigma(inputs.sigma(joints))
+    res = fit_gravity(traces, drive, inputs.regressor(), GRAVITY_NAMES, notes=notes)
+    res = res.with_scale_error(inputs.sigma_scale_error(joints))
+    sec: dict[str, Any] = {n: float(v) for n, v in zip(res.names, res.value)}
+    sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
+    sec.update({f"{n}_friction_error": float(e) for n, e in zip(res.names, res.friction_error)})
+    sec["unit"] = "N*m"
+    return FitOutcome("gravity", table_4_8_4_9(res), {"gravity_coeffs": sec}, res)
+
+
+def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
+    g, truth = out.results, ctx.truth
+    L = ["## Table 4.8: gravity loading measurements", "",
+         "tau0 is the gravity torque at the start of a pass, d (W1 - W2) / 2 minus the same "
+         "for the friction-cancelling repeat (4.51), in N m; the regressor row says which "
+         "combination of coefficients it measures (from 4.24 at that pose). A pass in the "
+         "- direction starts at the other end of the sweep, where the torque has the "
+         "opposite sign. j2 has no repeat: joint 2's axis is always horizontal and a "
+         "zero start torque would need theta2 = +-90 deg at one end of the sweep, outside "
+         "its range (docs/calib.md). Result: the row solved for its leading coefficient "
+         "with the others from the fit of Table 4.9.", "",
+         "| position | joint | dir | tau0 in c | thesis (W_g2 - W_g1)/2 | fit tau0 | uncompensated | result |",
+         "|---|---|---|---|---|---|---|---|"]
+    for r in g.rows:
+        name, val = row_result(r, g)
+        th = THESIS_4_8.get((r.position, r.joint))
+        ths = f"{th[1]:.3f} ({th[0]})" if th else "-"
+        L.append(f"| {r.position} | {r.joint} | {'+' if r.direction > 0 else '-'} | "
+                 f"{combination(r.row, g.names)} | {ths} | {r.tau0:.3f} | {r.raw_tau0:.3f} | {name} = {val:.3f} |")
+    L += ["", "## Table 4.9: gravity loading coefficients (N m)", "",
+          "fit +- error: sqrt((2 sd of the fit)^2 + (half the difference of the two directions' "
+          "fits)^2), the thesis's combination (4.5.6).", "",
+          "| coefficient | thesis | thesis friction error | truth | fit | fit friction error | abs(fit - truth) "
+          "| within thesis bound | within fit error |",
+          "|---|---|---|---|---|---|---|---|---|"]
+    for k, n in enumerate(g.names):
+        tv, te, tf = THESIS_4_9[n]
+        ts, tt = ("-", float("nan")) if truth is None else (f"{truth.gravity[k]:.3f}", float(truth.gravity[k]))
+        d = abs(g.value[k] - tt)
+        L.append(f"| {n} | {tv:.3f} +- {te:.3f} | {tf:.3f} | {ts} | {g.value[k]:.3f} +- {g.error[k]:.3f} | "
+                 f"{g.friction_error[k]:.3f} | {d:.4f} | "
+                 + (f"{ctx.check('4.9', d <= te)} | {ctx.check('4.9 fit', d <= g.error[k])} |"
+                    if truth is not None else "- | - |"))
+    return L + [""]
+
+
+def record(req: RecordRequest) -> None:
+    from calib.experiments import gravity_plans
+    from calib.program import record_plans
+
+    record_plans(req, gravity_plans(req.info.regressor, req.info.lower, req.info.upper))
+
+
+def regen(ctx: RegenContext) -> list:
+    from calib.experiments import gravity_plans
+
+    return [((), p) for p in gravity_plans(ctx.info.regressor, ctx.info.lower, ctx.info.upper)]
+
+
+KIND = FitKind(
+    name="gravity", title="gravity loading coefficients (Tables 4.8, 4.9)", section="gravity_coeffs",
+    merge_keys=(), order=2, record_order=3, report_order=4, fit=fit, report=report, record=record, regen=regen,
+    missing_log="without the friction-cancelling repeat (4.49-4.51) the row keeps the friction "
+                "difference between the segments")

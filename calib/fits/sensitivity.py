@@ -1,0 +1,67 @@
+"""Motor torque sensitivities (thesis 4.5.2, Table 4.1): a pulley's mass lifted and not."""
+from __future__ import annotations
+
+import numpy as np
+
+from calib.fitting import FitOutcome, merge_joint_values
+from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from calib.report import joint_truth, nominal_vector
+from calib.sensitivity import fit_sensitivity
+from calib.tables import table_4_1
+
+RADIUS_M = 0.05  # pulley drum radius (estimate: a 10 cm drum, Figure 4.2 is lost)
+KEYS = ("torque_sensitivity", "torque_sensitivity_std", "torque_sensitivity_error", "torque_sensitivity_trials")
+
+
+def fit(traces, info, params, inputs, notes) -> FitOutcome:
+    res = fit_sensitivity(traces, info.drive, notes)
+    joints = [r.joint for r in res]
+    old = params.get("motors")
+    values = (lambda r: r.mean, lambda r: r.std, lambda r: r.independent_error, lambda r: r.trials)
+    sec = {key: merge_joint_values(old, key, joints, [get(r) for r in res]) for key, get in zip(KEYS, values)}
+    sec["torque_sensitivity_trials"] = [int(x) if np.isfinite(x) else 0 for x in sec["torque_sensitivity_trials"]]
+    sec["unit"] = "N*m/A"
+    return FitOutcome("sensitivity", table_4_1(res), {"motors": sec}, res)
+
+
+def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
+    thesis = nominal_vector(ctx.info, "motors", "torque_sensitivity")
+    err = np.asarray(ctx.info.nominal["motors"]["torque_sensitivity"]["uncertainty"], float)
+    L = ["## Table 4.1: motor torque sensitivity (N m / A)", "",
+         "The fit's independent error is the thesis's kind (4.5.2): the relative uncertainties of "
+         "the mass, the drum radius and the current scale V_g / R_i combined.", "",
+         "| joint | thesis mean | thesis indep. error | truth | fit mean | fit std | trials | fit indep. error "
+         "| abs(fit - truth) | within thesis bound | within fit error |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in out.results:
+        j = r.joint - 1
+        ts, tv = joint_truth(ctx.truth, "sigma", j, ".4f")
+        d = abs(r.mean - tv)
+        L.append(f"| {r.joint} | {thesis[j]:.4f} | {err[j]:.4f} | {ts} | {r.mean:.4f} | {r.std:.4f} | "
+                 f"{r.trials} | {r.independent_error:.4f} | {d:.4f} | "
+                 + (f"{ctx.check('4.1', d <= err[j])} | {ctx.check('4.1 fit', d <= r.independent_error)} |"
+                    if ctx.truth is not None else "- | - |"))
+    return L + [""]
+
+
+def record(req: RecordRequest) -> None:
+    from calib.experiments import sensitivity_plans
+    from calib.program import record_plans
+
+    record_plans(req, [p for p in sensitivity_plans(req.args.mass, req.args.radius, req.joints)
+                       if (p.meta["load"]["mass_kg"] > 0) == req.args.loaded])
+
+
+def regen(ctx: RegenContext) -> list:
+    """Without the mass on the shared simula; with it, a simula with the pulley load per joint."""
+    from calib.experiments import sensitivity_plans
+
+    plans = sensitivity_plans(None, RADIUS_M)
+    return ([((), p) for p in plans if not p.simula_args]
+            + [(tuple(p.simula_args), p) for p in plans if p.simula_args])
+
+
+KIND = FitKind(
+    name="sensitivity", title="motor torque sensitivities (Table 4.1)", section="motors", merge_keys=KEYS,
+    order=0, record_order=5, report_order=0, fit=fit, report=report, record=record, regen=regen,
+    missing_log="the loaded and unloaded runs cancel friction only together (4.43)")

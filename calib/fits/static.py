@@ -1,0 +1,56 @@
+"""Typical static friction at random halts (thesis 4.5.5, second method, Table 4.6)."""
+from __future__ import annotations
+
+from calib.fitting import FitOutcome
+from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from calib.report import joint_truth
+from calib.static import fit_static
+from calib.tables import table_4_6
+
+
+def fit(traces, info, params, inputs, notes) -> FitOutcome:
+    drive = info.drive.with_sigma(inputs.sigma(list(range(6))))
+    res, samples = fit_static(traces, drive, inputs.gravity_model(), notes)
+    sec = {"samples": int(res[0].samples),
+           "maximum": [r.maximum for r in res], "minimum": [r.minimum for r in res],
+           "mean": [r.mean for r in res], "std": [r.std for r in res], "unit": "N*m"}
+    return FitOutcome("static", table_4_6(res), {"static_friction": sec}, res, {"samples": samples})
+
+
+def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
+    res = out.results
+    fr = ctx.info.nominal["friction"]
+    L = [f"## Table 4.6: typical static friction over {res[0].samples} random halts (N m)", "",
+         "simula leaves a servoed joint that halts holding a residual static friction drawn "
+         "from the truth's Table 4.6 mean and standard deviation (clipped to Table 4.5); the "
+         "extremes depend on the draws.", "",
+         "| joint | thesis max | fit max | thesis min | fit min | thesis mean | truth mean | fit mean "
+         "| thesis std | truth std | fit std |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in res:
+        j = r.joint - 1
+        t = [fr[k]["values"][j] for k in ("static_typical_max", "static_typical_min",
+                                           "static_typical_mean", "static_typical_std")]
+        tm, _ = joint_truth(ctx.truth, "hold_mean", j, ".3f")
+        ts, _ = joint_truth(ctx.truth, "hold_std", j, ".3f")
+        L.append(f"| {r.joint} | {t[0]:.3f} | {r.maximum:.3f} | {t[1]:.3f} | {r.minimum:.3f} | "
+                 f"{t[2]:.3f} | {tm} | {r.mean:.3f} | {t[3]:.3f} | {ts} | {r.std:.3f} |")
+    return L + [""]
+
+
+def record(req: RecordRequest) -> None:
+    from calib.experiments import static_plan
+    from calib.program import record_plans
+
+    record_plans(req, [static_plan(req.info.lower, req.info.upper, halts=req.args.halts)])
+
+
+def regen(ctx: RegenContext) -> list:
+    from calib.experiments import static_plan
+
+    return [((), static_plan(ctx.info.lower, ctx.info.upper))]
+
+
+KIND = FitKind(
+    name="static", title="typical static friction at random halts (Table 4.6)", section="static_friction",
+    merge_keys=(), order=4, record_order=4, report_order=3, fit=fit, report=report, record=record, regen=regen)
