@@ -1,7 +1,9 @@
 """`python -m derive` (= `make derive`): derive both arms, emit code for every back end,
 write reports/thesis-equations.md.
 
-Back ends are functions ``emit(kernels, robot, out_dir)``; add one to ``BACKENDS``.
+Back ends are functions ``emit(kernels, programs, robot, out_dir)``; add one to
+``BACKENDS``. ``programs`` is the C back end's lowering of the kernels (and of
+``ik_all``), made once per robot and printed by both compiled back ends.
 """
 from __future__ import annotations
 
@@ -49,13 +51,14 @@ def main(argv: list[str] | None = None) -> int:
             bar.update(task, description=f"derive {name}: SymPy")
             d = derive_robot(name)
             bar.advance(task)
-            bar.update(task, description=f"derive {name}: kernels")
+            bar.update(task, description=f"derive {name}: kernels, lowering")
             kernels = build_kernels(d)
+            programs = emit_c.lower_all(kernels)
             bar.advance(task)
             derivations[name] = d
             for backend, emit in BACKENDS:
                 bar.update(task, description=f"derive {name}: {backend}")
-                files = emit(kernels, name, OUT_DIR)
+                files = emit(kernels, programs, name, OUT_DIR)
                 for f in files:
                     print(f"derive: {name}: {backend}: {Path(f).relative_to(ROOT)}")
                 bar.advance(task)

@@ -230,7 +230,7 @@ def check_condition_bound(trials: int = 200) -> bool:
 
 
 def rows(derivations) -> list:
-    from derive.report import Row
+    from derive.compare import Row
 
     puma = derivations["puma260"].spec.dh
     out: list[Row] = []

@@ -140,7 +140,7 @@ def conditioning(mod: ModuleType, q: np.ndarray) -> float:
 
 
 @dataclass
-class Result:
+class CrossCheckResult:
     """Largest error per quantity, with how many cases it covers."""
 
     robot: str
@@ -155,7 +155,7 @@ class Result:
             self.notes[key] = note
 
 
-def check_forward(mod, arm: PinArm, qs: np.ndarray, res: Result) -> None:
+def check_forward(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult) -> None:
     batch = mod.fk(qs)
     err = 0.0
     for q, t in zip(qs, batch):
@@ -164,7 +164,7 @@ def check_forward(mod, arm: PinArm, qs: np.ndarray, res: Result) -> None:
     res.record("T6, all 16 entries (m, 1)", err, len(qs))
 
 
-def check_jacobians(mod, arm: PinArm, qs: np.ndarray, res: Result) -> None:
+def check_jacobians(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult) -> None:
     e4 = e6 = 0.0
     j4b, j6b = mod.jacobian4(qs), mod.jacobian6(qs)
     for i, q in enumerate(qs):
@@ -175,7 +175,7 @@ def check_jacobians(mod, arm: PinArm, qs: np.ndarray, res: Result) -> None:
     res.record("4J vs 6J rotated into frame 4", e4, len(qs))
 
 
-def check_jacobian_computations(mod, arm: PinArm, qs: np.ndarray, res: Result, seed: int = 1) -> None:
+def check_jacobian_computations(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult, seed: int = 1) -> None:
     """The four computations, frames 4 and 6, against J formed by Pinocchio.
 
     Forward ones are compared absolutely (inputs of unit size); inverse ones relative to
@@ -207,7 +207,7 @@ def check_jacobian_computations(mod, arm: PinArm, qs: np.ndarray, res: Result, s
                    "configurations with every singularity distance > 1e-3 and cond(J) < 1e6")
 
 
-def check_gravity(mod, arm: PinArm, qs: np.ndarray, res: Result, seed: int = 2) -> None:
+def check_gravity(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult, seed: int = 2) -> None:
     from models import load_robot
 
     model = load_robot(mod.ROBOT)
@@ -243,7 +243,7 @@ def check_gravity(mod, arm: PinArm, qs: np.ndarray, res: Result, seed: int = 2) 
     res.record("gravity with tool load 4.26 (0.8 kg at 0.12 m on z6) (N m, N)", e_tool, len(qs))
 
 
-def check_inverse(mod, qs: np.ndarray, res: Result) -> None:
+def check_inverse(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
     """fk(ik(T, c)) = T for every configuration c that reaches T; ik(fk(q), config_of(q))
     = q (mod 2 pi); ik_all contains q and only distinct solutions."""
     e_fk = e_q = 0.0
@@ -284,12 +284,12 @@ def check_inverse(mod, qs: np.ndarray, res: Result) -> None:
         res.record("batched ik = scalar ik", e_b, len(same))
 
 
-def run(n: int, seed: int = 0) -> list[Result]:
+def run(n: int, seed: int = 0) -> list[CrossCheckResult]:
     results = []
     for name, mod in MODULES.items():
         arm = PinArm.load(name)
         qs = samples(mod, n, seed)
-        res = Result(name)
+        res = CrossCheckResult(name)
         check_forward(mod, arm, qs, res)
         check_jacobians(mod, arm, qs, res)
         check_jacobian_computations(mod, arm, qs, res)
@@ -299,7 +299,7 @@ def run(n: int, seed: int = 0) -> list[Result]:
     return results
 
 
-def report(results: list[Result], n: int, seed: int, seconds: float) -> str:
+def report(results: list[CrossCheckResult], n: int, seed: int, seconds: float) -> str:
     lines = [
         "# Cross-check: generated kinematics vs Pinocchio",
         "",

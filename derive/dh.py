@@ -19,7 +19,7 @@ a2, d3, d4 = sp.symbols("a2 d3 d4", positive=True)
 
 
 @dataclass(frozen=True)
-class Link:
+class DHLink:
     """One row of a DH table (thesis 3.2.1 steps 8-11); angles in radians."""
 
     d: sp.Expr
@@ -34,7 +34,7 @@ class DHRobot:
     """A serial arm as its DH table plus the names the derivation needs."""
 
     name: str
-    links: tuple[Link, ...]
+    links: tuple[DHLink, ...]
     params: tuple[sp.Symbol, ...]  # fixed lengths that stay symbolic
 
     @property
@@ -42,7 +42,7 @@ class DHRobot:
         return tuple(link.prismatic for link in self.links)
 
 
-def a_matrix(link: Link) -> sp.Matrix:
+def a_matrix(link: DHLink) -> sp.Matrix:
     """Thesis eq. 3.3: transform from frame i-1 to frame i.
 
     The print lost every minus sign of 3.3; this is the standard DH form
@@ -68,12 +68,12 @@ _deg = sp.pi / 180
 PUMA260 = DHRobot(
     name="puma260",
     links=(
-        Link(0, Q[0], 90 * _deg, 0),
-        Link(0, Q[1], 0, a2),
-        Link(d3, Q[2], -90 * _deg, 0),
-        Link(d4, Q[3], 90 * _deg, 0),
-        Link(0, Q[4], -90 * _deg, 0),
-        Link(0, Q[5], 0, 0),
+        DHLink(0, Q[0], 90 * _deg, 0),
+        DHLink(0, Q[1], 0, a2),
+        DHLink(d3, Q[2], -90 * _deg, 0),
+        DHLink(d4, Q[3], 90 * _deg, 0),
+        DHLink(0, Q[4], -90 * _deg, 0),
+        DHLink(0, Q[5], 0, 0),
     ),
     params=(a2, d3, d4),
 )
@@ -83,12 +83,12 @@ PUMA260 = DHRobot(
 MICROBO = DHRobot(
     name="microbo",
     links=(
-        Link(0, Q[0], 0, 0),
-        Link(Q[1], 90 * _deg, 90 * _deg, 0, prismatic=True),
-        Link(Q[2], 0, 0, 0, prismatic=True),
-        Link(0, Q[3], 90 * _deg, 0),
-        Link(0, Q[4], 90 * _deg, 0),
-        Link(0, Q[5], 0, 0),
+        DHLink(0, Q[0], 0, 0),
+        DHLink(Q[1], 90 * _deg, 90 * _deg, 0, prismatic=True),
+        DHLink(Q[2], 0, 0, 0, prismatic=True),
+        DHLink(0, Q[3], 90 * _deg, 0),
+        DHLink(0, Q[4], 90 * _deg, 0),
+        DHLink(0, Q[5], 0, 0),
     ),
     params=(),
 )

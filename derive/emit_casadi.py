@@ -13,7 +13,8 @@ from pathlib import Path
 import casadi as ca
 import sympy as sp
 
-from derive.emit_c import Program, best_program
+from derive.emit_c import best_program
+from derive.lowering import LoweredKernel
 from derive.kernel import Kernel
 
 _FUNCS = {
@@ -71,7 +72,7 @@ class _ToSX:
         return out
 
 
-def function(prog: Program) -> ca.Function:
+def function(prog: LoweredKernel) -> ca.Function:
     """The casadi.Function of one lowered kernel."""
     k = prog.kernel
     env: dict[sp.Symbol, ca.SX] = {}
@@ -108,24 +109,14 @@ def function(prog: Program) -> ca.Function:
     return ca.Function(f"{k.robot}_{k.name}", sx_inputs, sx_outputs, [a.name for a in k.inputs], out_names)
 
 
-def emit(kernels: list[Kernel], robot: str, out_dir: Path) -> list[Path]:
-    """Back-end entry of ``python -m derive``: ``out_dir/casadi/<robot>/<kernel>.casadi``.
-
-    Reuses the programs the C back end lowered for this robot when it ran first.
-    """
-    from derive import emit_c
-
-    cached = emit_c.LAST_PROGRAMS.get(robot)
-    if cached is not None and all(any(k is c for c in cached[0]) for k in kernels):
-        kernels, programs = cached
-    else:
-        kernels = list(kernels) + emit_c.all_configurations_kernels(kernels)
-        programs = None
-    return write(robot, kernels, Path(out_dir) / "casadi", programs)
+def emit(kernels: list[Kernel], programs: list[tuple[LoweredKernel, str]], robot: str, out_dir: Path) -> list[Path]:
+    """Back-end entry of ``python -m derive``: ``out_dir/casadi/<robot>/<kernel>.casadi``,
+    one per program the C back end chose (derive.emit_c.lower_all: the kernels and ik_all)."""
+    return write(robot, [p.kernel for p, _ in programs], Path(out_dir) / "casadi", programs)
 
 
 def write(robot: str, kernels: list[Kernel], out_dir: Path,
-          programs: list[tuple[Program, str]] | None = None) -> list[Path]:
+          programs: list[tuple[LoweredKernel, str]] | None = None) -> list[Path]:
     """Save one ``<kernel>.casadi`` per kernel under ``out_dir/<robot>/``; return the paths.
 
     ``programs`` (from ``derive.emit_c.write``) avoids lowering the kernels twice.

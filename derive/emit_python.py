@@ -230,8 +230,9 @@ _API = _rt.public_api(_ROBOT)  # the contract's functions: compiled fast entries
     return head + "\n\n" + "\n\n\n".join(funcs) + "\n\n\n" + _kernel_table(kernels) + "\n" + api
 
 
-def emit(kernels: list[Kernel], robot: str, out_dir: Path) -> list[Path]:
-    """Write ``out_dir/<robot>.py``; returns the files written."""
+def emit(kernels: list[Kernel], programs: list, robot: str, out_dir: Path) -> list[Path]:
+    """Write ``out_dir/<robot>.py``; returns the files written. ``programs`` (the compiled
+    back ends' lowering) is not used: this back end prints the kernels' expressions itself."""
     spec = load_spec(robot)
     path = Path(out_dir) / f"{robot}.py"
     text = module_source(kernels, spec)

@@ -10,159 +10,17 @@ with the same magnitudes, i.e. the print lost minus signs, the OCR's usual damag
 """
 from __future__ import annotations
 
-import random
-from dataclasses import dataclass
 from pathlib import Path
 
 import sympy as sp
 
 from derive import thesis_print as tp
+from derive.compare import DC, DQ, TAU, F, Row, equal, namespace, parse, pretty, status_of, verdict
 from derive.dh import Q, a2, a_matrices, d3, d4
-from derive.forward import link_to_link
-from derive.gravity import COM, MASSES, d_t, g0, m_t
 from derive.inverse import POSE, premultiplied
 from derive.kernels import Derivation
 
 COMMAND = "make derive  (python -m derive)"
-
-_S = {f"S{i}": sp.sin(Q[i - 1]) for i in range(1, 7)}
-_C = {f"C{i}": sp.cos(Q[i - 1]) for i in range(1, 7)}
-_POSE = {str(s): s for s in POSE if isinstance(s, sp.Symbol)}
-
-
-def _vars(prefix: str) -> dict[str, sp.Symbol]:
-    return {f"{prefix}{i}": sp.Symbol(f"{prefix}{i}", real=True) for i in range(1, 7)}
-
-
-DQ, DC, F, TAU = _vars("dq"), _vars("dc"), _vars("f"), _vars("tau")
-
-
-def namespace(robot: str) -> dict[str, sp.Expr]:
-    ns: dict[str, sp.Expr] = {**_S, **_C, **_POSE}
-    ns["S23"], ns["C23"] = sp.sin(Q[1] + Q[2]), sp.cos(Q[1] + Q[2])
-    if robot == "puma260":
-        ns.update({"a2": a2, "d3": d3, "d4": d4})
-    else:
-        ns.update({"d2": Q[1], "d3": Q[2]})
-    ns.update({f"dth{i}": DQ[f"dq{i}"] for i in range(1, 7)})
-    ns.update(dict(zip(["dx", "dy", "dz", "dpsi", "drho", "dphi"], DC.values())))
-    ns.update(dict(zip(["fx", "fy", "fz", "tx", "ty", "tz"], F.values())))
-    ns.update({f"t{i}": TAU[f"tau{i}"] for i in range(1, 7)})
-    ns.update({"g": g0, "m_t": m_t, "d_t": d_t})
-    ns.update({f"m{k}": MASSES[k - 1] for k in range(1, 7)})
-    for k in range(1, 7):
-        for axis, sym in zip("xyz", COM[k - 1]):
-            ns[f"{axis}{k}"] = sym
-    ns["x3"] = sp.Symbol("x3", real=True)
-    return ns
-
-
-def parse(text: str, ns: dict[str, sp.Expr]) -> sp.Expr:
-    for name, body in tp.FA.items():
-        text = text.replace(name, body)
-    return sp.sympify(text, locals=dict(ns))
-
-
-# -- comparison ------------------------------------------------------------------------
-
-def _random_point(symbols, rng: random.Random) -> dict:
-    return {s: sp.Float(rng.uniform(-1.3, 1.3) + (0.2 if rng.random() < 0.5 else -0.2), 40) for s in symbols}
-
-
-def equal(a: sp.Expr, b: sp.Expr, points: int = 6) -> bool:
-    """printed == derived, tested at random points (double precision, 1e-10 relative)."""
-    import math
-
-    a, b = sp.sympify(a), sp.sympify(b)
-    syms = sorted(a.free_symbols | b.free_symbols, key=sp.default_sort_key)
-    fa = sp.lambdify(syms, a, "math")
-    fb = sp.lambdify(syms, b, "math")
-    rng = random.Random(7)
-    for _ in range(points):
-        pt = [rng.uniform(-1.3, 1.3) + (0.2 if rng.random() < 0.5 else -0.2) for _ in syms]
-        try:
-            va, vb = float(fa(*pt)), float(fb(*pt))
-        except (ZeroDivisionError, ValueError):
-            continue
-        if not math.isclose(va, vb, rel_tol=1e-10, abs_tol=1e-10):
-            return False
-    return True
-
-
-def _monomials(e: sp.Expr) -> dict:
-    e = sp.expand(sp.expand_trig(e))
-    out = {}
-    for term in sp.Add.make_args(e):
-        coeff, rest = term.as_coeff_Mul()
-        out[rest] = out.get(rest, 0) + coeff
-    return {k: abs(v) for k, v in out.items() if v != 0}
-
-
-def signs_only(printed: sp.Expr, derived: sp.Expr) -> bool:
-    """Same terms with the same magnitudes after expansion (fractions cross-multiplied)."""
-    pn, pd = sp.fraction(sp.together(printed))
-    dn, dd = sp.fraction(sp.together(derived))
-    try:
-        return _monomials(pn * dd) == _monomials(dn * pd) or (
-            _monomials(pn) == _monomials(dn) and _monomials(pd) == _monomials(dd))
-    except Exception:  # noqa: BLE001 - a heuristic; failure means "not signs only"
-        return False
-
-
-def verdict(printed: sp.Expr, derived: sp.Expr) -> str:
-    if equal(printed, derived):
-        return "confirmed"
-    if equal(printed, -derived):
-        return "sign"
-    if signs_only(printed, derived):
-        return "sign"
-    return "differs"
-
-
-_PRETTY_VEC = {
-    **{DQ[f"dq{i}"]: sp.Symbol(f"dth{i}") for i in range(1, 7)},
-    **dict(zip(DC.values(), sp.symbols("dx dy dz dpsi drho dphi"))),
-    **dict(zip(F.values(), sp.symbols("fx fy fz tx ty tz"))),
-    **{TAU[f"tau{i}"]: sp.Symbol(f"t{i}") for i in range(1, 7)},
-}
-
-
-def pretty(e, microbo: bool = False) -> str:
-    """A derived expression in the thesis's S/C notation (d2, d3 for the Microbo's q2, q3)."""
-    rep = dict(_PRETTY_VEC)
-    for i in range(1, 7):
-        rep[sp.sin(Q[i - 1])] = sp.Symbol(f"S{i}")
-        rep[sp.cos(Q[i - 1])] = sp.Symbol(f"C{i}")
-    rep[sp.sin(Q[1] + Q[2])] = sp.Symbol("S23")
-    rep[sp.cos(Q[1] + Q[2])] = sp.Symbol("C23")
-    if microbo:
-        rep[Q[1]], rep[Q[2]] = sp.Symbol("d2"), sp.Symbol("d3")
-    e = sp.Matrix(e).T if isinstance(e, (list, tuple)) else sp.sympify(e)
-    text = sp.sstr(e.xreplace(rep))
-    return text.replace("**", "^")
-
-
-# -- rows ------------------------------------------------------------------------------
-
-@dataclass
-class Row:
-    eq: str
-    what: str
-    printed: str
-    status: str  # confirmed | OCR | erratum | checked
-    note: str = ""
-    corrected: str = ""
-
-
-def _status(v: str, erratum_note: str = "") -> tuple[str, str]:
-    if v == "confirmed":
-        return "confirmed", ""
-    if v == "sign":
-        return "OCR", "signs differ (minus signs lost or misplaced in the print); otherwise the same terms"
-    if erratum_note:
-        return "erratum", erratum_note
-    return "differs", "see corrected form"
-
 
 def _matrix_rows(eq: str, what: str, printed_rows, derived: sp.Matrix, ns, note: str = "",
                  overrides: dict | None = None) -> list[Row]:
@@ -175,7 +33,7 @@ def _matrix_rows(eq: str, what: str, printed_rows, derived: sp.Matrix, ns, note:
             p = parse(text, ns)
             d = derived[i, j]
             v = verdict(p, d)
-            status, why = _status(v)
+            status, why = status_of(v)
             if v != "confirmed" and (i, j) in overrides:
                 status, why = overrides[(i, j)]
             if status != "confirmed":
@@ -204,7 +62,7 @@ def rows_for(d: Derivation) -> list[Row]:
         r = "xyz".index(key[1])
         p = parse(printed_t6[key], ns)
         v = verdict(p, t6[r, col])
-        status, why = _status(v)
+        status, why = status_of(v)
         rows.append(Row(eq, f"T6 {key}", printed_t6[key], status, why,
                         "" if status == "confirmed" else pretty(t6[r, col], not puma)))
     # element equations of Paul's method
@@ -220,7 +78,7 @@ def rows_for(d: Derivation) -> list[Row]:
                     o_version = parse(texts[r].replace("a", "o").replace("od2", "a2"), ns)
                     if verdict(o_version, der) in ("confirmed", "sign"):
                         err = "a printed where o is meant (the element is in the o column); with o it agrees"
-                status, why = _status(v, err)
+                status, why = status_of(v, err)
                 if status != "confirmed":
                     rows.append(Row(eq, f"(A...)^-1 T6 = U, column {col}, row {r + 1} {side}", texts[r],
                                     status, "; ".join(x for x in (why, note) if x), pretty(der, not puma)))
@@ -460,7 +318,7 @@ def _computation_rows(d: Derivation, ns) -> list[Row]:
             der = derived[kind][i]
             v = verdict(p, der)
             if v != "confirmed":
-                status, why = _status(v)
+                status, why = status_of(v)
                 if v == "differs" and i + 1 in fixes:
                     status, why = fixes[i + 1]
                 bad.append(Row(eq, f"{kind}: {labels[kind][i]}", texts.get(f"out{i + 1}", ""), status,
@@ -487,7 +345,7 @@ def _gravity_rows(d: Derivation, ns) -> list[Row]:
     for i, text in enumerate(tp.GRAVITY_PUMA):
         v = verdict(parse(text, env), tau[i])
         if v != "confirmed":
-            status, why = _status(v)
+            status, why = status_of(v)
             bad.append(Row("4.24", f"tau_g{i + 1}", text, status, why, pretty(tau[i])))
     rows += bad or [Row("4.24", "gravity vector, all six rows", "as printed", "confirmed",
                         "derived from 4.20 with the centres of mass of 4.21 and g = (0, 0, -g) (upright); "

@@ -95,7 +95,7 @@ def test_crosscheck_sweep(name):
     """The report's sweep on a small sample: every quantity near machine precision."""
     mod, arm = cc.MODULES[name], cc.PinArm.load(name)
     qs = cc.samples(mod, 60, seed=3)
-    res = cc.Result(name)
+    res = cc.CrossCheckResult(name)
     cc.check_forward(mod, arm, qs, res)
     cc.check_jacobians(mod, arm, qs, res)
     cc.check_jacobian_computations(mod, arm, qs, res)

@@ -15,7 +15,7 @@ from derive.forward import t6
 from derive.gravity import microbo_gravity, puma_gravity
 from derive.jacobian import d_map, f_map
 from derive.kernel import Arg, Guard, Kernel
-from derive.report import equal, namespace, parse, verdict
+from derive.compare import equal, namespace, parse, verdict
 
 ROOT = Path(__file__).resolve().parent.parent
 
