@@ -51,7 +51,7 @@ class Guard:
 
     name: str  # must start with "guard_"
     expr: sp.Expr
-    error: str  # name of the exception class in rccl.kinematics.errors
+    error: str  # name of the exception class in rccl.kinematics.exceptions
     message: str  # what a negative value means, for the user
 
 

@@ -56,7 +56,7 @@ from __future__ import annotations
 
 from .catalogue import available_robots, load_robot, models_dir
 from .drive import FRICTION_KEYS, Friction, JointFriction
-from .errors import ModelError
+from .exceptions import ModelError
 from .quantities import Matrix, Source, Value, Vector
 from .robot import Conversion, Joint, LinkInertial, Motors, RobotModel
 from .units import JOINT_KINDS, UNITS

@@ -1,5 +1,5 @@
 """Parsing and validating one robot data file into a :class:`models.robot.RobotModel`;
-every failure is a :class:`models.errors.ModelError` naming the file, the field and the problem."""
+every failure is a :class:`models.exceptions.ModelError` naming the file, the field and the problem."""
 from __future__ import annotations
 
 import math
@@ -11,7 +11,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .drive import Friction
-from .errors import ModelError
+from .exceptions import ModelError
 from .quantities import Matrix, Source, Value, Vector
 from .robot import Conversion, Joint, LinkInertial, Motors, RobotModel
 from .units import JOINT_DIMS, JOINT_KINDS, UNITS

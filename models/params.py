@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from .errors import ModelError
+from .exceptions import ModelError
 
 #: the schema every parameter file names in ``[calib] schema``
 SCHEMA = "rcci-calib-params/1"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModelError
+from .exceptions import ModelError
 from .robot import RobotModel
 
 _LIMIT_TOL = 1e-6      # URDF vs data file: rad or m (URDFs are written with >= 7 digits)

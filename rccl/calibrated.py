@@ -176,7 +176,7 @@ class CalibratedKinematics:
             except np.linalg.LinAlgError:
                 q += np.linalg.lstsq(J, np.asarray(err), rcond=1e-9)[0]
         if not math.isfinite(miss) or miss > REACH_TOL:
-            from rccl.kinematics.errors import Unreachable
+            from rccl.kinematics.exceptions import Unreachable
 
             raise Unreachable(f"{self.ROBOT} (calibrated): the calibrated arm misses the pose by "
                               f"{miss:.2e} after {NEWTON_STEPS} Newton steps from the nominal solution")

@@ -231,7 +231,7 @@ def test_public_fast_entry_equals_the_python_runtime(robot):
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_public_fast_entry_keeps_every_error(robot):
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     mod = _mod(robot)
     with pytest.raises(errors.InvalidInput, match="not finite"):
         mod.fk(np.full(6, np.nan))
@@ -251,7 +251,7 @@ def test_public_fast_entry_keeps_every_error(robot):
 
 def _ik_all_by_loop(mod, t, q_ref=None):
     """The previous ik_all: ik per configuration, unreachable ones left out, duplicates dropped."""
-    from rccl.kinematics import errors, runtime
+    from rccl.kinematics import exceptions as errors, runtime
     found = []
     for cfg in mod.CONFIGS:
         try:
@@ -285,7 +285,7 @@ def test_ik_all_on_the_kernel_equals_the_loop_over_ik(robot):
 
 
 def test_ik_all_wrist_singular_and_unreachable():
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     mod = _mod("puma260")
     q = np.array([0.3, -0.5, 0.4, 0.7, 0.0, 0.2])  # theta5 = 0: wrist singular
     t = mod.fk(q)
@@ -347,7 +347,7 @@ def test_ik_fast_entries_equal_the_python_runtime(robot):
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_ik_fast_entries_keep_every_error(robot):
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     mod = _mod(robot)
     q = _qs(mod, 1, 33)[0]
     t = mod.fk(q)
@@ -381,7 +381,7 @@ def test_ik_fast_entries_keep_every_error(robot):
 
 
 def test_ik_fast_entry_wrist_singular_goes_to_the_runtime():
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     mod = _mod("puma260")
     q = np.array([0.3, -0.5, 0.4, 0.7, 0.0, 0.2])  # theta5 = 0: wrist singular
     t = mod.fk(q)
@@ -395,7 +395,7 @@ def test_ik_fast_entry_wrist_singular_goes_to_the_runtime():
 def test_gravity_takes_mappings_and_records_in_the_fast_entry(robot):
     from types import MappingProxyType
 
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     from models import load_robot
     mod = _mod(robot)
     model = load_robot(robot)
@@ -455,7 +455,7 @@ def test_batched_public_calls_and_out(robot):
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_batched_public_calls_keep_every_error(robot):
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     mod = _mod(robot)
     qs = _qs(mod, 50_000, 37)
     for bad_out, what in ((np.empty((len(qs), 4)), "shape"), (np.empty((len(qs), 4, 4), dtype=np.float32), "float32"),
@@ -533,7 +533,7 @@ def test_fast_entries_take_good_input_without_the_runtime(robot):
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_results_not_finite_by_construction_are_still_scanned(robot):
     """J dq can overflow (dq is used bare); its results are checked, single and batched."""
-    from rccl.kinematics import errors
+    from rccl.kinematics import exceptions as errors
     mod = _mod(robot)
     qs = _qs(mod, 5000, 38)
     huge = np.full(6, np.finfo(float).max) * np.sign(mod.jacobian6(qs[0])[0])  # the first row's terms add up

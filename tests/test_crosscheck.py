@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from derive import crosscheck as cc
-from rccl.kinematics import errors
+from rccl.kinematics import exceptions as errors
 
 ROBOTS = ["puma260", "microbo"]
 ARMS = {name: cc.PinArm.load(name) for name in ROBOTS}

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rccl.kinematics import errors
+from rccl.kinematics import exceptions as errors
 from rccl.kinematics import microbo as M
 from rccl.kinematics import puma260 as P
 

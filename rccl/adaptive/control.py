@@ -17,7 +17,7 @@ import numpy as np
 
 from rci.conversions import DAC_MAX
 
-from rccl.kinematics.errors import KinematicsError
+from rccl.kinematics.exceptions import KinematicsError
 
 from .comply import Compliance, select_joints, servo_dac
 from .deviation import ToolMaps

@@ -2,7 +2,7 @@
 
 The generated modules (``puma260.py``, ``microbo.py``) hold straight-line kernels; this
 module checks their inputs, dispatches one configuration or a batch, turns negative
-guards into ``errors.Unreachable`` / ``errors.Singular`` naming the pose and the reason,
+guards into ``exceptions.Unreachable`` / ``exceptions.Singular`` naming the pose and the reason,
 and implements the parts of the contract that are logic rather than algebra: the
 configuration records, the wrist-singular fallback and 2 pi branch choice of ``ik``,
 ``ik_all`` and ``config_of``. ``public_api`` builds the contract's public functions of one
@@ -18,7 +18,7 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from models.kinematics import PUBLIC  # the contract's public functions, in binding order
-from rccl.kinematics import errors
+from rccl.kinematics import exceptions
 
 #: two solutions closer than this (rad or m, per joint) are the same solution: at a
 #: boundary (stretched elbow, arm on the d3 cylinder) the two branches meet through a
@@ -40,7 +40,7 @@ class ArmConfig:
     def __post_init__(self) -> None:
         for name in ("arm", "elbow", "wrist"):
             if getattr(self, name) not in (1, -1):
-                raise errors.InvalidInput(f"ArmConfig.{name} must be +1 or -1, got {getattr(self, name)!r}")
+                raise exceptions.InvalidInput(f"ArmConfig.{name} must be +1 or -1, got {getattr(self, name)!r}")
 
     @property
     def signs(self) -> tuple[int, ...]:
@@ -63,7 +63,7 @@ class WristConfig:
 
     def __post_init__(self) -> None:
         if self.wrist not in (1, -1):
-            raise errors.InvalidInput(f"WristConfig.wrist must be +1 or -1, got {self.wrist!r}")
+            raise exceptions.InvalidInput(f"WristConfig.wrist must be +1 or -1, got {self.wrist!r}")
 
     @property
     def signs(self) -> tuple[int, ...]:
@@ -98,7 +98,7 @@ class KernelFn:
 
 def frame_kernel(base: str, frame: int) -> str:
     if frame not in (4, 6):
-        raise errors.InvalidInput(f"{base}: frame must be 4 or 6, got {frame!r}")
+        raise exceptions.InvalidInput(f"{base}: frame must be 4 or 6, got {frame!r}")
     return f"{base}{frame}"
 
 
@@ -138,31 +138,31 @@ class Robot:
 
     def _arrays(self, k: KernelFn, args: Sequence[Any]) -> tuple[list[np.ndarray], bool]:
         if len(args) != len(k.inputs):
-            raise errors.InvalidInput(f"{self.name}.{k.name}: expected {len(k.inputs)} arguments, got {len(args)}")
+            raise exceptions.InvalidInput(f"{self.name}.{k.name}: expected {len(k.inputs)} arguments, got {len(args)}")
         arrays, flags = [], []
         for (name, shape), a in zip(k.inputs, args):
             try:
                 x = np.asarray(a, dtype=float)
             except (TypeError, ValueError) as exc:
-                raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not numeric: {exc}") from None
+                raise exceptions.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not numeric: {exc}") from None
             if x.shape == shape:
                 flags.append(False)
             elif x.ndim == len(shape) + 1 and x.shape[1:] == shape:
                 flags.append(True)
             else:
-                raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} has shape {x.shape}, "
+                raise exceptions.InvalidInput(f"{self.name}.{k.name}: argument {name!r} has shape {x.shape}, "
                                           f"expected {shape} or (N,) + {shape}")
             bad = ~np.isfinite(x)
             if bad.any():
                 where = np.argwhere(bad)[0]
-                raise errors.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not finite "
+                raise exceptions.InvalidInput(f"{self.name}.{k.name}: argument {name!r} is not finite "
                                           f"(NaN or inf at index {tuple(int(i) for i in where)})")
             arrays.append(x)
         batch = any(flags)
         if batch:
             sizes = {a.shape[0] for a, f in zip(arrays, flags) if f}
             if len(sizes) != 1:
-                raise errors.InvalidInput(f"{self.name}.{k.name}: batch sizes differ: {sorted(sizes)}")
+                raise exceptions.InvalidInput(f"{self.name}.{k.name}: batch sizes differ: {sorted(sizes)}")
             n = sizes.pop()
             # a single argument next to batched ones is shared by every row
             arrays = [a if f else np.broadcast_to(a, (n,) + a.shape) for a, f in zip(arrays, flags)]
@@ -203,7 +203,7 @@ class Robot:
                 or not out.flags.writeable:
             got = (f"a {'read-only ' if not out.flags.writeable else ''}{out.dtype} array of shape {out.shape}"
                    if isinstance(out, np.ndarray) else f"{type(out).__name__}")
-            raise errors.InvalidInput(f"{self.name}.{name}: out must be a writable float64 numpy array of "
+            raise exceptions.InvalidInput(f"{self.name}.{name}: out must be a writable float64 numpy array of "
                                       f"shape {value.shape}, got {got}")
         out[...] = value
         return out
@@ -215,7 +215,7 @@ class Robot:
             if not np.isfinite(o).all():
                 i = int(np.argmax(~np.isfinite(o).reshape(o.shape[0], -1).all(axis=1))) if batch else None
                 where = context(i) if context else self._describe(args, i)
-                raise errors.KinematicsError(f"{self.name}.{name}: non-finite result; {where}")
+                raise exceptions.KinematicsError(f"{self.name}.{name}: non-finite result; {where}")
 
     def _check(self, name, guards, batch, args, context, skip=()) -> None:
         k = self.kernels[name]
@@ -227,7 +227,7 @@ class Robot:
             if bad.any():
                 i = int(np.argmax(bad)) if batch else None
                 where = context(i) if context else self._describe(args, i)
-                raise getattr(errors, info.error)(
+                raise getattr(exceptions, info.error)(
                     f"{self.name}.{name}: {info.message} ({info.name} = {float(v.flat[i or 0]):.3g}); {where}")
 
     @staticmethod
@@ -245,9 +245,9 @@ class Robot:
     def _pose(self, T) -> np.ndarray:
         t = np.asarray(T, dtype=float)
         if t.shape[-2:] != (4, 4) or t.ndim not in (2, 3):
-            raise errors.InvalidInput(f"{self.name}.ik: pose has shape {t.shape}, expected (4, 4) or (N, 4, 4)")
+            raise exceptions.InvalidInput(f"{self.name}.ik: pose has shape {t.shape}, expected (4, 4) or (N, 4, 4)")
         if not np.isfinite(t).all():
-            raise errors.InvalidInput(f"{self.name}.ik: pose is not finite: {_fmt_pose(t)}")
+            raise exceptions.InvalidInput(f"{self.name}.ik: pose is not finite: {_fmt_pose(t)}")
         r = t[..., :3, :3]
         dev = np.abs(np.swapaxes(r, -1, -2) @ r - np.eye(3)).max(axis=(-1, -2))
         bottom = np.abs(t[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=-1)
@@ -255,7 +255,7 @@ class Robot:
         if np.any(bad):
             i = int(np.argmax(np.atleast_1d(bad)))
             row = t if t.ndim == 2 else t[i]
-            raise errors.InvalidInput(f"{self.name}.ik: not a rigid homogeneous transform "
+            raise exceptions.InvalidInput(f"{self.name}.ik: not a rigid homogeneous transform "
                                       f"(rotation off orthonormal by {float(np.atleast_1d(dev)[i]):.2g}): {_fmt_pose(row)}")
         return t
 
@@ -265,7 +265,7 @@ class Robot:
         try:
             return self.config_type(*[int(s) for s in np.atleast_1d(config)])
         except (TypeError, ValueError) as exc:
-            raise errors.InvalidInput(f"{self.name}.ik: bad configuration {config!r}: {exc}") from None
+            raise exceptions.InvalidInput(f"{self.name}.ik: bad configuration {config!r}: {exc}") from None
 
     def ik(self, T, config, q_ref=None):
         t = self._pose(T)
@@ -278,7 +278,7 @@ class Robot:
         if q_ref is not None:
             ref = np.asarray(q_ref, dtype=float)
             if ref.shape != t.shape[:-2] + (6,) or not np.isfinite(ref).all():
-                raise errors.InvalidInput(f"{self.name}.ik: q_ref must be finite with shape {t.shape[:-2] + (6,)}, got {ref.shape}")
+                raise exceptions.InvalidInput(f"{self.name}.ik: q_ref must be finite with shape {t.shape[:-2] + (6,)}, got {ref.shape}")
 
         def context(i):
             pose = t if i is None else t[i]
@@ -328,7 +328,7 @@ class Robot:
                 i, row = None, qp
             j = int(np.argmax(bad[i] if batch else bad))
             joint = int(np.nonzero(pri)[0][j]) + 1
-            raise errors.Unreachable(
+            raise exceptions.Unreachable(
                 f"{self.name}.ik: prismatic joint {joint} would need {row[j]:.6g} m, outside its range "
                 f"[{lo[j]:.6g}, {hi[j]:.6g}] m; {context(i)}")
 
@@ -347,7 +347,7 @@ class Robot:
         if q_ref is not None:
             ref = np.asarray(q_ref, dtype=float)
             if ref.shape != t.shape[:-2] + (6,) or not np.isfinite(ref).all():
-                raise errors.InvalidInput(f"{self.name}.ik_all: q_ref must be finite with shape "
+                raise exceptions.InvalidInput(f"{self.name}.ik_all: q_ref must be finite with shape "
                                           f"{t.shape[:-2] + (6,)}, got {ref.shape}")
         configs = self.config_type.all()
         n = t.shape[0] if batch else 1
@@ -374,7 +374,7 @@ class Robot:
             try:
                 q_all[i, j] = self.ik(t3[i], configs[j], None if ref2 is None else ref2[i])
                 found[i, j] = True
-            except errors.Unreachable:
+            except exceptions.Unreachable:
                 continue
         # keep the first of every group of equal solutions (2 pi apart on revolute joints)
         d = q_all[:, :, None, :] - q_all[:, None, :, :]
@@ -418,13 +418,13 @@ class Robot:
         if isinstance(coeffs, Mapping):
             missing = [n for n in self.coeff_names if n not in coeffs]
             if missing:
-                raise errors.InvalidInput(f"{self.name}.gravity: coefficients {missing} missing "
+                raise exceptions.InvalidInput(f"{self.name}.gravity: coefficients {missing} missing "
                                           f"(need {list(self.coeff_names)})")
             vals = [getattr(coeffs[n], "value", coeffs[n]) for n in self.coeff_names]
             return np.array(vals, dtype=float)
         c = np.asarray(coeffs, dtype=float)
         if c.shape[-1:] != (len(self.coeff_names),):
-            raise errors.InvalidInput(f"{self.name}.gravity: expected {len(self.coeff_names)} coefficients "
+            raise exceptions.InvalidInput(f"{self.name}.gravity: expected {len(self.coeff_names)} coefficients "
                                       f"{list(self.coeff_names)}, got shape {c.shape}")
         return c
 
@@ -433,13 +433,13 @@ class Robot:
         com = np.atleast_1d(np.asarray(com, dtype=float))
         if com.shape == (3,):
             if abs(com[0]) > 1e-12 or abs(com[1]) > 1e-12:
-                raise errors.InvalidInput(f"{self.name}.tool_load: the grouped gravity model (4.26) "
+                raise exceptions.InvalidInput(f"{self.name}.tool_load: the grouped gravity model (4.26) "
                                           f"takes the load on the z6 axis; com = {com} is off it")
             dist = com[2]
         elif com.shape == (1,):
             dist = com[0]
         else:
-            raise errors.InvalidInput(f"{self.name}.tool_load: com must be d_t or (0, 0, d_t), got {com}")
+            raise exceptions.InvalidInput(f"{self.name}.tool_load: com must be d_t or (0, 0, d_t), got {com}")
         (out,) = self.call("tool_load", c, [float(mass), float(dist)])
         return dict(zip(self.coeff_names, (float(x) for x in out)))
 
@@ -473,8 +473,8 @@ def public_api(robot: Robot) -> PublicAPI:
         """Joint variables for pose T in configuration `config` (thesis 3.19-3.53).
 
         q_ref (optional current joints) keeps theta4 at a wrist singularity and picks the
-        2 pi branch of each revolute joint nearest to it. Raises errors.Unreachable or
-        errors.Singular with the pose and the reason.
+        2 pi branch of each revolute joint nearest to it. Raises exceptions.Unreachable or
+        exceptions.Singular with the pose and the reason.
         """
         return robot.ik(T, config, q_ref)
 
