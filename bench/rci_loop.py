@@ -95,10 +95,21 @@ def hold_program(s: Session, conv: Conversions):
     return f1
 
 
-def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
+def _link_args(link: str) -> tuple[str, ...]:
+    """simula's options for the link under test: TCP (default) or the Zenoh bus on loopback."""
+    if link == "socket":
+        return ()
+    import socket as _socket
+    with _socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    return ("--zenoh", "bench/puma260", "--zenoh-listen", f"tcp/127.0.0.1:{port}")
+
+
+def run_rate(rate: int, seconds: float, cpu: int | None = None, link: str = "socket") -> dict:
     conv = Conversions.for_robot("puma260")
     load0, steal0 = os.getloadavg()[0], _steal_ticks()
-    with SimulaProcess("-p", "--power-on", "--rate", str(rate), lockstep=False) as sim:
+    with SimulaProcess("-p", "--power-on", "--rate", str(rate), *_link_args(link), lockstep=False) as sim:
         pinned: bool | str = "no"
         if cpu is not None:
             pinned = pin_to_cpus({cpu}, sim.proc.pid)          # simula's (single) thread
@@ -120,11 +131,61 @@ def run_rate(rate: int, seconds: float, cpu: int | None = None) -> dict:
         pin_to_cpus(set(range(os.cpu_count() or 1)))        # give this process all CPUs back
     steal1 = _steal_ticks()
     d = summary.as_dict()
-    d.update(rate=rate, seconds=seconds, robot_overruns=robot_overruns, realtime=rt, load=os.getloadavg()[0],
+    d.update(rate=rate, link=link, seconds=seconds, robot_overruns=robot_overruns, realtime=rt, load=os.getloadavg()[0],
              load0=load0, steal_ms=(steal1 - steal0) * 1000.0 / os.sysconf("SC_CLK_TCK") if steal0 >= 0 else float("nan"),
              pinned="not pinned" if cpu is None else f"CPU {cpu}" if pinned is True else f"not pinned ({pinned})",
              warm_missed=warm_missed, steady_missed=d["missed"] - warm_missed, long_gaps=long_gaps)
     return d
+
+
+ECHO = """
+import sys
+from rci.bus import Bus
+with Bus("bench-echo", tasks=("echo",), connect=(sys.argv[1],)) as bus:
+    inbox, outbox = bus.channel("planning", "echo", 64, "block"), bus.channel("echo", "planning", 64, "block")
+    print("ready", flush=True)
+    while True:
+        msg = inbox.receive(timeout=5.0)
+        if msg is None or msg == "stop":
+            break
+        outbox.send(msg)
+"""
+
+
+def bus_round_trip(n: int = 2000) -> dict:
+    """Round trip of a channel message between two processes over the Zenoh bus (rci.bus):
+    planning -> echo process -> planning, one message in flight, a 6-float payload."""
+    from rci.bus import Bus
+    import socket as _socket
+
+    with _socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    with Bus("bench-echo", tasks=("planning",), listen=(endpoint,)) as bus:
+        out, back = bus.channel("planning", "echo", 64, "block"), bus.channel("echo", "planning", 64, "block")
+        proc = subprocess.Popen([sys.executable, "-c", ECHO, endpoint], stdout=subprocess.PIPE, text=True,
+                                cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+        try:
+            assert proc.stdout.readline().strip() == "ready"
+            time.sleep(0.2)
+            rtt = []
+            q = np.zeros(6)
+            for i in range(n + 100):
+                t0 = time.perf_counter()
+                out.send({"i": i, "q": q})
+                msg = back.receive(timeout=2.0)
+                if msg is None:
+                    raise RuntimeError(f"bus round trip: message {i} not echoed within 2 s")
+                if i >= 100:                                  # the first 100 warm up
+                    rtt.append(time.perf_counter() - t0)
+            out.send("stop")
+            proc.wait(5)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    r = np.array(rtt) * 1e6
+    return {"n": n, "p50": float(np.percentile(r, 50)), "p90": float(np.percentile(r, 90)),
+            "p99": float(np.percentile(r, 99)), "max": float(r.max())}
 
 
 def start_hogs(n: int) -> list[subprocess.Popen]:
@@ -196,7 +257,7 @@ def render_stress(runs: list[dict]) -> list[str]:
         "| simula and controller | terminations | cycles | missed (robot saw no CHG in time) | missed % | late cycles "
         "| longest late run | limit | controller overruns | jitter p99 (us) | cycle work p99 (us) | load avg start / end "
         "| verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in runs:
         missed_pct = 100.0 * r["missed"] / max(r["cycles"] + r["missed"], 1)
@@ -218,7 +279,7 @@ def render_stress(runs: list[dict]) -> list[str]:
     return lines
 
 
-def render(results: list[dict], command: str, stress: list[dict] | None = None) -> str:
+def render(results: list[dict], command: str, stress: list[dict] | None = None, bus: dict | None = None) -> str:
     lines = [
         "# RCI control loop bench",
         "",
@@ -232,13 +293,13 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None) 
         "joint with POS (a minimal real program). The first half second of each run is left out.",
         f"Both processes: {results[0]['pinned'] if results else 'n/a'}. Kernel: {kernel_preemption()}.",
         "",
-        "| rate (Hz) | s | cycles | missed (warm-up / after) | overruns | HOW gaps > 2 periods | jitter p50 (us) | jitter p99 (us) | jitter max (us) "
+        "| link | rate (Hz) | s | cycles | missed (warm-up / after) | overruns | HOW gaps > 2 periods | jitter p50 (us) | jitter p99 (us) | jitter max (us) "
         "| RCI work p50 / p99 (us) | period left to user code p50 / p99 | load avg (1 min) start / end | steal (ms) |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         lines.append(
-            f"| {r['rate']}{'' if r['pinned'] == results[0]['pinned'] else ' (' + r['pinned'] + ')'} | {r['seconds']:.0f} | {r['cycles']} | {r['warm_missed']} / {r['steady_missed']} | {r['overruns']} | {r['long_gaps']} "
+            f"| {r.get('link', 'socket')} | {r['rate']}{'' if r['pinned'] == results[0]['pinned'] else ' (' + r['pinned'] + ')'} | {r['seconds']:.0f} | {r['cycles']} | {r['warm_missed']} / {r['steady_missed']} | {r['overruns']} | {r['long_gaps']} "
             f"| {r['jitter_p50'] * 1e6:.0f} | {r['jitter_p99'] * 1e6:.0f} | {r['jitter_max'] * 1e6:.0f} "
             f"| {r['overhead_p50'] * 1e6:.0f} / {r['overhead_p99'] * 1e6:.0f} "
             f"| {r['user_share_p50'] * 100:.1f} % / {r['user_share_p99'] * 100:.1f} % | {r['load0']:.1f} / {r['load']:.1f} "
@@ -252,7 +313,10 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None) 
         "  apart: simula itself (or the link) stalled. The controller missed nothing then, so these are not in",
         "  *missed*, but the simulated robot did not keep its period; they are also the *jitter max*.",
         "- *jitter*: |interval between successive HOW arrivals at the controller - period|; it contains",
-        "  simula's own timing error, the socket and the controller's wake-up latency.",
+        "  simula's own timing error, the link and the controller's wake-up latency.",
+        "- *link*: `socket` is TCP on loopback (`socket://127.0.0.1:PORT`); `zenoh` is the Zenoh bus",
+        "  (`simula --zenoh KEY`, link address `zenoh/KEY?connect=tcp/127.0.0.1:PORT`, peer to peer over TCP on",
+        "  loopback, rci/zenoh_bus.py): each frame is a publication, handed to the reader by Zenoh's threads.",
         "- *RCI work*: the control task's own time per cycle (decode, checks, encode, send), user functions excluded;",
         "  *period left to user code* = 1 - RCI work / period.",
         f"- Real-time set-up achieved: {results[0]['realtime'] if results else 'n/a'}.",
@@ -262,14 +326,38 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None) 
         "- Target (issue 4): 1 kHz with zero missed cycles and p99 jitter <= 200 us.",
         "",
     ]
+    if any(r.get("link") == "zenoh" for r in results):
+        lines += _zenoh_ratios(results)
+    if bus:
+        lines += ["## A channel message between two processes over the bus", "",
+                  f"`rci.bus`: planning -> a second process -> planning, {bus['n']} messages one at a time "
+                  "(a dict with a 6-float array, `block` channels), after 100 for warm-up; loopback TCP.", "",
+                  "| round trip p50 (us) | p90 (us) | p99 (us) | max (us) |", "|---|---|---|---|",
+                  f"| {bus['p50']:.0f} | {bus['p90']:.0f} | {bus['p99']:.0f} | {bus['max']:.0f} |", ""]
     if stress:
         lines += render_stress(stress)
     return "\n".join(lines)
 
 
+def _zenoh_ratios(results: list[dict]) -> list[str]:
+    """Zenoh against the socket at the same rate, same run."""
+    out = ["## The link over Zenoh against the socket (same run)", "",
+           "| rate (Hz) | missed after warm-up socket / zenoh | jitter p50 zenoh / socket | jitter p99 zenoh / socket "
+           "| RCI work p99 zenoh / socket |", "|---|---|---|---|---|"]
+    sock = {r["rate"]: r for r in results if r.get("link", "socket") == "socket"}
+    for z in (r for r in results if r.get("link") == "zenoh"):
+        s = sock.get(z["rate"])
+        if s is None:
+            continue
+        ratio = lambda k: z[k] / s[k] if s[k] > 0 else float("nan")      # noqa: E731
+        out.append(f"| {z['rate']} | {s['steady_missed']} / {z['steady_missed']} | {ratio('jitter_p50'):.1f}x "
+                   f"| {ratio('jitter_p99'):.1f}x ({z['jitter_p99'] * 1e6:.0f} us) | {ratio('overhead_p99'):.2f}x |")
+    return out + ["", "Goal (issue 17): 1 kHz over Zenoh on loopback with 0 missed cycles and p99 jitter <= 200 us.", ""]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rates", type=int, nargs="+", default=[36, 250, 1000])
+    ap.add_argument("--rates", type=int, nargs="*", default=[36, 250, 1000])
     ap.add_argument("--seconds", type=float, default=30.0)
     ap.add_argument("--out", default=str(ROOT / "reports" / "bench-rci.md"))
     ap.add_argument("--cpu", type=int, default=(os.cpu_count() or 1) - 1,
@@ -278,6 +366,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="length of the 1 kHz run with CPU hogs and the default lateness policy (0: skip it)")
     ap.add_argument("--hogs", type=int, default=2, help="CPU hogs during the stress run")
     ap.add_argument("--only-stress", action="store_true", help="skip the per-rate runs")
+    ap.add_argument("--zenoh-rates", type=int, nargs="*", default=[250, 1000],
+                    help="rates run once more over the Zenoh link (rci/zenoh_bus.py), for the comparison")
     ap.add_argument("--unpinned-too", action="store_true",
                     help="after the pinned runs, run the highest rate once more without pinning (for comparison)")
     args = ap.parse_args(argv)
@@ -296,6 +386,16 @@ def main(argv: list[str] | None = None) -> int:
                   f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
                   f"load {r['load0']:.1f} -> {r['load']:.1f}", flush=True)
             results.append(r)
+    for rate in ([] if args.only_stress else args.zenoh_rates):
+        r = run_rate(rate, args.seconds, None if args.cpu < 0 else args.cpu, link="zenoh")
+        print(f"{rate:5d} Hz over Zenoh: cycles {r['cycles']}, missed {r['warm_missed']} (warm-up) + {r['steady_missed']}, "
+              f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
+              f"RCI work p99 {r['overhead_p99'] * 1e6:.0f} us, load {r['load0']:.1f} -> {r['load']:.1f}", flush=True)
+        results.append(r)
+    bus = None
+    if not args.only_stress and args.zenoh_rates:
+        bus = bus_round_trip()
+        print(f"bus round trip between two processes: p50 {bus['p50']:.0f} us, p99 {bus['p99']:.0f} us", flush=True)
     stress = []
     if args.stress_seconds > 0:
         for cpu in ([args.cpu, None] if args.cpu >= 0 else [None]):
@@ -306,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
             stress.append(r)
     command = "python bench/rci_loop.py" + ("" if argv is None and len(sys.argv) == 1 else " " + " ".join(sys.argv[1:] if argv is None else argv))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(render(results, command, stress))
+    Path(args.out).write_text(render(results, command, stress, bus))
     print(f"wrote {args.out}")
     return 0
 

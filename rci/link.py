@@ -210,15 +210,22 @@ class Link:
         return bool(self.port.is_open)
 
 
-def open_link(url: str, *, baudrate: int = 115200, connect_timeout: float = 5.0) -> Link:
+def open_link(url: str, *, baudrate: int = 115200, connect_timeout: float = 5.0, priority: int = 0) -> Link:
     """Open the robot link named by ``url`` (device path, ``socket://host:port`` or ``loop://``).
 
     A device path (serial line or pty) is opened with an exclusive lock: one controller per
     line (docs/protocol.md, "Ownership"); a second program gets DeviceError at once instead
     of sharing, and stealing, the first one's frames. Over TCP the robot itself refuses a
-    second controller (BUSY). Raises DeviceError (thesis R_BAD_OPEN) naming the URL if the
+    second controller (BUSY). ``zenoh/KEY`` is the Zenoh bus (rci.zenoh_bus); ``priority`` > 0
+    runs its threads under SCHED_FIFO (where allowed). Raises DeviceError (thesis R_BAD_OPEN) naming the URL if the
     link cannot be opened.
     """
+    if url.startswith("zenoh/"):
+        from .zenoh_bus import ControllerPort, ZenohLinkError
+        try:
+            return Link(ControllerPort(url, timeout=connect_timeout, priority=priority), url)
+        except ZenohLinkError as e:
+            raise DeviceError(f"cannot open robot link {url!r}: {e}") from None
     device = "://" not in url
     try:
         port = serial.serial_for_url(url, baudrate=baudrate, timeout=connect_timeout,

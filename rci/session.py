@@ -187,7 +187,8 @@ class Session:
         with self._primitive():
             if self.link is not None:
                 raise AlreadyOpen(f"session with {self.url} is already open")
-            link = open_link(self.url)
+            # a real-time session's link threads (the Zenoh bus has some) run just above its control thread
+            link = open_link(self.url, priority=self.priority + 1 if self.realtime else 0)
             try:
                 link.drain()
                 link.send(protocol.HELLO, self._next_msg_seq(),

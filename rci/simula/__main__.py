@@ -44,6 +44,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=DEFAULT_PORT,
                    help=f"TCP port (default {DEFAULT_PORT}; 0 picks a free one, printed on line 1)")
     p.add_argument("--pty", action="store_true", help="serve a pseudo-terminal instead of TCP (path on line 1)")
+    p.add_argument("--zenoh", metavar="KEY",
+                   help="serve the arm on the Zenoh bus under rcci/KEY instead of TCP (link address "
+                        "zenoh/KEY?connect=... on line 1; docs/zenoh.md)")
+    p.add_argument("--zenoh-listen", metavar="ENDPOINT", action="append", default=[],
+                   help="Zenoh endpoint to listen on (default tcp/127.0.0.1:7447; repeatable; "
+                        "tcp/0.0.0.0:7447 for other hosts)")
+    p.add_argument("--zenoh-connect", metavar="ENDPOINT", action="append", default=[],
+                   help="Zenoh endpoint (a router or a peer) to connect to (repeatable)")
     p.add_argument("--control-port", type=int, default=0, help="control-channel port on loopback (0: any free)")
     p.add_argument("--no-control", action="store_true", help="no control channel")
     p.add_argument("--test-channel", action="store_true",
@@ -106,7 +114,14 @@ def main(argv: list[str] | None = None) -> int:
         server = Server(arm, model.name, lockstep=args.lockstep, verbose=args.verbose, rate_hz=args.rate,
                         watchdog=max(1, args.watchdog), watchdog_time=max(0.0, args.watchdog_time),
                         lockstep_watchdog=max(0.0, args.lockstep_watchdog))
-        url = server.open_pty() if args.pty else server.listen_tcp(args.host, args.port)
+        if args.zenoh:
+            from rci.zenoh_bus import ZenohAddress
+            url = server.serve_zenoh(ZenohAddress(args.zenoh.strip("/"), tuple(args.zenoh_connect),
+                                                  tuple(args.zenoh_listen)),
+                                     # real time: Zenoh's threads just above the serving loop
+                                     priority=0 if args.lockstep or args.priority <= 0 else args.priority + 1)
+        else:
+            url = server.open_pty() if args.pty else server.listen_tcp(args.host, args.port)
         control = None if args.no_control else ControlChannel("127.0.0.1", args.control_port,
                                                               test_commands=args.test_channel)
     except (ModelError, SimulaError, ValueError, OSError) as exc:

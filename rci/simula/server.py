@@ -256,6 +256,7 @@ class Server:
         self.err = err or sys.stderr
         self.listener: socket.socket | None = None
         self.pty: PtyTransport | None = None
+        self.zenoh = None                       # rci.zenoh_bus.RobotEndpoint with --zenoh
         self.session: Client | None = None      # the owner (or, on a pty, the line's one client)
         self.pending: list[Client] = []         # TCP connections not welcomed (yet)
         self.control: ControlChannel | None = None
@@ -296,6 +297,17 @@ class Server:
         s.setblocking(False)
         self.listener = s
         return f"socket://{host}:{s.getsockname()[1]}"
+
+    def serve_zenoh(self, address, priority: int = 0) -> str:
+        """Serve controllers on the Zenoh bus (rci.zenoh_bus); returns the ``zenoh/KEY?...`` address."""
+        from rci.zenoh_bus import RobotEndpoint
+
+        # Zenoh hands every frame to Python on its own threads, which need the GIL this loop
+        # holds while it computes or spins before a tick: hand it over often (the default
+        # 5 ms switch interval would delay a CHG by up to 5 ms)
+        sys.setswitchinterval(5e-5)
+        self.zenoh = RobotEndpoint(address, priority)
+        return self.zenoh.url()
 
     def open_pty(self) -> str:
         """Serve a pseudo-terminal; returns the device path a controller opens."""
@@ -869,6 +881,15 @@ class Server:
             return
         self.pending.append(Client(SocketTransport(conn, address)))
 
+    def _accept_zenoh(self) -> None:
+        for conn in self.zenoh.accept():
+            if len(self.pending) >= MAX_PENDING:
+                self.log_limited("too many connections", f"Zenoh connection {conn.address} refused: "
+                                                         f"{MAX_PENDING} connections already wait for a HELLO")
+                conn.close()
+                continue
+            self.pending.append(Client(conn))
+
     def _expire_pending(self) -> None:
         if not self.pending:
             return
@@ -894,6 +915,8 @@ class Server:
             rfds: list = [c.transport for c in clients]
             if self.listener is not None:
                 rfds.append(self.listener)
+            if self.zenoh is not None:
+                rfds.append(self.zenoh)
             wfds: list = [c.transport for c in clients if c.transport.wants_write()]
             if control is not None:
                 rfds.extend(control.fds())
@@ -922,6 +945,8 @@ class Server:
             for r in ready:
                 if r is self.listener:
                     self._accept()
+                elif r is self.zenoh:
+                    self._accept_zenoh()
                 elif self.session is not None and r is self.session.transport:
                     continue
                 else:
@@ -960,5 +985,7 @@ class Server:
             self.pty.close()
         if self.listener is not None:
             self.listener.close()
+        if self.zenoh is not None:
+            self.zenoh.close()
         if self.control is not None:
             self.control.close()
