@@ -100,7 +100,7 @@ class Arm(Planner):
             if self.gen is None:
                 raise NotRunning(f"{self.url}: the control did not start (no HOW received)")
         except BaseException:
-            self.rci._close_quietly(power_off=False)
+            self.rci.close_quietly(power_off=False)
             raise
         Planner.__init__(self, self._kin, self._limits, self.gen, fault_check=lambda: self.rci.wait(0))
         self.park = joint_position("park", self._kin, load_robot(self.robot).poses[PARK_POSE])
@@ -185,7 +185,7 @@ class Arm(Planner):
             if wait and self.gen is not None and self.gen.faulted is None and self.rci.in_control:
                 self.rci.wait(None, until=lambda: not self.gen.busy or self.gen.faulted is not None)
         finally:
-            self.rci._close_quietly(power_off)
+            self.rci.close_quietly(power_off)
 
     def __enter__(self) -> "Arm":
         return self if self.gen is not None else self.open()

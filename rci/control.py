@@ -123,7 +123,7 @@ class ControlTask(threading.Thread):
                 except (LinkClosed, OSError):
                     pass
         text = detail() if callable(detail) else detail
-        self.s._control_terminated(codes.Termination(code, text, self.seq if self.seq is not None else -1), self)
+        self.s.control_terminated(codes.Termination(code, text, self.seq if self.seq is not None else -1), self)
         self.started.set()
 
     def request_release(self, power_off: bool) -> None:
@@ -132,7 +132,9 @@ class ControlTask(threading.Thread):
         self.release_requested = True
         self.link.wake()
 
-    def _send_release(self) -> None:
+    def send_release(self) -> None:
+        """Send the release now (end, stop; power off if asked): the cycle loop's release, and the
+        session's fallback when the control thread is stuck in a user function."""
         rel = Chg(nj=self.s.nj)
         rel.end.com = 1
         rel.stop.com = 1
@@ -168,7 +170,7 @@ class ControlTask(threading.Thread):
             if s.watchdog:
                 watchdog.start()
             try:
-                self.link.send(protocol.START, s._next_msg_seq(), protocol.Start(s.rate_hz).encode())
+                self.link.send(protocol.START, s.next_msg_seq(), protocol.Start(s.rate_hz).encode())
             except LinkClosed as e:
                 self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), str(e), link_ok=False)
                 return
@@ -181,7 +183,6 @@ class ControlTask(threading.Thread):
             sys.setswitchinterval(saved_interval)
             self.finished.set()
             self.started.set()
-            s._control_thread_done(self)
 
     def _watchdog(self) -> None:
         # at most 20 wake-ups a second: each takes the GIL and forces the control thread to
@@ -226,7 +227,7 @@ class ControlTask(threading.Thread):
             if self.ended:
                 return
             if self.release_requested:
-                self._send_release()
+                self.send_release()
                 return
             # the HOW that follows a rate change ends the cycle already running, at the old rate
             timeout = first_timeout if not self.started.is_set() else s.timeout_for(max(self.period, old_period))
@@ -249,7 +250,7 @@ class ControlTask(threading.Thread):
             t_arr = time.monotonic()
             if frame is None:
                 if self.release_requested:
-                    self._send_release()
+                    self.send_release()
                     return
                 if self.ended:
                     return

@@ -52,7 +52,7 @@ import numpy as np
 from . import codes
 from .exceptions import ControlTerminated, NoControl, NotOpen, RCIError
 from .realtime import GCControl, RealtimeStatus, lock_memory, unlock_memory
-from .session import TERM_SIGNAL, Session
+from .session import TERM_SIGNAL, Session, run_on_error
 
 PLANNING = "planning"      # the planning level's name as a sender/receiver
 OVERFLOW = ("drop_oldest", "block", "error")
@@ -385,7 +385,7 @@ class Workcell:
                     done.append(s)
             except BaseException as e:
                 for s in done:
-                    s._close_quietly(power_off=False)
+                    s.close_quietly(power_off=False)
                 name = next(n for n, s in self.sessions.items() if s not in done)
                 if isinstance(e, RCIError):
                     try:       # the same error type, its message naming the arm
@@ -552,7 +552,7 @@ class Workcell:
                 try:
                     barrier.wait(timeout)
                 except threading.BrokenBarrierError:
-                    if self.termination is not None or session._task is None or session._task.release_requested:
+                    if self.termination is not None or session.control_task is None or session.control_task.release_requested:
                         state["skip"] = True     # another arm failed or the cell is releasing: do nothing more
                         return
                     late = [n for n, k in self._arrived.items() if k < c // every]
@@ -580,7 +580,7 @@ class Workcell:
                                                                      if s.in_control}:
                 raise MultiError("release(): a lockstep workcell releases all its arms together (call release())")
             for n in targets:
-                task = self.sessions[n]._task
+                task = self.sessions[n].control_task
                 if task is not None and not task.ended:
                     task.request_release(power_off)       # all at once, then wait for each
             if self._barrier is not None:
@@ -619,8 +619,8 @@ class Workcell:
             if not self._gc_applied:
                 return
             for s in self.sessions.values():     # let finished control threads leave first
-                if s._task is not None:
-                    s._task.finished.wait(0.5)
+                if s.control_task is not None:
+                    s.control_task.finished.wait(0.5)
             self._gc.restore()
             self._gc_applied = False
             if self._saved_interval is not None:
@@ -636,7 +636,7 @@ class Workcell:
             pass
 
     def _forget_threads(self) -> None:
-        alive = {s._task.ident for s in self.sessions.values() if s._task is not None and s.in_control}
+        alive = {s.control_task.ident for s in self.sessions.values() if s.control_task is not None and s.in_control}
         for ident in list(self._threads):
             if ident not in alive:
                 self._threads.pop(ident, None)
@@ -650,13 +650,13 @@ class Workcell:
 
     def _close_all(self, power_off: bool) -> None:
         for s in self.sessions.values():
-            task = s._task
+            task = s.control_task
             if task is not None and not task.ended:
                 task.request_release(power_off)
         if self._barrier is not None:
             self._barrier.abort()
         for s in self.sessions.values():
-            s._close_quietly(power_off)
+            s.close_quietly(power_off)
         self._flush()
         if self.rt_status.mlockall is True:
             unlock_memory()
@@ -754,7 +754,7 @@ class Workcell:
         """Session listener, in the failing arm's control thread: release the others, tell the planner."""
         with self._lock:
             others = [n for n, s in self.sessions.items()
-                      if n != name and s._task is not None and not s._task.ended]
+                      if n != name and s.control_task is not None and not s.control_task.ended]
             at = ArmTermination(name, self.sessions[name].robot, term, others)
             self.terminations.append(at)
             first = self.termination is None
@@ -762,7 +762,7 @@ class Workcell:
                 self.termination = at
         for n in others:
             # stop, power kept: the other arms are healthy; their tasks send the release next cycle
-            self.sessions[n]._task.request_release(False)
+            self.sessions[n].control_task.request_release(False)
         if self._barrier is not None:
             self._barrier.abort()
         self._term_event.set()
@@ -782,18 +782,12 @@ class Workcell:
             return
         self._delivered = t
         for s in self.sessions.values():        # the sessions' own record of it is delivered too
-            s._delivered = s.termination
-            task = s._task
+            s.mark_delivered()
+            task = s.control_task
             if task is not None and task is not threading.current_thread():
                 task.finished.wait(min(0.2, 4 * task.period))
-        h = self.on_error
-        if h == "raise":
-            raise ArmTerminated(t)
-        if h is None:
-            codes.print_terminate_code(t.code, t.message())
-            self._close_all(power_off=t.termination.severe)
-            raise SystemExit(1)
-        h(t)
+        run_on_error(self.on_error, ArmTerminated(t), t.code, t.message(), t.termination.severe,
+                     lambda severe: self._close_all(power_off=severe), t)
 
     class _Primitive:
         def __init__(self, cell: "Workcell") -> None:

@@ -45,6 +45,21 @@ from .timing import CycleTiming
 TERM_SIGNAL = signal.SIGUSR1   # the thesis used SIGHUP; SIGUSR1 does not collide with terminal hangups
 
 
+
+def run_on_error(on_error: Any, error: ControlTerminated, code: int, message: str, severe: bool,
+                 close: Callable[[bool], None], argument: Any) -> None:
+    """The one way a control's end on an error reaches the program, for a session and for a
+    workcell alike: ``on_error == "raise"`` raises ``error``; None (the thesis's default
+    handler) prints ``TERMINATE/ code message``, closes (``close(severe)``: power off after a
+    severe error) and exits with status 1; a callable is called with ``argument``."""
+    if on_error == "raise":
+        raise error
+    if on_error is None:
+        codes.print_terminate_code(code, message)
+        close(severe)
+        raise SystemExit(1)
+    on_error(argument)
+
 class Session:
     """One RCI session with one robot (or simula) over one link.
 
@@ -145,7 +160,9 @@ class Session:
         self._lock = threading.RLock()
 
     # --- small helpers --------------------------------------------------------------
-    def _next_msg_seq(self) -> int:
+    def next_msg_seq(self) -> int:
+        """The next message sequence number (HELLO, START, BYE: docs/protocol.md); the control
+        task takes one for START."""
         self._msg_seq = (self._msg_seq + 1) & 0xFFFFFFFF
         return self._msg_seq
 
@@ -174,6 +191,16 @@ class Session:
         return t is not None and not t.ended
 
     @property
+    def control_task(self) -> ControlTask | None:
+        """The control task of the control in progress, or of the last one (None before any)."""
+        return self._task
+
+    def mark_delivered(self) -> None:
+        """The termination recorded has been delivered by the caller (a workcell delivers its
+        arms' terminations itself): this session will not deliver it again."""
+        self._delivered = self.termination
+
+    @property
     def period(self) -> float:
         return 1.0 / self.rate_hz
 
@@ -191,7 +218,7 @@ class Session:
             link = open_link(self.url, priority=self.priority + 1 if self.realtime else 0)
             try:
                 link.drain()
-                link.send(protocol.HELLO, self._next_msg_seq(),
+                link.send(protocol.HELLO, self.next_msg_seq(),
                           protocol.Hello(self.robot, self.rate_hz, self.client, os.getpid(), self.takeover).encode())
                 welcome = self._await_welcome(link)
             except (LinkClosed, OSError) as e:
@@ -300,7 +327,7 @@ class Session:
             task.request_release(power_off)
             task.finished.wait(max(1.0, 4 * self.timeout_for(task.period)))
             if not task.ended:           # thread stuck in a user function: release around it
-                task._send_release()
+                task.send_release()
 
     def close(self, power_off: bool = False) -> None:
         """RCIclose: release any control (power off if asked), say BYE, close the link."""
@@ -315,7 +342,7 @@ class Session:
             severe = self.termination is not None and self.termination.severe
             link = self.link
             try:
-                link.send(protocol.BYE, self._next_msg_seq(),
+                link.send(protocol.BYE, self.next_msg_seq(),
                           protocol.Bye((power_off and was_controlling) or severe).encode())
                 deadline = time.monotonic() + 0.5
                 while time.monotonic() < deadline:
@@ -343,10 +370,11 @@ class Session:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self._close_quietly(power_off=exc_type is not None and exc_type is not SystemExit)
+        self.close_quietly(power_off=exc_type is not None and exc_type is not SystemExit)
 
-    def _close_quietly(self, power_off: bool) -> None:
-        """Release and close whatever state we are in; never raises."""
+    def close_quietly(self, power_off: bool = False) -> None:
+        """Release and close whatever state the session is in; never raises (at exit, or a
+        workcell closing its arms after one of them failed)."""
         try:
             if self.in_control:
                 self.release(power_off)
@@ -362,7 +390,7 @@ class Session:
             self._restore_signals()
 
     def _atexit(self) -> None:
-        self._close_quietly(power_off=False)
+        self.close_quietly(power_off=False)
 
     # --- waiting at the planning level --------------------------------------------
     def wait(self, seconds: float | None = None, until: Callable[[], bool] | None = None,
@@ -394,8 +422,9 @@ class Session:
             time.sleep(max(step, 0.0))
 
     # --- termination delivery -----------------------------------------------------
-    def _control_terminated(self, term: codes.Termination, task: ControlTask) -> None:
-        """Called by the control task (its thread or its watchdog) after the implicit release."""
+    def control_terminated(self, term: codes.Termination, task: ControlTask) -> None:
+        """The control task (its thread or its watchdog) reports the end of its control on an
+        error, after the implicit release: record it, tell the listeners, signal the main thread."""
         self.terminate = term.code
         self.termination = term
         self._term_event.set()
@@ -406,9 +435,6 @@ class Session:
                 signal.pthread_kill(self._main_ident, TERM_SIGNAL)
             except (ProcessLookupError, OSError):
                 pass
-
-    def _control_thread_done(self, task: ControlTask) -> None:
-        pass
 
     def _deliver(self) -> None:
         """Run on_error for a termination not yet delivered (main thread, or a wait() caller)."""
@@ -423,14 +449,8 @@ class Session:
             # the arm is already released; give the control thread a moment to finish, but
             # do not wait for a user function that may never return
             task.finished.wait(min(0.1, 2 * task.period))
-        h = self.on_error
-        if h == "raise":
-            raise ControlTerminated(t)
-        if h is None:
-            codes.print_terminate_code(t.code, self._message(t))
-            self._close_quietly(power_off=t.severe)
-            raise SystemExit(1)
-        h(t)
+        run_on_error(self.on_error, ControlTerminated(t), t.code, self._message(t), t.severe,
+                     lambda severe: self.close_quietly(power_off=severe), t)
 
     @staticmethod
     def _message(t: codes.Termination) -> str:
@@ -490,7 +510,7 @@ class Session:
         if self.on_interrupt is not None:
             self.on_interrupt()
             return
-        self._close_quietly(power_off=True)
+        self.close_quietly(power_off=True)
         codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), "interrupt")
         raise SystemExit(130)
 

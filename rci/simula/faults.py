@@ -321,7 +321,7 @@ class _Run:
             if self.c.process == "stop-simula" and self.sim.alive():
                 os.kill(self.sim.proc.pid, signal.SIGCONT)
             prog.release_hang.set()
-            task = s._task
+            task = s.control_task
             if ended.is_set():
                 res.outcome = "ended"
                 if task is not None and not task.finished.wait(3.0):
