@@ -25,7 +25,6 @@ tool:z=0.05 -p --power-on`` (``parse_environment`` reads the words; docs/simula.
 """
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -287,15 +286,3 @@ class EnvironmentArm(Arm):
         if self.environment.conveyor is not None:
             d["conveyor"] = [float(x) for x in self.environment.conveyor.position(self.t)]
         return d
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m rci.simula.environment ...``: an alias of ``python -m rci.simula ...``, whose own
-    ``--env`` option builds the environment (kept so that older command lines still work)."""
-    from .__main__ import main as simula_main
-
-    return simula_main(argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
