@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
-from calib.paths import Path, Segment
+from calib.paths import Path, PathSegment
 from calib.program import command_joints, drive_recorded, open_measurement
 from rci import codes
 from rci.chg import CUR
@@ -67,10 +67,10 @@ def _sweep(q: np.ndarray, j: int, half: float, seconds: float, rate: int) -> np.
     lo, hi = q.copy(), q.copy()
     lo[j], hi[j] = q[j] - half, q[j] + half
     v = 30 * DEG
-    segs, n = [Segment(q, lo, v, ACCEL)], max(1, int(seconds * v / (4 * half)))
+    segs, n = [PathSegment(q, lo, v, ACCEL)], max(1, int(seconds * v / (4 * half)))
     for _ in range(n):
-        segs += [Segment(lo, hi, v, ACCEL), Segment(hi, lo, v, ACCEL)]
-    segs.append(Segment(lo, q, v, ACCEL, 0.5))
+        segs += [PathSegment(lo, hi, v, ACCEL), PathSegment(hi, lo, v, ACCEL)]
+    segs.append(PathSegment(lo, q, v, ACCEL, 0.5))
     return Path(tuple(segs)).sample(rate)
 
 
@@ -104,7 +104,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
         q = plan.pose.copy()
         q[j] = x
         for d in (1, -1):
-            steps.append(("move", Path((Segment(here, q, 0.6, ACCEL, 0.5),)).sample(rate)))
+            steps.append(("move", Path((PathSegment(here, q, 0.6, ACCEL, 0.5),)).sample(rate)))
             steps.append(("ramp", (q, d)))
             steps.append(("warm", _sweep(q, j, 8 * DEG, BETWEEN_S, rate)))
             here = q
@@ -123,7 +123,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
             state["power"] = True
             # from wherever the arm is to the start of the warm-up (not recorded)
             start = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
-            steps.insert(0, ("warm", Path((Segment(start, steps[0][1][0], 0.6, ACCEL, 0.5),))
+            steps.insert(0, ("warm", Path((PathSegment(start, steps[0][1][0], 0.6, ACCEL, 0.5),))
                              .sample(rate)))
         if state["step"] >= len(steps):
             session.record(None)

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.paths import Path, Segment, sweep_path
+from calib.paths import Path, PathSegment, sweep_path
 from calib.poses import TABLE_4_7, TABLE_4_8_SWEEPS, main_sweep, repeat_sweep
 
 DEG = np.pi / 180
@@ -70,7 +70,7 @@ FRICTION_WARMUP_S = 200.0  # s: 10 e-foldings of simula's warm-up (a cold joint 
 
 
 @dataclass
-class Plan:
+class MeasurementPlan:
     """One measurement run: where to go, what to log with it, and the log's name."""
 
     name: str
@@ -93,8 +93,8 @@ def sweep_warmup(q: np.ndarray, joint: int, lo: float, hi: float, speed: float =
                       dwell=dwell)
 
 
-def _start_move(here: np.ndarray | None, to: np.ndarray) -> list[Segment]:
-    return [] if here is None else [Segment(here, to, 0.6, ACCEL, 0.5)]
+def _start_move(here: np.ndarray | None, to: np.ndarray) -> list[PathSegment]:
+    return [] if here is None else [PathSegment(here, to, 0.6, ACCEL, 0.5)]
 
 
 def _prepend(here: np.ndarray | None, path: Path) -> Path:
@@ -122,7 +122,7 @@ def _robot_limits() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def friction_plans(joints=range(1, 7), speeds_deg=None,
-                   trips: tuple[int, ...] | int | None = None) -> list[Plan]:
+                   trips: tuple[int, ...] | int | None = None) -> list[MeasurementPlan]:
     """4.5.4: passes in both directions at several constant speeds, no potential-energy change.
 
     By default each joint runs the FRICTION_SPEEDS_DEG up to its top speed
@@ -171,15 +171,15 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
 
 
 def _friction_plan(name: str, rate: int, j: int, q: np.ndarray, lo: float, hi: float,
-                   speeds: list[float], trips: list[int]) -> Plan:
-    segs: list[Segment] = []
+                   speeds: list[float], trips: list[int]) -> MeasurementPlan:
+    segs: list[PathSegment] = []
     for v, n in zip(speeds, trips):
         segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
                            start=segs[-1].end if segs else None, dwell=0.0).segments
     meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
             "speeds": [v * DEG for v in speeds], "trips": list(trips)}
     warm = sweep_warmup(q, j - 1, lo, hi, seconds=FRICTION_WARMUP_S, dwell=0.0)
-    return Plan(name, Path(tuple(segs)), meta, warmup=warm, rate_hz=rate)
+    return MeasurementPlan(name, Path(tuple(segs)), meta, warmup=warm, rate_hz=rate)
 
 
 # Pulley masses (kg) per joint: the load torque m g r should be of the order of the
@@ -189,7 +189,7 @@ SENSITIVITY_MASS = {1: 4.0, 2: 4.0, 3: 4.0, 4: 1.0, 5: 1.0, 6: 1.0}
 
 
 def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7),
-                      speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0) -> list[Plan]:
+                      speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0) -> list[MeasurementPlan]:
     """4.5.2: the same arc with the pulley's mass and without it (two simula runs).
 
     The pulley is a simula load option (``--load pulley:...``); its string winds on a
@@ -209,13 +209,13 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
                     "log_set": [f"sensitivity-j{j}-loaded", f"sensitivity-j{j}-unloaded"]}
             tag = "loaded" if mass > 0 else "unloaded"
             args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
-            plans.append(Plan(f"sensitivity-j{j}-{tag}", path, meta, args,
+            plans.append(MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
                               warmup=sweep_warmup(q, j - 1, lo, hi)))
     return plans
 
 
 def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarray,
-                  upper: np.ndarray, speed_deg: float = 20.0, trips: int = 1) -> list[Plan]:
+                  upper: np.ndarray, speed_deg: float = 20.0, trips: int = 1) -> list[MeasurementPlan]:
     """4.5.6: each Table 4.7 sweep and its friction-cancelling repeat (4.49-4.51)."""
     plans = []
     for name, joint in TABLE_4_8_SWEEPS:
@@ -229,14 +229,14 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
             meta = {"experiment": "gravity", "joint": sw.joint, "position": name, "role": sw.role,
                     "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how,
                     "log_set": [f"gravity-{tag}-main"] + ([f"gravity-{tag}-repeat"] if repeat is not None else [])}
-            plans.append(Plan(f"gravity-{tag}-{sw.role}", path, meta,
+            plans.append(MeasurementPlan(f"gravity-{tag}-{sw.role}", path, meta,
                               warmup=sweep_warmup(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi)))
     return plans
 
 
 def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: int = 1985,
                 speed_deg: float = 60.0, halt_s: float = 0.6, step_deg: float = 40.0,
-                start: np.ndarray | None = None) -> Plan:
+                start: np.ndarray | None = None) -> MeasurementPlan:
     """4.5.5, second method: the arm brought to a halt at random poses.
 
     Each pose is a random step of up to ``step_deg`` per joint from the last (kept 10 %
@@ -247,16 +247,16 @@ def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: in
     lo, hi = lower + margin, upper - margin
     here = np.clip(start if start is not None else (lo + hi) / 2, lo, hi)
 
-    def walk(n: int, dwell: float, here: np.ndarray) -> list[Segment]:
+    def walk(n: int, dwell: float, here: np.ndarray) -> list[PathSegment]:
         segs = []
         for _ in range(n):
             q = np.clip(here + rng.uniform(-step_deg, step_deg, 6) * DEG, lo, hi)
-            segs.append(Segment(here, q, speed_deg * DEG, 3 * ACCEL, dwell))
+            segs.append(PathSegment(here, q, speed_deg * DEG, 3 * ACCEL, dwell))
             here = q
         return segs
 
     warm = walk(int(WARMUP_S / 1.0), 0.0, here)  # about 1 s per step, no halts
     here = warm[-1].end
-    segs = [Segment(here, here, 1.0, ACCEL, halt_s)] + walk(halts - 1, halt_s, here)
+    segs = [PathSegment(here, here, 1.0, ACCEL, halt_s)] + walk(halts - 1, halt_s, here)
     meta = {"experiment": "static", "halts": halts, "seed": seed, "halt_s": halt_s}
-    return Plan("static", Path(tuple(segs)), meta, warmup=Path(tuple(warm)))
+    return MeasurementPlan("static", Path(tuple(segs)), meta, warmup=Path(tuple(warm)))

@@ -14,7 +14,7 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class Segment:
+class PathSegment:
     """A move from ``start`` to ``end`` (rad, (6,)) with cruise speed ``speed`` (rad/s,
     along the largest joint change), acceleration ``accel`` (rad/s^2), then ``dwell`` s
     standing still at ``end``."""
@@ -64,7 +64,7 @@ class Segment:
 class Path:
     """Segments one after another; ``sample(rate)`` gives the setpoint of every cycle."""
 
-    segments: tuple[Segment, ...]
+    segments: tuple[PathSegment, ...]
 
     @property
     def duration(self) -> float:
@@ -91,17 +91,17 @@ def sweep_path(q: np.ndarray, joint: int, lo: float, hi: float, speeds: list[flo
     ``trips`` round trips per speed, turning beyond the window where the ramps fit and
     standing ``dwell`` s at each turn; the other joints held at ``q``.  Begins with a
     move from ``start`` (if given)."""
-    segs: list[Segment] = []
+    segs: list[PathSegment] = []
     here = np.asarray(q, dtype=float).copy()
     for v in speeds:
         margin = v * v / (2 * accel) + 2 * np.pi / 180
         low, high = here.copy(), here.copy()
         low[joint], high[joint] = lo - margin, hi + margin
         if start is not None or segs:
-            segs.append(Segment(start if not segs else segs[-1].end, low, max(v, 0.3), accel, 0.3))
+            segs.append(PathSegment(start if not segs else segs[-1].end, low, max(v, 0.3), accel, 0.3))
         else:
-            segs.append(Segment(low, low, 1.0, accel, 0.3))
+            segs.append(PathSegment(low, low, 1.0, accel, 0.3))
         for _ in range(trips):
-            segs.append(Segment(low, high, v, accel, dwell))
-            segs.append(Segment(high, low, v, accel, dwell))
+            segs.append(PathSegment(low, high, v, accel, dwell))
+            segs.append(PathSegment(high, low, v, accel, dwell))
     return Path(tuple(segs))

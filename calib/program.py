@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.exceptions import CalibError
-from calib.experiments import ACCEL, Plan
-from calib.paths import Path, Segment
+from calib.experiments import ACCEL, MeasurementPlan
+from calib.paths import Path, PathSegment
 from rci import codes
 from rci.chg import POS
 from rci.conversions import Conversions
@@ -78,7 +78,7 @@ def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
         session.chg.motion[i].issue(POS, int(counts[i]))
 
 
-def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
+def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
              realtime: bool = False, extra_meta: dict | None = None,
              timeout: float | None = 5.0) -> RunInfo:
     """Run ``plan`` on the robot (or simula) at ``url`` and record it into ``log_path``.
@@ -103,8 +103,8 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
             parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
             first = parts[0][0] if parts else body[0]
             last = parts[0][-1] if parts else first
-            approach = Path((Segment(here, first, 0.6, ACCEL, 0.5),)).sample(rate_hz)
-            settle = Path((Segment(last, body[0], 0.6, ACCEL, 0.5),)).sample(rate_hz)
+            approach = Path((PathSegment(here, first, 0.6, ACCEL, 0.5),)).sample(rate_hz)
+            settle = Path((PathSegment(last, body[0], 0.6, ACCEL, 0.5),)).sample(rate_hz)
             lead = np.vstack([approach, *parts, settle])
             state["setpoints"] = np.vstack([lead, body])
             state["recording_from"] = len(lead)
@@ -123,7 +123,7 @@ def run_plan(url: str, plan: Plan, log_path: str, robot: str = "puma260", rate_h
     return RunInfo(log_path, rec.written, state["k"] + 1)
 
 
-def record_plans(request, plans: list[Plan]) -> None:
+def record_plans(request, plans: list[MeasurementPlan]) -> None:
     """``calib record``: run each of ``plans`` on the robot of ``request`` (a
     calib.registry.RecordRequest), one log per plan in its folder, and say so."""
     import os

@@ -24,7 +24,7 @@ from typing import Any
 
 from calib import registry
 from calib.exceptions import CalibError
-from calib.experiments import Plan
+from calib.experiments import MeasurementPlan
 from calib.logs import LOG_DIR
 from calib.program import run_plan
 from calib.registry import RegenContext
@@ -55,7 +55,7 @@ def _simula_args(params: str | None, extra: list[str]) -> list[str]:
     return (["--params", params] if params else []) + list(extra)
 
 
-def _run(url: str, plan: Plan, out_dir: str, work: str, seed: int, params: str | None) -> None:
+def _run(url: str, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None) -> None:
     t0 = time.monotonic()
     raw = os.path.join(work, plan.name + ".rcilog")
     info = run_plan(url, plan, raw, rate_hz=plan.rate_hz,
@@ -74,7 +74,7 @@ class _Simula:
         self.make = lambda: SimulaProcess("-p", *_simula_args(params, list(args)), lockstep=True, seed=seed)
         self.sim = self.make().start()
 
-    def run(self, plan: Plan, out_dir: str, work: str, seed: int, params: str | None) -> None:
+    def run(self, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None) -> None:
         try:
             _run(self.sim.url, plan, out_dir, work, seed, params)
         except CalibError as exc:
@@ -138,7 +138,7 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
     work = os.path.join(out_dir, ".work")
     os.makedirs(work, exist_ok=True)
     ctx = RegenContext(out_dir, work, seed, params, info)
-    plans: list[tuple[tuple[str, ...], Plan]] = []
+    plans: list[tuple[tuple[str, ...], MeasurementPlan]] = []
     sims: dict[tuple[str, ...], _Simula] = {}
     try:
         # in record_order: kinds on simulas of their own record as they are asked; the

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from calib.exceptions import CalibError
 
 if TYPE_CHECKING:   # annotations only: the records these callables take and give
-    from calib.experiments import Plan
+    from calib.experiments import MeasurementPlan
     from calib.fitting import FitOutcome, Inputs
     from calib.robot import RobotInfo
     from calib.trace import Trace
@@ -83,7 +83,7 @@ class FitKind:
     * ``report(ctx, outcome) -> list[str]``: Markdown lines of its report section.
     * ``plot(outcome, folder, prefix) -> list[str]``: the files written (None: no plots).
     * ``record(request) -> None``: record its logs on the robot at ``request.url``.
-    * ``regen(ctx) -> list[(simula_args, Plan)]``: plans to run on simula, in order; a kind
+    * ``regen(ctx) -> list[(simula_args, MeasurementPlan)]``: plans to run on simula, in order; a kind
       whose programs need a simula of their own records them here and returns [].
     * ``fit_files(paths)``: see the field.
     """
@@ -98,7 +98,7 @@ class FitKind:
     fit: Callable[..., "FitOutcome"]
     report: Callable[[ReportContext, "FitOutcome"], list[str]]
     record: Callable[[RecordRequest], None]
-    regen: Callable[[RegenContext], list[tuple[tuple[str, ...], "Plan"]]]
+    regen: Callable[[RegenContext], list[tuple[tuple[str, ...], "MeasurementPlan"]]]
     plot: Callable[["FitOutcome", str, str], list[str]] | None = None
     #: inputs that are not logs (kinematics: CSV files of measured poses): paths -> (results,
     #: table text, parameter-file sections); None: logs only

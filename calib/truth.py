@@ -122,7 +122,7 @@ def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "
     import pinocchio as pin
 
     from models import load_robot
-    from rci.simula.arm import Arm
+    from rci.simula.arm import SimulatedArm
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import apply_params, truth_from_model
 
@@ -133,7 +133,7 @@ def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "
             t = apply_params(params, source, info.name, t)
         except ParamsError as exc:
             raise CalibError(f"the logs' truth: {exc}") from None
-    arm = Arm(model, t, seed=0, start="ready")
+    arm = SimulatedArm(model, t, seed=0, start="ready")
     data = arm.pm.createData()
     rng = np.random.default_rng(seed)
     A, y = [], []
@@ -170,14 +170,14 @@ def simula_pattern(robot: str, seed: int, joint: int, window: tuple[float, float
     """(angles, relative Coulomb variation v p(q)) of ``joint`` over ``window`` in a simula
     started with ``seed``."""
     from models import load_robot
-    from rci.simula.arm import Arm
+    from rci.simula.arm import SimulatedArm
     from rci.simula.params import apply_params, truth_from_model
 
     model = load_robot(robot)
     truth = truth_from_model(model)
     if params is not None:
         truth = apply_params(params, "the logs' truth", robot, truth)
-    arm = Arm(model, truth, seed=seed, start="ready")
+    arm = SimulatedArm(model, truth, seed=seed, start="ready")
     th = np.linspace(window[0], window[1], points)
     q = np.zeros((len(th), model.n_joints))
     q[:, joint - 1] = th

@@ -35,7 +35,7 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
     """(g_w N m, its standard deviation N m, where the model came from) for ``joint``
     (1-based) swept over ``window`` (rad) at ``pose`` (rad), tapered as the pass means are."""
     from models import load_robot
-    from rci.simula.arm import Arm
+    from rci.simula.arm import SimulatedArm
     from rci.simula.params import apply_params, truth_from_model
 
     model = load_robot(robot)
@@ -66,7 +66,7 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
     def mean_gravity(errors: np.ndarray) -> float:
         from dataclasses import replace
 
-        arm = Arm(model, replace(base, dh_errors=errors), seed=0, start="ready")
+        arm = SimulatedArm(model, replace(base, dh_errors=errors), seed=0, start="ready")
         tau = np.array([arm.gravity(x)[joint - 1] for x in q])
         return float(np.sum(w * tau) / np.sum(w))
 

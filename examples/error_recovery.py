@@ -25,7 +25,7 @@ from contextlib import ExitStack
 import numpy as np
 
 from rci import codes
-from rci.checks import Limits
+from rci.checks import CommandLimits
 from rci.chg import POS
 from rci.conversions import Conversions
 from rci.session import Session
@@ -88,7 +88,7 @@ def move_with_recovery(session: Session, angle_deg: float, speed_factor: float, 
                        max_attempts: int = 6) -> list[str]:
     """Move one joint, recovering from errors as the handler decides; returns the log of actions."""
     conv = Conversions.for_robot(session.robot)
-    vmax = Limits.for_robot(session.robot).max_velocity[joint]
+    vmax = CommandLimits.for_robot(session.robot).max_velocity[joint]
     goal: list[float] = []
     speed = speed_factor * vmax
     actions: list[str] = []

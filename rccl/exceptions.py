@@ -26,7 +26,7 @@ class BadRequest(MotionError, ValueError):
     """A motion parameter is out of range (negative speed, unknown mode, bad configuration string)."""
 
 
-class Unreachable(MotionError):
+class UnreachableTarget(MotionError):
     """A target (or a point of a Cartesian path) is outside the workspace; says which position and where."""
 
 

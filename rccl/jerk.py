@@ -40,7 +40,7 @@ import numpy as np
 from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
 
 from .ending import MotionEnd
-from .exceptions import BadRequest, MotionError, PowerOff, SingularPath, TrajectoryFault, Unreachable
+from .exceptions import BadRequest, MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
 from .limits import Limits
 from .motion import MotionParams, Request
 from .queue import MotionQueue
@@ -289,7 +289,7 @@ class JerkLimitedGenerator:
                 mv.q_dest = self.kin.ik(mv.req.position.solve(mv.req.snap), mv.config, q_ref, mv.where)
                 bad = self.limits.out_of_range(mv.q_dest)
                 if bad is not None:
-                    raise Unreachable(f"{mv.where}: the destination needs joint {bad + 1} at {mv.q_dest[bad]:.4f}, "
+                    raise UnreachableTarget(f"{mv.where}: the destination needs joint {bad + 1} at {mv.q_dest[bad]:.4f}, "
                                       f"outside its range [{self.limits.lower[bad]:.4f}, {self.limits.upper[bad]:.4f}]")
             return mv.q_dest.tolist()
         x = mv.req.position.solve(mv.req.snap) @ mv.tool
@@ -373,7 +373,7 @@ class JerkLimitedGenerator:
         else:
             return
         if not np.all(np.isfinite(q)):
-            raise Unreachable(f"the commanded joint values are not finite ({q}); arm stopped")
+            raise UnreachableTarget(f"the commanded joint values are not finite ({q}); arm stopped")
         step = np.abs(q - self.q)
         bad = np.nonzero(step > self._step_bound)[0]
         if bad.size:
@@ -383,7 +383,7 @@ class JerkLimitedGenerator:
                                "moving too fast; arm stopped")
         i = self.limits.out_of_range(q)
         if i is not None:
-            raise Unreachable(f"the commanded point needs joint {i + 1} at {q[i]:.4f}, outside its range "
+            raise UnreachableTarget(f"the commanded point needs joint {i + 1} at {q[i]:.4f}, outside its range "
                               f"[{self.limits.lower[i]:.4f}, {self.limits.upper[i]:.4f}]; arm stopped")
 
     def _freeze(self, exc: BaseException) -> None:

@@ -12,12 +12,12 @@ runs:
   no final marking can be reached (livelocks), actions that never fire (unreachable).
   Each finding carries the shortest firing sequence that reaches it.
 * ``thesis_net()``: the net of Figure 5.6 (one EFT, flags set by anyone in any order).
-* ``Program``: a recorder with the planning-level primitives of ``rccl.events``
+* ``FlagProgram``: a recorder with the planning-level primitives of ``rccl.events``
   (``move_ev``, ``start_ev``, ``stop_ev``, ``wait_ev``, ``start_after``, ``free_ev``,
   ``move``). Write the planning part of a program as a function of the events module and
   the arms; call it with ``rccl.events`` and real arms to run it, or give it to
   ``record``/``check`` to obtain its flag triples without moving anything.
-  ``Program.net()`` builds the net: the planning level is one sequential process, each
+  ``FlagProgram.net()`` builds the net: the planning level is one sequential process, each
   arm's trajectory level takes its queue in order, each EFT has the thesis's places.
 * ``check(plan, *arms)``: record, analyse, raise ``rccl.events.Deadlock`` (or
   ``EventError`` for an unreachable motion) before anything moves.
@@ -53,7 +53,7 @@ class NetError(EventError):
 
 
 @dataclass(frozen=True)
-class Transition:
+class NetTransition:
     """One transition: ``inputs``/``outputs`` map place names to arc weights.
 
     ``action`` groups transitions that are one event of the modelled system (e.g. the
@@ -76,7 +76,7 @@ class Net:
     """A place/transition net with an initial marking (``initial``: place -> tokens, absent = 0)."""
 
     places: list[str]
-    transitions: list[Transition]
+    transitions: list[NetTransition]
     initial: dict[str, int]
     is_final: Callable[[dict[str, int]], bool] | None = None    # None: the net is meant to run forever
     name: str = "net"
@@ -357,12 +357,12 @@ def thesis_net() -> Net:
     motion) its test: the motion begins only while p2' holds.
     """
     t = [
-        Transition("set start", {"p1'": 1}, {"p1": 1}),
-        Transition("set stop", {"p2'": 1}, {"p2": 1}),
-        Transition("begin (rule 1)", {"p1": 1, "p2'": 1, "p3": 1}, {"p1": 1, "p2'": 1, "p4": 1, "p6": 1}),
-        Transition("natural end: default stop code (rule 2)", {"p4": 1, "p6": 1, "p2'": 1}, {"p5": 1, "p7": 1, "p2": 1}),
-        Transition("stopped (rule 2)", {"p4": 1, "p6": 1, "p2": 1}, {"p5": 1, "p7": 1, "p2": 1}),
-        Transition("deleted: stop before start (rule 3)", {"p3": 1, "p2": 1}, {"p5": 1, "p7": 1, "p2": 1}),
+        NetTransition("set start", {"p1'": 1}, {"p1": 1}),
+        NetTransition("set stop", {"p2'": 1}, {"p2": 1}),
+        NetTransition("begin (rule 1)", {"p1": 1, "p2'": 1, "p3": 1}, {"p1": 1, "p2'": 1, "p4": 1, "p6": 1}),
+        NetTransition("natural end: default stop code (rule 2)", {"p4": 1, "p6": 1, "p2'": 1}, {"p5": 1, "p7": 1, "p2": 1}),
+        NetTransition("stopped (rule 2)", {"p4": 1, "p6": 1, "p2": 1}, {"p5": 1, "p7": 1, "p2": 1}),
+        NetTransition("deleted: stop before start (rule 3)", {"p3": 1, "p2": 1}, {"p5": 1, "p7": 1, "p2": 1}),
     ]
     return Net(list(THESIS_PLACES), t, {"p1'": 1, "p2'": 1, "p3": 1},
                is_final=lambda m: m.get("p5", 0) == 1 and m.get("p7", 0) == 1, name="thesis Figure 5.6")
@@ -371,9 +371,9 @@ def thesis_net() -> Net:
 def queue_net(slots: int | None) -> Net:
     """The one-way queue between two tasks of thesis Figure 2.8: ``slots`` free places, or None for
     a queue without them (the producer never waits: the queue place is unbounded)."""
-    t = [Transition("producer puts an item", {"producer ready": 1} | ({"free slots": 1} if slots else {}),
+    t = [NetTransition("producer puts an item", {"producer ready": 1} | ({"free slots": 1} if slots else {}),
                     {"producer ready": 1, "items": 1}),
-         Transition("consumer takes an item", {"consumer ready": 1, "items": 1},
+         NetTransition("consumer takes an item", {"consumer ready": 1, "items": 1},
                     {"consumer ready": 1} | ({"free slots": 1} if slots else {}))]
     places = ["producer ready", "consumer ready", "items"] + (["free slots"] if slots else [])
     init = {"producer ready": 1, "consumer ready": 1} | ({"free slots": slots} if slots else {})
@@ -382,10 +382,10 @@ def queue_net(slots: int | None) -> Net:
 
 def token_passing_net() -> Net:
     """Thesis Figure 2.7: two tasks pass one token to take turns at shared data."""
-    t = [Transition("task 1 takes the data", {"token at 1": 1}, {"1 in data": 1}),
-         Transition("task 1 passes the token", {"1 in data": 1}, {"token at 2": 1}),
-         Transition("task 2 takes the data", {"token at 2": 1}, {"2 in data": 1}),
-         Transition("task 2 passes the token", {"2 in data": 1}, {"token at 1": 1})]
+    t = [NetTransition("task 1 takes the data", {"token at 1": 1}, {"1 in data": 1}),
+         NetTransition("task 1 passes the token", {"1 in data": 1}, {"token at 2": 1}),
+         NetTransition("task 2 takes the data", {"token at 2": 1}, {"2 in data": 1}),
+         NetTransition("task 2 passes the token", {"2 in data": 1}, {"token at 1": 1})]
     return Net(["token at 1", "1 in data", "token at 2", "2 in data"], t, {"token at 1": 1},
                name="token passing (Figure 2.7)")
 
@@ -438,7 +438,7 @@ def _arm_name(arm: Any) -> str:
     return getattr(arm, "name", None) or getattr(arm, "robot", None) or repr(arm)
 
 
-class Program:
+class FlagProgram:
     """Records a planning level's event-flag calls (same names and arguments as ``rccl.events``).
 
     Arms may be names (``"puma"``) or any object (its ``name`` or ``robot`` names it);
@@ -539,9 +539,9 @@ def _merge(*ds: dict) -> dict:
     return out
 
 
-def _program_net(prog: Program) -> Net:
+def _program_net(prog: FlagProgram) -> Net:
     places: list[str] = []
-    trans: list[Transition] = []
+    trans: list[NetTransition] = []
     init: dict[str, int] = {}
 
     def P(e: RecordedEFT, what: str) -> str:
@@ -576,7 +576,7 @@ def _program_net(prog: Program) -> Net:
             if s.code is not None:
                 base_in, base_out = base_in | {P(e, "start NULL"): 1}, base_out | {P(e, "start set"): 1}
             if s.source is None:
-                trans.append(Transition(act, base_in, base_out))
+                trans.append(NetTransition(act, base_in, base_out))
             else:
                 trans += _register(e, s.source, s.code, base_in, base_out, act, P)
         elif s.kind == "start_after":
@@ -584,14 +584,14 @@ def _program_net(prog: Program) -> Net:
         elif s.kind in ("start_ev", "stop_ev"):
             w = "start" if s.kind == "start_ev" else "stop"
             for i, (ins, outs) in enumerate(_flag_variants([(P(e, f"{w} NULL"), P(e, f"{w} set")) for e in s.efts])):
-                trans.append(Transition(f"{act} [variant {i}]", here | ins, nxt | outs, act))
+                trans.append(NetTransition(f"{act} [variant {i}]", here | ins, nxt | outs, act))
         elif s.kind == "wait_ev":
             e = s.efts[0]
             for st in (("active", "completed") if s.started else ("completed",)):
-                trans.append(Transition(f"{act} [{st}]", here | {P(e, st): 1}, nxt | {P(e, st): 1}, act))
+                trans.append(NetTransition(f"{act} [{st}]", here | {P(e, st): 1}, nxt | {P(e, st): 1}, act))
         elif s.kind == "free_ev":
             done = {P(e, "completed"): 1 for e in s.efts}
-            trans.append(Transition(act, here | done, nxt | done))
+            trans.append(NetTransition(act, here | done, nxt | done))
 
     # each arm's trajectory level: its queue in order; a motion begins (or is deleted) once the one before it ended
     prev: dict[str, RecordedEFT] = {}
@@ -599,7 +599,7 @@ def _program_net(prog: Program) -> Net:
         before = {P(prev[e.arm], "completed"): 1} if e.arm in prev else {}
         prev[e.arm] = e
         who = f"{e.arm}: #{e.serial} to {e.where}"
-        trans.append(Transition(f"{who} begins (rule 1)",
+        trans.append(NetTransition(f"{who} begins (rule 1)",
                                 _merge(before, {P(e, "start set"): 1, P(e, "stop NULL"): 1, P(e, "pending"): 1}),
                                 _merge(before, {P(e, "start set"): 1, P(e, "stop NULL"): 1, P(e, "active"): 1,
                                                 P(e, "status start"): 1})))
@@ -626,7 +626,7 @@ def _program_net(prog: Program) -> Net:
                         fi |= {reg: 1, P(f, "start set"): 1}
                         fo |= {reg: 1, P(f, "start set"): 1}
                 suffix = f" [followers {combo}]" if fol else ""
-                trans.append(Transition(f"{who} {how}{suffix}", _merge(ins, fi), _merge(base_out, fo), f"{who} ends"))
+                trans.append(NetTransition(f"{who} {how}{suffix}", _merge(ins, fi), _merge(base_out, fo), f"{who} ends"))
 
     def final(m: dict[str, int]) -> bool:
         return m.get(f"planning at {n}", 0) == 1 and all(m.get(P(e, "completed"), 0) == 1 for e in prog.efts)
@@ -635,38 +635,38 @@ def _program_net(prog: Program) -> Net:
 
 
 def _register(tgt: RecordedEFT, src: RecordedEFT, code: int | None, base_in: dict, base_out: dict,
-              act: str, P: Callable) -> list[Transition]:
+              act: str, P: Callable) -> list[NetTransition]:
     """The statement that makes ``tgt`` start when ``src`` ends: if ``src`` already ended, its start flag
     is set now (when still NULL), else the pair is registered for ``src``'s end."""
     reg, unreg = f"#{tgt.serial} after #{src.serial}", f"#{tgt.serial} not yet after #{src.serial}"
     out = []
     for st in ("pending", "active"):
-        out.append(Transition(f"{act} [#{src.serial} {st}]", base_in | {unreg: 1, P(src, st): 1},
+        out.append(NetTransition(f"{act} [#{src.serial} {st}]", base_in | {unreg: 1, P(src, st): 1},
                               base_out | {reg: 1, P(src, st): 1}, act))
     done = {P(src, "completed"): 1}
-    out.append(Transition(f"{act} [#{src.serial} ended, start set now]",
+    out.append(NetTransition(f"{act} [#{src.serial} ended, start set now]",
                           base_in | done | {unreg: 1, P(tgt, "start NULL"): 1},
                           base_out | done | {reg: 1, P(tgt, "start set"): 1}, act))
-    out.append(Transition(f"{act} [#{src.serial} ended, start already set]",
+    out.append(NetTransition(f"{act} [#{src.serial} ended, start already set]",
                           base_in | done | {unreg: 1, P(tgt, "start set"): 1},
                           base_out | done | {reg: 1, P(tgt, "start set"): 1}, act))
     return out
 
 
-def record(plan: Callable[..., Any], *arms: Any, name: str | None = None, **kwargs: Any) -> Program:
+def record(plan: Callable[..., Any], *arms: Any, name: str | None = None, **kwargs: Any) -> FlagProgram:
     """Run ``plan(events, *arms, **kwargs)`` against a recorder (nothing moves); return the recorded program."""
-    prog = Program(name or getattr(plan, "__name__", "program"))
+    prog = FlagProgram(name or getattr(plan, "__name__", "program"))
     plan(prog, *arms, **kwargs)
     return prog
 
 
-def check(plan: Callable[..., Any] | Program, *arms: Any, **kwargs: Any) -> Analysis:
+def check(plan: Callable[..., Any] | FlagProgram, *arms: Any, **kwargs: Any) -> Analysis:
     """The static check before a program runs: record ``plan``, analyse its net, raise on trouble.
 
     Raises ``rccl.events.Deadlock`` (a deadlock or livelock, with its firing sequence) or
     ``EventError`` (a motion or statement that can never happen); returns the ``Analysis``.
     """
-    prog = plan if isinstance(plan, Program) else record(plan, *arms, **kwargs)
+    prog = plan if isinstance(plan, FlagProgram) else record(plan, *arms, **kwargs)
     a = analyse(prog.net())
     if a.deadlocks or a.livelocks:
         raise Deadlock(f"{prog.name}: the event flags can deadlock before the program ends:\n{a.report()}")

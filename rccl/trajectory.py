@@ -60,7 +60,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .ending import MotionEnd
-from .exceptions import ConfigurationChange, MotionError, PowerOff, SingularPath, TrajectoryFault, Unreachable
+from .exceptions import ConfigurationChange, MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
 from .limits import Limits
 from .motion import MotionParams, Request
 from .position import joint_position
@@ -121,7 +121,7 @@ class Kinematics:
 
     @staticmethod
     def _error(exc: ValueError, base_to_t6: np.ndarray, config, where: str) -> MotionError:
-        cls = SingularPath if "singular" in type(exc).__name__.lower() else Unreachable
+        cls = SingularPath if "singular" in type(exc).__name__.lower() else UnreachableTarget
         p = base_to_t6[:3, 3]
         return cls(f"{where}: no joint solution in configuration {config} for T6 at "
                    f"({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m: {exc}")
@@ -376,7 +376,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
 
     Cartesian mode samples the straight line at the sample rate (at most ``check_points``
     points) with the inverse kinematics in the arm's configuration: a point out of reach or
-    outside a joint range raises ``Unreachable``; a joint that would have to turn more than
+    outside a joint range raises ``UnreachableTarget``; a joint that would have to turn more than
     ``SINGULAR_SLOWDOWN`` times faster than its limit allows at the asked speed (the path
     passes through or near a singularity, e.g. the wrist's) raises ``SingularPath``.
     """
@@ -618,11 +618,11 @@ def _fit_range(limits: Limits, q: np.ndarray, revolute: np.ndarray | None = None
 
 def _check_range(limits: Limits, q: np.ndarray, where: str, what: str, units=None) -> None:
     if not np.isfinite(q).all():
-        raise Unreachable(f"{where}: {what}: the kinematics returned joint values that are not finite ({q})")
+        raise UnreachableTarget(f"{where}: {what}: the kinematics returned joint values that are not finite ({q})")
     i = limits.out_of_range(q)
     if i is not None:
         u = units[i] if units is not None else "rad"
-        raise Unreachable(f"{where}: {what} needs joint {i + 1} at {q[i]:.4f} {u}, outside its range "
+        raise UnreachableTarget(f"{where}: {what} needs joint {i + 1} at {q[i]:.4f} {u}, outside its range "
                           f"[{limits.lower[i]:.4f}, {limits.upper[i]:.4f}] {u}")
 
 
@@ -855,7 +855,7 @@ class TrajectoryGenerator:
             return q
         units = self.kin.units
         if not np.all(np.isfinite(q)):
-            raise Unreachable(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
+            raise UnreachableTarget(f"{self.seg.where}: the kinematics returned joint values that are not finite ({q}); "
                               "arm stopped")
         step = np.abs(q - self.q_planned)
         bound = self._step_bound

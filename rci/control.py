@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from . import codes, protocol
-from .checks import Checker, Fault
+from .checks import Checker, CheckFailed
 from .chg import Chg, rate_hz
 from .exceptions import ChecksumError, LinkClosed, ProtocolError, SequenceGap
 from .how import How
@@ -311,7 +311,7 @@ class ControlTask(threading.Thread):
                 return
             try:
                 q = checker.check_how(buf, self.period)
-            except Fault as f:
+            except CheckFailed as f:
                 how.copy_from(buf)
                 self.terminate(f.code, f.detail)
                 return
@@ -333,7 +333,7 @@ class ControlTask(threading.Thread):
                 try:
                     new_checking = checker.check_chg(chg, how, q, self.period)
                     payload = protocol.encode_chg(chg)
-                except Fault as f:
+                except CheckFailed as f:
                     self._discard_commands(chg)
                     self.terminate(f.code, f.detail)
                     return

@@ -32,7 +32,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import codes, protocol
-from .checks import Checker, Limits
+from .checks import Checker, CommandLimits
 from .chg import Chg, MAX_RATE_HZ
 from .control import ControlTask
 from .exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTerminated, DeviceError,
@@ -65,7 +65,7 @@ class Session:
 
     Parameters (SI units): ``rate_hz`` sample rate (4..1000 Hz; the thesis's 9/18/36/72 are
     all valid); ``limits`` for the A.5.1 checks: ``"model"`` (from ``models`` and
-    ``rci.conversions``), a ``Limits``, or None (range checks off); ``timeout`` s without a
+    ``rci.conversions``), a ``CommandLimits``, or None (range checks off); ``timeout`` s without a
     HOW before R_TIMEOUT (default two periods, at least ``min_timeout``; against a lockstep
     simulator at least ``lockstep_timeout``, since its cycles are not wall-clock time);
     ``overrun`` what late cycles do (docs/rci.md, "Late cycles"): ``"error"`` ends the control
@@ -82,7 +82,7 @@ class Session:
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
-                 limits: str | Limits | None = "model", timeout: float | None = None,
+                 limits: str | CommandLimits | None = "model", timeout: float | None = None,
                  min_timeout: float = 0.02, start_timeout: float = 2.0, overrun: str = "auto",
                  late_limit: int | None = None, lockstep_timeout: float = 0.25, takeover: bool = False,
                  realtime: bool = True, priority: int = 80, gc: str = "freeze",
@@ -242,11 +242,11 @@ class Session:
             limits = self.limits_spec
             if limits == "model":
                 try:
-                    limits = Limits.for_robot(self.robot)
+                    limits = CommandLimits.for_robot(self.robot)
                 except BaseException:
                     link.close()
                     raise
-            self.checker = Checker(self.nj, self.nadc, limits if isinstance(limits, Limits) else None,
+            self.checker = Checker(self.nj, self.nadc, limits if isinstance(limits, CommandLimits) else None,
                                    max_commands=self.max_commands)
             self.link = link
             if self.lock_memory:

@@ -28,11 +28,11 @@ def _truth(errors=None):
 def test_simula_arm_with_dh_errors_is_the_a_matrix_product_exactly():
     """simula moves the URDF's joints by the parameter file's [kinematics]: its link 6 is the
     A-matrix product (3.3, 3.83) with the erroneous table, not a first-order approximation."""
-    from rci.simula.arm import Arm
+    from rci.simula.arm import SimulatedArm
 
     rng = np.random.default_rng(0)
     E = rng.normal(0, 1, (6, 4)) * [np.radians(0.5), 0.003, 0.003, np.radians(0.5)]
-    arm = Arm(MODEL, _truth(E), start="ready")
+    arm = SimulatedArm(MODEL, _truth(E), start="ready")
     T6 = fk_function(nominal_dh())
     fid = arm.pm.getFrameId("link6")
     for _ in range(5):
@@ -45,14 +45,14 @@ def test_simula_arm_with_dh_errors_is_the_a_matrix_product_exactly():
 
 
 def test_kinematic_errors_of_a_prismatic_arm_are_refused():
-    from rci.simula.arm import Arm
+    from rci.simula.arm import SimulatedArm
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import truth_from_model
 
     microbo = load_robot("microbo")
     t = replace(truth_from_model(microbo), dh_errors=np.full((microbo.n_joints, 4), 1e-4))
     with pytest.raises(ParamsError, match="prismatic"):
-        Arm(microbo, t, start="ready")
+        SimulatedArm(microbo, t, start="ready")
 
 
 def test_touch_probe_closes_inside_a_block_and_not_outside():

@@ -104,7 +104,7 @@ def test_program_records_exactly_the_path_over_a_real_link(tmp_path):
     from calib.logs import load_trace
     from calib.program import run_plan
     from rci.conversions import Conversions
-    from rci.monitor import EchoArm, Monitor
+    from robot_monitor import EchoArm, Monitor
 
     conv = Conversions.for_robot("puma260")
     (plan,) = friction_plans([1], speeds_deg=(30, 60), trips=1)

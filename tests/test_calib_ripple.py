@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from models import load_robot
-from rci.simula.arm import Arm
+from rci.simula.arm import SimulatedArm
 from rci.simula.params import truth_from_model
 
 
-def _held_arm() -> Arm:
+def _held_arm() -> SimulatedArm:
     model = load_robot("puma260")
-    arm = Arm(model, truth_from_model(model), seed=7, start="ready")
+    arm = SimulatedArm(model, truth_from_model(model), seed=7, start="ready")
     arm.power = True
     arm.step(0.2)                       # let the 15 ms filter settle on the holding current
     return arm

@@ -176,10 +176,10 @@ def test_busy_refusal_on_the_raw_protocol_and_the_running_control_keeps_its_cycl
 
 
 def test_the_reference_monitor_follows_the_same_rule():
-    """rci.monitor (the protocol's robot half for a real arm) refuses a second controller too."""
+    """the reference monitor (tests/robot_monitor.py: the protocol's robot half for a real arm) refuses a second controller too."""
     import threading
 
-    from rci.monitor import EchoArm, Monitor
+    from robot_monitor import EchoArm, Monitor
     mon = Monitor(EchoArm(), lockstep=True)
     ports: list[int] = []
     th = threading.Thread(target=mon.serve_tcp, kwargs=dict(ready=ports.append), daemon=True)

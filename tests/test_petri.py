@@ -36,7 +36,7 @@ def test_the_thesis_net_without_the_stop_priority_of_rule_3_can_leave_the_status
     can still begin, and then no transition ends it (the stop was already consumed): a deadlock."""
     net = petri.thesis_net()
     ts = [t for t in net.transitions if not t.name.startswith("stopped")]
-    ts = [petri.Transition(t.name, {k: v for k, v in t.inputs.items() if k != "p2'"},
+    ts = [petri.NetTransition(t.name, {k: v for k, v in t.inputs.items() if k != "p2'"},
                            {k: v for k, v in t.outputs.items() if k != "p2'"}) if t.name.startswith("begin") else t
           for t in ts]
     a = petri.analyse(petri.Net(net.places, ts, net.initial, net.is_final, "no rule 3"))
@@ -163,7 +163,7 @@ def test_token_passing_is_safe_and_live_and_mutual_exclusion_holds():
 
 
 def test_a_net_that_loses_an_action_is_not_live():
-    t = [petri.Transition("once", {"a": 1}, {"b": 1}), petri.Transition("loop", {"b": 1}, {"b": 1})]
+    t = [petri.NetTransition("once", {"a": 1}, {"b": 1}), petri.NetTransition("loop", {"b": 1}, {"b": 1})]
     a = petri.analyse(petri.Net(["a", "b"], t, {"a": 1}))
     assert not a.live and [f.what for f in a.not_live] == ["'once' can never fire again"]
     assert a.not_live[0].sequence == ["once"]
@@ -171,10 +171,10 @@ def test_a_net_that_loses_an_action_is_not_live():
 
 def test_malformed_nets_and_foreign_efts_are_refused_with_what_and_where():
     with pytest.raises(petri.NetError, match="unknown place 'nowhere'"):
-        petri.Net(["a"], [petri.Transition("t", {"nowhere": 1}, {})], {"a": 1})
+        petri.Net(["a"], [petri.NetTransition("t", {"nowhere": 1}, {})], {"a": 1})
     with pytest.raises(petri.NetError, match="arc weight 0"):
-        petri.Net(["a"], [petri.Transition("t", {"a": 0}, {})], {"a": 1})
-    prog = petri.Program()
+        petri.Net(["a"], [petri.NetTransition("t", {"a": 0}, {})], {"a": 1})
+    prog = petri.FlagProgram()
     with pytest.raises(EventError, match="wait_ev: 'x' is not an EFT"):
         prog.wait_ev("x")
     with pytest.raises(petri.NetError, match="more than 1 coverability nodes"):

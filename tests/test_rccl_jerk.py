@@ -14,7 +14,7 @@ import pytest
 import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.ending import MotionEnd
-from rccl.exceptions import BadRequest, TrajectoryFault, Unreachable
+from rccl.exceptions import BadRequest, TrajectoryFault, UnreachableTarget
 from rccl.jerk import JerkLimitedGenerator, JerkLimits
 from rccl.limits import load_limits
 from rccl.transform import rot, trsl
@@ -160,7 +160,7 @@ def test_unreachable_pose_is_refused_before_moving(sim):
     with open_arm(sim) as arm:
         base = go_start(arm)
         away = makeposition("away", T6, EQ, Trsf("A", trsl(2.0, 0.0, 0.0) @ base), TL, T6)
-        with pytest.raises(Unreachable, match="away"):
+        with pytest.raises(UnreachableTarget, match="away"):
             arm.move(away)
         q = arm.q
         ok = makeposition("ok", T6, EQ, Trsf("O", trsl(0.02, 0.0, 0.0) @ base), TL, T6)

@@ -16,7 +16,7 @@ import pytest
 
 import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
-from rccl.exceptions import BadRequest, SingularPath, Unreachable
+from rccl.exceptions import BadRequest, SingularPath, UnreachableTarget
 from rccl.limits import load_limits
 from rccl.plots import line_deviation, pinocchio_fk
 from rccl.transform import rot, trsl
@@ -125,7 +125,7 @@ def test_microbo_errors_are_refused_at_move(sim):
         up = makeposition("up", T6, EQ, Trsf("U", trsl(0.0, 0.0, 0.2) @ base), TL, T6)
         for mode in ("cartesian", "joint"):
             arm.setmod(mode)
-            with pytest.raises(Unreachable, match="prismatic joint 2"):
+            with pytest.raises(UnreachableTarget, match="prismatic joint 2"):
                 arm.move(up)
         with pytest.raises(BadRequest, match="no arm"):
             arm.setconf("l")          # the Microbo has only the wrist choice

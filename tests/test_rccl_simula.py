@@ -13,7 +13,7 @@ import pytest
 
 import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
-from rccl.exceptions import SingularPath, Unreachable
+from rccl.exceptions import SingularPath, UnreachableTarget
 from rccl.limits import load_limits
 from rccl.plots import line_deviation, pinocchio_fk
 from rccl.transform import rot, trsl
@@ -135,7 +135,7 @@ def test_errors_refused_before_motion_and_the_session_goes_on(sim):
         base = go_start(arm)
         q_before = arm.measured_q()
         far = makeposition("far", T6, EQ, Trsf("F", trsl(0.4, 0.4, 0.4) @ base), TL, T6)
-        with pytest.raises(Unreachable, match="far"):
+        with pytest.raises(UnreachableTarget, match="far"):
             arm.move(far)
         q_flip = START.copy()
         q_flip[3], q_flip[4] = 0.0, 0.3   # the other side of the wrist singularity theta5 = 0

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import test_rccl_standin as K
-from rccl.exceptions import BadRequest, ConfigurationChange, SingularPath, TrajectoryFault, Unreachable
+from rccl.exceptions import BadRequest, ConfigurationChange, SingularPath, TrajectoryFault, UnreachableTarget
 from rccl.limits import load_limits
 from rccl.planner import Planner
 from rccl.position import EQ, TL, makeposition
@@ -273,7 +273,7 @@ def test_configuration_change_in_joint_mode_with_setconf():
 def test_unreachable_target_is_refused_at_move():
     gen, arm = make()
     far, _ = at(trsl(0.5, 0.5, 0.5), "far")
-    with pytest.raises(Unreachable, match="move\\(far\\)"):
+    with pytest.raises(UnreachableTarget, match="move\\(far\\)"):
         arm.move(far)
     assert len(arm.queue) == 0
 
@@ -284,10 +284,10 @@ def test_joint_range_is_checked_at_move():
     q = Q0.copy()
     q[4] = math.radians(-110.0)   # joint 5 beyond its 100 degree range, same configuration
     low = makeposition("low", T6, EQ, Trsf("L", K.fk(q)), TL, T6)
-    with pytest.raises(Unreachable, match="joint 5"):
+    with pytest.raises(UnreachableTarget, match="joint 5"):
         arm.move(low)
     arm.setmod("j")
-    with pytest.raises(Unreachable, match="joint 5 at -1.9199 rad"):
+    with pytest.raises(UnreachableTarget, match="joint 5 at -1.9199 rad"):
         arm.move(low)
 
 
@@ -351,7 +351,7 @@ def test_request_refused_at_the_control_level_holds_the_arm_and_is_reported():
     tb.p = tb.p + np.array([0.5, 0.0, 0.0])   # pb moves out of reach before its motion starts
     q = run_until(gen, lambda: rb.status != "queued" and rb.status != "running")
     q = np.concatenate([q, run(gen, 1.0)])
-    assert ra.status == "done" and rb.status == "failed" and isinstance(rb.error, Unreachable)
+    assert ra.status == "done" and rb.status == "failed" and isinstance(rb.error, UnreachableTarget)
     assert gen.faulted is None                         # not a freeze: the arm decelerated and holds at pa
     assert np.allclose(K.fk(q[-1]), pa.solve(), atol=1e-9)
     assert np.all(np.abs(np.diff(np.diff(q, axis=0), axis=0)) <= LIM.joint_acceleration * gen.dt ** 2 * 1.05)

@@ -1,6 +1,6 @@
 """The control task: primitives, A.5.1 checks, faults, termination delivery (rci.session / rci.control).
 
-A robot-side monitor (rci.monitor) with a parroting arm runs in a thread behind a real TCP
+A robot-side monitor (tests/robot_monitor.py) with a parroting arm runs in a thread behind a real TCP
 socket; every wait is bounded, so no test can hang.
 """
 from __future__ import annotations
@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 from rci import codes
-from rci.checks import Limits
+from rci.checks import CommandLimits
 from rci.chg import CUR, POS, STOP
 from rci.exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTerminated, NoControl,
                             NotOpen, RobotRefused)
-from rci.monitor import EchoArm, Monitor
+from robot_monitor import EchoArm, Monitor
 from rci.recorder import Recorder, read_log
 from rci.session import Session
 
-LIMITS = Limits.linear(lower=[-3.0] * 6, upper=[3.0] * 6, max_velocity=[2.0] * 6,
+LIMITS = CommandLimits.linear(lower=[-3.0] * 6, upper=[3.0] * 6, max_velocity=[2.0] * 6,
                        counts_per_rad=[1000.0] * 6, max_adc=500, max_dac=600)
 
 

@@ -13,7 +13,7 @@ from rci.chg import POS
 from rci.exceptions import DeviceError, LinkClosed
 from rci.how import How
 from rci.link import open_link
-from rci.monitor import EchoArm, Monitor
+from robot_monitor import EchoArm, Monitor
 from rci.session import Session
 
 

@@ -9,7 +9,7 @@ import pytest
 from rci import codes
 from rci.chg import CUR, POS, STOPCAL, Chg
 from models import load_robot
-from rci.simula.arm import Arm
+from rci.simula.arm import SimulatedArm
 from rci.simula.exceptions import ParamsError
 from rci.simula.params import PulleyLoad, load_params, parse_load, truth_from_model
 
@@ -24,14 +24,14 @@ def quiet_truth(model=PUMA, **kw):
     return replace(t, variation=np.zeros(model.n_joints), disturbances=d)
 
 
-def powered(arm: Arm) -> Arm:
+def powered(arm: SimulatedArm) -> SimulatedArm:
     c = Chg(nj=arm.n)
     c.power_on.com = 1
     arm.apply(c, DT)
     return arm
 
 
-def cycle(arm: Arm, **motion) -> None:
+def cycle(arm: SimulatedArm, **motion) -> None:
     """One control cycle: motion={joint index: (com, value)} then one period of physics."""
     c = Chg(nj=arm.n)
     for j, (com, value) in motion.items():
@@ -51,7 +51,7 @@ def thesis_gravity(q, c12, c13, c15):
 
 
 def test_pos_reaches_target_at_cycle_end_and_respects_velocity_limit():
-    arm = powered(Arm(PUMA, quiet_truth(), seed=1, start="ready"))
+    arm = powered(SimulatedArm(PUMA, quiet_truth(), seed=1, start="ready"))
     e = arm.counters()
     cycle(arm, **{"1": (POS, int(e[1] + 300))})            # 300 counts of joint 2 in one period
     assert arm.counters()[1] == e[1] + 300
@@ -66,7 +66,7 @@ def test_pos_reaches_target_at_cycle_end_and_respects_velocity_limit():
 
 
 def test_uncalibrated_refuses_motion_then_zindex_stopcal_calibrates():
-    arm = powered(Arm(PUMA, quiet_truth(), seed=3))
+    arm = powered(SimulatedArm(PUMA, quiet_truth(), seed=3))
     assert np.all(arm.counters() == 0) and not arm.state & codes.CALIB_OK
     cycle(arm, **{"0": (POS, 100)})
     s = arm.sample()
@@ -102,7 +102,7 @@ def test_uncalibrated_refuses_motion_then_zindex_stopcal_calibrates():
     assert arm.sample().status == codes.ST_OK and arm.counters()[0] == s.pos[0] + 100
 
 
-def _dac_for(arm: Arm, joint: int, torque: float) -> tuple[int, float]:
+def _dac_for(arm: SimulatedArm, joint: int, torque: float) -> tuple[int, float]:
     """Integer DAC for a joint torque on one joint (others zero); and the torque it really gives."""
     tj = np.zeros(arm.n)
     tj[joint] = torque
@@ -114,7 +114,7 @@ def _dac_for(arm: Arm, joint: int, torque: float) -> tuple[int, float]:
 
 def test_current_mode_follows_eq_4_27_stiction_coulomb_viscous():
     """Joint 1 (no gravity): sticks below F_s+, breaks away above, settles at (tau - Fc+)/Fv+."""
-    arm = powered(Arm(PUMA, quiet_truth(), seed=2, start="ready"))
+    arm = powered(SimulatedArm(PUMA, quiet_truth(), seed=2, start="ready"))
     fr = PUMA.friction
     fc, fv, fs = fr.coulomb_pos.values[0], fr.viscous_pos.values[0], fr.static_pos.values[0]
     sign = np.sign(arm.conv.G[0, 0] * 1.0)                   # G11 < 0: a positive motor torque turns joint 1 negatively
@@ -145,7 +145,7 @@ def test_current_mode_follows_eq_4_27_stiction_coulomb_viscous():
 
 def test_current_mode_gravity_compensation_holds_and_external_torque_moves():
     """The zero-gravity idea (2.2.2): DAC = tortodac(t_g) holds joint 2; a push beyond F_s moves it."""
-    arm = powered(Arm(PUMA, quiet_truth(), seed=4, start="nest"))
+    arm = powered(SimulatedArm(PUMA, quiet_truth(), seed=4, start="nest"))
     q0 = arm.q.copy()
     tg = thesis_gravity(arm.q, 5.509, -1.762, -1.192)
     np.testing.assert_allclose(arm.gravity(), tg, atol=1e-9)       # URDF + Pinocchio = eq. 4.24
@@ -164,7 +164,7 @@ def test_current_mode_gravity_compensation_holds_and_external_torque_moves():
 def test_adc_reports_the_torques_through_the_conversions():
     """Joint 1 at constant speed (no gravity): G^T K_adc v_adc averages Fc+ + Fv+ v (4.36, 4.27)."""
     truth = replace(quiet_truth(), hold_std=np.zeros(6), hold_mean=np.zeros(6))
-    arm = powered(Arm(PUMA, truth, seed=5, start="ready"))
+    arm = powered(SimulatedArm(PUMA, truth, seed=5, start="ready"))
     e = arm.counters()
     speed = 0.5                                                # rad/s, positive joint direction
     step = arm.conv.R[0, 0] * speed * DT
@@ -186,7 +186,7 @@ def test_pulley_mass_adds_m_g_r_to_the_joint_torque():
     m, r = 2.0, 0.05
     means = []
     for load in (None, PulleyLoad(3, m, r, 1)):
-        arm = powered(Arm(PUMA, truth, seed=6, start="ready", load=load))
+        arm = powered(SimulatedArm(PUMA, truth, seed=6, start="ready", load=load))
         e = arm.counters()
         step = arm.conv.R[2, 2] * 0.3 * DT                    # joint 3 at +0.3 rad/s
         vals, true = [], []
@@ -205,7 +205,7 @@ def test_pulley_mass_adds_m_g_r_to_the_joint_torque():
 
 def test_cold_joint_has_more_friction_than_warm():
     t = truth_from_model(PUMA)
-    cold = powered(Arm(PUMA, replace(t, disturbances=replace(t.disturbances, warmup_time=4.0)), seed=7, start="ready"))
+    cold = powered(SimulatedArm(PUMA, replace(t, disturbances=replace(t.disturbances, warmup_time=4.0)), seed=7, start="ready"))
     assert np.all(cold.friction.cold_factor() == pytest.approx(1.2))
     e = cold.counters()
     for k in range(1, 36 * 10):
@@ -214,7 +214,7 @@ def test_cold_joint_has_more_friction_than_warm():
 
 
 def test_friction_variation_stays_within_table_4_4():
-    arm = Arm(PUMA, truth_from_model(PUMA), seed=8, start="ready")
+    arm = SimulatedArm(PUMA, truth_from_model(PUMA), seed=8, start="ready")
     qs = np.linspace(-3, 3, 2001)
     pat = np.array([arm.friction.pattern(np.full(6, q)) for q in qs])
     assert np.all(np.abs(pat) <= 1.0) and np.all(pat.max(axis=0) > 0.5)
@@ -223,7 +223,7 @@ def test_friction_variation_stays_within_table_4_4():
 def test_same_seed_same_sensor_stream():
     runs = []
     for _ in range(2):
-        arm = powered(Arm(PUMA, truth_from_model(PUMA), seed=11, start="nest"))
+        arm = powered(SimulatedArm(PUMA, truth_from_model(PUMA), seed=11, start="nest"))
         e = arm.counters()
         out = []
         for k in range(1, 60):
@@ -232,13 +232,13 @@ def test_same_seed_same_sensor_stream():
             out.append(np.concatenate([s.pos, s.adcr]))
         runs.append(np.array(out))
     np.testing.assert_array_equal(runs[0], runs[1])
-    other = powered(Arm(PUMA, truth_from_model(PUMA), seed=12, start="nest"))
+    other = powered(SimulatedArm(PUMA, truth_from_model(PUMA), seed=12, start="nest"))
     cycle(other)
     assert not np.array_equal(other.sample().adcr, runs[0][0][6:])
 
 
 def test_joint_limit_stops_the_joint_and_reports():
-    arm = powered(Arm(PUMA, quiet_truth(), seed=9, start="ready"))
+    arm = powered(SimulatedArm(PUMA, quiet_truth(), seed=9, start="ready"))
     e = arm.counters()
     beyond = arm.conv.angles_to_counts(np.r_[arm.q[:5], PUMA.upper[5] + 0.2])
     for _ in range(200):
@@ -258,7 +258,7 @@ def test_params_file_changes_the_ground_truth(tmp_path):
                  '[motors]\ntorque_sensitivity = [0.07, 0.075, 0.08, 0.036, 0.035, 0.03]\n')
     truth = load_params(p, "puma260", truth_from_model(PUMA))
     assert truth.coulomb_pos[0] == 0.7 and truth.coulomb_pos[1] == 1.620   # NaN keeps the thesis value
-    arm = Arm(PUMA, truth, seed=0, start="ready")
+    arm = SimulatedArm(PUMA, truth, seed=0, start="ready")
     for q in (PUMA.poses["ready"], PUMA.poses["j3A"], np.array([0.3, 0.5, -1.0, 0.7, 1.1, 0.2])):
         np.testing.assert_allclose(arm.gravity(q), thesis_gravity(q, 5.3, -1.7, -1.25), atol=1e-9)
     assert arm.conv.sigma[0] == 0.07
@@ -290,7 +290,7 @@ def test_load_spec_parsing():
 
 def test_microbo_prismatic_axis_follows_pos():
     mb = load_robot("microbo")
-    arm = powered(Arm(mb, quiet_truth(mb), seed=1, start="ready"))
+    arm = powered(SimulatedArm(mb, quiet_truth(mb), seed=1, start="ready"))
     e = arm.counters()
     cycle(arm, **{"1": (POS, int(e[1] + 1000))})              # 1000 counts = 5 mm on the lift
     assert arm.q[1] - mb.poses["ready"][1] == pytest.approx(0.005, abs=1e-6)
@@ -305,7 +305,7 @@ def test_dynamic_mode_conserves_energy_without_friction():
     zero = np.zeros(6)
     truth = replace(quiet_truth(), coulomb_pos=zero, coulomb_neg=zero, viscous_pos=zero, viscous_neg=zero,
                     static_pos=zero, static_neg=zero, hold_std=zero, hold_mean=zero)
-    arm = powered(Arm(PUMA, truth, seed=1, start="ready", dynamic=True))
+    arm = powered(SimulatedArm(PUMA, truth, seed=1, start="ready", dynamic=True))
     arm.q = np.radians([0.0, 60.0, -120.0, 30.0, -60.0, 0.0])
 
     def energy():
@@ -324,7 +324,7 @@ def test_current_mode_adc_reads_dac_over_kappa_and_clips_at_max_current():
     """For one motor current the DAC value is kappa times the ADC value (4.34 as read); the
     amplifier limits the current to max_current."""
     truth = quiet_truth(adc_noise=0.0, ripple_cur=0.0, ripple_floor=0.0, filter_tau=1e-5)
-    arm = powered(Arm(PUMA, truth, seed=3, start="ready"))
+    arm = powered(SimulatedArm(PUMA, truth, seed=3, start="ready"))
     for _ in range(9):                                     # joint 1 stuck by stiction at 60 DAC counts
         cycle(arm, **{"0": (CUR, 60)})
     assert arm.qd[0] == 0.0
@@ -337,7 +337,7 @@ def test_current_mode_adc_reads_dac_over_kappa_and_clips_at_max_current():
 def test_halts_in_position_mode_leave_table_4_6_static_friction():
     """4.5.5, second method: at each halt, G^T K_adc v_adc - t_g (eq. 4.37, t_a = 0) is the
     static friction; over many halts its mean and spread are those of Table 4.6."""
-    arm = powered(Arm(PUMA, quiet_truth(), seed=21, start="ready"))
+    arm = powered(SimulatedArm(PUMA, quiet_truth(), seed=21, start="ready"))
     rng = np.random.default_rng(0)
     e = arm.counters()
     samples = []
@@ -362,7 +362,7 @@ def test_dynamic_mode_without_friction_is_pinocchio_aba():
     zero = np.zeros(6)
     truth = replace(quiet_truth(rotor_inertia_arm=0.0, rotor_inertia_wrist=0.0), coulomb_pos=zero,
                     coulomb_neg=zero, viscous_pos=zero, viscous_neg=zero, static_pos=zero, static_neg=zero)
-    arm = powered(Arm(PUMA, truth, seed=1, start="ready", dynamic=True))
+    arm = powered(SimulatedArm(PUMA, truth, seed=1, start="ready", dynamic=True))
     arm.q = np.radians([10.0, 60.0, -120.0, 30.0, -60.0, 20.0])
     dac = np.array([120, -300, 200, 40, -60, 25])
     c = Chg()

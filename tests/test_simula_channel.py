@@ -18,7 +18,7 @@ from rci.how import How
 from rci.link import open_link
 from models import load_robot
 from rci.session import Session
-from rci.simula.arm import Arm
+from rci.simula.arm import SimulatedArm
 from rci.simula.params import truth_from_model
 from rci.simula.process import SimulaProcess
 
@@ -114,7 +114,7 @@ def test_bad_frame_diagnostics_are_rate_limited(capfd):
 
 def test_encoder_counts_saturate_with_a_status_instead_of_wrapping():
     model = load_robot("puma260")
-    arm = Arm(model, truth_from_model(model), start="ready")
+    arm = SimulatedArm(model, truth_from_model(model), start="ready")
     arm.cal_offset[2] += 2**31 - arm.counters()[2] + 5          # joint 3's counter 5 counts past the int32 top
     smp = arm.sample()
     assert smp.pos[2] == 2**31 - 1 and smp.status == codes.ST_ENCODER_RANGE

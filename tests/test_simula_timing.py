@@ -19,7 +19,7 @@ from rci.chg import Chg
 from rci.link import open_link
 from models import load_robot
 from rci.simula import server as server_mod
-from rci.simula.arm import Arm
+from rci.simula.arm import SimulatedArm
 from rci.simula.params import truth_from_model
 
 RATE = 10            # Hz: 100 ms period
@@ -36,7 +36,7 @@ def running(monkeypatch, tmp_path):
     trace = tmp_path / "trace.npz"
     monkeypatch.setenv("RCI_SIMULA_TRACE", str(trace))
     model = load_robot("puma260")
-    arm = Arm(model, truth_from_model(model), seed=0, start="ready")
+    arm = SimulatedArm(model, truth_from_model(model), seed=0, start="ready")
     arm.power = True
     srv = server_mod.Server(arm, model.name, lockstep=False, rate_hz=RATE)
     url = srv.listen_tcp("127.0.0.1", 0)

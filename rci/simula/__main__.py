@@ -20,7 +20,7 @@ from dataclasses import replace
 
 from models import ModelError
 from models import load_robot
-from .arm import Arm
+from .arm import SimulatedArm
 from .control import ControlChannel
 from .exceptions import SimulaError
 from .params import load_params, parse_load, truth_from_model
@@ -105,9 +105,9 @@ def main(argv: list[str] | None = None) -> int:
         kw = dict(seed=args.seed, start=args.start or "uncalibrated", dynamic=args.dynamic, load=load)
         if args.env:
             from .environment import EnvironmentArm, parse_environment
-            arm: Arm = EnvironmentArm(model, truth, environment=parse_environment(args.env), **kw)
+            arm: SimulatedArm = EnvironmentArm(model, truth, environment=parse_environment(args.env), **kw)
         else:
-            arm = Arm(model, truth, **kw)
+            arm = SimulatedArm(model, truth, **kw)
         arm.power = bool(args.power_on)
         if not 4 <= args.rate <= 1000:
             raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")

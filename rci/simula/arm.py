@@ -44,7 +44,7 @@ from .. import codes
 from ..chg import CUR, POS, STOP, STOPCAL, Chg
 from ..conversions import ADC_MAX, ADC_MIN, DAC_MAX, DAC_MIN, Conversions
 from .exceptions import ParamsError, SimulaError
-from .friction import JointFriction
+from .friction import FrictionState
 from .params import PulleyLoad, Truth
 
 HOLD, SERVO, CURRENT = 0, 1, 2          # internal joint modes (HOLD: servo on a fixed count)
@@ -56,7 +56,7 @@ _EPS_V = 1e-9                            # rad/s below which a servo joint count
 
 
 @dataclass(frozen=True)
-class Sample:
+class SensorSample:
     """What the robot's sensors report at one instant (one HOW)."""
 
     pos: np.ndarray       # encoder counters, int64
@@ -144,7 +144,7 @@ def apply_dh_errors(pmodel: pin.Model, model, errors: np.ndarray) -> None:
                 frame.placement = shift * frame.placement
 
 
-class Arm:
+class SimulatedArm:
     """The simulated robot arm (n joints) with its controller's joint-level behaviour."""
 
     def __init__(self, model, truth: Truth, *, seed: int = 0, start: str = "uncalibrated",
@@ -168,7 +168,7 @@ class Arm:
         seq = np.random.SeedSequence(seed)
         s_fric, s_noise, s_start = seq.spawn(3)
         self.rng = np.random.default_rng(s_noise)
-        self.friction = JointFriction(truth, np.random.default_rng(s_fric))
+        self.friction = FrictionState(truth, np.random.default_rng(s_fric))
         d = truth.disturbances
         jr = np.where(np.arange(n) < 3, d.rotor_inertia_arm, d.rotor_inertia_wrist)
         self.rotor = self.conv.G.T @ np.diag(jr) @ self.conv.G      # reflected rotor inertia (joint level)
@@ -614,7 +614,7 @@ class Arm:
         self.filtered = self.filtered + alpha * (x - self.filtered)
 
     # --- sensors -----------------------------------------------------------------------
-    def sample(self) -> Sample:
+    def sample(self) -> SensorSample:
         """Read the sensors (encoders, ADC) and take the pending status (cleared after)."""
         d = self.truth.disturbances
         adc = np.zeros(N_ADC, dtype=np.int64)
@@ -628,7 +628,7 @@ class Arm:
         pos = self.counters()                 # before the status: a saturated counter flags one
         status = self.status
         self.status, self.status_text = codes.ST_OK, ""
-        return Sample(pos=pos, adcr=adc, state=self.state, status=status,
+        return SensorSample(pos=pos, adcr=adc, state=self.state, status=status,
                       outport1=self.outport1, inport1=1 if self.hand == 2 else 0)
 
     def snapshot(self) -> dict:

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
-from .arm import N_ADC, Arm, Sample
+from .arm import N_ADC, SimulatedArm, SensorSample
 
 # estimate: contact stiffness and damping of tool + fixture (see module docstring)
 DEFAULT_STIFFNESS = 2.0e4     # N/m
@@ -230,7 +230,7 @@ def parse_environment(specs: list[str]) -> Environment:
                        0.0 if probe is None else probe[1])
 
 
-class EnvironmentArm(Arm):
+class EnvironmentArm(SimulatedArm):
     """The simulated arm inside an Environment: contact torques join the external torque every substep,
     and the conveyor's encoder appears on ADC channel ``CONVEYOR_CHANNEL``."""
 
@@ -271,7 +271,7 @@ class EnvironmentArm(Arm):
         finally:
             self.ext = user
 
-    def sample(self) -> Sample:
+    def sample(self) -> SensorSample:
         s = super().sample()
         conv = self.environment.conveyor
         if conv is not None and CONVEYOR_CHANNEL < N_ADC:

@@ -141,7 +141,7 @@ class Result:
 
 
 # --- the control program --------------------------------------------------------------------
-class Program:
+class FaultProgram:
     """The control functions every case runs, with switches for the user faults."""
 
     def __init__(self, s: Session, rate_hz: int) -> None:
@@ -202,7 +202,7 @@ def controller_main(url: str, rate_hz: int) -> int:
     """The control program as a process of its own: prints ``running`` once it controls, then waits."""
     s = Session(url, "puma260", rate_hz=rate_hz, on_error="raise", signals=False, lock_memory=False)
     with s:
-        prog = Program(s, rate_hz)
+        prog = FaultProgram(s, rate_hz)
         s.control(prog.f1, prog.f2)
         print("running", flush=True)
         try:
@@ -295,7 +295,7 @@ class _Run:
             ended.set()
 
         s.termination_listeners.append(on_end)
-        prog = Program(s, self.rate)
+        prog = FaultProgram(s, self.rate)
         try:
             s.open()
             s.control(prog.f1, prog.f2)
@@ -397,7 +397,7 @@ class _Run:
         except RobotBusy as e:
             self.res.notes.append(f"second controller refused: {e.text[:90]}...")
 
-    def _inject(self, s: Session, prog: Program) -> None:
+    def _inject(self, s: Session, prog: FaultProgram) -> None:
         c = self.c
         self.t_inject = time.monotonic()
         if c.proxy:

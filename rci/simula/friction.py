@@ -21,7 +21,7 @@ from .params import Disturbances, Truth
 _HARMONICS = np.array([5.0, 11.0, 23.0, 41.0])
 
 
-class JointFriction:
+class FrictionState:
     """Friction state of all joints (vectorised over the joints)."""
 
     def __init__(self, truth: Truth, rng: np.random.Generator) -> None:

@@ -35,7 +35,7 @@ from ..chg import rate_hz as chg_rate_hz
 from ..chg import Chg
 from ..exceptions import ProtocolError, VersionError
 from ..how import How
-from .arm import N_ADC, Arm
+from .arm import N_ADC, SimulatedArm
 from .control import ControlChannel
 
 SERVER_NAME = "simula 2"
@@ -93,7 +93,7 @@ class TickTrace:
                  late=self.late[:n], spin=self.spin[:n], prep=self.prep[:n])
 
 
-class Transport:
+class ClientTransport:
     """A byte pipe to one client: ``fileno``, ``read``, ``write``, ``flush``, ``close``; never blocks."""
 
     address = ""
@@ -119,7 +119,7 @@ class Transport:
         pass
 
 
-class SocketTransport(Transport):
+class SocketTransport(ClientTransport):
     """A non-blocking TCP connection with a bounded queue of unsent bytes."""
 
     def __init__(self, sock: socket.socket, address: str = "") -> None:
@@ -176,7 +176,7 @@ class SocketTransport(Transport):
             pass
 
 
-class PtyTransport(Transport):
+class PtyTransport(ClientTransport):
     """The master side of a pseudo-terminal; the controller opens the slave path with pyserial.
 
     One line, one controller: rci opens a device path with an exclusive lock, so a second
@@ -220,7 +220,7 @@ class PtyTransport(Transport):
 class Client:
     """Protocol state of one connected controller (the owner, or one not yet welcomed)."""
 
-    transport: Transport
+    transport: ClientTransport
     decoder: protocol.FrameDecoder = field(default_factory=protocol.FrameDecoder)
     welcomed: bool = False        # HELLO accepted: this client owns the arm
     running: bool = False         # a control is in progress (START .. end)
@@ -241,7 +241,7 @@ class Client:
 class Server:
     """Serves one arm to successive controllers, one owner at a time; call :meth:`serve_forever`."""
 
-    def __init__(self, arm: Arm, robot: str, *, lockstep: bool = False, verbose: bool = False,
+    def __init__(self, arm: SimulatedArm, robot: str, *, lockstep: bool = False, verbose: bool = False,
                  rate_hz: int = 36, watchdog: int = WATCHDOG_CYCLES, watchdog_time: float = 0.1,
                  lockstep_watchdog: float = LOCKSTEP_WATCHDOG_S, out=None, err=None) -> None:
         self.arm = arm

@@ -25,10 +25,10 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from . import codes, protocol
-from .chg import CUR, POS, STOP, STOPCAL, Chg, rate_hz
-from .exceptions import ProtocolError
-from .how import How
+from rci import codes, protocol
+from rci.chg import CUR, POS, STOP, STOPCAL, Chg, rate_hz
+from rci.exceptions import ProtocolError
+from rci.how import How
 
 
 class Arm(Protocol):
@@ -268,7 +268,7 @@ class Monitor:
                 running = False
                 self.arm.sample(self.how)
                 w = protocol.Welcome(self.arm.name, self.arm.nj, self.arm.nadc, self.rate_hz, self.how.state,
-                                     protocol.MODE_LOCKSTEP if self.lockstep else protocol.MODE_REALTIME, "rci.monitor")
+                                     protocol.MODE_LOCKSTEP if self.lockstep else protocol.MODE_REALTIME, "tests/robot_monitor.py")
                 self._send(stream, protocol.WELCOME, self._msg(), w.encode())
             elif t == protocol.START:
                 st = protocol.Start.decode(frame.payload)
