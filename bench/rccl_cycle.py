@@ -148,15 +148,9 @@ def profile(cycles: int) -> int:
     arm.setvel(0.1, 1.0)
     positions = tour(kin, "puma260", "const")
     every, starts = cProfile.Profile(), cProfile.Profile()
-    begin = gen._begin_transition
-
-    def timed_begin(*args, **kwargs) -> None:
-        starts.enable()
-        try:
-            begin(*args, **kwargs)
-        finally:
-            starts.disable()
-    gen._begin_transition = timed_begin
+    # the generator's public listeners bracket each transition's planning
+    gen.before_transition.append(starts.enable)
+    gen.on_transition.append(lambda _event: starts.disable())
     gc.disable()   # as in the timed runs
     try:
         for _ in range(cycles):
@@ -168,7 +162,7 @@ def profile(cycles: int) -> int:
             every.disable()
     finally:
         gc.enable()
-    for title, prof in (("every cycle", every), ("segment starts (_begin_transition) only", starts)):
+    for title, prof in (("every cycle", every), ("segment starts (transition planning) only", starts)):
         print(f"== {title}, {cycles} cycles")
         pstats.Stats(prof).sort_stats("tottime").print_stats(14)
     return 0

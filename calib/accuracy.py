@@ -77,7 +77,7 @@ def _run(url: str, kinematics, goals: list[np.ndarray], truth_fk, name: str, rob
     with rccl.open(url, robot=robot, kinematics=kinematics, rate_hz=RATE_HZ, timeout=2.0) as arm:
         arm.setmod("joint")
         arm.setvel(0.3, 2.0)
-        start = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(CENTRE)), TL, T6)
+        start = makeposition("start", T6, EQ, Trsf("S", arm.kinematics.fk(CENTRE)), TL, T6)
         arm.move(start)
         arm.waitfor(start.end)
         for k, goal in enumerate(goals):

@@ -42,7 +42,7 @@ def waist(arm, delta: float, name: str):
     from rccl.position import joint_position
     q = arm.q.copy()
     q[0] += -abs(delta) if q[0] > 0 else abs(delta)
-    return joint_position(name, arm._kin, q)
+    return joint_position(name, arm.kinematics, q)
 
 
 def run(url_puma: str, url_microbo: str, **options) -> dict:

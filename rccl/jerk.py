@@ -177,7 +177,7 @@ class JerkLimitedGenerator:
         fault (PowerOff), and the commands follow ``q``, the joints the brakes hold (measured),
         so that power coming back starts from where the arm is (as TrajectoryGenerator does)."""
         if self.faulted is None and self.busy:
-            self._freeze(PowerOff("the arm's power went off during the motion"))
+            self.freeze(PowerOff("the arm's power went off during the motion"))
         if not np.array_equal(q, self.q):
             self.q = np.array(q, dtype=float)
             self.q_prev = self.q.copy()
@@ -220,7 +220,7 @@ class JerkLimitedGenerator:
                 q = self._sample(mv)
             self._check_step(q)
         except (MotionError, ValueError, ArithmeticError) as exc:
-            self._freeze(exc)
+            self.freeze(exc)
             return self.q
         self.q_prev, self.q = self.q, q
         self.t = t
@@ -386,7 +386,9 @@ class JerkLimitedGenerator:
             raise UnreachableTarget(f"the commanded point needs joint {i + 1} at {q[i]:.4f}, outside its range "
                               f"[{self.limits.lower[i]:.4f}, {self.limits.upper[i]:.4f}]; arm stopped")
 
-    def _freeze(self, exc: BaseException) -> None:
+    def freeze(self, exc: BaseException) -> None:
+        """Stop on ``exc``: the arm holds where it is, every running and queued request fails
+        with a TrajectoryFault naming it (a generator fault, or an adaptive feature's error)."""
         fault = TrajectoryFault(f"jerk-limited generator stopped the arm at t = {self.t:.3f} s: {exc}", exc)
         self.faulted = fault
         self.errors.append(fault)

@@ -32,7 +32,7 @@ def tour_samples(url: str, trajectory: str, mode: str = "joint") -> np.ndarray:
                    trajectory=trajectory) as arm:
         arm.setmod("joint")
         arm.setvel(0.2, 2.0)
-        start = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(START)), TL, T6)
+        start = makeposition("start", T6, EQ, Trsf("S", arm.kinematics.fk(START)), TL, T6)
         arm.move(start)
         arm.waitfor(start.end)
         _settle(arm)

@@ -109,7 +109,7 @@ def transition_plot(arm, windows, out: Path | None = None) -> Path:
     for i in range(6):
         axes[1].plot(tv, v[:, i], label=f"joint {i + 1}")
         axes[2].plot(ta, a[:, i], label=f"joint {i + 1}")
-    lim = arm._limits.joint_acceleration
+    lim = arm.limits.joint_acceleration
     axes[2].axhline(float(lim.min()), color="k", ls="--", lw=0.8, label=f"smallest limit {lim.min():.1f} rad/s^2")
     axes[2].axhline(-float(lim.min()), color="k", ls="--", lw=0.8)
     axes[1].set_ylabel("joint velocity (rad/s)")
@@ -130,19 +130,17 @@ def transition_plot(arm, windows, out: Path | None = None) -> Path:
 
 
 class _WindowLog:
-    """Wraps the generator's transition start to log each transition window (t_start, t_end)."""
+    """Logs each transition window (t_start, t_end) in which something moves, through the
+    generator's public ``on_transition`` listeners."""
 
     def __init__(self, gen) -> None:
         self.windows: list[tuple[float, float]] = []
         self.gen = gen
-        orig = gen._begin_transition
+        gen.on_transition.append(self._log)
 
-        def logged(*args, **kwargs) -> None:
-            orig(*args, **kwargs)
-            tr = gen.trans
-            if not (tr.prev.req.repeat and gen.seg.req.repeat):  # skip hold-to-hold (nothing moves)
-                self.windows.append((tr.t_start, tr.t_end))
-        gen._begin_transition = logged
+    def _log(self, event) -> None:
+        if event.moving:                # hold-to-hold transitions move nothing
+            self.windows.append((event.t_start, event.t_end))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -168,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
             with rccl.open(sim.url, robot="puma260", record=True, timeout=2.0) as arm:
                 arm.setmod("joint")
                 arm.setvel(0.2, 2.0)
-                s = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(start_q)), TL, T6)
+                s = makeposition("start", T6, EQ, Trsf("S", arm.kinematics.fk(start_q)), TL, T6)
                 arm.move(s)
                 arm.waitfor(s.end)
                 base = arm.t6
@@ -213,7 +211,7 @@ def straight_line(url: str, rate_hz: int = 36) -> str:
     fk = pinocchio_fk()
     with rccl.open(url, robot="puma260", rate_hz=rate_hz, record=True, timeout=2.0) as arm:
         arm.setmod("joint")
-        s = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(np.radians([0.0, 80.0, -170.0, 10.0, -60.0, 0.0]))),
+        s = makeposition("start", T6, EQ, Trsf("S", arm.kinematics.fk(np.radians([0.0, 80.0, -170.0, 10.0, -60.0, 0.0]))),
                          TL, T6)
         arm.move(s)
         arm.waitfor(s.end)

@@ -78,7 +78,7 @@ class Position:
 
     def snapshot(self) -> Snapshot:
         """Freeze the current values of the ``hold`` transforms (done when a motion is queued)."""
-        return Snapshot({id(t): t._m for t in self.transforms() if t.kind == "hold"})
+        return Snapshot({id(t): t.value_array for t in self.transforms() if t.kind == "hold"})
 
     def update_functional(self, skip: tuple[Trsf, ...] = ()) -> None:
         """Call each functional transform's function once (the generator does this every sample).
@@ -95,7 +95,7 @@ class Position:
             v = snap.values.get(id(t))
             if v is not None:
                 return v
-        return t._m
+        return t.value_array
 
     def solve(self, snap: Snapshot | None = None) -> np.ndarray:
         """T6 (base to link 6, 4x4, metres) that satisfies the equation with the current values."""

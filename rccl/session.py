@@ -106,6 +106,11 @@ class Arm(Planner):
         self.park = joint_position("park", self._kin, load_robot(self.robot).poses[PARK_POSE])
         return self
 
+    @property
+    def kinematics(self):
+        """The kinematics module RCCL plans with (rccl.kinematics.<robot>, or a calibrated one)."""
+        return self._kin
+
     def _cycle(self) -> None:
         """The RCI control function: one trajectory sample, as POS commands in encoder counts."""
         how, chg = self.rci.how, self.rci.chg

@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
@@ -338,6 +339,19 @@ class Transition:
     @property
     def t_end(self) -> float:
         return self.t_start + 2.0 * self.tau
+
+
+@dataclass(frozen=True)
+class TransitionEvent:
+    """What ``TrajectoryGenerator.on_transition`` listeners get when a transition starts
+    (5.5.1): its window on the trajectory's clock (s), the positions it joins, and whether
+    anything moves (False for one hold of a point into the next)."""
+
+    t_start: float
+    t_end: float
+    from_position: str
+    to_position: str
+    moving: bool
 
 
 def _scale_for(v1: list[float], v2_dir: list[float], T: float, c: list[float]) -> float:
@@ -659,6 +673,11 @@ class TrajectoryGenerator:
         self.q = np.array(q0, dtype=float)
         self.q_prev = self.q.copy()
         self.errors: list[MotionError] = []
+        #: called with no argument just before a transition is planned, and with a
+        #: TransitionEvent just after (plots of the transition windows, profiles of the
+        #: planning work); a listener must not raise
+        self.before_transition: list[Callable[[], None]] = []
+        self.on_transition: list[Callable[[TransitionEvent], None]] = []
         self.faulted: TrajectoryFault | None = None
         self.trans: Transition | None = None
         self.samples = 0
@@ -694,7 +713,7 @@ class TrajectoryGenerator:
         fault (PowerOff), and the commands follow ``q``, the joints the brakes hold (measured),
         so that power coming back starts from where the arm is, not from where it was sent."""
         if self.faulted is None and self.busy:
-            self._freeze(PowerOff("the arm's power went off during the motion"))
+            self.freeze(PowerOff("the arm's power went off during the motion"))
         if np.array_equal(q, self.q):
             return
         self.q = np.array(q, dtype=float)
@@ -727,7 +746,7 @@ class TrajectoryGenerator:
             tr = self.trans
             if tr is None:
                 if t >= seg.t0 + seg.T - seg.tau_out:
-                    self._begin_transition()
+                    self._transition()
                 elif _holds_still(seg) and len(self.queue):
                     self._start_from_hold()
             elif _holds_still(seg) and _holds_still(tr.prev) and len(self.queue):
@@ -735,7 +754,7 @@ class TrajectoryGenerator:
             self._update_functional()
             q = self._check_step(self._evaluate(t))
         except (MotionError, ValueError, ArithmeticError) as exc:
-            self._freeze(exc)
+            self.freeze(exc)
             return self.q
         self.q_prev, self.q = self.q, q
         self.t = t
@@ -783,7 +802,19 @@ class TrajectoryGenerator:
         if tr is not None:            # a transition between two holds of the same point: cut it short
             tr.prev.req.finish()
             self.trans = None
-        self._begin_transition(req, now=self.t)
+        self._transition(req, now=self.t)
+
+    def _transition(self, req: Request | None = None, now: float | None = None) -> None:
+        """Start a transition (``_begin_transition``), with the listeners around it."""
+        for listener in self.before_transition:
+            listener()
+        self._begin_transition(req, now)
+        if self.on_transition:
+            tr, seg = self.trans, self.seg
+            event = TransitionEvent(tr.t_start, tr.t_end, tr.prev.req.position.name, seg.req.position.name,
+                                    not (tr.prev.req.repeat and seg.req.repeat))
+            for listener in self.on_transition:
+                listener(event)
 
     def _begin_transition(self, req: Request | None = None, now: float | None = None) -> None:
         """Leave the running segment: into the next queued request, or into a hold.
@@ -916,7 +947,9 @@ class TrajectoryGenerator:
         s.v_end, s.v_cart = v, None
         return s
 
-    def _freeze(self, exc: BaseException) -> None:
+    def freeze(self, exc: BaseException) -> None:
+        """Stop on ``exc``: the arm holds where it is, every running and queued request fails
+        with a TrajectoryFault naming it (a generator fault, or an adaptive feature's error)."""
         fault = TrajectoryFault(f"trajectory generator stopped the arm at t = {self.t:.3f} s: {exc}", exc)
         self.faulted = fault
         self.errors.append(fault)

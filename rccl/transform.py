@@ -296,6 +296,12 @@ class Trsf:
             self.fn, self._kind = fn, "functional"
 
     @property
+    def value_array(self) -> np.ndarray:
+        """The current 4x4 value itself, not a copy, for the solvers' inner loops: never modify
+        it. Every change of value replaces the array, so ``is`` tells whether it changed."""
+        return self._m
+
+    @property
     def matrix(self) -> np.ndarray:
         """The current 4x4 value (a read-only view; use ``set`` or the component setters to change it)."""
         v = self._m.view()

@@ -162,7 +162,7 @@ def test_evalfn_ends_a_motion_with_its_code_and_limits_hold_for_one_motion_only(
 
             def below(s):
                 seen.append(s.sample)
-                z = arm._kin.fk(s.q)[2, 3]
+                z = arm.kinematics.fk(s.q)[2, 3]
                 return "deep enough" if z < x0[2, 3] - 0.03 else None
 
             arm.evalfn(below)
@@ -173,13 +173,13 @@ def test_evalfn_ends_a_motion_with_its_code_and_limits_hold_for_one_motion_only(
             z_end_r1 = None
             for t, _, _, q, _ in arm.adaptive_trace:
                 if abs(t - r1.hooks["finished_t"]) < 1e-9:
-                    z_end_r1 = arm._kin.fk(q)[2, 3]
+                    z_end_r1 = arm.kinematics.fk(q)[2, 3]
             end = r1.hooks["ended"]
             assert (end.reason, end.what, end.code) == ("monitor", "below", "deep enough")
             assert "ended" not in r2.hooks and "ended" not in r3.hooks
             assert np.all(np.diff(seen) == 1)                  # every sample, once
             assert z_end_r1 is not None and z_end_r1 > low[2, 3] + 0.02   # it did not go all the way
-            assert abs(arm.measured_q() - arm._kin.module.ik(low, arm._kin.config_of(arm.q), arm.q)).max() < 1e-3
+            assert abs(arm.measured_q() - arm.kinematics.module.ik(low, arm.kinematics.config_of(arm.q), arm.q)).max() < 1e-3
 
             def broken(s):
                 raise RuntimeError("sensor unplugged")

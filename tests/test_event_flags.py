@@ -52,7 +52,7 @@ def waist(arm, delta: float, name: str):
     """A position with the waist turned by ``delta`` rad (towards the middle of its range)."""
     q = arm.q.copy()
     q[0] += -abs(delta) if q[0] > 0 else abs(delta)
-    return joint_position(name, arm._kin, q), q
+    return joint_position(name, arm.kinematics, q), q
 
 
 def test_a_motion_of_one_arm_waits_for_the_end_of_the_others(arms):
@@ -108,7 +108,7 @@ def test_stop_flag_halts_a_running_motion_and_the_next_one_runs(arms):
     puma.settime(0.2, 20.0)                      # slow: 20 s of robot time
     a = ev.move_ev(puma, far)
     puma.settime(0.2, 1.0)
-    back = joint_position("back", puma._kin, q0)
+    back = joint_position("back", puma.kinematics, q0)
     b = ev.move_ev(puma, back)
     ev.wait_ev(a, started=True, timeout=10)
     ev.stop_ev(-5, a)
@@ -178,14 +178,14 @@ def test_thesis_example_a_conditional_motion_inherits_the_eft_of_the_motion_it_r
     puma.settime(0.2, 20.0)
     q_b = puma.q.copy()
     q_b[0] += 0.5 if q_b[0] < 0 else -0.5
-    pos_b = joint_position("B", puma._kin, q_b)
+    pos_b = joint_position("B", puma.kinematics, q_b)
     eft1 = ev.move_ev(puma, pos_b)
     puma.settime(0.2, 1.0)
     q_backup = q_b.copy()
     q_backup[1] += 0.1
-    backup = joint_position("backupA", puma._kin, q_backup)
+    backup = joint_position("backupA", puma.kinematics, q_backup)
     puma.cond("stop", backup)                    # condA: "ended by its stop flag"
-    pos_c = joint_position("C", puma._kin, q_b)
+    pos_c = joint_position("C", puma.kinematics, q_b)
     eft2 = ev.move_ev(puma, pos_c)
     nominal_c = eft2.request
     ev.wait_ev(eft1, started=True, timeout=10)
@@ -203,7 +203,7 @@ def test_stop_abort_flushes_the_queue_and_halts_the_arm(arms):
     puma.settime(0.2, 20.0)
     a = ev.move_ev(puma, far)
     puma.settime(0.2, 1.0)
-    b = ev.move_ev(puma, joint_position("later", puma._kin, puma.q))
+    b = ev.move_ev(puma, joint_position("later", puma.kinematics, puma.q))
     ev.wait_ev(a, started=True, timeout=10)
     ev.stop_abort(puma)
     assert ev.wait_ev(a, timeout=10) == ABORTED and ev.wait_ev(b, timeout=10) == ABORTED
@@ -219,7 +219,7 @@ def test_waits_that_can_never_end_are_refused_with_the_chain(arms):
     pa, _ = waist(puma, 0.2, "pa")
     pb, _ = waist(mic, 0.2, "pb")
     a = ev.move_ev(puma, pa, start=None)
-    a2 = ev.move_ev(puma, joint_position("pa2", puma._kin, puma.q))
+    a2 = ev.move_ev(puma, joint_position("pa2", puma.kinematics, puma.q))
     b = ev.move_ev(mic, pb, start=a)
     with pytest.raises(Deadlock, match=r"start flag of motion #\d+ of arm 'puma' to pa is not set and nothing"):
         ev.wait_ev(a)

@@ -215,7 +215,7 @@ def test_rccl_arms_in_a_workcell_a_dead_link_names_the_arm_and_releases_the_othe
             q = puma.q.copy()
             q[0] += 0.3
             puma.settime(0.2, 30.0)
-            req = puma.move(joint_position("far", puma._kin, q))
+            req = puma.move(joint_position("far", puma.kinematics, q))
             cell.wait(0.1)
             m.proc.kill()                        # the Microbo's link dies mid-program
             with pytest.raises(ArmTerminated) as ei:

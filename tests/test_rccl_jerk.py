@@ -51,7 +51,7 @@ def tour(base: np.ndarray) -> list:
 def go_start(arm) -> np.ndarray:
     arm.setmod("joint")
     arm.setvel(0.2, 2.0)
-    start = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(START)), TL, T6)
+    start = makeposition("start", T6, EQ, Trsf("S", arm.kinematics.fk(START)), TL, T6)
     arm.move(start)
     arm.waitfor(start.end)
     return arm.t6
@@ -112,7 +112,7 @@ def test_cartesian_mode_keeps_the_tool_within_its_limits_on_a_straight_line(sim)
         arm.move(goal)
         arm.waitfor(goal.end)
         q = np.array([x[1] for x in arm.trace[n0:]])
-        p = np.array([arm._kin.fk(qi)[:3, 3] for qi in q])
+        p = np.array([arm.kinematics.fk(qi)[:3, 3] for qi in q])
         v, a, j = derivatives(p, 1.0 / RATE)
         vt, at, jt = JERK.translational
         # the norms (each coordinate has limit / sqrt(3), rccl.jerk)

@@ -42,7 +42,7 @@ def test_a_move_at_full_joint_speed_runs_to_its_end(rate_hz):
             q = arm.q.copy()
             q[0] += 2.5
             q[3] += 2.0
-            p = makeposition("P", T6, EQ, Trsf("G", arm._kin.fk(q)), TL, T6)
+            p = makeposition("P", T6, EQ, Trsf("G", arm.kinematics.fk(q)), TL, T6)
             arm.move(p)
             arm.waitfor(p.end)
             assert arm.gen.slowed == 0

@@ -49,7 +49,7 @@ def go(arm, q, name="start"):
     """Joint-mode move to joint values q; returns T6 there."""
     arm.setmod("joint")
     arm.setvel(0.1, 1.5)
-    p = makeposition(name, T6, EQ, Trsf(name.upper(), arm._kin.fk(q)), TL, T6)
+    p = makeposition(name, T6, EQ, Trsf(name.upper(), arm.kinematics.fk(q)), TL, T6)
     arm.move(p)
     arm.waitfor(p.end)
     return arm.t6
@@ -98,7 +98,7 @@ def test_joint_mode_on_the_microbo_interpolates_and_arrives(sim):
     with open_arm(sim, 36) as arm:
         go(arm, START)
         q_goal = START + np.array([-0.4, 0.06, 0.08, 0.5, 0.4, -0.6])   # rad, m, m, rad, rad, rad
-        p = makeposition("pj", T6, EQ, Trsf("J", arm._kin.fk(q_goal)), TL, T6)
+        p = makeposition("pj", T6, EQ, Trsf("J", arm.kinematics.fk(q_goal)), TL, T6)
         arm.setmod("joint")
         arm.setvel(0.1, 1.0)
         n0 = len(arm.trace)
@@ -133,7 +133,7 @@ def test_microbo_errors_are_refused_at_move(sim):
         q_a, q_b = START.copy(), START.copy()
         q_a[4], q_b[4] = math.pi - 0.25, math.pi + 0.25
         go(arm, q_a, "near")
-        across = makeposition("across", T6, EQ, Trsf("X", arm._kin.fk(q_b)), TL, T6)
+        across = makeposition("across", T6, EQ, Trsf("X", arm.kinematics.fk(q_b)), TL, T6)
         arm.setmod("cartesian")
         with pytest.raises(SingularPath, match="singularity"):
             arm.move(across)

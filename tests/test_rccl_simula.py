@@ -44,7 +44,7 @@ def open_arm(sim, rate_hz: int = 36):
 def go_start(arm):
     arm.setmod("joint")
     arm.setvel(0.2, 2.0)
-    start = makeposition("start", T6, EQ, Trsf("S", arm._kin.fk(START)), TL, T6)
+    start = makeposition("start", T6, EQ, Trsf("S", arm.kinematics.fk(START)), TL, T6)
     arm.move(start)
     arm.waitfor(start.end)
     return arm.t6
@@ -116,7 +116,7 @@ def test_joint_mode_interpolates_in_joint_space(sim):
     with open_arm(sim, 36) as arm:
         go_start(arm)
         q_goal = START + np.radians([15.0, -10.0, 10.0, -20.0, 15.0, 30.0])
-        p = makeposition("pj", T6, EQ, Trsf("J", arm._kin.fk(q_goal)), TL, T6)
+        p = makeposition("pj", T6, EQ, Trsf("J", arm.kinematics.fk(q_goal)), TL, T6)
         arm.setmod("joint")
         arm.setvel(0.1, 1.0)
         n0 = len(arm.trace)
@@ -142,15 +142,15 @@ def test_errors_refused_before_motion_and_the_session_goes_on(sim):
         q_here = START.copy()
         q_here[3], q_here[4] = 0.0, -0.3
         arm.setmod("joint")
-        here = makeposition("here", T6, EQ, Trsf("H", arm._kin.fk(q_here)), TL, T6)
+        here = makeposition("here", T6, EQ, Trsf("H", arm.kinematics.fk(q_here)), TL, T6)
         arm.move(here)
         arm.waitfor(here.end)
         arm.setmod("cartesian")
         with pytest.raises(SingularPath, match="singularity"):
-            arm.move(makeposition("flip", T6, EQ, Trsf("FL", arm._kin.fk(q_flip)), TL, T6))
+            arm.move(makeposition("flip", T6, EQ, Trsf("FL", arm.kinematics.fk(q_flip)), TL, T6))
         assert len(arm.queue) == 0
         arm.setmod("joint")
-        back = makeposition("back", T6, EQ, Trsf("BK", arm._kin.fk(q_before)), TL, T6)
+        back = makeposition("back", T6, EQ, Trsf("BK", arm.kinematics.fk(q_before)), TL, T6)
         arm.move(back)
         arm.waitfor(back.end)
         arm.rci.wait(0.2)
@@ -170,7 +170,7 @@ def test_program_534_runs(sim):
     qm = np.array([x[2] for x in arm.trace])
     # it went to p0 (T6 = T^-1 B) and came back to park
     p0 = mod.P0_T6
-    fk = arm._kin.fk
+    fk = arm.kinematics.fk
     assert min(np.linalg.norm(fk(q)[:3, 3] - p0[:3, 3]) for q in qm) < 0.02
     assert np.allclose(fk(qm[-1])[:3, 3], arm.park.solve()[:3, 3], atol=2e-4)
 

@@ -169,6 +169,29 @@ def test_transition_does_not_pass_through_the_corner_but_stopping_does():
     assert np.min(np.linalg.norm(pts - ta.p, axis=1)) < 1e-9
 
 
+def test_transition_listeners_see_every_transition_with_its_window_and_positions():
+    gen, arm = make(100.0)
+    arm.setmod("c")
+    arm.setvel(0.1, 1.0)
+    pa, _ = at(trsl(-0.06, 0.0, 0.0), "pa")
+    pb, _ = at(trsl(-0.06, 0.06, 0.0), "pb")
+    calls, events = [], []
+    gen.before_transition.append(lambda: calls.append(gen.t))
+    gen.on_transition.append(events.append)
+    arm.move(pa)
+    r = arm.move(pb)
+    run_until(gen, lambda: r.status == "done")
+    run(gen, 0.5)
+    moving = [(e.from_position, e.to_position) for e in events if e.moving]
+    # into pa, the corner pa -> pb, and pb's stop (into its hold); then only holds, which move nothing
+    assert moving == [("here", "pa"), ("pa", "pb"), ("pb", "pb")]
+    assert all(not e.moving for e in events[3:]) and len(events) > 3
+    assert len(calls) == len(events)               # one before-call per transition
+    for e in events:                               # 5.5.1: a window of 2 tau at 100 Hz (0.1 s each side)
+        assert math.isclose(e.t_end - e.t_start, 0.2, abs_tol=1e-9)
+    assert events[1].t_start < r.hooks["finished_t"] and events[2].t_end == pytest.approx(r.hooks["finished_t"])
+
+
 def test_empty_queue_holds_and_stop_time_dwells():
     gen, arm = make(36.0)
     arm.setmod("joint")

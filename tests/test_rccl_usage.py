@@ -21,7 +21,7 @@ from rci.simula.process import SimulaProcess
 def waist_turn(arm, delta: float, name: str):
     q = arm.q.copy()
     q[0] += delta
-    return joint_position(name, arm._kin, q), q
+    return joint_position(name, arm.kinematics, q), q
 
 
 def settle(arm, seconds: float = 0.3) -> np.ndarray:

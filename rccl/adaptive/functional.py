@@ -116,7 +116,7 @@ class FunctionalUpdater:
                 for t in p.transforms():
                     seen.setdefault(id(t), t)
             self._trs_key, self._trs_all = key, list(seen.values())
-        return [t for t in self._trs_all if t._kind == "functional" and t.fn is not None]
+        return [t for t in self._trs_all if t.kind == "functional" and t.fn is not None]
 
     def _trs_first(self, position) -> frozenset:
         """ids of the transforms of ``position`` (kept per position)."""
@@ -140,13 +140,13 @@ class FunctionalUpdater:
             return info
         if callable(jac6):
             jac6 = jac6()
-        before = [t._m for t in trs]
+        before = [t.value_array for t in trs]
         t6_0 = None
         if jac6 is not None:
             # T6 before this sample's calls: last sample's result if no transform of the equation was
             # replaced since (setters replace a transform's array, never mutate it), else solved anew
             pos = positions[0]
-            values = [t._m for t in pos.transforms()]
+            values = [t.value_array for t in pos.transforms()]
             c = self._cache
             if c is not None and c[0] is pos and c[1] is snap and all(a is b for a, b in zip(c[2], values)) \
                     and len(c[2]) == len(values):
@@ -168,11 +168,11 @@ class FunctionalUpdater:
         if t6_1 is None or not math.isfinite(float(t6_1.sum())):
             in_first = ()
         for t, m0 in zip(trs, before):
-            if t._m is not m0 and id(t) not in in_first and not math.isfinite(float(t._m.sum())):
+            if t.value_array is not m0 and id(t) not in in_first and not math.isfinite(float(t.value_array.sum())):
                 raise FunctionalError(f"functional transform {t.name!r}: its function left a non-finite value")
         if jac6 is None:
             return info
-        self._cache = (positions[0], snap, [t._m for t in positions[0].transforms()], t6_1)
+        self._cache = (positions[0], snap, [t.value_array for t in positions[0].transforms()], t6_1)
         dc = differential(t6_0, t6_1)
         if not dc.any():
             self.prev_dtheta[:] = 0.0
@@ -209,7 +209,7 @@ class FunctionalUpdater:
             self.limited += 1
             info.scale = s
             for t, m0 in zip(trs, before):
-                if t._m is not m0:
-                    t.set(interpolate(m0, t._m, s))
+                if t.value_array is not m0:
+                    t.set(interpolate(m0, t.value_array, s))
             self._cache = None            # the scaled values differ from the solved ones
         return info

@@ -124,14 +124,14 @@ class AdaptiveArm(Arm):
             self.adaptive.before(gen, q_meas, qd, np.asarray(how.adcr[:6], dtype=float), how)
         except MotionError as exc:       # a monitor's error, a force estimate refused: stop the arm, tell the planner
             if gen.faulted is None:
-                gen._freeze(exc)
+                gen.freeze(exc)
         q_nom = gen.step()
         cmd = None
         if gen.faulted is None:
             try:
                 cmd = self.adaptive.after(q_nom)
             except (MotionError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                gen._freeze(exc)
+                gen.freeze(exc)
         if cmd is None:     # stopped by a fault: every joint position-servoed where it was when it happened
             if self._fault_hold is None:
                 self._fault_hold = self.adaptive.hold(q_meas)
