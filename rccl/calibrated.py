@@ -213,6 +213,6 @@ def load_calibrated(path: str, robot: str = "puma260") -> CalibratedKinematics:
 
 def calibrated_kinematics(path: str, robot: str = "puma260"):
     """What ``rccl.open(url, kinematics=...)`` takes: the calibrated kinematics, wrapped for RCCL."""
-    from .trajectory import Kinematics
+    from .segments import Kinematics
 
     return Kinematics(load_calibrated(path, robot))

@@ -24,7 +24,8 @@ from .motion import MotionParams, Request
 from .position import Position
 from .queue import MotionQueue
 from .sync import Event
-from .trajectory import Kinematics, TrajectoryGenerator, plan_path, resolve_config
+from .segments import Kinematics, plan_path, resolve_config
+from .trajectory import TrajectoryGenerator
 
 _CONF_LETTERS = {"l": ("arm", -1), "r": ("arm", 1), "u": ("elbow", 1), "d": ("elbow", -1),
                  "f": ("wrist", -1), "n": ("wrist", 1)}

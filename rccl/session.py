@@ -29,7 +29,8 @@ from .exceptions import NotRunning, PowerOff
 from .limits import Limits, for_link, load_limits
 from .planner import Planner
 from .position import Position, joint_position
-from .trajectory import Kinematics, TrajectoryGenerator
+from .segments import Kinematics
+from .trajectory import TrajectoryGenerator
 
 # the predefined `park` position: the model's named pose of this name (estimate there)
 PARK_POSE = "ready"
