@@ -19,7 +19,7 @@ import numpy as np
 
 from .exceptions import PositionError
 from .sync import Event
-from .transform import T6, Trsf, _T6, inverse
+from .transform import T6, Trsf, inverse
 
 
 class _Key:
@@ -151,11 +151,11 @@ def makeposition(name: str, *items) -> Position:
     for x in lhs + rhs + tail:
         if not isinstance(x, Trsf):
             raise PositionError(f"{where}: {x!r} is not a transform (Trsf)")
-    n_t6 = sum(1 for x in lhs + rhs if isinstance(x, _T6))
+    n_t6 = sum(1 for x in lhs + rhs if x is T6)
     if n_t6 != 1:
         raise PositionError(f"{where}: T6 must appear exactly once in the equation (found {n_t6})")
-    side, other = (lhs, rhs) if any(isinstance(x, _T6) for x in lhs) else (rhs, lhs)
-    k = next(i for i, x in enumerate(side) if isinstance(x, _T6))
+    side, other = (lhs, rhs) if any(x is T6 for x in lhs) else (rhs, lhs)
+    k = next(i for i, x in enumerate(side) if x is T6)
     return Position(name, side[:k], side[k + 1:], other, tail[0])
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from .exceptions import ConfigurationChange, MotionError, SingularPath, UnreachableTarget
 from .limits import Limits
 from .motion import MotionParams, Request
+from .drive import drive_basis, drive_coefficients
 from .transform import T6, axis_angle, inverse
 
 ACC_PEAK = 0.75          # peak of the quartic's acceleration: ACC_PEAK * |v2 - v1| / tau
@@ -111,39 +112,6 @@ class Kinematics:
             if limits is not None:
                 check_range(limits, prev, at, "path point", self.units)
         return path
-
-
-def drive_basis(d: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """Drive(lam) = Trans(lam d) Rot(k, lam theta) (E.3-E.5) as [1, cos(lam theta), sin(lam theta), lam] @ basis.
-
-    Rodrigues: Rot(k, a) = k k^T + cos a (I - k k^T) + sin a [k]x, so the drive transform is
-    linear in those four numbers; returns the (4, 16) basis (four flattened 4x4 matrices).
-    """
-    kx, ky, kz = k.tolist()
-    dx, dy, dz = d.tolist()
-    xx, xy, xz, yy, yz, zz = kx * kx, kx * ky, kx * kz, ky * ky, ky * kz, kz * kz
-    return np.array([
-        [xx, xy, xz, 0.0, xy, yy, yz, 0.0, xz, yz, zz, 0.0, 0.0, 0.0, 0.0, 1.0],                   # k k^T (+ the 1)
-        [1.0 - xx, -xy, -xz, 0.0, -xy, 1.0 - yy, -yz, 0.0, -xz, -yz, 1.0 - zz, 0.0, 0.0, 0.0, 0.0, 0.0],  # I - k k^T
-        [0.0, -kz, ky, 0.0, kz, 0.0, -kx, 0.0, -ky, kx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],              # [k]x
-        [0.0, 0.0, 0.0, dx, 0.0, 0.0, 0.0, dy, 0.0, 0.0, 0.0, dz, 0.0, 0.0, 0.0, 0.0]])             # d
-
-
-def drive(d: np.ndarray, k: np.ndarray, theta: float, lam: float) -> np.ndarray:
-    """Drive transform Trans(lam d) Rot(k, lam theta) (E.3-E.5), 4x4."""
-    a = lam * theta
-    return (np.array([1.0, math.cos(a), math.sin(a), lam]) @ drive_basis(d, k)).reshape(4, 4)
-
-
-def _coefficients(theta: float, lams: np.ndarray) -> np.ndarray:
-    """Rows [1, cos(lam theta), sin(lam theta), lam] for each lam (N, 4)."""
-    out = np.empty((lams.size, 4))
-    out[:, 0] = 1.0
-    a = lams * theta
-    np.cos(a, out=out[:, 1])
-    np.sin(a, out=out[:, 2])
-    out[:, 3] = lams
-    return out
 
 
 def resolve_config(kin: Kinematics, current, wanted):
@@ -408,7 +376,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         return p.finish(limits)
     n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
     lams = 1.0 - np.arange(1, n + 1) / n
-    poses = (_coefficients(p.theta, lams) @ p.basis).reshape(n, 4, 4)
+    poses = (drive_coefficients(p.theta, lams) @ p.basis).reshape(n, 4, 4)
     path = kin.ik_path(poses, p.config, q_b, where, lams, limits)
     bad = (path[1:] < limits.lower - 1e-9) | (path[1:] > limits.upper + 1e-9)
     if bad.any():
@@ -451,7 +419,7 @@ def _refine(kin: Kinematics, limits: Limits, p: Plan, q_lo: np.ndarray, lam_lo: 
     m = REFINE_POINTS
     for _ in range(REFINE_LEVELS):
         lams = lam_lo - width * np.arange(1, m + 1) / m
-        poses = (_coefficients(p.theta, lams) @ p.basis).reshape(m, 4, 4)
+        poses = (drive_coefficients(p.theta, lams) @ p.basis).reshape(m, 4, 4)
         sub = kin.ik_path(poses, p.config, q_lo, where, lams, limits)
         ratio = (np.abs(sub[1:] - sub[:-1]) / vmax).max(axis=1)
         k = int(np.argmax(ratio))

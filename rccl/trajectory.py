@@ -59,6 +59,7 @@ from typing import Callable
 
 import numpy as np
 
+from .drive import drive
 from .ending import MotionEnd
 from .exceptions import MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
 from .limits import Limits
@@ -66,7 +67,7 @@ from .motion import MotionParams, Request
 from .position import joint_position
 from .queue import MotionQueue
 from .segments import (ACC_PEAK, CONTROL_CHECK_POINTS, MIN_BLEND_SCALE, STEP_MARGIN, Kinematics, Plan,
-                       Segment, Transition, TransitionEvent, check_range, drive, hold_plan, holds_still,
+                       Segment, Transition, TransitionEvent, check_range, hold_plan, holds_still,
                        is_static, plan_path, plan_segment, resolve_config, time_segment)
 
 __all__ = ["TrajectoryGenerator", "TransitionEvent", "Kinematics", "Plan", "Segment", "Transition", "drive",
