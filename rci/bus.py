@@ -40,7 +40,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .multi import OVERFLOW, ChannelFull, MultiError
+from .workcell_data import OVERFLOW, ChannelFull, MultiError
 from .zenoh_bus import ZenohLinkError, open_session
 
 
