@@ -30,6 +30,11 @@ end, which does not start followers, is the runtime's business: ``wait_ev`` rais
 ``status_ev`` or loops is recorded along the one path the recorder takes (``status_ev``
 returns NULL while recording), so give it a straight-line description or build a ``Net``
 by hand (channels, loops: see ``queue_net``).
+
+Why this module is long: one analysis, end to end: the net (places, transitions,
+markings), the coverability tree that decides boundedness, the reachability graph with its
+firing sequences, and the recorder that turns a planning function's flag calls into a
+net; each part is read with the others.
 """
 from __future__ import annotations
 

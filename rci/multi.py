@@ -34,6 +34,11 @@ Sample synchronisation (``sync=``):
 An error on any arm (a range check, a dead link, an exception in its function) ends that
 arm's control with its own implicit release (A.5), then releases every other arm at once
 (stop, power kept: they are healthy), and tells the planning level with the arm's name.
+
+Why this module is long: ``Workcell`` is one object. Its primitives (open, control,
+start, release, close, wait) share one lock, one lockstep barrier and one delivery of
+terminations, and each must leave every arm released whatever fails; shared data and
+channels are in rci.workcell_data.
 """
 from __future__ import annotations
 

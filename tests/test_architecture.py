@@ -22,6 +22,7 @@ LONG_REASON = "Why this module is long:"
 #: (module, private name) -> why the access is right
 PRIVATE_EXCEPTIONS: dict[tuple[str, str], str] = {
     ("derive.emit_python", "_hprint_Pow"): "SymPy's printer API: a subclass overrides the printer's own hook",
+    ("rccl.segments", "_replace"): "typing.NamedTuple's public copy-with-changes method (named so to avoid field clashes)",
 }
 #: class name -> why two modules define it (distinct concepts that share a name on purpose)
 CLASS_NAME_EXCEPTIONS: dict[str, str] = {}
@@ -163,10 +164,13 @@ def _private_uses(name: str, path: Path) -> list[tuple[int, str]]:
     tree = _tree(path)
     own = _own_names(tree)
     uses = []
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
     for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            uses += [(node.lineno, f"from {node.module} import {a.name}") for a in node.names
-                     if _private(a.name) and node.module != name]
+        if isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - (node.level - 1)] if node.level else []
+            module = ".".join(base + ([node.module] if node.module else []))
+            uses += [(node.lineno, f"from {module} import {a.name}") for a in node.names
+                     if _private(a.name) and module != name]
         elif isinstance(node, ast.Attribute) and _private(node.attr) and node.attr not in own:
             base = node.value
             if isinstance(base, ast.Name) and base.id in ("self", "cls"):

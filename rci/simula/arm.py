@@ -30,6 +30,11 @@ chapter 4, eq. 4.7, which is what matters at the speeds RCI programs use):
   calibration, 12 bits over each joint's range).
 
 Everything here is deterministic for a given seed and sequence of calls.
+
+Why this module is long: the arm's step is one piece of physics over one state (joint
+angles and speeds, servo and current modes, friction, calibration, sensors); cutting it
+would pass that state between modules every servo tick. Friction is in friction.py,
+parameters in params.py.
 """
 from __future__ import annotations
 
