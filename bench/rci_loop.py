@@ -37,7 +37,6 @@ sys.path.insert(0, str(ROOT))
 
 import subprocess  # noqa: E402
 
-from rci.chg import POS  # noqa: E402
 from rci.exceptions import ControlTerminated  # noqa: E402
 from rci.conversions import Conversions  # noqa: E402
 from rci.realtime import pin_to_cpus  # noqa: E402
@@ -89,9 +88,7 @@ def hold_program(s: Session, conv: Conversions):
         q = conv.counts_to_angles(s.how.pos)
         if "q" not in hold:
             hold["q"] = q
-            hold["counts"] = conv.angles_to_counts_int(q)
-        for j, c in enumerate(hold["counts"]):
-            s.chg.motion[j].issue(POS, int(c))
+        conv.command_positions(s.chg, hold["q"])
     return f1
 
 

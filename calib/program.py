@@ -17,7 +17,6 @@ from calib.exceptions import CalibError
 from calib.experiments import ACCEL, MeasurementPlan
 from calib.paths import Path, PathSegment
 from rci import codes
-from rci.chg import POS
 from rci.conversions import Conversions
 from rci.exceptions import RCIError
 from rci.recorder import Recorder
@@ -73,9 +72,7 @@ def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, n
 
 def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
     """POS commands for every joint: the angles ``q`` (rad) in whole encoder counts."""
-    counts = conv.angles_to_counts_int(q)
-    for i in range(len(counts)):
-        session.chg.motion[i].issue(POS, int(counts[i]))
+    conv.command_positions(session.chg, q)
 
 
 def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma260", rate_hz: int = 36,

@@ -25,7 +25,6 @@ from typing import Iterator
 
 import numpy as np
 
-from rci.chg import POS
 from rci.conversions import Conversions
 from models import load_robot
 from rci.session import Session
@@ -48,8 +47,7 @@ class Servo:
             self.goal, self.command = q.copy(), q.copy()
         step = self.speed / self.s.rate_hz
         self.command = self.command + np.clip(self.goal - self.command, -step, step)
-        for j, count in enumerate(self.conv.angles_to_counts_int(self.command)):
-            self.s.chg.motion[j].issue(POS, int(count))
+        self.conv.command_positions(self.s.chg, self.command)
 
     def angles(self) -> np.ndarray:
         return self.conv.counts_to_angles(self.s.how.pos)

@@ -39,7 +39,7 @@ import threading
 import time
 from typing import Any
 
-from .adaptive.conditional import choose
+from .conditional import choose
 from .ending import MotionEnd
 from .exceptions import MotionError, RCCLError
 from .motion import Request

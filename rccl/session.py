@@ -137,10 +137,7 @@ class Arm(Planner):
         if not how.power:            # the brakes hold the arm: follow them, end any motion
             gen.follow_unpowered(self.conv.counts_to_angles(np.asarray(how.pos, dtype=float)))
         q = gen.step()
-        counts = self.conv.angles_to_counts_int(q)
-        motion = chg.motion
-        for i in range(6):
-            motion[i].issue(chgmod.POS, int(counts[i]))
+        self.conv.command_positions(chg, q)
         if self.trace is not None:
             self.trace.append((gen.t, q, self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))))
 

@@ -166,6 +166,16 @@ class Conversions:
         """Encoder counts rounded to the nearest integer (int64), as ``chg`` POS values need."""
         return np.rint(self.angles_to_counts(q)).astype(np.int64)
 
+    def command_positions(self, chg, q: np.ndarray) -> None:
+        """POS commands for every joint of ``chg`` (an ``rci.chg.Chg``): the angles ``q`` (rad;
+        m on prismatic joints) in whole encoder counts. The one place a program turns a joint
+        vector into position commands."""
+        from .chg import POS
+
+        motion = chg.motion
+        for i, c in enumerate(self.angles_to_counts_int(q).tolist()):
+            motion[i].issue(POS, c)
+
     def rounding_step(self) -> np.ndarray:
         """Most (rad / m, per joint) by which rounding positions to whole counts can lengthen a step.
 

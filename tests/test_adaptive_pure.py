@@ -280,7 +280,7 @@ def test_interpolate_and_step_scale():
 
 
 def test_conditional_matching():
-    from rccl.adaptive.conditional import Conditional, choose
+    from rccl.conditional import Conditional, choose
     from rccl.ending import MotionEnd
 
     end = MotionEnd("limit", "fz", 12.0, 10.0)
@@ -289,7 +289,8 @@ def test_conditional_matching():
     assert choose([Conditional("monitor", "A")], end) is None
     assert choose([Conditional(lambda e: e.value > 11, "D")], end).request == "D"
     assert Conditional("7", "E").matches(MotionEnd("monitor", "m", code=7))
-    with pytest.raises(SpecError):
+    from rccl.exceptions import BadRequest
+    with pytest.raises(BadRequest, match="cond: the condition must be a string"):
         Conditional(3, "F")
 
 

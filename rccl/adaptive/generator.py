@@ -21,7 +21,7 @@ from ..exceptions import MotionError
 from ..motion import Request
 from ..queue import MotionQueue
 from ..trajectory import TrajectoryGenerator
-from .conditional import choose
+from ..conditional import choose
 from .functional import FunctionalUpdater
 
 

@@ -80,7 +80,7 @@ class AdaptiveArm(Arm):
 
         from ..motion import Request
         from ..position import Position
-        from .conditional import Conditional
+        from ..conditional import Conditional
         from .exceptions import SpecError
 
         if self.last is None:

@@ -1,5 +1,8 @@
 """Conditional motion requests (thesis 5.6.1, Figure 5.5 (b)): a "pruned tree" of motions chosen by how one ends.
 
+Used by the adaptive generator (rccl.adaptive, which attaches them with ``cond``) and by
+event flag triples (rccl.events), so it stands beside both.
+
 A motion request may carry conditional requests, each with a condition on its
 ``MotionEnd``. When the motion ends early and a condition matches, the trajectory level
 (without waiting for the planning level) deletes every request still queued, finishing
@@ -14,8 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from ..ending import MotionEnd
-from .exceptions import SpecError
+from .ending import MotionEnd
+from .exceptions import BadRequest
 
 
 @dataclass
@@ -27,7 +30,7 @@ class Conditional:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.when, str) or callable(self.when)):
-            raise SpecError(f"cond: the condition must be a string or a function of the MotionEnd, got {self.when!r}")
+            raise BadRequest(f"cond: the condition must be a string or a function of the MotionEnd, got {self.when!r}")
 
     def matches(self, end: MotionEnd) -> bool:
         if callable(self.when):
