@@ -137,7 +137,7 @@ def _cli(argv: list[str]) -> int:
 
 def _end_time(arm, req) -> float:
     """Trajectory time (s) at which ``req`` finished (recorded by the adaptive generator)."""
-    return float(req.hooks["finished_t"])
+    return float(req.finished_t)
 
 
 if __name__ == "__main__":

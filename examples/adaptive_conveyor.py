@@ -85,7 +85,7 @@ def tracking_error(arm, track) -> tuple[np.ndarray, np.ndarray]:
     pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))
     pd = pm.createData()
     fid = pm.getFrameId("link6")
-    t_end = track.hooks["finished_t"]
+    t_end = track.finished_t
     ts, err = [], []
     last, turns = None, 0
     for (t, _, _, q, _), adc in zip(arm.adaptive_trace, arm.adc_trace):

@@ -101,7 +101,7 @@ def plot(arm, reqs, t_settled, out: Path | None = None) -> Path:
 
     out = out or Path(__file__).resolve().parent.parent / "reports" / "adaptive-edge.png"
     t, p, f = world(arm)
-    end = reqs["slide"].hooks.get("ended")
+    end = reqs["slide"].ended
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     a1.plot(t, 1000 * p[:, 2], label="probe z (mm)")
     a1.plot(t, 1000 * p[:, 0] - 100, label="probe x - 100 (mm)")
@@ -130,7 +130,7 @@ def _cli(argv: list[str]) -> int:
     args = example_args(__doc__, argv, plot=True)
 
     arm, reqs, t_settled = run_main(main, args.url, *ENV)
-    end = reqs["slide"].hooks.get("ended")
+    end = reqs["slide"].ended
     print("slide:", "completed (no slip seen)" if end is None else f"ended by {end}")
     print("force-servoed joint(s) used:", sorted({j + 1 for x in arm.adaptive_trace for j in x[4]}))
     t, p, f = world(arm)

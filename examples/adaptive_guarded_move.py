@@ -53,7 +53,7 @@ def _cli(argv: list[str]) -> int:
     args = example_args(__doc__, argv, plot=False)
 
     arm, r_down, _ = run_main(main, args.url, *ENV)
-    end = r_down.hooks.get("ended")
+    end = r_down.ended
     print("down motion:", "completed (no contact?)" if end is None else f"ended by {end}")
     return 0 if end is not None else 1
 

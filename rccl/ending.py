@@ -1,7 +1,7 @@
 """Why a motion ended early (thesis 5.4.1, 5.4.2, 5.6.1, 5.6.3): the record a request carries after it finishes.
 
 The trajectory generator's ``abort(end)`` ends the running motion and stores ``end`` in
-the request's ``hooks["ended"]``: a limit or a monitor (``rccl.adaptive``), a stop flag or
+the request's ``ended``: a limit or a monitor (``rccl.adaptive``), a stop flag or
 ``stop_abort`` (``rccl.events``).
 """
 from __future__ import annotations

@@ -21,7 +21,7 @@ arms start (or, with ``stop_ev``, stop) together. Conditional motions (5.6.1, ar
 ``rccl.adaptive.open``) inherit the EFT of the nominal motion they replace.
 
 Works on arms from ``rccl.open`` and ``rccl.adaptive.open``: the stop flag is the request's
-per-sample watch (``hooks["watch"]``), which the trajectory generator calls once per sample
+per-sample watch (``watch``), which the trajectory generator calls once per sample
 and which ends the motion through the generator's early exit (``abort``), as a limit or a
 monitor does on an adaptive arm. Misuse is refused at once: an object that is not a live EFT
 (``UnknownEvent``), a wait or a chain of start conditions that can never be satisfied
@@ -53,8 +53,8 @@ START = 1          # the default start code, set by move_ev unless postponed
 DONE = -1          # the motion ended naturally (set by the trajectory level)
 FAULT = -2         # the trajectory level refused or stopped it (an error: see the request's .error)
 ABORTED = -3       # stop_abort flushed it, or a conditional motion replaced it (5.6.1)
-LIMIT = -4         # a force or deviation limit ended it (5.4.1; request.hooks["ended"] says which)
-MONITOR = -5       # a monitor function ended it (5.4.2; its code is in request.hooks["ended"])
+LIMIT = -4         # a force or deviation limit ended it (5.4.1; request.ended says which)
+MONITOR = -5       # a monitor function ended it (5.4.2; its code is in request.ended)
 _RESERVED_NAMES = {NULL: "NULL", START: "START", DONE: "DONE", FAULT: "FAULT", ABORTED: "ABORTED",
                    LIMIT: "LIMIT", MONITOR: "MONITOR"}
 
@@ -142,7 +142,7 @@ def _check_live(eft: Any, where: str) -> EFT:
 
 class _StopWatch:
     """The stop flag, looked at by the arm's trajectory generator once per sample while the motion
-    runs (the request's ``hooks["watch"]``): a stop code ends the motion in that sample."""
+    runs (the request's ``watch``): a stop code ends the motion in that sample."""
 
     def __init__(self, eft: EFT) -> None:
         self.eft = eft
@@ -175,7 +175,7 @@ class EventGate(QueuePolicy):
             _bind(eft, item)
 
     def admit(self, head: Request):
-        eft = head.hooks.get("eft")
+        eft = head.eft
         if eft is None:
             return TAKE
         if eft._stop != NULL:            # rule 3: stopped before it started: delete it
@@ -186,7 +186,7 @@ class EventGate(QueuePolicy):
         return TAKE
 
     def taken(self, item: Request) -> None:
-        eft = item.hooks.get("eft")
+        eft = item.eft
         if eft is not None:
             with _lock:
                 eft._status = eft._start     # the motion begins: start code -> status
@@ -203,8 +203,8 @@ EventQueue = EventGate    # the name this policy had when it was a queue subclas
 
 def _bind(eft: EFT, req: Request) -> None:
     """Attach ``eft`` to ``req``: the stop watch, the completion callback."""
-    req.hooks["eft"] = eft
-    req.hooks["watch"] = _StopWatch(eft)
+    req.eft = eft
+    req.watch = _StopWatch(eft)
     req.on_finish(lambda r: _finished(eft, r))
 
 
@@ -432,17 +432,17 @@ def _finished(eft: EFT, req: Request) -> None:
     with _lock:
         if eft.request is not req:
             return
-        dropper = req.hooks.get("dropped_by")
+        dropper = req.dropped_by
         ae = next((a for a in _arms.values() if a.name == eft.arm), None)
         if dropper is not None and ae is not None and ae.gate.cleared_head is req and eft._stop == NULL:
-            branch = choose(dropper.hooks.get("conditional", []), dropper.hooks.get("ended"))
+            branch = choose(dropper.conditional, dropper.ended)
             if branch is not None:          # 5.6.3: the conditional motion inherits the nominal motion's EFT
                 eft.request = branch.request
                 _bind(eft, branch.request)
                 _changed.notify_all()
                 return
         if eft._stop == NULL:
-            ended = req.hooks.get("ended")
+            ended = req.ended
             if req.error is None and ended is not None and ended.reason in ("limit", "monitor"):
                 eft._stop = LIMIT if ended.reason == "limit" else MONITOR
             elif req.error is None:

@@ -22,7 +22,7 @@ re-solved every sample, so a moving target re-plans from the arm's present state
 
 Each move starts and ends at rest (zero velocity and acceleration at every corner): this
 mode does not blend through corners as the quartic transitions do. ``abort(end)`` (or a
-request's ``hooks["watch"]``) ends the running move at once: Ruckig's velocity interface
+request's ``watch``) ends the running move at once: Ruckig's velocity interface
 brings the arm to rest with the same jerk and acceleration limits, and the next queued
 request then starts from there.
 
@@ -201,7 +201,7 @@ class JerkLimitedGenerator:
             mv = self.move
             end = self._abort
             if end is None and mv is not None:
-                watch = mv.req.hooks.get("watch")
+                watch = mv.req.watch
                 if watch is not None:
                     end = watch(self)
             if end is not None:
@@ -311,7 +311,8 @@ class JerkLimitedGenerator:
             q = self.kin.ik(x @ mv.tool_inv, mv.config, self.q, mv.where)
         if result == Result.Finished and not mv.finished:
             mv.finished = True
-            mv.req.hooks.setdefault("finished_t", self.t + self.dt)
+            if mv.req.finished_t is None:
+                mv.req.finished_t = self.t + self.dt
             mv.req.finish()
         if mv.finished and mv.static:
             self.move = None       # holding still at a fixed point: nothing more to compute
@@ -351,8 +352,8 @@ class JerkLimitedGenerator:
         self._braking = True
         self.move = None
         req = mv.req
-        req.hooks["ended"] = end
-        req.hooks["finished_t"] = self.t
+        req.ended = end
+        req.finished_t = self.t
         self.ended.append((req, end))
         req.finish()
 

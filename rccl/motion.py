@@ -2,9 +2,10 @@
 
 ``MotionParams`` holds what the planning level has set so far; ``move()`` copies it into a
 ``Request`` together with the destination position and a snapshot of its ``hold``
-transforms, and queues it. Fields for the adaptive features of 5.4 (limit, evalfn, comply)
-and the conditional requests of 5.6.1 live in ``hooks`` so they can be added without
-changing this record.
+transforms, and queues it. What plugs into a request is a typed field of it: the
+per-sample ``watch`` (event flags' stop), the ``eft`` it belongs to, the ``limit`` and
+``monitor`` of 5.4, the ``conditional`` branches of 5.6.1; the trajectory level records
+how it ``ended`` and when (``finished_t``).
 """
 from __future__ import annotations
 
@@ -67,7 +68,19 @@ class Request:
     params: MotionParams
     serial: int = 0
     repeat: bool = False          # an internal repetition of the last request (the arm holds)
-    hooks: dict = field(default_factory=dict)   # 5.4/5.6 features: limit, evalfn, comply, cond, watch (a per-sample check)
+    # -- how it ends (set by the trajectory level) -----------------------------------------
+    ended: Any = None             # rccl.ending.MotionEnd: why it ended early (None: it completed)
+    finished_t: float | None = None   # trajectory time its outgoing transition ended (s)
+    # -- what plugs into it (typed: the trajectory level, rccl.events and rccl.adaptive) ---
+    watch: Callable[[], Any] | None = None   # called once per sample while it runs; a MotionEnd ends it
+    eft: Any = None               # the event flag triple it belongs to (rccl.events)
+    limit: Any = None             # a force/deviation limit for it (rccl.adaptive.limit.Limit, 5.4.1)
+    monitor: Any = None           # a monitor function for it (rccl.adaptive.monitor.Monitor, 5.4.2)
+    conditional: list = field(default_factory=list)   # rccl.conditional.Conditional branches (5.6.1)
+    is_conditional: bool = False  # it is itself a conditional branch (the tree stays pruned)
+    chosen: "Request | None" = None        # the branch that followed it, when one did
+    dropped_by: "Request | None" = None    # the request whose branch dropped it from the queue
+    has_functional: bool | None = None     # cache: does its equation hold a functional transform
     status: str = "queued"        # queued -> running -> done | failed
     error: BaseException | None = None
     profile: Any = None           # the planning level's path check (corner, results), reused if still valid

@@ -32,9 +32,9 @@ looks at the queue every sample, so a request queued then (or let through by the
 policy, e.g. an event flag's start code) starts within one sample.
 
 Early exit: ``abort(end)`` (a limit or monitor in ``rccl.adaptive``, ``stop_abort`` in
-``rccl.events``) or a request's ``hooks["watch"]`` (called once per sample while the
+``rccl.events``) or a request's ``watch`` (called once per sample while the
 request runs, e.g. an event flag's stop flag) ends the running motion at once: the
-request finishes with ``hooks["ended"] = end`` and the arm leaves its path along the
+request finishes with ``ended = end`` and the arm leaves its path along the
 straight joint-space continuation of its present position and velocity, which the
 ordinary quartic transition brings to the next queued request, or to rest.
 
@@ -155,7 +155,7 @@ class TrajectoryGenerator:
             return self.q
         end = self._abort
         if end is None:
-            watch = self.seg.req.hooks.get("watch")
+            watch = self.seg.req.watch
             if watch is not None:
                 end = watch(self)
         if end is not None:
@@ -166,7 +166,8 @@ class TrajectoryGenerator:
             tr = self.trans
             if tr is not None and t >= tr.t_start + 2.0 * tr.tau:
                 tr.prev.req.finish()
-                tr.prev.req.hooks.setdefault("finished_t", t)    # when its outgoing transition ended (s)
+                if tr.prev.req.finished_t is None:          # when its outgoing transition ended (s)
+                    tr.prev.req.finished_t = t
                 self.trans = None
             seg = self.seg
             tr = self.trans
@@ -331,7 +332,7 @@ class TrajectoryGenerator:
 
     # -- early exit (thesis 5.4.1, 5.4.2, 5.6.3) -------------------------------------------
     def abort(self, end: MotionEnd) -> None:
-        """End the running motion at the next ``step`` (any thread), recording ``end`` in its hooks."""
+        """End the running motion at the next ``step`` (any thread), recording ``end`` as its ``ended``."""
         self._abort = end
 
     def _velocity(self) -> np.ndarray:
@@ -351,8 +352,8 @@ class TrajectoryGenerator:
         stop_req = Request(stop, stop.snapshot(), MotionParams(mode="joint"), repeat=True, status="running")
         self.seg = self._continuation(stop_req, v, tau, seg)
         if not req.repeat and req.status == "running":
-            req.hooks["ended"] = end
-            req.hooks["finished_t"] = self.t
+            req.ended = end
+            req.finished_t = self.t
             self.ended.append((req, end))
             req.finish()
             self._ended_early(req, end)

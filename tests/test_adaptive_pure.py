@@ -376,7 +376,7 @@ def test_control_fast_path_matches_the_reference_force_estimate_and_condition():
     target[0, 3] += 0.03
     seen = []
     gen.queue.pending["limit"] = Limit.parse("fz", 1e6)
-    gen.queue.pending["evalfn"] = Monitor(lambda s: seen.append(s) and None, ("force",))
+    gen.queue.pending["monitor"] = Monitor(lambda s: seen.append(s) and None, ("force",))
     arm.setmod("cartesian")
     arm.move(makeposition("P", T6, tool, EQ, Trsf("X", target), TL, tool))
     est = ForceEstimator(kin, MODEL)

@@ -34,10 +34,10 @@ def test_guarded_move_stops_within_two_samples_of_contact_force_passing_the_limi
 
     with environment_simula(*g.ENV) as sim:
         arm, r_down, r_up = g.main(sim.url)
-    end = r_down.hooks.get("ended")
+    end = r_down.ended
     assert end is not None and end.reason == "limit" and end.what == "fz"
     assert end.value > g.LIMIT_N
-    assert r_down.status == "done" and r_up.status == "done" and r_up.hooks.get("ended") is None
+    assert r_down.status == "done" and r_up.status == "done" and r_up.ended is None
     tr = arm.adaptive_trace
     q_meas = np.array([x[3] for x in tr])
     q_cmd = np.array([x[2] for x in tr])
@@ -61,9 +61,9 @@ def test_compliant_edge_following_holds_the_force_and_a_deviation_limit_catches_
 
     with environment_simula(*g.ENV) as sim:
         arm, reqs, t_settled = g.main(sim.url)
-    end = reqs["slide"].hooks.get("ended")
+    end = reqs["slide"].ended
     assert end is not None and (end.reason, end.what) == ("limit", "dz")
-    assert reqs["home"].status == "done" and reqs["home"].hooks.get("ended") is None
+    assert reqs["home"].status == "done" and reqs["home"].ended is None
     tr = arm.adaptive_trace
     t = np.array([x[0] for x in tr])
     q_meas = np.array([x[3] for x in tr])
@@ -101,8 +101,8 @@ def test_circle_tracing_reproduces_figure_5_3(tmp_path):
     with environment_simula() as sim:
         arm, fn, r_p0, r_stop, r_park = g.main(sim.url)
     assert all(r.status == "done" for r in (r_p0, r_stop, r_park))
-    t_a_end = r_p0.hooks["finished_t"]
-    t_b_end = r_stop.hooks["finished_t"]
+    t_a_end = r_p0.finished_t
+    t_b_end = r_stop.finished_t
     # called once per sample while p0's motions ran (twice as often if called per equation/segment)
     span = (t_b_end - (t_a_end - g.APPROACH_M / g.APPROACH_SPEED)) * 36
     assert span - 60 <= fn.calls <= span + 60, (fn.calls, span)
@@ -172,11 +172,11 @@ def test_evalfn_ends_a_motion_with_its_code_and_limits_hold_for_one_motion_only(
             arm.waitfor(r3)
             z_end_r1 = None
             for t, _, _, q, _ in arm.adaptive_trace:
-                if abs(t - r1.hooks["finished_t"]) < 1e-9:
+                if abs(t - r1.finished_t) < 1e-9:
                     z_end_r1 = arm.kinematics.fk(q)[2, 3]
-            end = r1.hooks["ended"]
+            end = r1.ended
             assert (end.reason, end.what, end.code) == ("monitor", "below", "deep enough")
-            assert "ended" not in r2.hooks and "ended" not in r3.hooks
+            assert r2.ended is None and r3.ended is None
             assert np.all(np.diff(seen) == 1)                  # every sample, once
             assert z_end_r1 is not None and z_end_r1 > low[2, 3] + 0.02   # it did not go all the way
             assert abs(arm.measured_q() - arm.kinematics.module.ik(low, arm.kinematics.config_of(arm.q), arm.q)).max() < 1e-3
@@ -225,7 +225,7 @@ def test_conditional_motion_runs_on_contact_and_drops_the_rest_of_the_queue():
                 arm.cond("fz", pos["ASIDE"])              # the tree stays pruned
             arm.last = r_aside
             arm.waitfor(r_down)
-            assert r_down.hooks["ended"].what == "fz" and r_down.hooks["chosen"] is r_back
+            assert r_down.ended.what == "fz" and r_down.chosen is r_back
             arm.waitfor(r_back, timeout=30)
             assert r_aside.status == "failed" and "conditional motion to BACK" in str(r_aside.error)
             assert r_back.status == "done"

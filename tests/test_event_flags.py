@@ -113,11 +113,11 @@ def test_stop_flag_halts_a_running_motion_and_the_next_one_runs(arms):
     ev.wait_ev(a, started=True, timeout=10)
     ev.stop_ev(-5, a)
     assert ev.wait_ev(a, timeout=10) == -5
-    end = a.request.hooks["ended"]
+    end = a.request.ended
     assert (end.reason, end.what, end.code) == ("stop", "stop_ev", -5)
     assert ev.wait_ev(b, timeout=20) == DONE
     # it turned back well before reaching `far`
-    assert a.request.hooks["finished_t"] < 10.0
+    assert a.request.finished_t < 10.0
     np.testing.assert_allclose(puma.q, q0, atol=END_TOL)
     assert abs(q_far[0] - q0[0]) == pytest.approx(0.6)
 
@@ -142,12 +142,12 @@ def test_stop_ev_stops_two_arms_together(arms):
     # together: each arm's motion ends at the first sample of its own clock after the flag (in
     # lockstep an arm's samples are not wall-clock time: a loaded machine delays one simula
     # process or the other, which a wall-clock bound between the two arms would read as a fault)
-    assert 0 <= a.request.hooks["finished_t"] - t_a <= puma.gen.dt + 1e-9
-    assert 0 <= b.request.hooks["finished_t"] - t_b <= mic.gen.dt + 1e-9
+    assert 0 <= a.request.finished_t - t_a <= puma.gen.dt + 1e-9
+    assert 0 <= b.request.finished_t - t_b <= mic.gen.dt + 1e-9
     for arm, q0, q_far in ((puma, q0a, qa), (mic, q0b, qb)):   # each arm did move, and stopped short
         assert_arrived(arm, arm.q)
         assert 0.02 < abs(arm.measured_q()[0] - q0[0]) < abs(q_far[0] - q0[0]) - 0.1
-    assert a.request.hooks["finished_t"] < 10.0 and b.request.hooks["finished_t"] < 10.0   # halfway at most
+    assert a.request.finished_t < 10.0 and b.request.finished_t < 10.0   # halfway at most
     time.sleep(0.05)
     assert abs(puma.q[0] - qa[0]) > 0.2 and abs(mic.q[0] - qb[0]) > 0.2
 
@@ -276,9 +276,9 @@ def test_a_plain_arm_and_an_adaptive_arm_share_event_flags(sims):
             assert b.status == NULL
             ev.stop_ev(-9, a)                        # halts the plain arm's motion (its generator's watch)
             assert ev.wait_ev(a, timeout=10) == -9
-            end = a.request.hooks["ended"]
+            end = a.request.ended
             assert (end.reason, end.what, end.code) == ("stop", "stop_ev", -9)
-            assert a.request.hooks["finished_t"] < 10.0
+            assert a.request.finished_t < 10.0
             assert ev.wait_ev(b, timeout=20) == DONE           # a user's stop code still starts the follower
             assert b.start == START and b.t_started >= a.t_ended
             np.testing.assert_allclose(mic.q, qb, atol=END_TOL)
@@ -332,5 +332,5 @@ def test_a_users_monitor_still_ends_a_motion_that_has_an_eft(arms):
     puma.evalfn(lambda s: 42 if s.t > 1.0 else None)      # 5.4.2: ends the motion after 1 s
     a = ev.move_ev(puma, far)
     assert ev.wait_ev(a, timeout=10) == ev.MONITOR         # ended by its monitor, not naturally
-    end = a.request.hooks["ended"]
+    end = a.request.ended
     assert (end.reason, end.code) == ("monitor", 42) and end.t < 1.2

@@ -109,7 +109,7 @@ def test_stop_ev_ends_a_running_motion_in_the_next_sample_and_the_arm_comes_to_r
     k = left.gen.samples
     ev.stop_ev(-6, e)
     left.gen.step()
-    end = e.request.hooks["ended"]
+    end = e.request.ended
     assert (end.reason, end.what, end.code, end.sample) == ("stop", "stop_ev", -6, k)
     assert e.status == -6 and e.request.status == "done"
     rest(left)
@@ -187,11 +187,11 @@ def test_abort_and_watch_on_the_base_generator():
         fired.append(g.samples)
         return MotionEnd("stop", "test", code=-1, t=g.t, sample=g.samples) if g.samples >= 60 else None
 
-    req.hooks["watch"] = watch
+    req.watch = watch
     run(arm, samples=20)
     assert fired[0] == 50 and fired[-1] == 60           # called once per sample while it ran, not after
-    assert req.status == "done" and req.hooks["ended"].sample == 60
-    assert gen.ended == [(req, req.hooks["ended"])]
+    assert req.status == "done" and req.ended.sample == 60
+    assert gen.ended == [(req, req.ended)]
     q2 = arm.move(joint_position("back", KIN, Q0))      # the arm takes new motions after an early end
     rest(arm)
     assert q2.status == "done"

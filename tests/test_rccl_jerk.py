@@ -139,7 +139,7 @@ def test_abort_mid_motion_brakes_to_rest_and_next_move_runs(sim):
         assert moving > 1e-4                     # mid-motion
         arm.gen.abort(MotionEnd("test", "abort from the test"))
         arm.waitfor(req)
-        assert req.hooks["ended"].reason == "test"
+        assert req.ended.reason == "test"
         arm.rci.wait(5.0, until=lambda: not arm.gen.busy)
         n1 = len(arm.trace)
         arm.rci.wait(5.0, until=lambda: len(arm.trace) >= n1 + 3)   # a few samples of holding

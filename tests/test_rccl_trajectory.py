@@ -189,7 +189,7 @@ def test_transition_listeners_see_every_transition_with_its_window_and_positions
     assert len(calls) == len(events)               # one before-call per transition
     for e in events:                               # 5.5.1: a window of 2 tau at 100 Hz (0.1 s each side)
         assert math.isclose(e.t_end - e.t_start, 0.2, abs_tol=1e-9)
-    assert events[1].t_start < r.hooks["finished_t"] and events[2].t_end == pytest.approx(r.hooks["finished_t"])
+    assert events[1].t_start < r.finished_t and events[2].t_end == pytest.approx(r.finished_t)
 
 
 def test_empty_queue_holds_and_stop_time_dwells():

@@ -108,14 +108,13 @@ class AdaptiveControl:
             hist.popleft()
         seg = gen.seg
         req = seg.req
-        hooks = req.hooks
-        lim: Limit | None = hooks.get("limit")
-        mon: Monitor | None = hooks.get("evalfn")
+        lim: Limit | None = req.limit
+        mon: Monitor | None = req.monitor
         c = self.compliance
         comply = bool(c.forces) or c.offset.any()
-        functional = hooks.get("has_functional")
+        functional = req.has_functional
         if functional is None:      # once per request: whether its position has a functional transform
-            functional = hooks["has_functional"] = any(t.kind == "functional" for t in req.position.transforms())
+            functional = req.has_functional = any(t.kind == "functional" for t in req.position.transforms())
         running = req.status == "running" and not req.repeat
         if not (comply or functional or (running and (lim is not None or mon is not None))):
             gen.jac6 = self._jac6 = gen.jac6_inv = self._jac6_inv = None

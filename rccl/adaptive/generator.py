@@ -1,11 +1,11 @@
 """The trajectory generator with RCCL's adaptive hooks (thesis 5.4, 5.4.5, 5.6.1, E.2): a subclass, not a rewrite.
 
 ``AdaptiveGenerator`` adds to ``rccl.trajectory.TrajectoryGenerator`` (which already ends a
-motion early on ``abort(end)`` or a request's ``hooks["watch"]``):
+motion early on ``abort(end)`` or a request's ``watch``):
 
 * functional transforms called once per sample across the segments in play, with the
   change per sample limited through the Jacobian (``functional.FunctionalUpdater``);
-* conditional motions (5.6.1): a request ended early whose ``hooks["conditional"]`` has a
+* conditional motions (5.6.1): a request ended early whose ``conditional`` has a
   branch matching its end runs that branch next and drops the rest of the queue;
 * Figure 5.4: when a segment whose destination was modified during the motion (a
   functional or variable transform) ends, the transition starts from the arm's actual
@@ -18,11 +18,16 @@ import numpy as np
 
 from ..ending import MotionEnd
 from ..exceptions import MotionError
+from .exceptions import SpecError
 from ..motion import Request
 from ..queue import MotionQueue
 from ..trajectory import TrajectoryGenerator
 from ..conditional import choose
 from .functional import FunctionalUpdater
+
+
+#: the Request fields an adaptive setting made before ``move`` may fill in (5.4.1, 5.4.2)
+PENDING_FIELDS = ("limit", "monitor")
 
 
 class HookQueue(MotionQueue):
@@ -34,7 +39,10 @@ class HookQueue(MotionQueue):
 
     def put(self, item) -> None:
         if self.pending:
-            item.hooks.update(self.pending)
+            for name, value in self.pending.items():
+                if name not in PENDING_FIELDS:
+                    raise SpecError(f"adaptive setting {name!r} is not one of {PENDING_FIELDS}")
+                setattr(item, name, value)
             self.pending = {}
         super().put(item)
 
@@ -51,13 +59,13 @@ class AdaptiveGenerator(TrajectoryGenerator):
 
     # -- 5.6.1: what follows a motion ended early ------------------------------------------
     def _ended_early(self, req: Request, end: MotionEnd) -> None:
-        branch = choose(req.hooks.get("conditional", []), end)
+        branch = choose(req.conditional, end)
         if branch is not None:   # 5.6.1: the pruned tree; everything else queued is dropped
             for dropped in self.queue.clear():
-                dropped.hooks["dropped_by"] = req
+                dropped.dropped_by = req
                 dropped.finish(MotionError(f"{dropped.position.name}: not run, the conditional motion to "
                                            f"{branch.request.position.name} was chosen ({end})"))
-            req.hooks["chosen"] = branch.request
+            req.chosen = branch.request
             MotionQueue.put(self.queue, branch.request)
 
     # -- hooks into the base generator ----------------------------------------------------

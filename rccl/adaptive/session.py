@@ -8,7 +8,7 @@ primitives of 5.4::
     arm.comply("fz", -8.0)            # from now on push 8 N along -z of the tool, complying
     arm.lock("fz")                    # stop complying along z
     arm.cond("fz", p_up)              # 5.6.1: if the last move ends on its fz limit, go to p_up instead
-    req = arm.move(p); arm.waitfor(req); req.hooks.get("ended")   # why it ended (None: it completed)
+    req = arm.move(p); arm.waitfor(req); req.ended   # why it ended (None: it completed)
 
 Its control function reads ``how`` (encoder counts and motor-current ADC values), runs
 ``AdaptiveControl`` around the ``AdaptiveGenerator``'s step, and issues POS for the
@@ -58,7 +58,7 @@ class AdaptiveArm(Arm):
     def evalfn(self, fn: Callable, needs: tuple[str, ...] = ()) -> Monitor:
         """Run ``fn(sample)`` every sample of the next motion; a true return value ends it (5.4.2)."""
         mon = Monitor(fn, tuple(needs))
-        self._pending()["evalfn"] = mon
+        self._pending()["monitor"] = mon
         return mon
 
     def comply(self, spec: str, *values: float) -> None:
@@ -87,14 +87,14 @@ class AdaptiveArm(Arm):
             raise SpecError("cond: no motion to attach a conditional motion to (call move first)")
         if not isinstance(position, Position):
             raise SpecError(f"cond: {position!r} is not a position")
-        if self.last.hooks.get("is_conditional"):
+        if self.last.is_conditional:
             raise SpecError("cond: a conditional motion cannot have conditional motions of its own (5.6.1)")
         if self.last.status not in ("queued", "running"):
             raise SpecError(f"cond: the motion to {self.last.position.name} has already ended")
         req = Request(position, position.snapshot(), _replace(self.params), next(self._serial))
-        req.hooks["is_conditional"] = True
+        req.is_conditional = True
         position.end.expect()
-        self.last.hooks.setdefault("conditional", []).append(Conditional(when, req))
+        self.last.conditional.append(Conditional(when, req))
         return req
 
     def _pending(self) -> dict:
