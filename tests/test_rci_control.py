@@ -239,7 +239,9 @@ def test_late_limit_is_configurable_and_checked(rt_robot):
             if state["n"] == 5:
                 time.sleep(0.03)
         t = run_until_terminated(s, lambda: s.control(None, f2))
-    assert t.number == codes.R_OVERRUN and "(limit 1)" in t.detail
+    # the first late cycle ends it: the user's sleep at cycle 5 (R_OVERRUN), or on a loaded machine
+    # an earlier cycle the control thread was not scheduled in time for (R_CHGLATE); either way limit 1
+    assert t.number in (codes.R_OVERRUN, codes.R_CHGLATE) and "(limit 1)" in t.detail and t.cycle <= 6
     assert Session(rt_robot.url).late_limit_for(1000) == 20 and Session(rt_robot.url).late_limit_for(36) == 3
     for bad in (0, -2, 1.5, True, "3"):
         with pytest.raises(ValueError, match="late_limit"):

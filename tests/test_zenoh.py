@@ -28,6 +28,7 @@ from rci.zenoh_bus import ZenohAddress, ZenohLinkError
 
 ROOT = Path(__file__).resolve().parent.parent
 WAIT = 10.0
+WATCHDOG_S = 0.25
 
 
 def _free_port() -> int:
@@ -141,7 +142,7 @@ CONTROLLER = textwrap.dedent("""
     from rci.chg import CUR
     from rci.conversions import Conversions
     from rci.session import Session
-    s = Session(sys.argv[1], "puma260", rate_hz=100, on_error="raise", signals=False, lock_memory=False)
+    s = Session(sys.argv[1], "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False)
     conv = Conversions.for_robot("puma260")
     s.open()
     last = []
@@ -150,7 +151,7 @@ CONTROLLER = textwrap.dedent("""
         # turns it negatively): it keeps moving
         # until the robot holds it
         q = conv.counts_to_angles(s.how.pos)[0]
-        v = (q - last[0]) * 100 if last else 0.0
+        v = (q - last[0]) * 50 if last else 0.0
         last[:] = [q]
         s.chg.motion[0].issue(CUR, int(np.clip(-70 - 1000 * (0.2 - v), -2000, 2000)))
     s.control(f1)
@@ -183,15 +184,18 @@ def _held_after(sim: SimulaProcess, cause, seconds: float = 0.5) -> tuple[dict, 
 
 @pytest.mark.parametrize("how", ["killed", "stopped"])
 def test_the_controller_gone_or_frozen_leaves_the_arm_held(how):
-    """A controller process killed (Zenoh drops its liveliness token at once) or stopped
-    (the robot's watchdog): the control ends and joint 1, driven in current mode, holds."""
-    with _simula(lockstep=False) as sim:
+    """A controller process killed (its Zenoh session closes with it) or stopped (the
+    robot's watchdog): the control ends and joint 1, driven in current mode, holds."""
+    # a watchdog of 0.25 s (not simula's 0.1 s): on a loaded machine the bus's latency tails
+    # must not end the control before the fault does
+    with _simula("--watchdog-time", str(WATCHDOG_S), lockstep=False) as sim:
         proc = _controller(sim.url)
         try:
             q0 = sim.command("state")["state"]["q"][0]
-            time.sleep(0.3)
-            moving = sim.command("state")["state"]
-            assert moving["mode"][0] == "cur" and abs(moving["q"][0] - q0) > 0.02     # ~0.2 rad/s
+            deadline = time.monotonic() + WAIT
+            while abs((moving := sim.command("state")["state"])["q"][0] - q0) < 0.02:   # ~0.2 rad/s
+                assert moving["mode"][0] == "cur" and time.monotonic() < deadline, moving["mode"]
+                time.sleep(0.02)
             sig = signal.SIGKILL if how == "killed" else signal.SIGSTOP
             state, drift, took = _held_after(sim, lambda: os.kill(proc.pid, sig))
         finally:
@@ -201,8 +205,8 @@ def test_the_controller_gone_or_frozen_leaves_the_arm_held(how):
         print(f"{how}: control ended {1e3 * took:.1f} ms after the fault, joint 1 moved {np.degrees(drift):.4f} deg after")
         assert drift < np.radians(0.2)
         # killed: the controller's Zenoh session closes with the process (its TCP link is
-        # torn down by the kernel); stopped: the robot's watchdog (0.1 s without a CHG)
-        assert took < (0.1 if how == "killed" else 0.1 + 0.1)
+        # torn down by the kernel); stopped: the robot's watchdog (WATCHDOG_S without a CHG)
+        assert took < (0.1 if how == "killed" else WATCHDOG_S + 0.1)
         ended = sim.command("events")["events"]
         assert ended, "the robot remembers no control ending"
 
