@@ -423,16 +423,16 @@ class Workcell:
             if self.sync == "lockstep" and names and set(names) != {n for n, s in self.sessions.items()
                                                                      if s.in_control}:
                 raise MultiError("release(): a lockstep workcell releases all its arms together (call release())")
+            asked = {}
             for n in targets:
                 task = self.sessions[n].control_task
                 if task is not None and not task.ended:
                     task.request_release(power_off)       # all at once, then wait for each
+                    asked[n] = task
             if self._barrier is not None:
                 self._barrier.abort()
-            for n in targets:
-                s = self.sessions[n]
-                if s.in_control:
-                    s.release(power_off)
+            for n, task in asked.items():                 # a task may end at once: no second check
+                self.sessions[n].finish_release(task)
             self._forget_threads()
             self._flush()
 

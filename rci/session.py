@@ -325,9 +325,15 @@ class Session:
             if task is None or task.ended:
                 raise NoControl("release(): no control is in progress")
             task.request_release(power_off)
-            task.finished.wait(max(1.0, 4 * self.timeout_for(task.period)))
-            if not task.ended:           # thread stuck in a user function: release around it
-                task.send_release()
+            self.finish_release(task)
+
+    def finish_release(self, task: ControlTask) -> None:
+        """Wait for ``task`` to end after its release was requested; if its thread is stuck in a
+        user function, send the release around it. Used by :meth:`release` and by a workcell,
+        which asks all its arms first and then waits for each."""
+        task.finished.wait(max(1.0, 4 * self.timeout_for(task.period)))
+        if not task.ended:
+            task.send_release()
 
     def close(self, power_off: bool = False) -> None:
         """RCIclose: release any control (power off if asked), say BYE, close the link."""

@@ -83,14 +83,24 @@ def test_chg_in_the_busy_wait_before_the_tick_is_in_time(running):
     srv, link, trace = running
     empty = protocol.encode_chg(Chg())
     f, over0 = _how(link)
-    for _ in range(4):
+    in_busy_wait = 0
+    for _ in range(40):
         # half-way through the busy-wait: the old loop did not read the socket there
         tick = _next_tick(srv)
         _sleep_until(tick - SPIN / 2)
-        assert tick - time.monotonic() > 0.005, "test thread too late to say anything"
+        if tick - time.monotonic() < 0.005:
+            # on a loaded machine the test thread woke too late to land in the busy-wait: this
+            # cycle tests nothing, answer it in time anyway and try the next one
+            link.send(protocol.CHG, f.seq, empty)
+            f, over0 = _how(link)
+            continue
         link.send(protocol.CHG, f.seq, empty)
         f, over = _how(link)
-    assert over == over0
+        assert over == over0, "a CHG sent in the busy-wait before the tick was counted late"
+        in_busy_wait += 1
+        if in_busy_wait == 4:
+            break
+    assert in_busy_wait == 4, f"only {in_busy_wait} of 40 cycles reached the busy-wait in time"
 
 
 def test_chg_after_the_tick_counts_as_late(running):
