@@ -26,7 +26,7 @@ import rccl.viewer
 from rccl import EQ, T6, TL, gentr_rot, gentr_trsl, makeposition, yunit
 
 # the table: a block beside the arm whose top is 0.15 m below the shoulder (the base frame's origin)
-TABLE = "box:x0=0.16,x1=0.42,y0=-0.30,y1=0.14,z0=-0.395,z1=-0.15"
+TABLE = "box:x0=0.16,x1=0.36,y0=-0.25,y1=0.08,z0=-0.395,z1=-0.15"
 TIP = 0.18                     # m, the gripper's tip beyond link 6 (models/urdf/puma260.urdf: its box ends there)
 HEIGHT = -0.13                 # m, the tip's height: 2 cm above the table
 CORNERS = [(0.30, -0.18), (0.30, 0.02), (0.20, 0.02), (0.20, -0.18)]
@@ -42,7 +42,9 @@ def square():
 
 def run(url: str, env: list[str], *, port: int, pause: float, delay: float, screenshot: str | None) -> None:
     p1, p2, p3, p4 = square()
-    with rccl.open(url, robot="puma260", timeout=2.0) as arm:
+    # overrun="count": a cycle made late by a busy machine (a browser drawing in software beside the
+    # real-time simula) holds the arm one period; the demo counts it instead of ending the control
+    with rccl.open(url, robot="puma260", timeout=2.0, overrun="count") as arm:
         view = rccl.viewer.show(arm, env=env, port=port, quiet=True)
         print(f"view {view.url}", flush=True)
         if delay > 0 and not screenshot:
@@ -90,7 +92,9 @@ def main(argv: list[str] | None = None) -> int:
     from rci.simula.process import SimulaProcess
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        with SimulaProcess("-p", "--power-on", *[f"--env={e}" for e in env], lockstep=False) as sim:
+        # --watchdog-time 0.5: like overrun="count" in run(), room for a machine busy drawing in software
+        with SimulaProcess("-p", "--power-on", "--watchdog-time", "0.5", *[f"--env={e}" for e in env],
+                           lockstep=False) as sim:
             run(sim.url, env, port=a.port, pause=pause, delay=a.delay, screenshot=a.screenshot)
     return 0
 

@@ -137,7 +137,10 @@ class PlanReader:
         if running is not None:
             target = running.position.solve(running.snap) @ _tool(running)
             msg["target"] = np.round(target, 6).tolist()
-            what = "holding at" if running.repeat or running.serial <= 0 else "moving to"
+            if running.repeat or running.serial <= 0 or getattr(running.profile, "stationary", False):
+                what = "at"                   # holding, or a stop(): a move to where the arm already is
+            else:
+                what = "moving to"
             state = f"{what} {running.position.name} ({running.mode})"
         else:
             state = "holding"

@@ -18,9 +18,17 @@ write them to a pipe; viser's asyncio server, its message encoding and the scene
 bookkeeping run in the child, where they cannot hold this interpreter's lock while a
 tick is due. When the child is slow the writing thread blocks in ``write`` (which does
 not hold the lock) and the next snapshot simply replaces the missed ones; when the child
-is gone (the browser tab does not matter, only the child) the thread ends quietly. The
-child, the sampling thread, and the child's scheduling are never real-time: the thread
-and the child drop any SCHED_FIFO policy they would inherit.
+is gone (the browser tab does not matter, only the child) the thread ends quietly.
+
+Scheduling: the sampling thread holds the interpreter lock for some tens of
+microseconds per wake-up. Were it an ordinary thread, a busy machine (a browser drawing
+in software, other programs) could preempt it in that window, and a real-time thread
+waiting for the lock would wait as long as the scheduler keeps it off the CPU (a
+priority inversion). So the thread asks for SCHED_FIFO at ``priority`` 1, the lowest
+real-time priority: no ordinary process preempts it while it holds the lock, and every
+real-time thread (simula's loop at 70, RCI's control task at 80) still comes first.
+Without the privilege it stays an ordinary thread, as everything else in the process
+then is. The child is never real-time: it drops any policy it would inherit.
 
 The child ends when its stdin closes (``feed.close()``, or the parent's exit), so it
 never outlives the program it shows.
@@ -47,11 +55,25 @@ class ViewError(RuntimeError):
     """The view's process did not start (viser missing, a bad robot or environment word)."""
 
 
+FEED_PRIORITY = 1            # SCHED_FIFO priority of the sampling thread (see the module docstring)
+
+
 def _not_realtime() -> None:
     """Drop a SCHED_FIFO/RR policy inherited from a real-time process (this thread only; quietly)."""
     try:
         if os.sched_getscheduler(0) != os.SCHED_OTHER:
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (AttributeError, OSError):
+        pass
+
+
+def _lowest_realtime(priority: int) -> None:
+    """This thread to SCHED_FIFO ``priority`` (0: an ordinary thread); quietly unchanged where not allowed."""
+    if priority <= 0:
+        _not_realtime()
+        return
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (AttributeError, OSError):
         pass
 
@@ -112,15 +134,17 @@ class ViewFeed:
                 return False
         return True
 
-    def follow(self, sample: Callable[[], dict | None], hz: float = DEFAULT_HZ) -> None:
-        """Call ``sample()`` ``hz`` times a second from a daemon thread and send what it returns (None: nothing)."""
+    def follow(self, sample: Callable[[], dict | None], hz: float = DEFAULT_HZ,
+               priority: int = FEED_PRIORITY) -> None:
+        """Call ``sample()`` ``hz`` times a second from a daemon thread and send what changed in what it
+        returns (None: nothing); the thread runs at SCHED_FIFO ``priority`` where allowed (0: never)."""
         if self._thread is not None:
             raise RuntimeError("this view already follows a sample function")
         period = 1.0 / float(hz)
         sent: dict[str, str] = {}        # the last value sent of each key (JSON): only changes go out
 
         def run() -> None:
-            _not_realtime()
+            _lowest_realtime(priority)
             next_t = time.monotonic()
             while not self._stop.is_set():
                 try:

@@ -36,7 +36,7 @@ import numpy as np
 from models import load_robot
 
 # the view's palette (RGB 0-255): the base dark, the arm orange, the wrist grey
-BASE_COLOR = (88, 94, 106)
+BASE_COLOR = (120, 128, 142)
 ARM_COLOR = (232, 116, 30)
 WRIST_COLOR = (150, 154, 160)
 SURFACE_COLOR = (70, 130, 200)
@@ -46,8 +46,8 @@ SECTION_COLOR = (150, 150, 150)
 ROD_RADIUS = 0.02          # m, the rod drawn for a link without visual geometry
 REACH_MARGIN = 0.25        # m, how far past the arm's reach an unbounded surface is drawn
 TARGET_AXES = 0.08         # m, length of the target frame's axes
-CAMERA_DIRECTION = np.array([0.35, -1.5, 0.8])   # from what it looks at: from -y (x to the right), above
-CAMERA_DISTANCE = 1.35     # times the size (diagonal) of what it frames
+CAMERA_DIRECTION = np.array([0.75, -1.4, 0.75])  # from what it looks at: from -y and +x, above
+CAMERA_DISTANCE = 1.2      # times the size (diagonal) of what it frames
 CAMERA_FOV_DEG = 45.0
 WRIST_JOINTS = 3           # the last three joints are the wrist (both arms of the project)
 INSTALL_HINT = "the 3D view needs viser and yourdfpy: pip install 'rcci[view]'"

@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"simula: {exc}", file=sys.stderr)
         return 2
     view = None
-    if args.view:   # before the real-time set-up: the view's thread and process must not inherit SCHED_FIFO
+    if args.view:   # before the real-time set-up: the view's process must not inherit SCHED_FIFO 70
         from ..view_feed import ViewError
         from .view import start_view
         try:

@@ -5,7 +5,7 @@ and a thread that, 30 times a second, copies the arm's joint angles, its clock a
 power into one message for it. The thread only reads: ``arm.q`` is replaced by a fresh
 array at every physics substep (never written in place), so the reference it takes is a
 consistent snapshot of one instant; simula's loop neither waits for the view nor knows
-it is there. The environment's surfaces (``--env``) are drawn as they were given.
+it is there (the thread's scheduling: rci/view_feed.py). The environment's surfaces (``--env``) are drawn as they were given.
 """
 from __future__ import annotations
 
