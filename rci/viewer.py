@@ -5,7 +5,7 @@
 
 * the arm from ``models/urdf/<robot>.urdf``: each link's visual geometry (boxes,
   cylinders, spheres; meshes through trimesh), or, for a link the URDF gives no visual,
-  a rod from its origin to each child joint; coloured by place in the chain (dark base,
+  a rod from its origin to each child joint; coloured by place in the chain (grey base,
   orange arm, grey wrist) so that every link stands out against the grid;
 * a ground grid at the foot of the arm, and a camera that looks at the arm;
 * the environment surfaces simula knows (``--env plane:z=...``, ``box:...``, the words of
