@@ -91,6 +91,11 @@ class MotionQueue(Generic[T]):
         with self._lock:
             return self._items[0] if self._items else None
 
+    def snapshot(self) -> list[T]:
+        """The requests waiting, oldest first (a copy: for viewers and diagnostics, any thread)."""
+        with self._lock:
+            return list(self._items)
+
     def clear(self) -> list[T]:
         """Remove and return every queued request (used when a fault stops the arm)."""
         with self._lock:

@@ -9,7 +9,9 @@ Usage (see docs/simula.md)::
 stdout line 1 is the link address for ``rci.link.open_link`` (``socket://host:port`` or
 the pty device path); line 2 is ``control socket://host:port`` (the control channel: state,
 events, ping; the commands that act on the arm only with ``--test-channel``) unless
-``--no-control``. With ``-v`` the joint angles follow, once per simulated second.
+``--no-control``. With ``--view`` the next line is ``view http://127.0.0.1:PORT``: the arm
+live in a browser (``rci.simula.view``; docs/viewer.md). With ``-v`` the joint angles
+follow, once per simulated second.
 """
 from __future__ import annotations
 
@@ -76,6 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="real time: SCHED_FIFO priority (0: leave the scheduler alone); falls back quietly")
     p.add_argument("--warm", action="store_true", help="start with warmed-up joints (no cold friction excess)")
     p.add_argument("--power-on", action="store_true", help="start with arm power on")
+    p.add_argument("--view", action="store_true",
+                   help="show the arm live in a web browser (3D, with the --env surfaces): prints "
+                        "'view http://127.0.0.1:PORT' after the control line (needs pip install 'rcci[view]')")
+    p.add_argument("--view-port", type=int, default=8080,
+                   help="the view's HTTP port (default 8080; 0: any free one; a busy one: the next free)")
     return p
 
 
@@ -127,9 +134,21 @@ def main(argv: list[str] | None = None) -> int:
     except (ModelError, SimulaError, ValueError, OSError) as exc:
         print(f"simula: {exc}", file=sys.stderr)
         return 2
+    view = None
+    if args.view:   # before the real-time set-up: the view's process must not inherit SCHED_FIFO 70
+        from ..view_feed import ViewError
+        from .view import start_view
+        try:
+            view = start_view(arm, model.name, args.env, port=args.view_port)
+        except (ViewError, OSError) as exc:
+            print(f"simula: --view: {exc}", file=sys.stderr)
+            server.close()
+            return 2
     print(url, flush=True)
     if control is not None:
         print(f"control {control.url}", flush=True)
+    if view is not None:
+        print(f"view {view.url}", flush=True)
     mode = "lockstep" if args.lockstep else "real time"
     server.log(f"{model.name} {args.start or 'uncalibrated'}, {mode}, seed {args.seed}, truth from {truth.source}")
 
@@ -146,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         server.close()
+        if view is not None:
+            view.close()
     return 0
 
 
