@@ -100,9 +100,9 @@ def run(mode: str, cycles: int, seed: int = 0) -> dict:
             if len(arm.queue) < 2:
                 for p in positions:
                     if mode == "force-limit":
-                        gen.queue.pending["limit"] = Limit.parse("fx fy fz mx my mz", 1e6, 1e6, 1e6, 1e6, 1e6, 1e6)
+                        gen.queue.pending.append(Limit.parse("fx fy fz mx my mz", 1e6, 1e6, 1e6, 1e6, 1e6, 1e6))
                     elif mode == "comply":
-                        gen.queue.pending["limit"] = Limit.parse("dx dy dz", 1.0, 1.0, 1.0)
+                        gen.queue.pending.append(Limit.parse("dx dy dz", 1.0, 1.0, 1.0))
                     arm.move(p)
             # the how of this cycle (not timed): the arm where it was commanded, motor currents for gravity
             q = gen.q + rng.normal(0.0, 1e-4, 6)

@@ -3,8 +3,8 @@
 ``MotionParams`` holds what the planning level has set so far; ``move()`` copies it into a
 ``Request`` together with the destination position and a snapshot of its ``hold``
 transforms, and queues it. What plugs into a request is a typed field of it: the
-per-sample ``watch`` (event flags' stop), the ``eft`` it belongs to, the ``limit`` and
-``monitor`` of 5.4, the ``conditional`` branches of 5.6.1; the trajectory level records
+per-sample ``watch`` (event flags' stop), the ``eft`` it belongs to, the motion ``checks``
+of 5.4 (limits, monitors), the ``conditional`` branches of 5.6.1; the trajectory level records
 how it ``ended`` and when (``finished_t``).
 """
 from __future__ import annotations
@@ -74,8 +74,7 @@ class Request:
     # -- what plugs into it (typed: the trajectory level, rccl.events and rccl.adaptive) ---
     watch: Callable[[], Any] | None = None   # called once per sample while it runs; a MotionEnd ends it
     eft: Any = None               # the event flag triple it belongs to (rccl.events)
-    limit: Any = None             # a force/deviation limit for it (rccl.adaptive.limit.Limit, 5.4.1)
-    monitor: Any = None           # a monitor function for it (rccl.adaptive.monitor.Monitor, 5.4.2)
+    checks: list = field(default_factory=list)   # rccl.adaptive.check.MotionCheck: limits (5.4.1), monitors (5.4.2), ...
     conditional: list = field(default_factory=list)   # rccl.conditional.Conditional branches (5.6.1)
     is_conditional: bool = False  # it is itself a conditional branch (the tree stays pruned)
     chosen: "Request | None" = None        # the branch that followed it, when one did

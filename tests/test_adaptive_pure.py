@@ -375,8 +375,8 @@ def test_control_fast_path_matches_the_reference_force_estimate_and_condition():
     target = kin.fk(q0) @ TOOL
     target[0, 3] += 0.03
     seen = []
-    gen.queue.pending["limit"] = Limit.parse("fz", 1e6)
-    gen.queue.pending["monitor"] = Monitor(lambda s: seen.append(s) and None, ("force",))
+    gen.queue.pending.append(Limit.parse("fz", 1e6))
+    gen.queue.pending.append(Monitor(lambda s: seen.append(s) and None, ("force",)))
     arm.setmod("cartesian")
     arm.move(makeposition("P", T6, tool, EQ, Trsf("X", target), TL, tool))
     est = ForceEstimator(kin, MODEL)
@@ -393,3 +393,58 @@ def test_control_fast_path_matches_the_reference_force_estimate_and_condition():
     j = kin.jacobian6(seen[-1].q)
     assert ctl.condition == pytest.approx(float(np.linalg.norm(j, 1) * np.linalg.norm(np.linalg.inv(j), 1)))
     assert condition_1(j, np.linalg.inv(j)) == pytest.approx(ctl.condition)
+
+
+class WaistPast:
+    """A motion check of the test's own (not one of the thesis's): ends the motion once joint 1 passes an angle."""
+
+    estimates = frozenset()
+
+    def __init__(self, angle: float) -> None:
+        self.angle = angle
+        self.seen: list[Sample] = []
+
+    def ends(self, s: Sample):
+        from rccl.ending import MotionEnd
+        self.seen.append(s)
+        if s.q[0] > self.angle:
+            return MotionEnd("monitor", "waist past", code=7, t=s.t, sample=s.sample)
+        return None
+
+
+def test_a_new_motion_check_plugs_in_through_the_protocol_alone():
+    """A class with ``estimates`` and ``ends`` is attached to the next motion and ends it; nothing
+    it did not ask for is estimated; objects that are not checks are refused by name."""
+    from rccl.adaptive.check import MotionCheck, as_check
+    from rccl.adaptive.control import AdaptiveControl
+    from rccl.adaptive.generator import AdaptiveGenerator
+    from rccl.limits import load_limits
+    from rccl.planner import Planner
+    from rccl.session import load_kinematics
+
+    k = load_kinematics("puma260")
+    q0 = np.radians([10.0, 80.0, -170.0, 10.0, -60.0, 5.0])
+    gen = AdaptiveGenerator(k, load_limits("puma260"), 1 / 36, q0)
+    ctl = AdaptiveControl(k.module, MODEL)
+    arm = Planner(k, load_limits("puma260"), gen)
+    check = WaistPast(q0[0] + math.radians(5.0))
+    assert isinstance(check, MotionCheck)
+    gen.queue.pending.append(check)
+    req = arm.move(makeposition("P", T6, EQ, Trsf("X", kin.fk(q0 + np.radians([20.0, 0, 0, 0, 0, 0]))), TL, T6))
+    for _ in range(36 * 5):
+        ctl.before(gen, gen.q.copy(), np.zeros(6), np.zeros(6))
+        gen.step()
+        if req.status in ("done", "failed"):
+            break
+    assert req.checks == [check]
+    assert req.ended is not None and req.ended.what == "waist past" and req.ended.code == 7
+    assert check.seen[-1].q[0] > check.angle >= check.seen[-2].q[0]       # ended on the first sample past
+    assert all(s.torque is None and s.force is None and s.deviation is None for s in check.seen)
+    with pytest.raises(SpecError, match="not a motion check"):
+        as_check(object(), "add_check()")
+
+    class Greedy(WaistPast):
+        estimates = frozenset({"jerk"})
+
+    with pytest.raises(SpecError, match=r"Greedy.estimates has \['jerk'\]"):
+        as_check(Greedy(0.0), "add_check()")

@@ -2,8 +2,9 @@
 
 ``AdaptiveControl.before(gen, q, qd, v_adc)`` runs before the generator's step: it
 estimates what the running motion needs (Jacobian at the measured joints, net joint
-torques 4.37, tool-frame force 4.56, tool-frame deviation E.2), checks the motion's limit
-and monitor and asks the generator to end the motion if one fires, and lets the comply
+torques 4.37, tool-frame force 4.56, tool-frame deviation E.2), runs the motion's checks
+(``rccl.adaptive.check.MotionCheck``: limits, monitors) and asks the generator to end the
+motion on the first verdict, and lets the comply
 transform absorb the deviation along the compliant axes. ``after(q_nominal)`` turns the
 generator's joint angles into the command: the comply transform added (E.6) and, for the
 joints chosen to force-servo the compliant directions, a DAC value (4.38) in current mode.
@@ -24,8 +25,7 @@ from .deviation import ToolMaps
 from .exceptions import ForceEstimateError
 from .force import ForceEstimator, JointModel, condition_1, gravity_vector
 from .generator import AdaptiveGenerator
-from .limit import Limit
-from .monitor import Monitor, Sample
+from .check import Sample, estimates_of
 from .stiction import Dither
 
 # estimate: keep the force-servoed joint unless another does 1.5x better, so a joint does not
@@ -65,7 +65,9 @@ class AdaptiveControl:
         self.model = model
         self.estimator = ForceEstimator(kin, model)
         self.compliance = Compliance()
-        self.last: Sample | None = None          # what the monitor saw last (read-out for programs)
+        self.last: Sample | None = None          # what the motion checks saw last (read-out for programs)
+        self._checked = None                     # the request whose checks' estimates are in _needs
+        self._needs: frozenset[str] = frozenset()
         self._jac6: np.ndarray | None = None
         self._jac6_inv: np.ndarray | None = None
         self._q = None
@@ -108,22 +110,24 @@ class AdaptiveControl:
             hist.popleft()
         seg = gen.seg
         req = seg.req
-        lim: Limit | None = req.limit
-        mon: Monitor | None = req.monitor
         c = self.compliance
         comply = bool(c.forces) or c.offset.any()
         functional = req.has_functional
         if functional is None:      # once per request: whether its position has a functional transform
             functional = req.has_functional = any(t.kind == "functional" for t in req.position.transforms())
         running = req.status == "running" and not req.repeat
-        if not (comply or functional or (running and (lim is not None or mon is not None))):
+        checks = req.checks if running else ()
+        if not (comply or functional or checks):
             gen.jac6 = self._jac6 = gen.jac6_inv = self._jac6_inv = None
             gen.jac6_cond = None
             return
+        if req is not self._checked:            # once per request: what its checks need estimated
+            self._checked, self._needs = req, estimates_of(req.checks)
+        needs = self._needs if checks else frozenset()
         q = np.ascontiguousarray(q, dtype=float)
         jac6 = self.kin.jacobian6(q, out=self._J)
         gen.jac6 = self._jac6 = jac6
-        want_force = (running and ((lim is not None and lim.needs_force) or (mon is not None and "force" in mon.needs)))
+        want_force = "force" in needs
         jinv = None
         if comply or functional or want_force:     # one inverse per sample: E.8, the comply law, 4.56
             jinv = self._inverse(q, jac6)
@@ -132,9 +136,9 @@ class AdaptiveControl:
         gen.jac6_cond = self.condition if jinv is not None else None
         self._tool = seg.tool
         maps = self._maps.of(seg.tool)
-        want_dev = comply or (running and ((lim is not None and lim.needs_deviation) or (mon is not None and "deviation" in mon.needs)))
+        want_dev = comply or "deviation" in needs
         t_a = force = dev = None
-        if want_force or mon is not None:
+        if want_force or "torque" in needs:
             t_a = self.estimator.net_torques(q, qd, v_adc)
         if want_force:
             self.estimator.check_condition(q, self.condition if jinv is not None else np.inf)
@@ -148,15 +152,15 @@ class AdaptiveControl:
                 nominal = dev
                 dev = nominal - c.offset * c.free
                 c.absorb(nominal)
-        if not running:
+        if not checks:
             return
-        end = lim.check(force, dev, gen.t, gen.samples) if lim is not None else None
-        if end is None and mon is not None:
-            s = Sample(gen.t, gen.samples, q, qd, gen.q.copy(), t_a, force, dev, how)
-            self.last = s
-            end = mon(s)
-        if end is not None:
-            gen.abort(end)
+        s = Sample(gen.t, gen.samples, q, qd, gen.q.copy(), t_a, force, dev, how)
+        self.last = s
+        for check in checks:                         # in the order attached; the first verdict ends it
+            end = check.ends(s)
+            if end is not None:
+                gen.abort(end)
+                return
 
     def hold(self, q: np.ndarray) -> Command:
         """After a fault: every joint position servoed where it is (compliance off)."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..ending import MotionEnd
 from ..exceptions import MotionError
-from .exceptions import SpecError
+from .check import MotionCheck, as_check
 from ..motion import Request
 from ..queue import MotionQueue
 from ..trajectory import TrajectoryGenerator
@@ -26,24 +26,17 @@ from ..conditional import choose
 from .functional import FunctionalUpdater
 
 
-#: the Request fields an adaptive setting made before ``move`` may fill in (5.4.1, 5.4.2)
-PENDING_FIELDS = ("limit", "monitor")
-
-
 class HookQueue(MotionQueue):
-    """The motion queue, attaching the adaptive settings made since the last ``move`` to the next request."""
+    """The motion queue, attaching the motion checks made since the last ``move`` to the next request (5.4.1, 5.4.2)."""
 
     def __init__(self) -> None:
         super().__init__()
-        self.pending: dict = {}
+        self.pending: list[MotionCheck] = []
 
     def put(self, item) -> None:
         if self.pending:
-            for name, value in self.pending.items():
-                if name not in PENDING_FIELDS:
-                    raise SpecError(f"adaptive setting {name!r} is not one of {PENDING_FIELDS}")
-                setattr(item, name, value)
-            self.pending = {}
+            item.checks.extend(as_check(c, "a check for the next motion") for c in self.pending)
+            self.pending = []
         super().put(item)
 
 

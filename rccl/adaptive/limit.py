@@ -2,7 +2,8 @@
 
 A ``Limit`` holds tool-frame bounds on forces/torques (estimated from joint currents,
 4.37 + 4.56) and on the path deviation (E.2). ``check`` returns the first component whose
-magnitude exceeds its bound, as a ``MotionEnd``, or None. A limit belongs to one motion
+magnitude exceeds its bound, as a ``MotionEnd``, or None; it is a ``MotionCheck``
+(``rccl.adaptive.check``). A limit belongs to one motion
 request: the next one queued after ``limit()`` is called (5.4.1: "valid for the next
 motion only").
 """
@@ -14,6 +15,7 @@ import numpy as np
 
 from . import spec as specmod
 from ..ending import MotionEnd
+from .check import Sample
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,15 @@ class Limit:
     @property
     def needs_deviation(self) -> bool:
         return bool(self._dev_items)
+
+    @property
+    def estimates(self) -> frozenset[str]:
+        """MotionCheck: the tool-frame force if a force component is limited, the deviation if one is."""
+        return frozenset(({"force"} if self._force_items else set()) | ({"deviation"} if self._dev_items else set()))
+
+    def ends(self, s: Sample) -> MotionEnd | None:
+        """MotionCheck: the first exceeded component of this sample, or None."""
+        return self.check(s.force, s.deviation, s.t, s.sample)
 
     def check(self, force: np.ndarray | None, dev: np.ndarray | None, t: float = 0.0,
               sample: int = 0) -> MotionEnd | None:

@@ -1,7 +1,7 @@
 """Motion termination by a programmer-defined monitor function (thesis 5.4.2): ``evalfn(monitor)``.
 
-The function is called once per sample, at the control level, during the motion it was
-attached to, with a ``Sample`` record. It returns a false value (None, False, 0) to let
+A ``MotionCheck`` (``rccl.adaptive.check``): the function is called once per sample, at the
+control level, during the motion it was attached to, with a ``Sample`` record. It returns a false value (None, False, 0) to let
 the motion go on, or any other value, its *termination code*, to end the motion now; the
 code is recorded in the motion's ``MotionEnd``. Like every control-level function (2.2.3)
 it must be quick and must not block. An exception it raises, or a NaN code, is a
@@ -16,26 +16,10 @@ from typing import Any, Callable
 import numpy as np
 
 from ..ending import MotionEnd
+from .check import Sample
 from .exceptions import MonitorError
 
-
-@dataclass
-class Sample:
-    """What a monitor sees each sample (SI; tool-frame quantities in the motion's tool frame).
-
-    ``force`` and ``deviation`` are None unless this motion also has a limit or a
-    compliance that computes them, or the monitor was attached with ``needs=("force",)``.
-    """
-
-    t: float                     # trajectory time (s)
-    sample: int                  # generator sample count
-    q: np.ndarray                # measured joint angles (rad)
-    qd: np.ndarray               # measured joint velocities (rad/s)
-    q_command: np.ndarray        # last commanded (nominal) joint angles (rad)
-    torque: np.ndarray | None    # net joint torques t_a (4.37), N*m
-    force: np.ndarray | None     # tool-frame force/torque (N, N*m)
-    deviation: np.ndarray | None  # tool-frame deviation (m, rad)
-    how: Any = None              # the raw RCI how record
+__all__ = ["Monitor", "Sample"]
 
 
 @dataclass
@@ -55,6 +39,15 @@ class Monitor:
         bad = set(self.needs) - {"force", "deviation"}
         if bad:
             raise MonitorError(f"evalfn: needs {sorted(bad)} not among 'force', 'deviation'")
+
+    @property
+    def estimates(self) -> frozenset[str]:
+        """A monitor always sees the net joint torques; force and deviation if it asked (MotionCheck)."""
+        return frozenset({"torque", *self.needs})
+
+    def ends(self, s: Sample) -> MotionEnd | None:
+        """MotionCheck: the monitor's verdict on this sample."""
+        return self(s)
 
     def __call__(self, s: Sample) -> MotionEnd | None:
         """Run the function on ``s``; a MotionEnd if it returned a termination code."""

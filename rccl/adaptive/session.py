@@ -5,6 +5,7 @@ primitives of 5.4::
 
     arm.limit("fz dz", 10.0, 0.005)   # the next motion ends if |fz| > 10 N or |dz| > 5 mm (tool frame)
     arm.evalfn(monitor)               # monitor(sample) runs every sample of the next motion
+    arm.add_check(my_check)           # any rccl.adaptive.check.MotionCheck, for the next motion
     arm.comply("fz", -8.0)            # from now on push 8 N along -z of the tool, complying
     arm.lock("fz")                    # stop complying along z
     arm.cond("fz", p_up)              # 5.6.1: if the last move ends on its fz limit, go to p_up instead
@@ -25,6 +26,7 @@ from rci import codes
 
 from ..exceptions import MotionError, NotRunning
 from ..session import Arm
+from .check import MotionCheck, as_check
 from .control import AdaptiveControl
 from .force import JointModel
 from .generator import AdaptiveGenerator
@@ -52,14 +54,23 @@ class AdaptiveArm(Arm):
     def limit(self, spec: str, *values: float) -> Limit:
         """Force/torque or deviation limits (tool frame, SI) for the next motion only (5.4.1)."""
         lim = Limit.parse(spec, *values)
-        self._pending()["limit"] = lim
+        self._pending().append(lim)
         return lim
 
     def evalfn(self, fn: Callable, needs: tuple[str, ...] = ()) -> Monitor:
         """Run ``fn(sample)`` every sample of the next motion; a true return value ends it (5.4.2)."""
         mon = Monitor(fn, tuple(needs))
-        self._pending()["monitor"] = mon
+        self._pending().append(mon)
         return mon
+
+    def add_check(self, check: MotionCheck) -> MotionCheck:
+        """Attach any motion check (``rccl.adaptive.check.MotionCheck``) to the next motion only.
+
+        ``limit`` and ``evalfn`` are the thesis's two; several checks on one motion are all
+        run, in the order given, and the first to answer ends it.
+        """
+        self._pending().append(as_check(check, "add_check()"))
+        return check
 
     def comply(self, spec: str, *values: float) -> None:
         """Make tool-frame force/torque components compliant with these values (N, N*m) from now on (5.4.3)."""
@@ -97,7 +108,7 @@ class AdaptiveArm(Arm):
         self.last.conditional.append(Conditional(when, req))
         return req
 
-    def _pending(self) -> dict:
+    def _pending(self) -> list[MotionCheck]:
         if self.gen is None:
             raise NotRunning("RCCL is not running: use rccl.adaptive.open(...)")
         return self.gen.queue.pending
