@@ -51,6 +51,30 @@ class _PrevCycle:
         self.duration = self.user = self.send_delay = 0.0
 
 
+class _RobotClock:
+    """The robot's clock as the control task sees it: when HOW ``seq`` was due, and the
+    robot's overrun counter at the last HOW (the CHGs it got late or never since)."""
+
+    __slots__ = ("t_base", "seq_base", "robot_over0", "old_period")
+
+    def __init__(self) -> None:
+        self.t_base: float | None = None       # arrival time of the HOW the schedule counts from
+        self.seq_base = 0
+        self.robot_over0: int | None = None
+        self.old_period = 0.0                  # the period before a rate change, until the next HOW
+
+    def read(self, seq: int, t_arr: float, robot_overruns: int, period: float) -> tuple[float, int]:
+        """(lateness of this HOW in s, CHGs the robot got late or missed since the last HOW)."""
+        if self.t_base is None:
+            self.t_base, self.seq_base = t_arr, seq
+        if self.robot_over0 is None:
+            self.robot_over0 = robot_overruns
+        lateness = t_arr - (self.t_base + ((seq - self.seq_base) & 0xFFFFFFFF) * period)
+        robot_late = (robot_overruns - self.robot_over0) & 0xFFFFFFFF
+        self.robot_over0 = robot_overruns
+        return lateness, robot_late
+
+
 def _is_zero(value: object) -> bool:
     """True for a session.terminate that asks for nothing (0, the usual case)."""
     if value is False:
@@ -203,123 +227,34 @@ class ControlTask(threading.Thread):
                 return
 
     def _loop(self) -> None:
+        """The cycles: wait for a HOW, take it in, f1, answer with the CHG, f2, book-keep."""
         s = self.s
-        link = self.link
-        how = s.how
-        chg = s.chg
-        buf = self._how_buf
-        checker = s.checker
-        checker.reset()
+        s.checker.reset()
         timing = s.timing
         timing.reset()
         timing.late_limit = s.late_limit_for(s.rate_hz) if s.overrun == "error" else 0
-        recorder_get = lambda: s.recorder  # noqa: E731  (may be set or cleared while running)
-        first_timeout = s.start_timeout
+        clock = _RobotClock()
         prev = _PrevCycle()
         self.late_run = 0
         self.run_overran = False
         self.run_slowest = (0.0, 0.0)          # (duration, user time) of the slowest overrun of the run
-        t_base = None
-        seq_base = 0
-        robot_over0 = None
-        old_period = 0.0                       # the period before a rate change, until the next HOW
         while True:
             if self.ended:
                 return
             if self.release_requested:
                 self.send_release()
                 return
-            # the HOW that follows a rate change ends the cycle already running, at the old rate
-            timeout = first_timeout if not self.started.is_set() else s.timeout_for(max(self.period, old_period))
-            t_wait = time.monotonic()
-            try:
-                frame = link.recv(timeout)
-                while frame is None and not self.release_requested and not self.ended \
-                        and time.monotonic() - t_wait < timeout:   # a stray wake-up: keep waiting
-                    frame = link.recv(timeout - (time.monotonic() - t_wait))
-            except ChecksumError as e:
-                self.terminate(codes.make_code(codes.R_CHKSUM, codes.F_COMM | codes.F_SEVERE), str(e))
-                return
-            except LinkClosed as e:
-                self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE),
-                               f"link lost: {e}", link_ok=False)
-                return
-            except ProtocolError as e:
-                self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), str(e))
+            frame = self._receive(clock)
+            if frame is None:
                 return
             t_arr = time.monotonic()
-            if frame is None:
-                if self.release_requested:
-                    self.send_release()
-                    return
-                if self.ended:
-                    return
-                self.terminate(codes.make_code(codes.R_TIMEOUT, codes.F_COMM | codes.F_SEVERE),
-                               f"no HOW from the robot for {timeout:.3f} s")
-                return
-            if frame.type == protocol.ERROR:
-                code = codes.make_code(codes.R_ROBOT, codes.F_ROBOT | codes.F_SEVERE)
-                try:
-                    msg = protocol.ErrorMsg.decode(frame.payload)
-                    text = f"robot error {msg.code}: {msg.text}"
-                    code = codes.for_status(msg.code)
-                except ProtocolError as e:
-                    text = f"robot sent an unreadable ERROR frame ({e})"
-                self.terminate(code, text, link_ok=True)
-                return
-            if frame.type != protocol.HOW:
-                self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE),
-                               f"unexpected {frame.name} frame during control")
-                return
-            # --- read and check the incoming data -----------------------------------
             if self.seq is not None and frame.seq == self.seq:
                 timing.duplicates += 1          # the same HOW twice (the link repeated it): answered already
                 continue
-            self.cycle_start = t_arr
-            try:
-                self._seqcheck.check(frame.seq)
-            except SequenceGap as e:
-                self.seq = frame.seq
-                self.answered = False
-                timing.missed += (e.got - e.expected) & 0xFFFFFFFF
-                self.terminate(codes.make_code(codes.R_SEQGAP, codes.F_COMM | codes.F_SEVERE), str(e))
+            lateness = self._take_how(frame, t_arr, clock, prev)
+            if lateness is None:
                 return
-            self.seq = frame.seq
-            self.answered = False
-            old_period = 0.0
-            try:
-                protocol.decode_how(frame.payload, frame.seq, into=buf)
-                if buf.nj != s.nj:
-                    raise ProtocolError(f"HOW has {buf.nj} joints, session opened with {s.nj}")
-            except ProtocolError as e:
-                self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), f"bad HOW frame: {e}")
-                return
-            buf.received = t_arr
-            if buf.rate_hz and buf.rate_hz != round(1.0 / self.period):
-                self.period = 1.0 / buf.rate_hz     # the robot keeps the clock: follow its rate
-                s.rate_hz = buf.rate_hz
-                t_base = None
-            if t_base is None:
-                t_base, seq_base = t_arr, frame.seq
-            if robot_over0 is None:
-                robot_over0 = buf.robot_overruns
-            lateness = t_arr - (t_base + ((frame.seq - seq_base) & 0xFFFFFFFF) * self.period)
-            robot_late = (buf.robot_overruns - robot_over0) & 0xFFFFFFFF
-            robot_over0 = buf.robot_overruns
-            timing.missed += robot_late
-            if self._late(robot_late, prev, lateness):
-                return
-            try:
-                q = checker.check_how(buf, self.period)
-            except CheckFailed as f:
-                how.copy_from(buf)
-                self.terminate(f.code, f.detail)
-                return
-            how.copy_from(buf)
-            s.q = q
-            if not self.started.is_set():
-                self.started.set()
-            # --- user function 1 ----------------------------------------------------
+            # --- user function 1, the CHG, user function 2 -------------------------------
             t_user = 0.0
             if self.f1 is not None:
                 spent = self._call_user(self.f1, "f1")
@@ -328,34 +263,9 @@ class ControlTask(threading.Thread):
                 t_user += spent
             if not _is_zero(s.terminate) and self._user_terminate():
                 return
-            # --- check and send chg ------------------------------------------------
-            with chg.lock:
-                try:
-                    new_checking = checker.check_chg(chg, how, q, self.period)
-                    payload = protocol.encode_chg(chg)
-                except CheckFailed as f:
-                    self._discard_commands(chg)
-                    self.terminate(f.code, f.detail)
-                    return
-                except (ValueError, TypeError, AttributeError) as e:
-                    self._discard_commands(chg)
-                    self.terminate(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg: {e}")
-                    return
-                new_rate = rate_hz(int(round(float(chg.rate.value)))) if chg.rate.com else None
-                chg.clear()
-            checker.checking = new_checking
-            prev.send_delay = time.monotonic() - t_arr
-            try:
-                self._send_chg(frame.seq, payload)
-            except LinkClosed as e:
-                self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE),
-                               f"link lost: {e}", link_ok=False)
+            payload = self._answer(frame.seq, t_arr, clock, prev)
+            if payload is None:
                 return
-            if new_rate is not None and new_rate != s.rate_hz:
-                s.rate_hz = new_rate           # the HOW after next comes at the new rate (docs/protocol.md)
-                old_period, self.period = self.period, 1.0 / new_rate
-                t_base = None
-            # --- user function 2 ----------------------------------------------------
             if self.f2 is not None:
                 spent = self._call_user(self.f2, "f2")
                 if spent is None or self.ended:
@@ -363,18 +273,141 @@ class ControlTask(threading.Thread):
                 t_user += spent
             if not _is_zero(s.terminate) and self._user_terminate():
                 return
-            # --- bookkeeping -------------------------------------------------------
-            t_end = time.monotonic()
-            duration = t_end - t_arr
+            # --- bookkeeping ------------------------------------------------------------
+            duration = time.monotonic() - t_arr
             timing.add(t_arr, lateness, duration, t_user, self.period)
             self.cycles += 1
-            rec = recorder_get()
+            rec = s.recorder                   # may be set or cleared while running
             if rec is not None:
-                rec.append(how, payload, lateness, duration)
+                rec.append(s.how, payload, lateness, duration)
             prev.overran = duration > self.period
             prev.duration, prev.user = duration, t_user
             if prev.overran:
                 timing.overruns += 1
+
+    def _receive(self, clock: "_RobotClock"):
+        """Wait for the robot's next HOW frame; None if the control ended meanwhile (released,
+        or terminated here: a link fault, a timeout, the robot's ERROR, an unexpected frame)."""
+        s = self.s
+        # the HOW that follows a rate change ends the cycle already running, at the old rate
+        timeout = s.start_timeout if not self.started.is_set() else s.timeout_for(max(self.period, clock.old_period))
+        link_fault = codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE)
+        t_wait = time.monotonic()
+        try:
+            frame = self.link.recv(timeout)
+            while frame is None and not self.release_requested and not self.ended \
+                    and time.monotonic() - t_wait < timeout:   # a stray wake-up: keep waiting
+                frame = self.link.recv(timeout - (time.monotonic() - t_wait))
+        except ChecksumError as e:
+            self.terminate(codes.make_code(codes.R_CHKSUM, codes.F_COMM | codes.F_SEVERE), str(e))
+            return None
+        except LinkClosed as e:
+            self.terminate(link_fault, f"link lost: {e}", link_ok=False)
+            return None
+        except ProtocolError as e:
+            self.terminate(link_fault, str(e))
+            return None
+        if frame is None:
+            if self.release_requested:
+                self.send_release()
+            elif not self.ended:
+                self.terminate(codes.make_code(codes.R_TIMEOUT, codes.F_COMM | codes.F_SEVERE),
+                               f"no HOW from the robot for {timeout:.3f} s")
+            return None
+        if frame.type == protocol.ERROR:
+            code = codes.make_code(codes.R_ROBOT, codes.F_ROBOT | codes.F_SEVERE)
+            try:
+                msg = protocol.ErrorMsg.decode(frame.payload)
+                text = f"robot error {msg.code}: {msg.text}"
+                code = codes.for_status(msg.code)
+            except ProtocolError as e:
+                text = f"robot sent an unreadable ERROR frame ({e})"
+            self.terminate(code, text, link_ok=True)
+            return None
+        if frame.type != protocol.HOW:
+            self.terminate(link_fault, f"unexpected {frame.name} frame during control")
+            return None
+        return frame
+
+    def _take_how(self, frame, t_arr: float, clock: "_RobotClock", prev: "_PrevCycle") -> float | None:
+        """A new HOW: check its sequence, decode and check it into ``session.how``, follow the
+        robot's rate, apply the lateness policy. Its lateness (s) against the robot's clock, or
+        None if the control ended on it."""
+        s = self.s
+        buf = self._how_buf
+        self.cycle_start = t_arr
+        try:
+            self._seqcheck.check(frame.seq)
+        except SequenceGap as e:
+            self.seq = frame.seq
+            self.answered = False
+            s.timing.missed += (e.got - e.expected) & 0xFFFFFFFF
+            self.terminate(codes.make_code(codes.R_SEQGAP, codes.F_COMM | codes.F_SEVERE), str(e))
+            return None
+        self.seq = frame.seq
+        self.answered = False
+        clock.old_period = 0.0
+        try:
+            protocol.decode_how(frame.payload, frame.seq, into=buf)
+            if buf.nj != s.nj:
+                raise ProtocolError(f"HOW has {buf.nj} joints, session opened with {s.nj}")
+        except ProtocolError as e:
+            self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), f"bad HOW frame: {e}")
+            return None
+        buf.received = t_arr
+        if buf.rate_hz and buf.rate_hz != round(1.0 / self.period):
+            self.period = 1.0 / buf.rate_hz     # the robot keeps the clock: follow its rate
+            s.rate_hz = buf.rate_hz
+            clock.t_base = None
+        lateness, robot_late = clock.read(frame.seq, t_arr, buf.robot_overruns, self.period)
+        s.timing.missed += robot_late
+        if self._late(robot_late, prev, lateness):
+            return None
+        try:
+            q = s.checker.check_how(buf, self.period)
+        except CheckFailed as f:
+            s.how.copy_from(buf)
+            self.terminate(f.code, f.detail)
+            return None
+        s.how.copy_from(buf)
+        s.q = q
+        if not self.started.is_set():
+            self.started.set()
+        return lateness
+
+    def _answer(self, seq: int, t_arr: float, clock: "_RobotClock", prev: "_PrevCycle") -> bytes | None:
+        """Check ``session.chg``, send it as the CHG for HOW ``seq`` and clear its commands; take
+        a rate change into effect. The payload sent, or None if the control ended here."""
+        s = self.s
+        chg = s.chg
+        checker = s.checker
+        with chg.lock:
+            try:
+                new_checking = checker.check_chg(chg, s.how, s.q, self.period)
+                payload = protocol.encode_chg(chg)
+            except CheckFailed as f:
+                self._discard_commands(chg)
+                self.terminate(f.code, f.detail)
+                return None
+            except (ValueError, TypeError, AttributeError) as e:
+                self._discard_commands(chg)
+                self.terminate(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg: {e}")
+                return None
+            new_rate = rate_hz(int(round(float(chg.rate.value)))) if chg.rate.com else None
+            chg.clear()
+        checker.checking = new_checking
+        prev.send_delay = time.monotonic() - t_arr
+        try:
+            self._send_chg(seq, payload)
+        except LinkClosed as e:
+            self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE),
+                           f"link lost: {e}", link_ok=False)
+            return None
+        if new_rate is not None and new_rate != s.rate_hz:
+            s.rate_hz = new_rate           # the HOW after next comes at the new rate (docs/protocol.md)
+            clock.old_period, self.period = self.period, 1.0 / new_rate
+            clock.t_base = None
+        return payload
 
     @staticmethod
     def _discard_commands(chg: Chg) -> None:
