@@ -205,10 +205,10 @@ class Run:
 
 def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False, tc: Toolchain | None = None) -> Run:
     """Build (if needed) and run the comparison on configurations ``q`` (N x 6, rad and m)."""
-    exe = build(robot, tc)
     q = np.ascontiguousarray(q, dtype=float)
-    if q.ndim != 2 or q.shape[1] != 6:
-        raise ValueError(f"bench.cpp_pinocchio.run: q must be N x 6, got shape {q.shape}")
+    if q.ndim != 2 or q.shape[1] != 6 or len(q) == 0:
+        raise ValueError(f"bench.cpp_pinocchio.run: q must be N x 6 with N >= 1, got shape {q.shape}")
+    exe = build(robot, tc)
     tag = f"{robot}-{os.getpid()}"
     qf, cf, rf = (BUILD / f"{tag}.{x}.bin" for x in ("q", "c", "res"))
     q.tofile(qf)
@@ -281,6 +281,14 @@ def verdict(r: Run, op: str) -> str:
     parts = [f"one per call {'met' if one >= GOAL else f'not met ({one:.2g}x)'}",
              f"batched {'met' if rows >= GOAL else f'not met ({rows:.2g}x)'}"]
     return "; ".join(parts)
+
+
+def summary(r: Run) -> str:
+    """One robot's ratios for the goal's computations: one configuration per call / batched."""
+    def judged(x: float) -> str:
+        return f"{x:.2g}x ({'met' if x >= GOAL else 'not met'})"
+    return f"{r.robot} " + ", ".join(
+        f"{op} {judged(r.ratio(op, 'c_one'))} / {judged(r.ratio(op, 'c_rows'))}" for op in GOAL_OPS)
 
 
 def section(runs: list[Run], tc: Toolchain) -> list[str]:
