@@ -254,7 +254,7 @@ def random_q(robot: str, n: int, rng: np.random.Generator) -> np.ndarray:
     return rng.uniform(np.asarray(mod.LOWER), np.asarray(mod.UPPER), size=(n, 6))
 
 
-def measure(n: int = 20000, repeats: int = 7, n_check: int = 500, seed: int = 11) -> tuple[list[Run], Toolchain]:
+def measure(n: int = 10000, repeats: int = 25, n_check: int = 500, seed: int = 11) -> tuple[list[Run], Toolchain]:
     """Timings of every robot on ``n`` configurations, and agreement on ``n_check`` of them."""
     tc = toolchain()
     rng = np.random.default_rng(seed)
@@ -301,7 +301,8 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
          "`rccl/kinematics/_c/<robot>.c`, its kernels and batched loops as generated, without the CPython runtime), "
          "built by bench/cpp_pinocchio.py into build/bench/ and run once per robot; both sides run on the same "
          f"{n} random configurations (uniform over the joint ranges) in one process; each figure is the best of "
-         f"{reps} passes over them, in nanoseconds per configuration.", "",
+         f"{reps} rounds, a round running every timed pass over them once, in turn (so that both sides see the "
+         "same moments of the machine's load), in nanoseconds per configuration.", "",
          f"- {tc.describe()}; the wheel ships neither Eigen nor urdfdom-headers, which its headers include.",
          f"- Pinocchio: `{' '.join(['g++', *CXX_FLAGS])}` plus the wheel's CMake compile definitions, algorithms "
          "instantiated from the headers in the program, URDF read by `pinocchio::urdf::buildModel` "
@@ -340,8 +341,8 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=20000, help="configurations timed per robot")
-    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--n", type=int, default=10000, help="configurations timed per robot")
+    ap.add_argument("--repeats", type=int, default=25, help="rounds; each figure is the best round")
     args = ap.parse_args(argv)
     runs, tc = measure(args.n, args.repeats)
     print("\n".join(section(runs, tc)))

@@ -442,6 +442,7 @@ def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[in
           f"| closed form, C kernel, one configuration (time of the bare kernel call) | {us(ik['c_ik_call'])} | 100% | - | {ik['cf_pos']:.1e} | {ik['cf_rot']:.1e} |",
           f"| closed form, C kernel, all 8 (batched) | {us(ik[f'c_ik_all_{sizes[0]}'])} | | | | |",
           ""]
+    L += cpp or []
     path.write_text("\n".join(L) + "\n")
 
 

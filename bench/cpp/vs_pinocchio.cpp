@@ -6,7 +6,8 @@
 // URDF     the robot's URDF (models/urdf/<robot>.urdf), read by pinocchio::urdf::buildModel
 // Q.bin    N configurations, N x 6 doubles (rad, m), row-major, native byte order
 // C.bin    the gravity coefficients of the generated gravity kernel (doubles)
-// REPEATS  each timing is the best of this many passes over the N configurations
+// REPEATS  rounds: each timing is the best of its passes over the N configurations, one per
+//          round; a round runs every pass once, in turn
 // RESULTS  optional: per configuration, Pinocchio's then the kernel's T6 (16), 6J (36),
 //          4J (36) and gravity (6), row-major doubles, for the agreement test
 //
@@ -29,6 +30,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <string>
@@ -54,19 +56,27 @@ std::vector<double> read_doubles(const std::string &path)
     return v;
 }
 
-// Best seconds per configuration over `repeats` passes of `pass` (which runs all n).
-template <typename Pass>
-double best_per_config(int repeats, long n, Pass pass)
+// One timed pass over all N configurations: what is computed and by whom.
+struct Pass {
+    const char *what;
+    const char *who;
+    std::function<void()> run;
+};
+
+// Best seconds per configuration of every pass over `repeats` rounds; a round runs every
+// pass once, in turn (after one warm-up round: caches, branch predictors, first touch).
+std::vector<double> best_per_config(int repeats, long n, const std::vector<Pass> &passes)
 {
-    double best = std::numeric_limits<double>::infinity();
-    pass();  // warm: caches, branch predictors, first-touch of outputs
-    for (int r = 0; r < repeats; ++r) {
-        const auto t0 = Clock::now();
-        pass();
-        const std::chrono::duration<double> dt = Clock::now() - t0;
-        best = std::min(best, dt.count());
-    }
-    return best / double(n);
+    std::vector<double> best(passes.size(), std::numeric_limits<double>::infinity());
+    for (const Pass &p : passes) p.run();
+    for (int r = 0; r < repeats; ++r)
+        for (std::size_t i = 0; i < passes.size(); ++i) {
+            const auto t0 = Clock::now();
+            passes[i].run();
+            const std::chrono::duration<double> dt = Clock::now() - t0;
+            best[i] = std::min(best[i], dt.count() / double(n));
+        }
+    return best;
 }
 
 // The link-4 Jacobian from Pinocchio's frame-6 one (rows v then omega, as Paul's 6J).
@@ -118,81 +128,84 @@ int main(int argc, char **argv)
         std::vector<double> out(std::size_t(n) * 36);
         double row[36];
 
-        auto report = [](const char *what, const char *who, double seconds) {
-            std::printf("%s %s %.6g\n", what, who, seconds * 1e9);
-        };
-
+        // Every pass of every side, then the best of `repeats` rounds, each round running them
+        // all in turn: both sides see the same moments of a loaded machine.
+        std::vector<Pass> passes;
         // ---- FK
-        report("fk", "pinocchio", best_per_config(repeats, n, [&] {
+        passes.push_back({"fk", "pinocchio", [&] {
                    for (long i = 0; i < n; ++i) {
                        pinocchio::forwardKinematics(model, data, qi(i));
                        sink += pinocchio::updateFramePlacement(model, data, f6).translation()[0];
                    }
-               }));
-        report("fk", "c_one", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"fk", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
                        rccl_fk_one(q.data() + 6 * i, row);
                        sink += row[3];
                    }
-               }));
-        report("fk", "c_rows", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"fk", "c_rows", [&] {
                    rccl_fk_rows(n, q.data(), out.data());
                    sink += out[3];
-               }));
+               }});
 
         // ---- 6J
-        report("jacobian6", "pinocchio", best_per_config(repeats, n, [&] {
+        passes.push_back({"jacobian6", "pinocchio", [&] {
                    for (long i = 0; i < n; ++i) {
                        pinocchio::computeFrameJacobian(model, data, qi(i), f6, pinocchio::LOCAL, j6);
                        sink += j6(0, 0);
                    }
-               }));
-        report("jacobian6", "c_one", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"jacobian6", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
                        rccl_jacobian6_one(q.data() + 6 * i, row);
                        sink += row[0];
                    }
-               }));
-        report("jacobian6", "c_rows", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"jacobian6", "c_rows", [&] {
                    rccl_jacobian6_rows(n, q.data(), out.data());
                    sink += out[0];
-               }));
+               }});
 
         // ---- 4J
-        report("jacobian4", "pinocchio", best_per_config(repeats, n, [&] {
+        passes.push_back({"jacobian4", "pinocchio", [&] {
                    for (long i = 0; i < n; ++i) {
                        pinocchio::computeFrameJacobian(model, data, qi(i), f6, pinocchio::LOCAL, j6);
                        pinocchio::updateFramePlacement(model, data, f4);
                        pinocchio::updateFramePlacement(model, data, f6);
                        sink += jacobian4_from(data, f4, f6, j6)(0, 0);
                    }
-               }));
-        report("jacobian4", "c_one", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"jacobian4", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
                        rccl_jacobian4_one(q.data() + 6 * i, row);
                        sink += row[0];
                    }
-               }));
-        report("jacobian4", "c_rows", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"jacobian4", "c_rows", [&] {
                    rccl_jacobian4_rows(n, q.data(), out.data());
                    sink += out[0];
-               }));
+               }});
 
         // ---- gravity
-        report("gravity", "pinocchio", best_per_config(repeats, n, [&] {
+        passes.push_back({"gravity", "pinocchio", [&] {
                    for (long i = 0; i < n; ++i)
                        sink += pinocchio::computeGeneralizedGravity(model, data, qi(i))[1];
-               }));
-        report("gravity", "c_one", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"gravity", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
                        rccl_gravity_one(q.data() + 6 * i, c.data(), row);
                        sink += row[1];
                    }
-               }));
-        report("gravity", "c_rows", best_per_config(repeats, n, [&] {
+               }});
+        passes.push_back({"gravity", "c_rows", [&] {
                    rccl_gravity_rows(n, q.data(), c.data(), out.data());
                    sink += out[1];
-               }));
+               }});
+
+        const std::vector<double> best = best_per_config(repeats, n, passes);
+        for (std::size_t i = 0; i < passes.size(); ++i)
+            std::printf("%s %s %.6g\n", passes[i].what, passes[i].who, best[i] * 1e9);
 
         if (argc == 6) {  // the results themselves, single-configuration paths
             std::ofstream res(argv[5], std::ios::binary);
