@@ -28,6 +28,7 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench import cpp_pinocchio  # noqa: E402
 from bench.output import progress  # noqa: E402
 from rccl.kinematics import backend  # noqa: E402
 
@@ -314,13 +315,43 @@ def ratio(a: float, b: float) -> str:
     return f"{a / b:.3g}x"
 
 
+#: issue 16's goal for the batched public call: within this factor of the memory floor
+FLOOR_GOAL = 2.0
+
+
+def floor_summary(ops: list[Op], sizes: list[int], bw: dict[str, float]) -> list[str]:
+    """The batched public call against the memory floor: the worst computation per N, with
+    out= and with a fresh result, and the goal (<= FLOOR_GOAL times the floor)."""
+    L = []
+    for n in sizes:
+        worst = {}
+        for key in ("out", "pub"):
+            rat = {op.name: op.results[f"{key}_{n}"] / (op.results["bytes"] / bw["copy"]) for op in ops}
+            name = max(rat, key=rat.get)
+            worst[key] = (name, rat[name])
+        (no, ro), (nf, rf) = worst["out"], worst["pub"]
+        verdict = "met" if ro <= FLOOR_GOAL else f"not met: {ro / FLOOR_GOAL:.2f}x over the goal"
+        L.append(f"- N = {n:.0e}: public call with `out=` at most {ro:.2f}x the memory floor ({no}; goal <= "
+                 f"{FLOOR_GOAL:g}x: {verdict}); with a fresh result at most {rf:.2f}x ({nf}"
+                 + ("" if rf <= FLOOR_GOAL else f", {rf / FLOOR_GOAL:.2f}x over the goal: the page faults of new memory")
+                 + ").")
+    return L
+
+
 def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[int], n_pin: dict[int, int],
-                 public: dict, elapsed: float) -> None:
+                 public: dict, elapsed: float, cpp: list[str] | None = None) -> None:
     L = ["# Kinematics benchmark: generated C, generated Python, CasADi, Pinocchio", "",
          f"Command: `{COMMAND}` (bench/run.py); robot: {robot}; measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
          f"in one run of {elapsed:.0f} s; load average (1 min) {public['_load'][0]:.2f} at the start, "
          f"{public['_load'][1]:.2f} at the end (2 cores: figures are trustworthy when it stays below 1).", ""]
     L += machine()
+    L += ["", "Summary of the goals of issue 16 (details in the sections below):", ""]
+    if "_cpp" in public:
+        runs = public["_cpp"]
+        L += [f"- generated C vs Pinocchio's C++, one thread, one configuration per call / batched (goal >= "
+              f"{cpp_pinocchio.GOAL:g}x for FK and the Jacobian): "
+              + "; ".join(cpp_pinocchio.summary(r) for r in runs) + "."]
+    L += floor_summary(ops, sizes, public["_bandwidth"])
     L += ["",
           "Ratios are Pinocchio's time over the back end's (bigger is faster). `C` is the compiled",
           "kernel called directly (`rccl.kinematics._c.<robot>.<kernel>`, which checks shapes and NaN",
@@ -411,6 +442,7 @@ def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[in
           f"| closed form, C kernel, one configuration (time of the bare kernel call) | {us(ik['c_ik_call'])} | 100% | - | {ik['cf_pos']:.1e} | {ik['cf_rot']:.1e} |",
           f"| closed form, C kernel, all 8 (batched) | {us(ik[f'c_ik_all_{sizes[0]}'])} | | | | |",
           ""]
+    L += cpp or []
     path.write_text("\n".join(L) + "\n")
 
 
@@ -419,6 +451,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot", default="puma260")
     ap.add_argument("--sizes", default="100000,1000000")
     ap.add_argument("--out", default=str(ROOT / "reports" / "bench.md"))
+    ap.add_argument("--no-cpp", action="store_true",
+                    help="leave out the C++ comparison with Pinocchio (bench/cpp_pinocchio.py)")
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
     load_start = os.getloadavg()[0]
@@ -456,8 +490,14 @@ def main(argv: list[str] | None = None) -> int:
     public["_threads"] = cm.threads()
     ik = measure_ik(mod, cm, model, data, fid, cas, random_q(mod, 5000, rng), big, rng)
     print(f"bench: ik: done", flush=True)
+    cpp: list[str] = []
+    if not args.no_cpp:
+        # every robot with compiled kernels, not only --robot: a C++ program per robot, a few seconds each
+        runs, tc = cpp_pinocchio.measure()
+        public["_cpp"] = runs
+        cpp = cpp_pinocchio.section(runs, tc)
     public["_load"] = (load_start, os.getloadavg()[0])
-    write_report(Path(args.out), args.robot, ops, ik, sizes, n_pin, public, time.perf_counter() - t_start)
+    write_report(Path(args.out), args.robot, ops, ik, sizes, n_pin, public, time.perf_counter() - t_start, cpp)
     print(f"bench: wrote {args.out} in {time.perf_counter() - t_start:.0f} s")
     return 0
 

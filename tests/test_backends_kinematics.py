@@ -574,3 +574,9 @@ def test_vector_sincos_within_one_and_a_half_ulp():
         sn, cn = cm.vector_sincos(x[:n].tolist())
         np.testing.assert_array_equal(sn, s[:n])
         np.testing.assert_array_equal(cn, c[:n])
+    # one row's 5-8 angles (both vectors at once) with a lane beyond the reduction's range
+    for n in range(5, 9):
+        idx = np.r_[np.arange(n - 1), len(x) - 1]
+        sn, cn = cm.vector_sincos(x[idx].tolist())
+        np.testing.assert_array_equal(sn, s[idx])
+        np.testing.assert_array_equal(cn, c[idx])

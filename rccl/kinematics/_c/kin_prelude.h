@@ -75,9 +75,38 @@ static void vtrig_big_lanes(const double *x, double *st, double *ct, int n)
         if (fabs(x[j]) > VTRIG_BIG) { st[j] = sin(x[j]); ct[j] = cos(x[j]); }
 }
 
+/* 4 < m <= 8 sines and cosines (one row's angles): both vectors in one stretch of
+ * straight code, so that the CPU overlaps their dependency chains, and no copies of the
+ * first four lanes. 0 (nothing written) when a lane is beyond VTRIG_BIG. */
+__attribute__((target("avx2,fma"))) static inline int vtrig_sincos_few(const double *x, double *s, double *c, int m)
+{
+    const __m256d big = _mm256_set1_pd(VTRIG_BIG);
+    const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    double xt[4] = {0, 0, 0, 0}, st[4], ct[4];
+    for (int j = 4; j < m; ++j) xt[j - 4] = x[j];
+    const __m256d v0 = _mm256_loadu_pd(x), v1 = _mm256_loadu_pd(xt);
+    __m256d s0, c0, s1, c1;
+    sincos4(v0, &s0, &c0);
+    sincos4(v1, &s1, &c1);
+    if (_mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v0, abs_mask), big, _CMP_GT_OQ))
+        | _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v1, abs_mask), big, _CMP_GT_OQ)))
+        return 0;
+    _mm256_storeu_pd(st, s1);
+    _mm256_storeu_pd(ct, c1);
+    if (s) _mm256_storeu_pd(s, s0);
+    if (c) _mm256_storeu_pd(c, c0);
+    for (int j = 4; j < m; ++j) {
+        if (s) s[j] = st[j - 4];
+        if (c) c[j] = ct[j - 4];
+    }
+    return 1;
+}
+
 /* m sines and cosines of x (s or c may be NULL: not wanted) */
 __attribute__((target("avx2,fma"))) static void vtrig_sincos(const double *x, double *s, double *c, int m)
 {
+    if (m > 4 && m <= 8 && vtrig_sincos_few(x, s, c, m))
+        return;
     const __m256d big = _mm256_set1_pd(VTRIG_BIG);
     const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
     double st[4], ct[4];

@@ -1,0 +1,37 @@
+/* The generated C kernels of one robot as plain C functions, for bench/cpp/vs_pinocchio.cpp.
+ * kernel_rows.c defines them around the robot's generated rccl/kinematics/_c/<robot>.c
+ * (its kernels only, without the CPython runtime). Arrays are row-major doubles:
+ * q[6] joint variables (rad, m), T[16] = T6 (link 6 in the base frame, m), J[36] = 6J or
+ * 4J (rows dx dy dz dx_rot dy_rot dz_rot, columns joints 1-6), c[] the robot's gravity
+ * coefficients, tau[6] gravity torques (N m, N). */
+#ifndef RCCL_BENCH_KERNEL_ROWS_H
+#define RCCL_BENCH_KERNEL_ROWS_H
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The robot's name and its number of gravity coefficients (the gravity kernel's c). */
+const char *rccl_robot(void);
+int rccl_gravity_ncoeffs(void);
+
+/* 1 when the sines and cosines run four at a time with AVX2+FMA (as the extension does on
+ * this CPU), 0 when they are libm's; `on` = 0 forces libm, 1 asks for AVX2+FMA if the CPU has it. */
+int rccl_vector_trig(int on);
+
+/* One configuration: the code path a single call of the extension runs. */
+void rccl_fk_one(const double *q, double *T);
+void rccl_jacobian6_one(const double *q, double *J);
+void rccl_jacobian4_one(const double *q, double *J);
+void rccl_gravity_one(const double *q, const double *c, double *tau);
+
+/* n configurations (rows of q), one thread: the batched loop of the extension (blocks of
+ * rows with their sines and cosines computed together). The same c for every row. */
+void rccl_fk_rows(long n, const double *q, double *T);
+void rccl_jacobian6_rows(long n, const double *q, double *J);
+void rccl_jacobian4_rows(long n, const double *q, double *J);
+void rccl_gravity_rows(long n, const double *q, const double *c, double *tau);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,243 @@
+// The generated C kernels of one robot against Pinocchio's C++ on the same configurations,
+// in one process, one thread (bench/cpp_pinocchio.py builds and runs it; see there).
+//
+//   vs_pinocchio URDF Q.bin C.bin REPEATS [RESULTS.bin]
+//
+// URDF     the robot's URDF (models/urdf/<robot>.urdf), read by pinocchio::urdf::buildModel
+// Q.bin    N configurations, N x 6 doubles (rad, m), row-major, native byte order
+// C.bin    the gravity coefficients of the generated gravity kernel (doubles)
+// REPEATS  rounds: each timing is the best of its passes over the N configurations, one per
+//          round; a round runs every pass once, in turn
+// RESULTS  optional: per configuration, Pinocchio's then the kernel's T6 (16), 6J (36),
+//          4J (36) and gravity (6), row-major doubles, for the agreement test
+//
+// Prints one line per timing: `<computation> <implementation> <ns per configuration>`.
+// What is compared (Pinocchio side):
+//   fk        forwardKinematics(q) + updateFramePlacement(link6): T6 = data.oMf[link6]
+//   jacobian6 computeFrameJacobian(q, link6, LOCAL): Paul's frame-6 Jacobian 6J
+//   jacobian4 the thesis's link-4 Jacobian 4J: 6J with both 3-row blocks rotated into
+//             frame 4 (R46 = oMf[link4].R^T oMf[link6].R; updateFramePlacement of link4
+//             and link6 after the Jacobian pass)
+//   gravity   computeGeneralizedGravity(q)
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/kinematics.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/multibody.hpp>
+#include <pinocchio/parsers/urdf.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "kernel_rows.h"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using RowMajor6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
+using RowMajor4 = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
+
+std::vector<double> read_doubles(const std::string &path)
+{
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    if (!in) throw std::runtime_error("cannot read " + path);
+    const std::streamsize bytes = in.tellg();
+    if (bytes % sizeof(double) != 0) throw std::runtime_error(path + ": size is not a whole number of doubles");
+    std::vector<double> v(bytes / sizeof(double));
+    in.seekg(0);
+    in.read(reinterpret_cast<char *>(v.data()), bytes);
+    return v;
+}
+
+// One timed pass over all N configurations: what is computed and by whom.
+struct Pass {
+    const char *what;
+    const char *who;
+    std::function<void()> run;
+};
+
+// Best seconds per configuration of every pass over `repeats` rounds; a round runs every
+// pass once, in turn (after one warm-up round: caches, branch predictors, first touch).
+std::vector<double> best_per_config(int repeats, long n, const std::vector<Pass> &passes)
+{
+    std::vector<double> best(passes.size(), std::numeric_limits<double>::infinity());
+    for (const Pass &p : passes) p.run();
+    for (int r = 0; r < repeats; ++r)
+        for (std::size_t i = 0; i < passes.size(); ++i) {
+            const auto t0 = Clock::now();
+            passes[i].run();
+            const std::chrono::duration<double> dt = Clock::now() - t0;
+            best[i] = std::min(best[i], dt.count() / double(n));
+        }
+    return best;
+}
+
+// The link-4 Jacobian from Pinocchio's frame-6 one (rows v then omega, as Paul's 6J).
+RowMajor6 jacobian4_from(const pinocchio::Data &data, pinocchio::FrameIndex f4, pinocchio::FrameIndex f6,
+                         const pinocchio::Data::Matrix6x &j6)
+{
+    const Eigen::Matrix3d r46 = data.oMf[f4].rotation().transpose() * data.oMf[f6].rotation();
+    RowMajor6 j4;
+    j4.topRows<3>().noalias() = r46 * j6.topRows<3>();
+    j4.bottomRows<3>().noalias() = r46 * j6.bottomRows<3>();
+    return j4;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    if (argc < 5 || argc > 6) {
+        std::fprintf(stderr, "usage: %s URDF Q.bin C.bin REPEATS [RESULTS.bin]\n", argv[0]);
+        return 2;
+    }
+    try {
+        pinocchio::Model model;
+        pinocchio::urdf::buildModel(argv[1], model);
+        pinocchio::Data data(model);
+        if (model.nq != 6 || model.nv != 6)
+            throw std::runtime_error(std::string(argv[1]) + ": expected 6 joint variables, Pinocchio finds nq = "
+                                     + std::to_string(model.nq));
+        const pinocchio::FrameIndex f6 = model.getFrameId("link6"), f4 = model.getFrameId("link4");
+        if (f6 >= model.frames.size() || f4 >= model.frames.size())
+            throw std::runtime_error(std::string(argv[1]) + ": no frame link4 or link6");
+        const std::vector<double> q = read_doubles(argv[2]);
+        const std::vector<double> c = read_doubles(argv[3]);
+        const int repeats = std::atoi(argv[4]);
+        if (q.empty() || q.size() % 6 != 0) throw std::runtime_error(std::string(argv[2]) + ": not N x 6 doubles");
+        if (int(c.size()) != rccl_gravity_ncoeffs())
+            throw std::runtime_error(std::string(argv[3]) + ": " + std::to_string(c.size()) + " coefficients, the "
+                                     + rccl_robot() + " gravity kernel takes " + std::to_string(rccl_gravity_ncoeffs()));
+        if (repeats < 1) throw std::runtime_error("REPEATS must be >= 1");
+        const long n = long(q.size() / 6);
+        auto qi = [&](long i) { return Eigen::Map<const Eigen::Matrix<double, 6, 1>>(q.data() + 6 * i); };
+
+        const int vector_trig = rccl_vector_trig(1);
+        std::printf("vector_trig - %d\n", vector_trig);
+        std::printf("configurations - %ld\n", n);
+
+        pinocchio::Data::Matrix6x j6 = pinocchio::Data::Matrix6x::Zero(6, model.nv);
+        double sink = 0.0;  // every result feeds it, so no pass is optimised away
+        std::vector<double> out(std::size_t(n) * 36);
+        double row[36];
+
+        // Every pass of every side, then the best of `repeats` rounds, each round running them
+        // all in turn: both sides see the same moments of a loaded machine.
+        std::vector<Pass> passes;
+        // ---- FK
+        passes.push_back({"fk", "pinocchio", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       pinocchio::forwardKinematics(model, data, qi(i));
+                       sink += pinocchio::updateFramePlacement(model, data, f6).translation()[0];
+                   }
+               }});
+        passes.push_back({"fk", "c_one", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       rccl_fk_one(q.data() + 6 * i, row);
+                       sink += row[3];
+                   }
+               }});
+        passes.push_back({"fk", "c_rows", [&] {
+                   rccl_fk_rows(n, q.data(), out.data());
+                   sink += out[3];
+               }});
+
+        // ---- 6J
+        passes.push_back({"jacobian6", "pinocchio", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       pinocchio::computeFrameJacobian(model, data, qi(i), f6, pinocchio::LOCAL, j6);
+                       sink += j6(0, 0);
+                   }
+               }});
+        passes.push_back({"jacobian6", "c_one", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       rccl_jacobian6_one(q.data() + 6 * i, row);
+                       sink += row[0];
+                   }
+               }});
+        passes.push_back({"jacobian6", "c_rows", [&] {
+                   rccl_jacobian6_rows(n, q.data(), out.data());
+                   sink += out[0];
+               }});
+
+        // ---- 4J
+        passes.push_back({"jacobian4", "pinocchio", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       pinocchio::computeFrameJacobian(model, data, qi(i), f6, pinocchio::LOCAL, j6);
+                       pinocchio::updateFramePlacement(model, data, f4);
+                       pinocchio::updateFramePlacement(model, data, f6);
+                       sink += jacobian4_from(data, f4, f6, j6)(0, 0);
+                   }
+               }});
+        passes.push_back({"jacobian4", "c_one", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       rccl_jacobian4_one(q.data() + 6 * i, row);
+                       sink += row[0];
+                   }
+               }});
+        passes.push_back({"jacobian4", "c_rows", [&] {
+                   rccl_jacobian4_rows(n, q.data(), out.data());
+                   sink += out[0];
+               }});
+
+        // ---- gravity
+        passes.push_back({"gravity", "pinocchio", [&] {
+                   for (long i = 0; i < n; ++i)
+                       sink += pinocchio::computeGeneralizedGravity(model, data, qi(i))[1];
+               }});
+        passes.push_back({"gravity", "c_one", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       rccl_gravity_one(q.data() + 6 * i, c.data(), row);
+                       sink += row[1];
+                   }
+               }});
+        passes.push_back({"gravity", "c_rows", [&] {
+                   rccl_gravity_rows(n, q.data(), c.data(), out.data());
+                   sink += out[1];
+               }});
+
+        const std::vector<double> best = best_per_config(repeats, n, passes);
+        for (std::size_t i = 0; i < passes.size(); ++i)
+            std::printf("%s %s %.6g\n", passes[i].what, passes[i].who, best[i] * 1e9);
+
+        if (argc == 6) {  // the results themselves, single-configuration paths
+            std::ofstream res(argv[5], std::ios::binary);
+            auto put = [&](const double *v, int len) { res.write(reinterpret_cast<const char *>(v), len * sizeof(double)); };
+            for (long i = 0; i < n; ++i) {
+                pinocchio::forwardKinematics(model, data, qi(i));
+                const RowMajor4 t = pinocchio::updateFramePlacement(model, data, f6).toHomogeneousMatrix();
+                put(t.data(), 16);
+                rccl_fk_one(q.data() + 6 * i, row);
+                put(row, 16);
+                pinocchio::computeFrameJacobian(model, data, qi(i), f6, pinocchio::LOCAL, j6);
+                const RowMajor6 j6r = j6;
+                put(j6r.data(), 36);
+                rccl_jacobian6_one(q.data() + 6 * i, row);
+                put(row, 36);
+                pinocchio::updateFramePlacement(model, data, f4);
+                pinocchio::updateFramePlacement(model, data, f6);
+                const RowMajor6 j4 = jacobian4_from(data, f4, f6, j6);
+                put(j4.data(), 36);
+                rccl_jacobian4_one(q.data() + 6 * i, row);
+                put(row, 36);
+                const Eigen::Matrix<double, 6, 1> g = pinocchio::computeGeneralizedGravity(model, data, qi(i));
+                put(g.data(), 6);
+                rccl_gravity_one(q.data() + 6 * i, c.data(), row);
+                put(row, 6);
+            }
+            if (!res) throw std::runtime_error(std::string("cannot write ") + argv[5]);
+        }
+        std::printf("sink - %.17g\n", sink);
+    } catch (const std::exception &e) {
+        std::fprintf(stderr, "vs_pinocchio: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}

@@ -1,0 +1,353 @@
+"""The generated C kernels against Pinocchio's C++, one thread, no Python in the timed loops.
+
+Part of `make bench` (bench/run.py adds its section to reports/bench.md); alone:
+``python -m bench.cpp_pinocchio`` prints the section. For every robot whose C kernels are
+compiled, it builds bench/cpp/vs_pinocchio.cpp (Pinocchio's URDF parser and algorithms,
+from the headers and libraries of the ``pin`` wheel under ``site-packages/cmeel.prefix``)
+linked with bench/cpp/kernel_rows.c around the robot's generated
+``rccl/kinematics/_c/<robot>.c`` (its kernels, cut before the CPython runtime), into
+build/bench/ (untracked; rebuilt when a source, a flag or the compiler changes), and runs
+it on the same random configurations for both sides.
+
+The ``pin`` wheel ships Pinocchio's headers and libraries but not two header-only
+dependencies its headers include: Eigen (``Eigen/Core``) and urdfdom-headers
+(``urdf_model/model.h``). They come from the cmeel packages ``cmeel-eigen`` and
+``cmeel-urdfdom-headers`` (the ``bench`` and ``test`` extras of pyproject.toml); without
+cmeel-eigen, CasADi's copy of Eigen 3.4 is used.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+SRC = ROOT / "bench" / "cpp"
+BUILD = ROOT / "build" / "bench"
+KERNEL_DIR = ROOT / "rccl" / "kinematics" / "_c"
+
+#: the kernels' flags are those setup.py builds the extension with (its AVX2+FMA sine and
+#: cosine are chosen at run time by CPU, as in the extension)
+C_FLAGS = ["-O3", "-fno-math-errno", "-Wno-unused-variable", "-Wno-unused-function"]
+#: Pinocchio's side: -O3, no -march=native (see CXX_NOTE), its algorithms instantiated from
+#: the headers in this program (not the wheel's precompiled instantiations)
+CXX_FLAGS = ["-O3", "-DNDEBUG", "-std=c++17"]
+#: the compile definitions of the wheel's pinocchio CMake targets (pinocchioTargets.cmake)
+PIN_DEFINES = ["-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
+               "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
+               "-DPINOCCHIO_WITH_URDFDOM"]
+PIN_LIBS = ["-lpinocchio_parsers", "-lpinocchio_default"]
+CXX_NOTE = ("-march=native is not used on the C++ side: built with it, the program's Model "
+            "(Eigen with AVX) does not match the one the wheel's libpinocchio_parsers returns "
+            "(built for baseline x86-64), and the program crashes in ~ModelTpl at load "
+            "(also with -DEIGEN_MAX_ALIGN_BYTES=16)")
+
+#: the goal of issue 16: generated C at least this many times faster per configuration
+GOAL = 5.0
+#: the computations with that goal (gravity is timed and shown without one)
+GOAL_OPS = ("fk", "jacobian6", "jacobian4")
+OPS = ("fk", "jacobian6", "jacobian4", "gravity")
+#: (name, doubles) of the results file: Pinocchio's then the kernel's, per configuration
+RESULT_LAYOUT = (("fk", 16), ("jacobian6", 36), ("jacobian4", 36), ("gravity", 6))
+
+
+class ToolchainError(RuntimeError):
+    """A compiler, header or library the comparison needs is missing (the message says which)."""
+
+
+@dataclass(frozen=True)
+class Toolchain:
+    """Compilers and the include/library folders of the ``pin`` wheel (cmeel layout)."""
+
+    cc: str
+    cxx: str
+    prefix: Path            # site-packages/cmeel.prefix
+    eigen: Path             # folder holding Eigen/Core
+    eigen_source: str       # which package it came from
+    urdf_headers: Path      # folder holding urdf_model/model.h
+    python_include: Path    # Python.h: kin_prelude.h includes it (types only)
+
+    def describe(self) -> str:
+        return (f"Pinocchio headers and libraries from the `pin` wheel ({self.prefix.parent.name}/{self.prefix.name}), "
+                f"Eigen from {self.eigen_source}, urdf_model from cmeel-urdfdom-headers")
+
+
+def toolchain() -> Toolchain:
+    """Find the compilers and headers; ToolchainError naming exactly what is missing."""
+    missing = []
+    cc, cxx = shutil.which("gcc") or shutil.which("cc"), shutil.which("g++") or shutil.which("c++")
+    if cc is None:
+        missing.append("a C compiler (gcc)")
+    if cxx is None:
+        missing.append("a C++ compiler (g++)")
+    prefix = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix"
+    if not (prefix / "include" / "pinocchio" / "algorithm" / "kinematics.hpp").is_file():
+        missing.append(f"Pinocchio's headers ({prefix}/include/pinocchio; the `pin` wheel installs them)")
+    for lib in PIN_LIBS:
+        if not (prefix / "lib" / f"lib{lib[2:]}.so").is_file():
+            missing.append(f"{prefix}/lib/lib{lib[2:]}.so (the `pin` wheel's libraries)")
+    eigen, source = prefix / "include" / "eigen3", "cmeel-eigen"
+    if not (eigen / "Eigen" / "Core").is_file():
+        try:
+            import casadi
+            eigen, source = Path(casadi.__file__).parent / "include" / "eigen3", "CasADi's bundled copy"
+        except ImportError:
+            pass
+    if not (eigen / "Eigen" / "Core").is_file():
+        missing.append("Eigen's headers (Eigen/Core: not in the `pin` wheel; pip install cmeel-eigen)")
+    urdf = prefix / "include" / "urdfdom_headers"
+    if not (urdf / "urdf_model" / "model.h").is_file():
+        missing.append("urdfdom-headers (urdf_model/model.h: not in the `pin` wheel; pip install cmeel-urdfdom-headers)")
+    pyinc = Path(sysconfig.get_paths()["include"])
+    if not (pyinc / "Python.h").is_file():
+        missing.append(f"Python.h ({pyinc})")
+    if missing:
+        raise ToolchainError("bench.cpp_pinocchio: missing " + "; ".join(missing))
+    return Toolchain(cc, cxx, prefix, eigen, source, urdf, pyinc)
+
+
+def _compiler_id(exe: str) -> str:
+    return subprocess.run([exe, "--version"], capture_output=True, text=True).stdout.splitlines()[0]
+
+
+def _digest(*parts: object) -> str:
+    h = hashlib.sha256()
+    for p in parts:
+        h.update(p.read_bytes() if isinstance(p, Path) else str(p).encode())
+        h.update(b"\0")
+    return h.hexdigest()[:16]
+
+
+def _compile(cmd: list[str], what: str) -> None:
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise ToolchainError(f"bench.cpp_pinocchio: compiling {what} failed:\n{' '.join(cmd)}\n{r.stderr[-4000:]}")
+
+
+def kernels_source(robot: str) -> str:
+    """The generated C of ``robot`` up to its CPython runtime (kin_runtime.h): prelude, kernels, table."""
+    text = (KERNEL_DIR / f"{robot}.c").read_text()
+    cut = text.find('#include "kin_runtime.h"')
+    if cut < 0:
+        raise ToolchainError(f"{KERNEL_DIR / f'{robot}.c'}: no `#include \"kin_runtime.h\"` line to cut at")
+    return text[:cut]
+
+
+def build(robot: str, tc: Toolchain | None = None) -> Path:
+    """The comparison program of ``robot`` in build/bench/, compiled unless an identical build exists."""
+    tc = tc or toolchain()
+    BUILD.mkdir(parents=True, exist_ok=True)
+    cxx_inc = [f"-I{tc.prefix / 'include'}", f"-I{tc.eigen}", f"-I{tc.urdf_headers}", f"-I{SRC}"]
+    # Pinocchio's side does not depend on the robot: one object for every robot
+    pin_key = _digest(SRC / "vs_pinocchio.cpp", SRC / "kernel_rows.h", CXX_FLAGS, PIN_DEFINES, cxx_inc,
+                      _compiler_id(tc.cxx), (tc.prefix / "include" / "pinocchio" / "config.hpp"))
+    pin_obj = BUILD / f"vs_pinocchio-{pin_key}.o"
+    if not pin_obj.exists():
+        tmp = pin_obj.with_suffix(f".{os.getpid()}.tmp")
+        _compile([tc.cxx, *CXX_FLAGS, *PIN_DEFINES, *cxx_inc, "-c", str(SRC / "vs_pinocchio.cpp"), "-o", str(tmp)],
+                 "bench/cpp/vs_pinocchio.cpp")
+        tmp.replace(pin_obj)
+    src = kernels_source(robot)
+    k_key = _digest(src, *(KERNEL_DIR / h for h in ("kin_prelude.h",)), SRC / "kernel_rows.c", SRC / "kernel_rows.h",
+                    C_FLAGS, _compiler_id(tc.cc), str(tc.python_include))
+    inc = BUILD / f"{robot}-{k_key}.inc"
+    k_obj = BUILD / f"{robot}-kernels-{k_key}.o"
+    if not k_obj.exists():
+        inc.write_text(src)
+        tmp = k_obj.with_suffix(f".{os.getpid()}.tmp")
+        _compile([tc.cc, *C_FLAGS, f"-I{KERNEL_DIR}", f"-I{tc.python_include}", f"-I{SRC}",
+                  f'-DRCCL_KERNELS="{inc}"', "-c", str(SRC / "kernel_rows.c"), "-o", str(tmp)],
+                 f"the {robot} kernels")
+        tmp.replace(k_obj)
+    exe = BUILD / f"vs_pinocchio-{robot}-{pin_key}-{k_key}"
+    if not exe.exists():
+        lib = tc.prefix / "lib"
+        tmp = exe.with_suffix(f".{os.getpid()}.tmp")
+        _compile([tc.cxx, str(pin_obj), str(k_obj), f"-L{lib}", *PIN_LIBS, f"-Wl,-rpath,{lib}", "-lm", "-o", str(tmp)],
+                 f"(linking) the {robot} comparison")
+        tmp.replace(exe)
+    return exe
+
+
+def gravity_coefficients(robot: str) -> np.ndarray:
+    """The generated gravity kernel's coefficients for the model file's link masses and
+    centres of mass (those of the URDF inertials), so both sides compute the same torques."""
+    from models import load_robot
+    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    model = load_robot(robot)
+    masses = np.array([link.mass for link in model.links])
+    coms = np.array([link.com for link in model.links])
+    return np.array(list(mod.coefficients_from_links(masses, coms).values()), dtype=float)
+
+
+@dataclass
+class Run:
+    """One run of the comparison program of one robot."""
+
+    robot: str
+    n: int
+    repeats: int
+    vector_trig: bool
+    ns: dict[tuple[str, str], float]          # (computation, "pinocchio" | "c_one" | "c_rows") -> ns/config
+    results: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # name -> (Pinocchio, kernel)
+
+    def ratio(self, op: str, side: str) -> float:
+        return self.ns[(op, "pinocchio")] / self.ns[(op, side)]
+
+
+def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False, tc: Toolchain | None = None) -> Run:
+    """Build (if needed) and run the comparison on configurations ``q`` (N x 6, rad and m)."""
+    q = np.ascontiguousarray(q, dtype=float)
+    if q.ndim != 2 or q.shape[1] != 6 or len(q) == 0:
+        raise ValueError(f"bench.cpp_pinocchio.run: q must be N x 6 with N >= 1, got shape {q.shape}")
+    exe = build(robot, tc)
+    tag = f"{robot}-{os.getpid()}"
+    qf, cf, rf = (BUILD / f"{tag}.{x}.bin" for x in ("q", "c", "res"))
+    q.tofile(qf)
+    gravity_coefficients(robot).tofile(cf)
+    urdf = ROOT / "models" / "urdf" / f"{robot}.urdf"
+    cmd = [str(exe), str(urdf), str(qf), str(cf), str(repeats)] + ([str(rf)] if with_results else [])
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"bench.cpp_pinocchio: {' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()}")
+        ns, meta = {}, {}
+        for line in r.stdout.splitlines():
+            what, who, value = line.split()
+            if who == "-":
+                meta[what] = value
+            else:
+                ns[(what, who)] = float(value)
+        out = Run(robot, int(meta["configurations"]), repeats, meta["vector_trig"] == "1", ns)
+        if with_results:
+            per = sum(2 * k for _, k in RESULT_LAYOUT)
+            data = np.fromfile(rf).reshape(len(q), per)
+            at = 0
+            for name, k in RESULT_LAYOUT:
+                out.results[name] = (data[:, at:at + k], data[:, at + k:at + 2 * k])
+                at += 2 * k
+        return out
+    finally:
+        for f in (qf, cf, rf):
+            f.unlink(missing_ok=True)
+
+
+def robots() -> list[str]:
+    """Every robot under models/ with a URDF and compiled C kernels."""
+    from models.catalogue import available_robots
+    from rccl.kinematics import backend
+    return [r for r in available_robots()
+            if (ROOT / "models" / "urdf" / f"{r}.urdf").is_file() and (KERNEL_DIR / f"{r}.c").is_file()
+            and backend.c_module(r) is not None]
+
+
+def random_q(robot: str, n: int, rng: np.random.Generator) -> np.ndarray:
+    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    return rng.uniform(np.asarray(mod.LOWER), np.asarray(mod.UPPER), size=(n, 6))
+
+
+def measure(n: int = 10000, repeats: int = 25, n_check: int = 500, seed: int = 11) -> tuple[list[Run], Toolchain]:
+    """Timings of every robot on ``n`` configurations, and agreement on ``n_check`` of them."""
+    tc = toolchain()
+    rng = np.random.default_rng(seed)
+    runs = []
+    for robot in robots():
+        timed = run(robot, random_q(robot, n, rng), repeats, tc=tc)
+        timed.results = run(robot, random_q(robot, n_check, rng), 1, with_results=True, tc=tc).results
+        runs.append(timed)
+        print(f"bench: C vs Pinocchio C++, {robot}: "
+              + ", ".join(f"{op} {timed.ratio(op, 'c_one'):.3g}x / {timed.ratio(op, 'c_rows'):.3g}x" for op in OPS),
+              flush=True)
+    return runs, tc
+
+
+def _ns(t: float) -> str:
+    return f"{t:.3g}"
+
+
+def verdict(r: Run, op: str) -> str:
+    """The goal of GOAL_OPS, judged one configuration per call and batched."""
+    if op not in GOAL_OPS:
+        return "-"
+    one, rows = r.ratio(op, "c_one"), r.ratio(op, "c_rows")
+    parts = [f"one per call {'met' if one >= GOAL else f'not met ({one:.2g}x)'}",
+             f"batched {'met' if rows >= GOAL else f'not met ({rows:.2g}x)'}"]
+    return "; ".join(parts)
+
+
+def summary(r: Run) -> str:
+    """One robot's ratios for the goal's computations: one configuration per call / batched."""
+    def judged(x: float) -> str:
+        return f"{x:.2g}x ({'met' if x >= GOAL else 'not met'})"
+    return f"{r.robot} " + ", ".join(
+        f"{op} {judged(r.ratio(op, 'c_one'))} / {judged(r.ratio(op, 'c_rows'))}" for op in GOAL_OPS)
+
+
+def section(runs: list[Run], tc: Toolchain) -> list[str]:
+    """The Markdown section of reports/bench.md."""
+    if not runs:
+        return ["## Generated C vs Pinocchio's C++", "", "No robot has compiled C kernels: nothing measured.", ""]
+    n, reps = runs[0].n, runs[0].repeats
+    L = ["## Generated C vs Pinocchio's C++ (one thread, no Python)", "",
+         "Program: bench/cpp/vs_pinocchio.cpp (Pinocchio) linked with bench/cpp/kernel_rows.c (the robot's generated "
+         "`rccl/kinematics/_c/<robot>.c`, its kernels and batched loops as generated, without the CPython runtime), "
+         "built by bench/cpp_pinocchio.py into build/bench/ and run once per robot; both sides run on the same "
+         f"{n} random configurations (uniform over the joint ranges) in one process; each figure is the best of "
+         f"{reps} rounds, a round running every timed pass over them once, in turn (so that both sides see the "
+         "same moments of the machine's load), in nanoseconds per configuration.", "",
+         f"- {tc.describe()}; the wheel ships neither Eigen nor urdfdom-headers, which its headers include.",
+         f"- Pinocchio: `{' '.join(['g++', *CXX_FLAGS])}` plus the wheel's CMake compile definitions, algorithms "
+         "instantiated from the headers in the program, URDF read by `pinocchio::urdf::buildModel` "
+         f"(libpinocchio_parsers), linked `{' '.join(PIN_LIBS)}` with an rpath to the wheel's lib/. {CXX_NOTE}.",
+         f"- Generated C: `{' '.join(['gcc', *C_FLAGS])}` (setup.py's flags); sines and cosines "
+         + ("four at a time with AVX2+FMA (kin_prelude.h), chosen at run time as in the extension."
+            if runs[0].vector_trig else "from libm (this CPU lacks AVX2+FMA)."),
+         "- `one per call`: the kernel's batched loop called for one configuration at a time (the path of a single "
+         "call of the extension, without its argument checks); `batched`: one call over all N configurations (the "
+         "extension's loop over rows, one thread; blocks of 64 rows share their sine/cosine vector code).",
+         "- Pinocchio's computations: fk = forwardKinematics + updateFramePlacement(link6) (T6); jacobian6 = "
+         "computeFrameJacobian(link6, LOCAL), which is Paul's 6J; jacobian4 = the thesis's link-4 Jacobian 4J, "
+         "which Pinocchio has no call for: 6J from computeFrameJacobian(link6, LOCAL), then updateFramePlacement of "
+         "link4 and link6 and both 3-row blocks rotated by R46; gravity = computeGeneralizedGravity (the generated "
+         "gravity kernel with the coefficients of the model file's link masses and centres of mass).",
+         f"- Goal (issue 16): the generated C at least {GOAL:g}x faster per configuration than Pinocchio's C++ "
+         "for FK and the Jacobian.", "",
+         "| robot | computation | Pinocchio C++ | C, one per call | C, batched | ratio, one per call | ratio, batched "
+         f"| goal >= {GOAL:g}x |",
+         "|---|---|---:|---:|---:|---:|---:|---|"]
+    for r in runs:
+        for op in OPS:
+            L.append(f"| {r.robot} | {op} | {_ns(r.ns[(op, 'pinocchio')])} | {_ns(r.ns[(op, 'c_one')])} | "
+                     f"{_ns(r.ns[(op, 'c_rows')])} | {r.ratio(op, 'c_one'):.3g}x | {r.ratio(op, 'c_rows'):.3g}x | "
+                     f"{verdict(r, op)} |")
+    n_check = len(next(iter(runs[0].results.values()))[0]) if runs[0].results else 0
+    L += ["", f"Agreement, same program, {n_check} other random configurations per robot (largest element "
+          "difference between Pinocchio's C++ and the generated kernel, single-configuration path):", "",
+          "| robot | " + " | ".join(name for name, _ in RESULT_LAYOUT) + " |",
+          "|---|" + "---:|" * len(RESULT_LAYOUT)]
+    for r in runs:
+        L.append(f"| {r.robot} | " + " | ".join(f"{np.abs(a - b).max():.1e}" for a, b in r.results.values()) + " |")
+    L.append("")
+    return L
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=10000, help="configurations timed per robot")
+    ap.add_argument("--repeats", type=int, default=25, help="rounds; each figure is the best round")
+    args = ap.parse_args(argv)
+    runs, tc = measure(args.n, args.repeats)
+    print("\n".join(section(runs, tc)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
