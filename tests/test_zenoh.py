@@ -142,7 +142,12 @@ CONTROLLER = textwrap.dedent("""
     from rci.chg import CUR
     from rci.conversions import Conversions
     from rci.session import Session
-    s = Session(sys.argv[1], "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False)
+    # timeout 0.2 s (not two periods) and 25 late cycles in a row tolerated (not 3): the test
+    # is about the robot's side of the fault, and a loaded machine's bus latency tails (at a
+    # load of 5 on 2 cores: a HOW 40 ms late, three CHGs in a row late at the robot) must not
+    # end the control from this side first
+    s = Session(sys.argv[1], "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False,
+                timeout=0.2, late_limit=25)
     conv = Conversions.for_robot("puma260")
     s.open()
     last = []
@@ -169,13 +174,14 @@ def _controller(url: str) -> subprocess.Popen:
 def _held_after(sim: SimulaProcess, cause, seconds: float = 0.5) -> tuple[dict, float, float]:
     """Apply ``cause`` to a running control; the robot's state once it has ended it, how
     far joint 1 turned from the end to ``seconds`` later (rad), and how long the robot took
-    to end the control (s, polled every 2 ms)."""
+    to end the control (s: from the fault to the ending simula recorded, on the same monotonic
+    clock, so that this process's polling on a loaded machine does not count)."""
     t0 = time.monotonic()
     cause()
     while sim.command("state")["running"]:
         assert time.monotonic() - t0 < WAIT, "the robot did not end the control"
         time.sleep(0.002)
-    took = time.monotonic() - t0
+    took = sim.command("events")["events"][-1]["wall"] - t0
     q_end = sim.command("state")["state"]["q"][0]
     time.sleep(seconds)
     state = sim.command("state")
@@ -193,8 +199,10 @@ def test_the_controller_gone_or_frozen_leaves_the_arm_held(how):
         try:
             q0 = sim.command("state")["state"]["q"][0]
             deadline = time.monotonic() + WAIT
-            while abs((moving := sim.command("state")["state"])["q"][0] - q0) < 0.02:   # ~0.2 rad/s
-                assert moving["mode"][0] == "cur" and time.monotonic() < deadline, moving["mode"]
+            # joint 1 in current mode and turning (~0.2 rad/s): the control is under way
+            while (moving := sim.command("state")["state"])["mode"][0] != "cur" or abs(moving["q"][0] - q0) < 0.02:
+                assert not sim.command("events")["events"], "the control ended before the fault"
+                assert time.monotonic() < deadline, moving["mode"]
                 time.sleep(0.02)
             sig = signal.SIGKILL if how == "killed" else signal.SIGSTOP
             state, drift, took = _held_after(sim, lambda: os.kill(proc.pid, sig))
@@ -205,10 +213,18 @@ def test_the_controller_gone_or_frozen_leaves_the_arm_held(how):
         print(f"{how}: control ended {1e3 * took:.1f} ms after the fault, joint 1 moved {np.degrees(drift):.4f} deg after")
         assert drift < np.radians(0.2)
         # killed: the controller's Zenoh session closes with the process (its TCP link is
-        # torn down by the kernel); stopped: the robot's watchdog (WATCHDOG_S without a CHG)
-        assert took < (0.1 if how == "killed" else WATCHDOG_S + 0.1)
+        # torn down by the kernel), before the watchdog could act; stopped: the robot's
+        # watchdog (WATCHDOG_S without a CHG). The cause simula recorded tells them apart (a
+        # bound in time alone failed on a machine with a load of 5 on 2 cores)
         ended = sim.command("events")["events"]
         assert ended, "the robot remembers no control ending"
+        cause = ended[-1]["cause"]
+        if how == "killed":
+            assert cause.startswith("link lost"), cause
+            assert took < WATCHDOG_S
+        else:
+            assert cause == "watchdog", cause
+            assert took < WATCHDOG_S + 0.1
 
 
 # --- shared data and channels between processes (rci.bus) ------------------------------------
