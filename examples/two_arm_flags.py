@@ -87,7 +87,8 @@ def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: f
     from rccl.bus_events import BusEvents
     from rci.bus import Bus
     petri.check(plan, "puma", "microbo")            # raises Deadlock before anything moves
-    with Bus(CELL, tasks=("planning",), listen=(listen,)) as bus, ExitStack() as stack:
+    with Bus(CELL, tasks=("planning",), listen=(listen,), priority=bus_arm.BUS_PRIORITY) as bus, \
+            ExitStack() as stack:
         channels = {name: bus.channel(name, "planning", capacity=16) for name in ARMS}
         for name, robot in ARMS.items():
             proc = bus_arm.spawn(name, urls[name], robot, CELL, (listen,), rate_hz, how_timeout=how_timeout)

@@ -43,6 +43,7 @@ from .bus_events import arm_key, check_name, error_reply, flags_key, flags_of, p
 from .events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
+BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
 
 class ArmServer:
@@ -50,14 +51,16 @@ class ArmServer:
 
     ``report_to``: a task (default the planning level) that gets, on the bus channel
     ``ARM -> report_to``, one message per motion that ends: ``{"serial", "where", "status",
-    "q"}`` with the joint angles the robot reported then (rad); None for no reports."""
+    "q"}`` with the joint angles the robot reported then (rad); None for no reports.
+    ``priority`` > 0: the thread that publishes the flags runs under SCHED_FIFO at it."""
 
-    def __init__(self, arm, bus: Bus, name: str, report_to: str | None = "planning") -> None:
+    def __init__(self, arm, bus: Bus, name: str, report_to: str | None = "planning", priority: int = 0) -> None:
         import zenoh
         self.arm = arm
         self.bus = bus
         self.name = check_name(name, "ArmServer")
         self.cell = bus.cell
+        self.priority = priority
         ev.attach(arm, name)
         self.efts: dict[int, ev.EFT] = {}
         self._lock = threading.Lock()
@@ -88,6 +91,11 @@ class ArmServer:
             self._out.put(flags_of(eft, self.name))
 
     def _publish_loop(self) -> None:
+        if self.priority > 0:          # the flags leave as soon as the control level hands them over
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
+            except (OSError, AttributeError):
+                pass
         while True:
             flags = self._out.get()
             if flags is None:
@@ -256,9 +264,9 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
     """The arm process: open the arm, serve it until told to stop, release it. ``timeout``: the
     control's wait for a HOW (s; None: two periods, rci.Session's default)."""
     import rccl
-    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms) as bus, \
+    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY) as bus, \
             rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout) as arm:
-        server = ArmServer(arm, bus, name)
+        server = ArmServer(arm, bus, name, priority=BUS_PRIORITY)
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, lambda *_: server.stop())
         print(f"{name}: serving", flush=True)

@@ -281,13 +281,28 @@ class BusEvents:
         check_name(name, "BusEvents.arm")
         if name in self._arms:
             return self._arms[name]
-        with self._cond:
-            if not self._cond.wait_for(lambda: name in self._present, timeout):
-                raise ArmLost(f"no process serves arm {name!r} on {arm_key(self.cell, name)} within {timeout} s "
-                              "(is its arm process (python -m rccl.bus_arm) running and connected to this bus?)")
+        deadline = time.monotonic() + timeout
+        while not self._is_present(name) and time.monotonic() < deadline:
+            with self._cond:
+                self._cond.wait_for(lambda: name in self._present, min(0.5, max(0.0, deadline - time.monotonic())))
+        if not self._is_present(name):
+            raise ArmLost(f"no process serves arm {name!r} on {arm_key(self.cell, name)} within {timeout} s "
+                          "(is its arm process (python -m rccl.bus_arm) running and connected to this bus?)")
         info = self.request(name, {"op": "info"}, "arm")
         self._arms[name] = RemoteArm(self, name, info)
         return self._arms[name]
+
+    def _is_present(self, name: str) -> bool:
+        """Its liveliness token is there (seen by the subscriber, or found by asking)."""
+        with self._cond:
+            if name in self._present:
+                return True
+        for reply in self.bus.session.liveliness().get(arm_key(self.cell, name), timeout=0.5):
+            if reply.ok is not None:
+                with self._cond:
+                    self._present.add(name)
+                return True
+        return False
 
     def attach(self, arm: RemoteArm, name: str | None = None) -> str:
         """As ``rccl.events.attach``: the arm's name (a remote arm's name is the one it is served under)."""
@@ -297,7 +312,13 @@ class BusEvents:
         return arm.name
 
     def request(self, arm: str, payload: dict, where: str) -> dict:
-        """Ask ``arm``'s process; its answer, or the error it names raised here."""
+        """Ask ``arm``'s process; its answer, or the error it names raised here (``ArmLost`` at
+        once for an arm whose process left the bus, after ``request_timeout`` s for one that is mute)."""
+        with self._cond:
+            lost = self._lost.get(arm)
+        if lost is not None:
+            raise ArmLost(f"{where}: arm {arm!r}'s process left the bus {time.monotonic() - lost:.3f} s ago "
+                          f"(its liveliness token {arm_key(self.cell, arm)} ended)")
         replies = self.bus.session.get(arm_key(self.cell, arm, "request"), payload=encode(payload),
                                        timeout=self.request_timeout)
         for reply in replies:
