@@ -106,17 +106,24 @@ class ArmServer:
             try:
                 self.bus.session.put(flags_key(self.cell, self.name, flags["serial"]), data,
                                      congestion_control=self._block, express=True)
-                if self.reports is not None and flags["status"] < 0:
+            except Exception as exc:
+                if self.bus.session.is_closed():
+                    return             # the process is ending: nothing more to tell
+                print(f"{self.name}: flags of EFT #{flags['serial']} not published: {exc}", file=sys.stderr)
+            if self.reports is not None and flags["status"] < 0:
+                try:
                     self.reports.send({"serial": flags["serial"], "where": flags["where"], "status": flags["status"],
                                        "q": self.arm.measured_q()})
-            except Exception:       # the session is closing: nothing more to tell
-                return
+                except Exception as exc:     # a report lost is no reason to stop publishing flags
+                    print(f"{self.name}: report of EFT #{flags['serial']} not sent: {exc}", file=sys.stderr)
 
     def _on_flags_query(self, query) -> None:
+        wanted = str(query.key_expr).rsplit("/", 1)[-1]       # a serial, or * for all
         with self._lock:
             latest = dict(self._latest)
         for serial, data in latest.items():
-            query.reply(flags_key(self.cell, self.name, serial), data)
+            if wanted in ("*", "**", str(serial)):
+                query.reply(flags_key(self.cell, self.name, serial), data)
 
     # -- the flags in ---------------------------------------------------------------------------
     def _on_flags(self, sample) -> None:
@@ -197,7 +204,7 @@ class ArmServer:
             return {"freed": len(r["serials"])}
         if op == "abort":
             ev.stop_abort(self.arm)
-            return {"aborted": True}
+            return {"flags": [flags_of(e, self.name) for e in self.efts.values()]}
         if op == "close":
             self._stop.set()
             return {"closing": True}

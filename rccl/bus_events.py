@@ -68,6 +68,7 @@ from .position import EQ, TL, Position, joint_position, makeposition
 from .transform import T6, Trsf
 
 REQUEST_TIMEOUT_S = 5.0
+REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
 
 
 class ArmLost(EventError):
@@ -101,7 +102,8 @@ def check_name(name: Any, what: str) -> str:
 def flags_of(eft: EFT, arm: str) -> dict:
     """One EFT's flags as published (JSON)."""
     return {"arm": arm, "serial": eft.serial, "where": eft.where, "start": eft.start, "stop": eft.stop,
-            "status": eft.status, "version": eft.version, "t_started": eft.t_started, "t_ended": eft.t_ended,
+            "status": eft.status, "version": eft.version, "t_start_set": eft.t_start_set, "t_started": eft.t_started,
+            "t_ended": eft.t_ended,
             "traj_started": eft.traj_started, "traj_ended": eft.traj_ended}
 
 
@@ -199,6 +201,7 @@ class RemoteEFT:
         s = self.status
         return "pending" if s == NULL else ("active" if s > 0 else "completed")
 
+    t_start_set = property(lambda self: self._flag("t_start_set"))
     t_started = property(lambda self: self._flag("t_started"))
     t_ended = property(lambda self: self._flag("t_ended"))
     traj_started = property(lambda self: self._flag("traj_started"))
@@ -231,6 +234,7 @@ class BusEvents:
         self._lost: dict[str, float] = {}                   # arm -> time.monotonic() its token ended
         self._faults: dict[str, str] = {}
         self._arms: dict[str, RemoteArm] = {}
+        self._heard = 0                                     # counts flag changes heard (a wait's sign of life)
         s = bus.session
         self._kind_delete = zenoh.SampleKind.DELETE
         self._declared = [
@@ -242,14 +246,18 @@ class BusEvents:
     # -- what the bus tells ---------------------------------------------------------------
     def _on_flags(self, sample) -> None:
         try:
-            f = decode(sample.payload.to_bytes())
-            key = (str(f["arm"]), int(f["serial"]))
+            self._absorb(decode(sample.payload.to_bytes()))
         except (ValueError, KeyError, TypeError):
             return
+
+    def _absorb(self, f: dict) -> None:
+        """Keep ``f`` (one EFT's flags) if it is newer than what is known."""
+        key = (str(f["arm"]), int(f["serial"]))
         with self._cond:
             old = self._flags.get(key)
-            if old is None or f.get("version", 0) >= old.get("version", 0):
+            if old is None or f.get("version", 0) > old.get("version", 0):
                 self._flags[key] = f
+                self._heard += 1
             self._cond.notify_all()
 
     def _on_fault(self, sample) -> None:
@@ -368,10 +376,7 @@ class BusEvents:
         eft.after = source
         with self._cond:
             self._issued.setdefault(arm.name, []).append(eft)
-            key = (arm.name, eft.serial)
-            mine = answer["flags"]
-            if key not in self._flags or mine["version"] >= self._flags[key].get("version", 0):
-                self._flags[key] = mine
+        self._absorb(answer["flags"])
         return eft
 
     def start_ev(self, code: int, *efts: RemoteEFT) -> None:
@@ -414,13 +419,30 @@ class BusEvents:
         eft = self._live(eft, "wait_ev")
         done = (lambda: eft.status != NULL) if started else (lambda: eft.status < 0)
         deadline = None if timeout is None else time.monotonic() + timeout
-        with self._cond:
-            while not done():
+        heard, quiet_since = self._heard, time.monotonic()
+        while True:
+            with self._cond:
+                if done():
+                    return eft.status
                 self._check_blocked(eft, started)
                 if deadline is not None and time.monotonic() > deadline:
                     raise TimeoutError(f"wait_ev: {eft!r} after {timeout} s")
                 self._cond.wait(poll)
-            return eft.status
+                chain = self._chain(eft)
+                if self._heard != heard:
+                    heard, quiet_since = self._heard, time.monotonic()
+            if time.monotonic() - quiet_since > REFRESH_S:     # a publication lost? ask for the latest
+                self._refresh(chain)
+                quiet_since = time.monotonic()
+
+    def _refresh(self, efts: list[RemoteEFT]) -> None:
+        """Ask the arms' processes for the latest flags of ``efts`` (they answer from what they published)."""
+        for e in efts:
+            if e.status < 0 or e.arm in self._lost:
+                continue
+            for reply in self.bus.session.get(flags_key(self.cell, e.arm, e.serial), timeout=0.5):
+                if reply.ok is not None:
+                    self._on_flags(reply.ok)
 
     def free_ev(self, *efts: RemoteEFT) -> None:
         """Give EFTs back (their motions must have ended); their arms' processes forget them."""
@@ -442,7 +464,9 @@ class BusEvents:
     def stop_abort(self, arm: RemoteArm) -> None:
         """Flush the arm's queue and halt it; its EFTs not yet ended get ABORTED."""
         arm = self._own_arm(arm, "stop_abort")
-        self.request(arm.name, {"op": "abort"}, "stop_abort")
+        answer = self.request(arm.name, {"op": "abort"}, "stop_abort")
+        for flags in answer["flags"]:          # what it aborted, known before its publications arrive
+            self._absorb(flags)
 
     def close(self) -> None:
         for obj in self._declared:

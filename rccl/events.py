@@ -89,6 +89,7 @@ class EFT:
         self.after: EFT | None = None         # start when this one ends (set by move_ev(start=eft) / start_after)
         self.after_code = START
         self._followers: list[EFT] = []
+        self.t_start_set: float | None = None  # time.monotonic() when its start flag was set (s)
         self.t_started: float | None = None   # time.monotonic() when the trajectory level began it (s)
         self.t_ended: float | None = None     # ... and when it ended (s): for ordering across arms
         self.traj_started: float | None = None  # the arm's trajectory time (s) of the sample it began in
@@ -309,6 +310,7 @@ def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_c
         eft.after, eft.after_code = source, after_code
     elif start is not None:
         eft._start = int(start)
+        eft.t_start_set = time.monotonic()
     # not under the global lock: move() checks the path (milliseconds) and the arm's trajectory
     # level takes that lock when a motion ends
     q.next_eft = eft
@@ -361,6 +363,7 @@ def start_ev(code: int, *efts: EFT) -> None:
         checked = [_check_live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
             e._start = int(code)
+            e.t_start_set = time.monotonic()
             _notify(e)
         _changed.notify_all()
 
@@ -494,6 +497,7 @@ def _fire(source: EFT, target: EFT) -> None:
     """``source`` ended: start ``target`` unless ``source`` failed or was aborted."""
     if target.after is source and target._start == NULL and source._status not in (FAULT, ABORTED):
         target._start = target.after_code
+        target.t_start_set = time.monotonic()
         _notify(target)
 
 
