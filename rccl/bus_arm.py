@@ -199,8 +199,10 @@ class ArmServer:
             return self._move(r)
         if op == "free":
             ev.free_ev(*[self._eft(s) for s in r["serials"]])
-            for s in r["serials"]:
-                self.efts.pop(int(s), None)
+            with self._lock:
+                for s in r["serials"]:
+                    self.efts.pop(int(s), None)
+                    self._latest.pop(int(s), None)
             return {"freed": len(r["serials"])}
         if op == "abort":
             ev.stop_abort(self.arm)

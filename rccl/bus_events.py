@@ -69,6 +69,7 @@ from .transform import T6, Trsf
 
 REQUEST_TIMEOUT_S = 5.0
 REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
+MUTE_REFRESHES = 3       # ... and gives an arm up as lost after this many unanswered asks in a row
 
 
 class ArmLost(EventError):
@@ -235,6 +236,7 @@ class BusEvents:
         self._faults: dict[str, str] = {}
         self._arms: dict[str, RemoteArm] = {}
         self._heard = 0                                     # counts flag changes heard (a wait's sign of life)
+        self._mute: dict[str, int] = {}                     # arm -> refreshes in a row it did not answer
         s = bus.session
         self._kind_delete = zenoh.SampleKind.DELETE
         self._declared = [
@@ -432,17 +434,25 @@ class BusEvents:
                 if self._heard != heard:
                     heard, quiet_since = self._heard, time.monotonic()
             if time.monotonic() - quiet_since > REFRESH_S:     # a publication lost? ask for the latest
-                self._refresh(chain)
+                self._refresh(chain, eft)
                 quiet_since = time.monotonic()
 
-    def _refresh(self, efts: list[RemoteEFT]) -> None:
-        """Ask the arms' processes for the latest flags of ``efts`` (they answer from what they published)."""
+    def _refresh(self, efts: list[RemoteEFT], waited: RemoteEFT) -> None:
+        """Ask the arms' processes for the latest flags of ``efts`` (they answer from what they
+        published); an arm that has not answered for ``MUTE_REFRESHES`` refreshes in a row is lost."""
         for e in efts:
             if e.status < 0 or e.arm in self._lost:
                 continue
+            answered = False
             for reply in self.bus.session.get(flags_key(self.cell, e.arm, e.serial), timeout=0.5):
                 if reply.ok is not None:
+                    answered = True
                     self._on_flags(reply.ok)
+            self._mute[e.arm] = 0 if answered else self._mute.get(e.arm, 0) + 1
+            if self._mute[e.arm] >= MUTE_REFRESHES:
+                raise ArmLost(f"wait_ev: {waited.describe()}: arm {e.arm!r}'s process has not answered for its "
+                              f"flags {MUTE_REFRESHES} times in a row (its token may still be there: unreachable "
+                              "through the bus)")
 
     def free_ev(self, *efts: RemoteEFT) -> None:
         """Give EFTs back (their motions must have ended); their arms' processes forget them."""

@@ -27,6 +27,10 @@ monitor does on an adaptive arm. Misuse is refused at once: an object that is no
 (``UnknownEvent``), a wait or a chain of start conditions that can never be satisfied
 (``Deadlock``, naming the motions in the cycle), bad codes.
 
+Across processes and hosts (each arm served by its own process, the planning level in
+another), ``rccl.bus_events`` offers the same primitives over the Zenoh bus; the arm's
+process learns of each flag change through ``add_listener`` and publishes it.
+
 Thesis -> Python: ``move_ev(robot, position, params)`` -> ``move_ev(arm, position, start=START)``;
 ``start_ev(code, count, eft...)`` -> ``start_ev(code, *efts)``; ``stop_ev`` likewise;
 ``status_ev(eft)`` -> ``status_ev(eft)``; ``free_ev(count, eft...)`` -> ``free_ev(*efts)``;

@@ -305,7 +305,12 @@ class Bus:
             # the process the others connect to (it listens and connects nowhere) routes between
             # them: two arm processes connected to the planning process reach each other through it
             hub = bool(listen) and not connect if router is None else router
-            self.session = open_session(tuple(connect), tuple(listen), lease_ms, priority, router=hub)
+            # a process that only connects is the hub's client: everything it says goes through
+            # the hub. As a peer it would be told of the other peers and, believing them
+            # reachable directly, the hub would stop forwarding between them (seen: an arm
+            # process unreachable through the hub while its TCP link stayed up)
+            spoke = bool(connect) and not listen and not hub
+            self.session = open_session(tuple(connect), tuple(listen), lease_ms, priority, router=hub, client=spoke)
         except ZenohLinkError as exc:
             raise MultiError(f"bus {cell!r}: {exc}") from None
         self.shared = BusShared(self)
