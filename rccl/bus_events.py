@@ -32,7 +32,8 @@ of each other, plus the bus's spread of a few hundred microseconds).
 **Faults.** The planning process watches each arm process's liveliness token; a process
 that dies (killed, crashed, its host cut off) ends its token and every ``wait_ev`` on
 its motions, or on motions that wait for them, raises ``ArmLost`` (a killed process: at
-once, its TCP link closes; a hung or unreachable one: after the bus's lease,
+once, its TCP link closes; a hung or unreachable one: after three unanswered asks for
+its flags by a wait that heard nothing for a second each, or the bus's lease,
 ``Bus(lease_ms=...)``, 10 s by default). The robot holds that arm (its watchdog, or the
 end of the link). An arm whose control ends with a fault publishes it: ``wait_ev`` raises
 ``RemoteFault`` with the arm process's message. A request no arm process answers within

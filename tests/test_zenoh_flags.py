@@ -84,8 +84,9 @@ def test_the_two_arm_plan_runs_unchanged_across_three_processes():
     # the bound leaves room for a loaded machine (measured figures: docs/zenoh.md)
     lag = e["b"].t_started - e["a"].t_ended
     assert 0.0 <= lag <= 10 * SAMPLE_S, f"b began {lag * 1e3:.1f} ms after a ended"
-    # c and d were started by one publication: each at its arm's next sample (two independent clocks)
-    assert abs(e["c"].t_started - e["d"].t_started) <= 2 * SAMPLE_S + 0.02
+    # c and d were started by one publication: each at its arm's next sample (two independent
+    # clocks: typically within one sample; the bound leaves room for a loaded machine)
+    assert abs(e["c"].t_started - e["d"].t_started) <= 5 * SAMPLE_S
     assert e["c"].t_started >= e["b"].t_ended and e["d"].t_started >= e["b"].t_ended
     # the arm processes reported each motion's end on their channels, with where the robot was
     reports = out["reports"]
