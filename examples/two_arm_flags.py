@@ -161,7 +161,8 @@ def _cli(argv: list[str] | None = None) -> int:
     ap.add_argument("--how-timeout", type=float, default=None,
                     help="with --bus: the arm processes' wait for a HOW (s; default two periods)")
     ap.add_argument("--watchdog", type=float, default=0.1,
-                    help="with --bus --simula: the simulas' watchdog (s without a CHG before they hold the arm)")
+                    help="with --bus and --simula, the watchdog of the simulas started "
+                         "(s without a CHG before they hold the arm)")
     a = ap.parse_args(argv)
     result = petri.analyse(petri.record(plan, "puma", "microbo").net())
     print(result.report())
