@@ -27,6 +27,10 @@ monitor does on an adaptive arm. Misuse is refused at once: an object that is no
 (``UnknownEvent``), a wait or a chain of start conditions that can never be satisfied
 (``Deadlock``, naming the motions in the cycle), bad codes.
 
+Across processes and hosts (each arm served by its own process, the planning level in
+another), ``rccl.bus_events`` offers the same primitives over the Zenoh bus; the arm's
+process learns of each flag change through ``add_listener`` and publishes it.
+
 Thesis -> Python: ``move_ev(robot, position, params)`` -> ``move_ev(arm, position, start=START)``;
 ``start_ev(code, count, eft...)`` -> ``start_ev(code, *efts)``; ``stop_ev`` likewise;
 ``status_ev(eft)`` -> ``status_ev(eft)``; ``free_ev(count, eft...)`` -> ``free_ev(*efts)``;
@@ -37,7 +41,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from typing import Any
+from typing import Any, Callable
 
 from .conditional import choose
 from .ending import MotionEnd
@@ -89,10 +93,12 @@ class EFT:
         self.after: EFT | None = None         # start when this one ends (set by move_ev(start=eft) / start_after)
         self.after_code = START
         self._followers: list[EFT] = []
+        self.t_start_set: float | None = None  # time.monotonic() when its start flag was set (s)
         self.t_started: float | None = None   # time.monotonic() when the trajectory level began it (s)
         self.t_ended: float | None = None     # ... and when it ended (s): for ordering across arms
         self.traj_started: float | None = None  # the arm's trajectory time (s) of the sample it began in
         self.traj_ended: float | None = None    # ... and ended in (comparable across arms of a lockstep Workcell)
+        self.version = 0                        # counts the changes of its flags (listeners see each one)
 
     @property
     def start(self) -> int:
@@ -130,6 +136,29 @@ _changed = threading.Condition(_lock)
 _serial = itertools.count(1)
 _live: dict[int, EFT] = {}                      # id(eft) -> eft
 _arms: dict[int, "_ArmEvents"] = {}             # id(arm) -> its state
+_listeners: list[Callable[[EFT], None]] = []    # called (under the lock) when an EFT's flags change
+
+
+def add_listener(listener: Callable[[EFT], None]) -> None:
+    """Call ``listener(eft)`` each time a flag of an EFT of this process changes (the motion is
+    queued, a start or stop flag is set, it begins, it ends). Called under the flags' lock, from
+    the planning level or the arm's control level: it must return at once and never wait (copy
+    what it needs and hand it to a thread, as ``rccl.bus_arm`` does to publish the flags)."""
+    with _lock:
+        _listeners.append(listener)
+
+
+def remove_listener(listener: Callable[[EFT], None]) -> None:
+    with _lock:
+        if listener in _listeners:
+            _listeners.remove(listener)
+
+
+def _notify(eft: EFT) -> None:
+    """``eft``'s flags changed (caller holds the lock)."""
+    eft.version += 1
+    for listener in tuple(_listeners):
+        listener(eft)
 
 
 def _check_live(eft: Any, where: str) -> EFT:
@@ -192,6 +221,7 @@ class EventGate(QueuePolicy):
                 eft._status = eft._start     # the motion begins: start code -> status
                 eft.t_started = time.monotonic()
                 eft.traj_started = self.events.arm.gen.t
+                _notify(eft)
                 _changed.notify_all()
 
     def cleared(self, items: list) -> None:
@@ -284,6 +314,7 @@ def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_c
         eft.after, eft.after_code = source, after_code
     elif start is not None:
         eft._start = int(start)
+        eft.t_start_set = time.monotonic()
     # not under the global lock: move() checks the path (milliseconds) and the arm's trajectory
     # level takes that lock when a motion ends
     q.next_eft = eft
@@ -300,6 +331,7 @@ def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_c
             source._followers.append(eft)
             if source._status < 0:                  # it already ended: decide now
                 _fire(source, eft)
+        _notify(eft)
         _changed.notify_all()
     return eft
 
@@ -335,6 +367,8 @@ def start_ev(code: int, *efts: EFT) -> None:
         checked = [_check_live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
             e._start = int(code)
+            e.t_start_set = time.monotonic()
+            _notify(e)
         _changed.notify_all()
 
 
@@ -348,6 +382,7 @@ def stop_ev(code: int, *efts: EFT) -> None:
         for e in checked:
             if e._status >= 0:            # an ended motion keeps its stop code
                 e._stop = int(code)
+                _notify(e)
         _changed.notify_all()
 
 
@@ -379,6 +414,7 @@ def stop_abort(arm) -> None:
         for e in ae.efts:
             if e._status >= 0 and e._stop == NULL:
                 e._stop = ABORTED
+                _notify(e)
     for r in arm.gen.queue.clear():
         r.finish(MotionError(f"{r.position.name}: not run, stop_abort flushed the queue of arm {ae.name!r}"))
     arm.gen.abort(MotionEnd("stop", "stop_abort", code=ABORTED, t=arm.gen.t, sample=arm.gen.samples))
@@ -455,6 +491,7 @@ def _finished(eft: EFT, req: Request) -> None:
         eft.t_ended = time.monotonic()
         if ae is not None:
             eft.traj_ended = ae.arm.gen.t
+        _notify(eft)
         for f in eft._followers:
             _fire(eft, f)
         _changed.notify_all()
@@ -464,6 +501,8 @@ def _fire(source: EFT, target: EFT) -> None:
     """``source`` ended: start ``target`` unless ``source`` failed or was aborted."""
     if target.after is source and target._start == NULL and source._status not in (FAULT, ABORTED):
         target._start = target.after_code
+        target.t_start_set = time.monotonic()
+        _notify(target)
 
 
 def _predecessor(e: EFT) -> EFT | None:

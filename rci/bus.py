@@ -287,11 +287,13 @@ class Bus:
     """This process's place on the Zenoh bus for the workcell ``cell``; ``tasks`` are the
     names of the tasks that run in this process (arms' control tasks, ``"planning"``). A
     bus that only listens (the process the others connect to) routes between the others
-    (a Zenoh router), unless ``router`` says otherwise."""
+    (a Zenoh router), unless ``router`` says otherwise. ``priority`` > 0: Zenoh's threads
+    run under SCHED_FIFO at that priority where the OS allows (what crosses the bus then
+    keeps moving on a loaded machine; arm processes use it for their event flags)."""
 
     def __init__(self, cell: str, tasks: tuple[str, ...] | list[str], connect: tuple[str, ...] = (),
                  listen: tuple[str, ...] = (), join_timeout: float = 0.5, lease_ms: int | None = None,
-                 router: bool | None = None) -> None:
+                 router: bool | None = None, priority: int = 0) -> None:
         if not cell or any(c in cell for c in "*$#? "):
             raise MultiError(f"bus: the workcell's name must be a plain key expression, not {cell!r}")
         if isinstance(tasks, str) or not tasks:
@@ -303,7 +305,12 @@ class Bus:
             # the process the others connect to (it listens and connects nowhere) routes between
             # them: two arm processes connected to the planning process reach each other through it
             hub = bool(listen) and not connect if router is None else router
-            self.session = open_session(tuple(connect), tuple(listen), lease_ms, router=hub)
+            # a process that only connects is the hub's client: everything it says goes through
+            # the hub. As a peer it would be told of the other peers and, believing them
+            # reachable directly, the hub would stop forwarding between them (seen: an arm
+            # process unreachable through the hub while its TCP link stayed up)
+            spoke = bool(connect) and not listen and not hub
+            self.session = open_session(tuple(connect), tuple(listen), lease_ms, priority, router=hub, client=spoke)
         except ZenohLinkError as exc:
             raise MultiError(f"bus {cell!r}: {exc}") from None
         self.shared = BusShared(self)

@@ -109,17 +109,18 @@ def _realtime_threads(tids: set[int], priority: int) -> bool:
 
 
 def open_session(connect: tuple[str, ...] = (), listen: tuple[str, ...] = (), lease_ms: int | None = None,
-                 priority: int = 0, router: bool = False):
+                 priority: int = 0, router: bool = False, client: bool = False):
     """A Zenoh peer session with these endpoints (multicast scouting off: explicit endpoints,
     so a test on loopback meets no stranger's session); its threads real-time at
     ``priority`` if > 0 and allowed. ``router``: the session also routes between the
-    sessions connected to it (the process the others connect to, in a workcell)."""
+    sessions connected to it (the process the others connect to, in a workcell); ``client``:
+    a client of such a router (everything goes through it)."""
     try:
         import zenoh
     except ImportError:
         raise ZenohLinkError("the Zenoh link needs the eclipse-zenoh package (pip install eclipse-zenoh)") from None
     conf = zenoh.Config()
-    conf.insert_json5("mode", '"router"' if router else '"peer"')
+    conf.insert_json5("mode", '"router"' if router else ('"client"' if client else '"peer"'))
     conf.insert_json5("scouting/multicast/enabled", "false")
     if connect:
         conf.insert_json5("connect/endpoints", "[" + ",".join(f'"{e}"' for e in connect) + "]")

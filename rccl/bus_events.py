@@ -1,0 +1,550 @@
+"""Event flag triples across processes and hosts, on the Zenoh bus (thesis 5.6.3 over 2.4.3).
+
+The thesis's planning level issues motions with event flags to the trajectory levels of
+several arms. When each arm's control task runs in its own process (or on its own host),
+each arm process serves its RCCL arm on the bus (``rccl.bus_arm``), and the planning
+process drives them through :class:`BusEvents`, which has the API of ``rccl.events``:
+
+    from rci.bus import Bus
+    from rccl.bus_events import BusEvents
+    with Bus("lab", tasks=("planning",), listen=("tcp/0.0.0.0:7447",)) as bus:
+        ev = BusEvents(bus)
+        puma, mic = ev.arm("puma"), ev.arm("microbo")        # served by their processes
+        a = ev.move_ev(puma, p1)                              # starts when ready
+        b = ev.move_ev(mic, p2, start=a)                      # starts when the PUMA's motion ends
+        ev.wait_ev(b); ev.free_ev(a, b)
+
+so a planning function written against ``rccl.events`` (``plan(ev, puma, mic, pos)`` in
+examples/two_arm_flags.py) runs unchanged against arms in other processes.
+
+**What crosses the bus.** Every change of an EFT's flags (queued, start set, begun, stop
+set, ended) is published by the arm's process; the planning process and the other arm
+processes keep the latest of each. ``move_ev(arm_b, q, start=eft_a)`` asks B's process
+to queue the motion held, and B's process sets its start flag itself when it learns
+that A's motion ended (DONE, LIMIT, MONITOR or any code a program gave; not FAULT or
+ABORTED, as in one process): no round trip through the planning level. The latency is
+one bus hop (A's process to B's, through the process they both connect to) plus at most
+one sample of B (its trajectory level looks at its queue once per sample). ``start_ev``
+and ``stop_ev`` are one publication that sets the flags of EFTs of several arms at once;
+each arm acts on it at its next sample (arms with independent clocks: within one sample
+of each other, plus the bus's spread of a few hundred microseconds).
+
+**Faults.** The planning process watches each arm process's liveliness token; a process
+that dies (killed, crashed, its host cut off) ends its token and every ``wait_ev`` on
+its motions, or on motions that wait for them, raises ``ArmLost`` (a killed process: at
+once, its TCP link closes; a hung or unreachable one: after three unanswered asks for
+its flags by a wait that heard nothing for a second each, or the bus's lease,
+``Bus(lease_ms=...)``, 10 s by default). The robot holds that arm (its watchdog, or the
+end of the link). An arm whose control ends with a fault publishes it: ``wait_ev`` raises
+``RemoteFault`` with the arm process's message. A request no arm process answers within
+``request_timeout`` raises ``ArmLost``; nothing waits without a bound except ``wait_ev``
+with ``timeout=None`` on a motion that is still running.
+
+Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is served under):
+
+``rcci/CELL/arm/ARM``              liveliness: the arm's process serves it
+``rcci/CELL/arm/ARM/request``      queryable: move, info, free, abort, close (JSON in, JSON out)
+``rcci/CELL/arm/ARM/fault``        publication: the arm's control ended with this fault
+``rcci/CELL/flags/ARM/SERIAL``     publication (and queryable: the latest) of one EFT's flags
+``rcci/CELL/flags/set``            publication: start_ev / stop_ev on EFTs of any arms
+
+Positions cross as joint angles (``joint_position``: rebuilt with the arm process's own
+kinematics) or as a T6 (any other position, evaluated when ``move_ev`` sends it: a
+functional transform does not cross). Times in the flags (``t_started``, ``t_ended``) are
+the arm process's ``time.monotonic()``, comparable between processes of one host.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+import numpy as np
+
+from rci.bus import Bus, decode, encode
+
+from . import exceptions as rccl_exceptions
+from .events import (ABORTED, FAULT, NULL, START, Deadlock, EFT, EventError, UnknownEvent, code_name)
+from .position import EQ, TL, Position, joint_position, makeposition
+from .transform import T6, Trsf
+
+REQUEST_TIMEOUT_S = 5.0
+REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
+MUTE_REFRESHES = 3       # ... and gives an arm up as lost after this many unanswered asks in a row
+
+
+class ArmLost(EventError):
+    """The process serving an arm left the bus (died, or is unreachable), or does not answer."""
+
+
+class RemoteFault(EventError):
+    """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
+
+
+# --- key expressions ------------------------------------------------------------------------
+def arm_key(cell: str, arm: str, *parts: str) -> str:
+    return "/".join(("rcci", cell, "arm", arm) + parts)
+
+
+def flags_key(cell: str, arm: str, serial: int | str) -> str:
+    return f"rcci/{cell}/flags/{arm}/{serial}"
+
+
+def set_key(cell: str) -> str:
+    return f"rcci/{cell}/flags/set"
+
+
+def check_name(name: Any, what: str) -> str:
+    if not isinstance(name, str) or not name or any(c in name for c in "/*$#? "):
+        raise EventError(f"{what}: {name!r} is not a plain name (no '/', '*', '$', '#', '?', spaces)")
+    return name
+
+
+# --- the wire forms -------------------------------------------------------------------------
+def flags_of(eft: EFT, arm: str) -> dict:
+    """One EFT's flags as published (JSON)."""
+    return {"arm": arm, "serial": eft.serial, "where": eft.where, "start": eft.start, "stop": eft.stop,
+            "status": eft.status, "version": eft.version, "t_start_set": eft.t_start_set, "t_started": eft.t_started,
+            "t_ended": eft.t_ended,
+            "traj_started": eft.traj_started, "traj_ended": eft.traj_ended}
+
+
+def position_to_wire(position: Any) -> dict:
+    """A position as it crosses the bus: its joint angles if it has them, else its T6 now."""
+    if not isinstance(position, Position):
+        raise EventError(f"move_ev: {position!r} is not a Position (rccl.makeposition, rccl.joint_position)")
+    joints = getattr(position, "joints", None)
+    if joints is not None:
+        return {"name": position.name, "joints": [float(x) for x in joints]}
+    return {"name": position.name, "t6": np.asarray(position.solve(), dtype=float).tolist()}
+
+
+def position_from_wire(data: Any, kinematics) -> Position:
+    """The position ``position_to_wire`` sent, rebuilt with this arm's kinematics."""
+    if not isinstance(data, dict) or not isinstance(data.get("name"), str):
+        raise EventError(f"move request: the position must be {{'name', 'joints' | 't6'}}, got {data!r}")
+    if "joints" in data:
+        return joint_position(data["name"], kinematics, np.asarray(data["joints"], dtype=float))
+    t6 = np.asarray(data.get("t6"), dtype=float)
+    if t6.shape != (4, 4) or not np.all(np.isfinite(t6)):
+        raise EventError(f"move request {data['name']!r}: t6 must be a finite 4x4 matrix")
+    return makeposition(data["name"], T6, EQ, Trsf(data["name"].upper(), t6), TL, T6)
+
+
+#: error classes an arm process's reply may name (anything else arrives as RemoteFault)
+_KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock)}
+_KNOWN_ERRORS.update({name: cls for name, cls in vars(rccl_exceptions).items()
+                      if isinstance(cls, type) and issubclass(cls, Exception)})
+
+
+def error_reply(exc: BaseException) -> dict:
+    return {"error": str(exc), "type": type(exc).__name__}
+
+
+# --- the planning process's view ---------------------------------------------------------------
+class RemoteArm:
+    """An arm served by another process, as the planning level sees it: ``name``, ``robot``,
+    ``rate_hz``, ``kinematics`` (this process's generated module of the robot, to build
+    positions) and ``q`` (the arm's last commanded joint angles, rad, asked for each time)."""
+
+    def __init__(self, events: "BusEvents", name: str, info: dict) -> None:
+        from .session import load_kinematics
+        self.events = events
+        self.name = name
+        self.robot = str(info["robot"])
+        self.rate_hz = int(info["rate_hz"])
+        self.kinematics = load_kinematics(self.robot)
+
+    @property
+    def q(self) -> np.ndarray:
+        return np.asarray(self.events.request(self.name, {"op": "info"}, "q")["q"], dtype=float)
+
+    def close(self) -> None:
+        """Ask the arm's process to finish its motions, release the arm and end."""
+        self.events.request(self.name, {"op": "close"}, "close")
+
+    def __repr__(self) -> str:
+        return f"RemoteArm({self.name!r}, {self.robot}, {self.rate_hz} Hz, cell {self.events.cell!r})"
+
+
+class RemoteEFT:
+    """An EFT of a motion queued on an arm of another process; its flags are the latest the
+    arm's process published. Reads like ``rccl.events.EFT`` (start, stop, status, state, t_started, ...)."""
+
+    def __init__(self, events: "BusEvents", arm: str, serial: int, where: str) -> None:
+        self._events = events
+        self.arm = arm
+        self.serial = serial
+        self._where = where
+        self.after: RemoteEFT | None = None
+        self.start_sent = NULL           # set here by start_ev before the arm's publication comes back
+        self.stop_sent = NULL
+        self.freed = False
+        self.final: dict | None = None   # its last flags, kept by free_ev
+
+    def _flag(self, name: str) -> Any:
+        flags = self.final if self.final is not None else self._events.flags(self.arm, self.serial)
+        return flags.get(name)
+
+    @property
+    def start(self) -> int:
+        return self._flag("start") or self.start_sent
+
+    @property
+    def stop(self) -> int:
+        return self._flag("stop") or self.stop_sent
+
+    @property
+    def status(self) -> int:
+        return self._flag("status") or NULL
+
+    @property
+    def state(self) -> str:
+        s = self.status
+        return "pending" if s == NULL else ("active" if s > 0 else "completed")
+
+    t_start_set = property(lambda self: self._flag("t_start_set"))
+    t_started = property(lambda self: self._flag("t_started"))
+    t_ended = property(lambda self: self._flag("t_ended"))
+    traj_started = property(lambda self: self._flag("traj_started"))
+    traj_ended = property(lambda self: self._flag("traj_ended"))
+
+    @property
+    def where(self) -> str:
+        return self._where
+
+    def describe(self) -> str:
+        return f"motion #{self.serial} of arm {self.arm!r} to {self.where}"
+
+    def __repr__(self) -> str:
+        return (f"RemoteEFT(#{self.serial} arm {self.arm!r} to {self.where}: start {code_name(self.start)}, "
+                f"stop {code_name(self.stop)}, status {code_name(self.status)})")
+
+
+class BusEvents:
+    """The event-flag primitives of ``rccl.events`` for arms served on the bus of ``bus.cell``."""
+
+    def __init__(self, bus: Bus, request_timeout: float = REQUEST_TIMEOUT_S) -> None:
+        import zenoh
+        self.bus = bus
+        self.cell = bus.cell
+        self.request_timeout = request_timeout
+        self._cond = threading.Condition()
+        self._flags: dict[tuple[str, int], dict] = {}
+        self._issued: dict[str, list[RemoteEFT]] = {}      # per arm, in the order move_ev queued them
+        self._present: set[str] = set()
+        self._lost: dict[str, float] = {}                   # arm -> time.monotonic() its token ended
+        self._faults: dict[str, str] = {}
+        self._arms: dict[str, RemoteArm] = {}
+        self._heard = 0                                     # counts flag changes heard (a wait's sign of life)
+        self._mute: dict[str, int] = {}                     # arm -> refreshes in a row it did not answer
+        s = bus.session
+        self._kind_delete = zenoh.SampleKind.DELETE
+        self._declared = [
+            s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
+            s.declare_subscriber(arm_key(self.cell, "*", "fault"), self._on_fault),
+            s.liveliness().declare_subscriber(arm_key(self.cell, "*"), self._on_liveliness, history=True),
+        ]
+
+    # -- what the bus tells ---------------------------------------------------------------
+    def _on_flags(self, sample) -> None:
+        try:
+            self._absorb(decode(sample.payload.to_bytes()))
+        except (ValueError, KeyError, TypeError):
+            return
+
+    def _absorb(self, f: dict) -> None:
+        """Keep ``f`` (one EFT's flags) if it is newer than what is known."""
+        key = (str(f["arm"]), int(f["serial"]))
+        with self._cond:
+            old = self._flags.get(key)
+            if old is None or f.get("version", 0) > old.get("version", 0):
+                self._flags[key] = f
+                self._heard += 1
+            self._cond.notify_all()
+
+    def _on_fault(self, sample) -> None:
+        name = str(sample.key_expr).split("/")[-2]
+        with self._cond:
+            self._faults[name] = sample.payload.to_bytes().decode(errors="replace")
+            self._cond.notify_all()
+
+    def _on_liveliness(self, sample) -> None:
+        name = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self._cond:
+            if sample.kind == self._kind_delete:
+                self._present.discard(name)
+                self._lost[name] = time.monotonic()
+            else:
+                self._present.add(name)
+                self._lost.pop(name, None)
+                self._faults.pop(name, None)
+            self._cond.notify_all()
+
+    def flags(self, arm: str, serial: int) -> dict:
+        """The latest flags published for EFT ``serial`` of ``arm`` ({} if none yet)."""
+        with self._cond:
+            return self._flags.get((arm, serial), {})
+
+    # -- arms -------------------------------------------------------------------------------
+    def arm(self, name: str, timeout: float = 10.0) -> RemoteArm:
+        """The arm served as ``name`` on this cell, once its process is there (at most ``timeout`` s)."""
+        check_name(name, "BusEvents.arm")
+        if name in self._arms:
+            return self._arms[name]
+        deadline = time.monotonic() + timeout
+        while not self._is_present(name) and time.monotonic() < deadline:
+            with self._cond:
+                self._cond.wait_for(lambda: name in self._present, min(0.5, max(0.0, deadline - time.monotonic())))
+        if not self._is_present(name):
+            raise ArmLost(f"no process serves arm {name!r} on {arm_key(self.cell, name)} within {timeout} s "
+                          "(is its arm process (python -m rccl.bus_arm) running and connected to this bus?)")
+        info = self.request(name, {"op": "info"}, "arm")
+        self._arms[name] = RemoteArm(self, name, info)
+        return self._arms[name]
+
+    def _is_present(self, name: str) -> bool:
+        """Its liveliness token is there (seen by the subscriber, or found by asking)."""
+        with self._cond:
+            if name in self._present:
+                return True
+        for reply in self.bus.session.liveliness().get(arm_key(self.cell, name), timeout=0.5):
+            if reply.ok is not None:
+                with self._cond:
+                    self._present.add(name)
+                return True
+        return False
+
+    def attach(self, arm: RemoteArm, name: str | None = None) -> str:
+        """As ``rccl.events.attach``: the arm's name (a remote arm's name is the one it is served under)."""
+        arm = self._own_arm(arm, "attach")
+        if name is not None and name != arm.name:
+            raise EventError(f"attach: this arm is served as {arm.name!r}, not {name!r}")
+        return arm.name
+
+    def request(self, arm: str, payload: dict, where: str) -> dict:
+        """Ask ``arm``'s process; its answer, or the error it names raised here (``ArmLost`` at
+        once for an arm whose process left the bus, after ``request_timeout`` s for one that is mute)."""
+        with self._cond:
+            lost = self._lost.get(arm)
+        if lost is not None:
+            raise ArmLost(f"{where}: arm {arm!r}'s process left the bus {time.monotonic() - lost:.3f} s ago "
+                          f"(its liveliness token {arm_key(self.cell, arm)} ended)")
+        replies = self.bus.session.get(arm_key(self.cell, arm, "request"), payload=encode(payload),
+                                       timeout=self.request_timeout)
+        for reply in replies:
+            if reply.ok is None:
+                continue
+            answer = decode(reply.ok.payload.to_bytes())
+            if "error" in answer:
+                cls = _KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
+                raise cls(f"{where}: arm {arm!r} (its process) says: {answer['error']}")
+            return answer
+        with self._cond:
+            gone = arm in self._lost
+        raise ArmLost(f"{where}: arm {arm!r}'s process {'left the bus' if gone else 'did not answer'} "
+                      f"(no reply on {arm_key(self.cell, arm, 'request')} within {self.request_timeout} s)")
+
+    def _own_arm(self, arm: Any, where: str) -> RemoteArm:
+        if not isinstance(arm, RemoteArm) or arm.events is not self:
+            raise EventError(f"{where}: {arm!r} is not an arm of this bus (use BusEvents.arm(name))")
+        return arm
+
+    def _live(self, eft: Any, where: str) -> RemoteEFT:
+        if not isinstance(eft, RemoteEFT) or eft._events is not self:
+            raise UnknownEvent(f"{where}: {eft!r} is not an event flag triple of this bus (use the one move_ev returned)")
+        if eft.freed:
+            raise UnknownEvent(f"{where}: {eft.describe()} was freed by free_ev; its flags no longer exist")
+        return eft
+
+    # -- the primitives ----------------------------------------------------------------------
+    def move_ev(self, arm: RemoteArm, position: Position, *, start: int | RemoteEFT | None = START,
+                after_code: int = START) -> RemoteEFT:
+        """``rccl.events.move_ev`` on an arm of another process (its current motion parameters)."""
+        arm = self._own_arm(arm, "move_ev")
+        wire_start: Any
+        source = None
+        if isinstance(start, RemoteEFT):
+            source = self._live(start, "move_ev(start=...)")
+            _check_start_code(after_code, "move_ev(after_code=...)")
+            wire_start = {"after": [source.arm, source.serial], "code": after_code,
+                          "flags": self.flags(source.arm, source.serial) or None}
+        else:
+            if start is not None:
+                _check_start_code(start, "move_ev(start=...)")
+            wire_start = start
+        answer = self.request(arm.name, {"op": "move", "position": position_to_wire(position), "start": wire_start},
+                              "move_ev")
+        eft = RemoteEFT(self, arm.name, int(answer["serial"]), position.name)
+        eft.after = source
+        with self._cond:
+            self._issued.setdefault(arm.name, []).append(eft)
+        self._absorb(answer["flags"])
+        return eft
+
+    def start_ev(self, code: int, *efts: RemoteEFT) -> None:
+        """Set the start flag of every EFT given (of any arms) to ``code`` (> 0), in one publication."""
+        _check_start_code(code, "start_ev")
+        checked = [self._live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
+        for e in checked:
+            e.start_sent = int(code)
+        self._publish_set("start", code, checked)
+
+    def stop_ev(self, code: int, *efts: RemoteEFT) -> None:
+        """Set the stop flag of every EFT given to ``code`` (< 0), in one publication: each motion
+        halts at its arm's next sample (or, not started, is deleted from its queue)."""
+        if not isinstance(code, int) or isinstance(code, bool) or code >= 0:
+            raise EventError(f"stop_ev: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
+        checked = [self._live(e, f"stop_ev(argument {i + 2})") for i, e in enumerate(efts)]
+        for e in checked:
+            if e.status >= 0:
+                e.stop_sent = int(code)
+        self._publish_set("stop", code, checked)
+
+    def _publish_set(self, flag: str, code: int, efts: list[RemoteEFT]) -> None:
+        import zenoh
+        message = {"flag": flag, "code": int(code), "efts": [[e.arm, e.serial] for e in efts]}
+        self.bus.session.put(set_key(self.cell), encode(message), congestion_control=zenoh.CongestionControl.BLOCK,
+                             express=True)
+
+    def status_ev(self, eft: RemoteEFT) -> int:
+        """The status flag as last published: NULL pending, > 0 running, < 0 ended."""
+        return self._live(eft, "status_ev").status
+
+    def wait_ev(self, eft: RemoteEFT, *, started: bool = False, timeout: float | None = None,
+                poll: float = 0.02) -> int:
+        """Block until ``eft``'s motion has ended (``started=True``: begun); its status.
+
+        Raises ``Deadlock`` when nothing but this planning level could start it, ``ArmLost``
+        when its arm's process (or that of a motion it waits for) left the bus, ``RemoteFault``
+        when that arm's control ended with a fault, ``TimeoutError`` after ``timeout`` s.
+        """
+        eft = self._live(eft, "wait_ev")
+        done = (lambda: eft.status != NULL) if started else (lambda: eft.status < 0)
+        deadline = None if timeout is None else time.monotonic() + timeout
+        heard, quiet_since = self._heard, time.monotonic()
+        while True:
+            with self._cond:
+                if done():
+                    return eft.status
+                self._check_blocked(eft, started)
+                if deadline is not None and time.monotonic() > deadline:
+                    raise TimeoutError(f"wait_ev: {eft!r} after {timeout} s")
+                self._cond.wait(poll)
+                chain = self._chain(eft)
+                if self._heard != heard:
+                    heard, quiet_since = self._heard, time.monotonic()
+            if time.monotonic() - quiet_since > REFRESH_S:     # a publication lost? ask for the latest
+                self._refresh(chain, eft)
+                quiet_since = time.monotonic()
+
+    def _refresh(self, efts: list[RemoteEFT], waited: RemoteEFT) -> None:
+        """Ask the arms' processes for the latest flags of ``efts`` (they answer from what they
+        published); an arm that has not answered for ``MUTE_REFRESHES`` refreshes in a row is lost."""
+        for e in efts:
+            if e.status < 0 or e.arm in self._lost:
+                continue
+            answered = False
+            for reply in self.bus.session.get(flags_key(self.cell, e.arm, e.serial), timeout=0.5):
+                if reply.ok is not None:
+                    answered = True
+                    self._on_flags(reply.ok)
+            self._mute[e.arm] = 0 if answered else self._mute.get(e.arm, 0) + 1
+            if self._mute[e.arm] >= MUTE_REFRESHES:
+                raise ArmLost(f"wait_ev: {waited.describe()}: arm {e.arm!r}'s process has not answered for its "
+                              f"flags {MUTE_REFRESHES} times in a row (its token may still be there: unreachable "
+                              "through the bus)")
+
+    def free_ev(self, *efts: RemoteEFT) -> None:
+        """Give EFTs back (their motions must have ended); their arms' processes forget them."""
+        checked = [self._live(e, f"free_ev(argument {i + 1})") for i, e in enumerate(efts)]
+        busy = [e for e in checked if e.status >= 0]
+        if busy:
+            raise EventError("free_ev: " + "; ".join(f"{e.describe()} has not ended (status {code_name(e.status)})"
+                                                     for e in busy))
+        for arm in sorted({e.arm for e in checked}):
+            serials = [e.serial for e in checked if e.arm == arm]
+            self.request(arm, {"op": "free", "serials": serials}, "free_ev")
+        with self._cond:
+            for e in checked:
+                e.final = self._flags.pop((e.arm, e.serial), {})
+                e.freed = True
+                if e in self._issued.get(e.arm, []):
+                    self._issued[e.arm].remove(e)
+
+    def stop_abort(self, arm: RemoteArm) -> None:
+        """Flush the arm's queue and halt it; its EFTs not yet ended get ABORTED."""
+        arm = self._own_arm(arm, "stop_abort")
+        answer = self.request(arm.name, {"op": "abort"}, "stop_abort")
+        for flags in answer["flags"]:          # what it aborted, known before its publications arrive
+            self._absorb(flags)
+
+    def close(self) -> None:
+        for obj in self._declared:
+            try:
+                obj.undeclare()
+            except Exception:
+                pass
+
+    # -- why a wait cannot end (caller holds the condition) ---------------------------------------
+    def _check_blocked(self, eft: RemoteEFT, started: bool) -> None:
+        for e in self._chain(eft):
+            if e.arm in self._faults and e.status >= 0:
+                raise RemoteFault(f"wait_ev: {eft.describe()}: the control of arm {e.arm!r} ended with a fault "
+                                  f"({self._faults[e.arm]})")
+            if e.arm in self._lost and e.status >= 0:
+                ago = time.monotonic() - self._lost[e.arm]
+                via = "" if e is eft else f" (it waits for {e.describe()})"
+                raise ArmLost(f"wait_ev: {eft.describe()} will never {'start' if started else 'end'}{via}: the "
+                              f"process serving arm {e.arm!r} left the bus {ago:.3f} s ago; the robot holds that arm")
+        why = self._never_starts(eft, set())
+        if why is not None:
+            raise Deadlock(f"wait_ev: {eft.describe()} can never {'start' if started else 'end'}: {why}")
+
+    def _chain(self, e: RemoteEFT) -> list[RemoteEFT]:
+        """``e`` and the motions it waits for (before it on its arm, its start condition), transitively."""
+        out, todo, seen = [], [e], set()
+        while todo:
+            x = todo.pop()
+            if id(x) in seen:
+                continue
+            seen.add(id(x))
+            out.append(x)
+            if x.status == NULL:
+                todo += [d for d in (x.after, self._predecessor(x)) if d is not None]
+        return out
+
+    def _predecessor(self, e: RemoteEFT) -> RemoteEFT | None:
+        lst = self._issued.get(e.arm, [])
+        i = lst.index(e) if e in lst else 0
+        for p in reversed(lst[:i]):
+            if p.status >= 0:
+                return p
+        return None
+
+    def _never_starts(self, e: RemoteEFT, seen: set) -> str | None:
+        if e.status != NULL or e.stop != NULL:
+            return None
+        if id(e) in seen:
+            return f"{e.describe()} waits for itself"
+        seen.add(id(e))
+        if e.start == NULL:
+            if e.after is None:
+                return f"the start flag of {e.describe()} is not set and nothing will set it (start_ev it first)"
+            src = e.after
+            if src.status in (FAULT, ABORTED):
+                return f"{e.describe()} waits for {src.describe()}, which ended {code_name(src.status)}"
+            why = self._never_starts(src, seen)
+            if why is not None:
+                return f"{e.describe()} waits for {src.describe()}; {why}"
+        p = self._predecessor(e)
+        if p is not None:
+            why = self._never_starts(p, seen)
+            if why is not None:
+                return f"{e.describe()} is queued behind {p.describe()}; {why}"
+        return None
+
+
+def _check_start_code(code: Any, where: str) -> None:
+    if not isinstance(code, int) or isinstance(code, bool) or code <= 0:
+        raise EventError(f"{where}: start codes are positive integers (rule 4; NULL = 0 is reserved), got {code!r}")
