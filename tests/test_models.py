@@ -186,7 +186,7 @@ def test_models_dir_env_override(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     assert models_dir() == root
     assert load_robot("microbo").path == root / "microbo.toml"
     with pytest.raises(ModelError, match="no such robot data file"):
-        load_robot("puma560")
+        load_robot("stanford_arm")
 
 
 def test_reloads_after_edit(tmp_path: Path) -> None:
