@@ -21,6 +21,7 @@ from derive import emit_c, emit_casadi, emit_python
 from derive.derivation import derive_robot, robot_names
 from derive.kernels import build_kernels
 from derive.robots import load_spec
+from models import load_robot
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "rccl" / "kinematics"
@@ -71,7 +72,9 @@ def main(argv: list[str] | None = None) -> int:
             from derive.report import write_report
 
             bar.update(task, description="derive: reports")
-            thesis = {n: d for n, d in derivations.items() if d.spec.thesis}
+            # in the thesis's order: by the table the DH values come from (3.1 PUMA, 3.2 Microbo)
+            thesis = dict(sorted(((n, d) for n, d in derivations.items() if d.spec.thesis),
+                                 key=lambda nd: load_robot(nd[0]).source("joints.1.a").tag))
             if set(thesis) == {n for n in names if load_spec(n).thesis}:
                 path = write_report(thesis, ROOT / "reports" / "thesis-equations.md")
                 print(f"derive: {path.relative_to(ROOT)}")
