@@ -99,3 +99,18 @@ def test_outside_both_classes_is_refused_naming_why():
     assert any("a4 = a5 = a6 = 0" in why for why in reasons["articulated (PUMA class)"])
     with pytest.raises(OutsideClass, match="no closed-form inverse kinematics.*a4 = a5 = a6 = 0"):
         solve_ik(r)
+
+
+def test_derive_finds_the_arm_and_reports_it():
+    from pathlib import Path
+
+    from derive.robots import load_spec, robot_names
+
+    assert set(robot_names()) >= {"puma260", "microbo", "puma560"}
+    spec = load_spec("puma560")
+    assert not spec.thesis and spec.config_fields == ("arm", "elbow", "wrist")
+    assert load_spec("puma260").thesis and load_spec("microbo").config_fields == ("wrist",)
+    text = (Path(__file__).resolve().parent.parent / "reports" / "derivation-puma560.md").read_text()
+    for section in ("## DH table", "## A matrices", "## T6", "## Inverse kinematics: articulated class",
+                    "## Jacobian", "## Gravity", "| cx2 |"):
+        assert section in text, section
