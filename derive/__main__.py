@@ -1,5 +1,6 @@
-"""`python -m derive` (= `make derive`): derive both arms, emit code for every back end,
-write reports/thesis-equations.md.
+"""`python -m derive` (= `make derive`): derive every arm under models/, emit code for every
+back end, write reports/thesis-equations.md (the thesis's arms against the print) and
+reports/derivation-<robot>.md for every other arm.
 
 Back ends are functions ``emit(kernels, programs, robot, out_dir)``; add one to
 ``BACKENDS``. ``programs`` is the C back end's lowering of the kernels (and of
@@ -17,8 +18,10 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from derive import emit_c, emit_casadi, emit_python
-from derive.derivation import ROBOT_NAMES, derive_robot
+from derive.derivation import derive_robot, robot_names
 from derive.kernels import build_kernels
+from derive.robots import load_spec
+from models import load_robot
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "rccl" / "kinematics"
@@ -36,13 +39,14 @@ def main(argv: list[str] | None = None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=f"Generated files go to {OUT_DIR.relative_to(ROOT)}/ "
                                         f"(python, C, CasADi per robot); inputs are derive/*.py and models/.")
-    ap.add_argument("--robot", choices=ROBOT_NAMES, action="append",
-                    help="derive only this robot (repeatable); default both")
-    ap.add_argument("--no-report", action="store_true", help="skip reports/thesis-equations.md")
+    names = robot_names()
+    ap.add_argument("--robot", choices=names, action="append",
+                    help="derive only this robot (repeatable); default every robot under models/")
+    ap.add_argument("--no-report", action="store_true", help="skip the reports")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
-    robots = args.robot or list(ROBOT_NAMES)
-    report = not args.no_report and set(robots) == set(ROBOT_NAMES)
+    robots = args.robot or list(names)
+    report = not args.no_report
     derivations = {}
     with _progress(args.quiet) as bar:
         task = bar.add_task("derive", total=len(robots) * (2 + len(BACKENDS)) + report)
@@ -64,12 +68,21 @@ def main(argv: list[str] | None = None) -> int:
                 bar.advance(task)
             print(f"derive: {name}: {len(kernels)} kernels in {time.perf_counter() - t0:.1f} s")
         if report:
+            from derive.arm_report import write_arm_report
             from derive.report import write_report
 
-            bar.update(task, description="derive: report")
-            path = write_report(derivations, ROOT / "reports" / "thesis-equations.md")
+            bar.update(task, description="derive: reports")
+            # in the thesis's order: by the table the DH values come from (3.1 PUMA, 3.2 Microbo)
+            thesis = dict(sorted(((n, d) for n, d in derivations.items() if d.spec.thesis),
+                                 key=lambda nd: load_robot(nd[0]).source("joints.1.a").tag))
+            if set(thesis) == {n for n in names if load_spec(n).thesis}:
+                path = write_report(thesis, ROOT / "reports" / "thesis-equations.md")
+                print(f"derive: {path.relative_to(ROOT)}")
+            for n, d in derivations.items():
+                if not d.spec.thesis:
+                    path = write_arm_report(d, ROOT / "reports" / f"derivation-{n}.md")
+                    print(f"derive: {path.relative_to(ROOT)}")
             bar.advance(task)
-            print(f"derive: {path.relative_to(ROOT)}")
     return 0
 
 

@@ -25,8 +25,14 @@ ROOT = Path(__file__).resolve().parent.parent
 #: the package `make derive` writes the generated modules into (derive/__main__.py OUT_DIR);
 #: the cross-check runs that output, loaded by name: the derivation never imports the runtime
 GENERATED_PACKAGE = "rccl.kinematics"
+def _robots() -> tuple[str, ...]:
+    from models import available_robots
+
+    return tuple(available_robots())
+
+
 MODULES: dict[str, ModuleType] = {robot: importlib.import_module(f"{GENERATED_PACKAGE}.{robot}")
-                                  for robot in ("puma260", "microbo")}
+                                  for robot in _robots()}
 #: below these the closed form loses digits (errors ~ eps / value): such samples are
 #: checked through fk(ik(T)) = T only, not through q = ik(fk(q))
 WELL_CONDITIONED = 1e-3
@@ -128,12 +134,17 @@ def samples(mod: ModuleType, n: int, seed: int = 0) -> np.ndarray:
 
 
 def conditioning(mod: ModuleType, q: np.ndarray) -> float:
-    """Smallest of the normalised singularity distances at q (|S5|, |C3|, |h|/(a2+d4))."""
+    """Smallest of the normalised singularity distances at q: |S5| and, for the PUMA class,
+    |cos(theta3 - phi)| (elbow) and |h|/(a2 + L) (shoulder), with L = sqrt(a3^2 + d4^2) the
+    forearm and phi = atan2(a3, d4); for the Microbo class the radial extension d3."""
     q = np.atleast_2d(q)
     vals = [np.abs(np.sin(q[:, 4]))]
-    if mod.ROBOT == "puma260":
-        h = mod.A2 * np.cos(q[:, 1]) - mod.D4 * np.sin(q[:, 1] + q[:, 2])
-        vals += [np.abs(np.cos(q[:, 2])), np.abs(h) / (mod.A2 + mod.D4)]
+    if len(mod.Config.all()) == 8:  # arm, elbow, wrist: the PUMA class
+        a2, a3, d4 = mod.A2, getattr(mod, "A3", 0.0), mod.D4
+        forearm = np.hypot(a3, d4)
+        h = a2 * np.cos(q[:, 1]) + a3 * np.cos(q[:, 1] + q[:, 2]) - d4 * np.sin(q[:, 1] + q[:, 2])
+        bend = (d4 * np.cos(q[:, 2]) + a3 * np.sin(q[:, 2])) / forearm
+        vals += [np.abs(bend), np.abs(h) / (a2 + forearm)]
     else:
         vals.append(np.abs(q[:, 2]))
     return np.min(np.vstack(vals), axis=0)

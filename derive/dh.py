@@ -7,6 +7,7 @@ extensions d2 and d3 (metres), every other joint variable an angle (radians).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import sympy as sp
@@ -109,3 +110,56 @@ def inverse_transform(t: sp.Matrix) -> sp.Matrix:
     out[:3, :3] = r.T
     out[:3, 3] = -r.T * p
     return out
+
+
+def _length(value: float, name: str, params: dict[sp.Symbol, float]) -> sp.Expr:
+    """A fixed DH length: 0 stays 0, any other value becomes the symbol ``name`` (a2, d3,
+    ...) whose number is substituted only when code is emitted."""
+    if value == 0.0:
+        return sp.Integer(0)
+    sym = sp.Symbol(name, positive=True) if value > 0 else sp.Symbol(name, negative=True)
+    params[sym] = float(value)
+    return sym
+
+
+def _angle(value: float, name: str, params: dict[sp.Symbol, float]) -> sp.Expr:
+    """A fixed DH angle: a whole number of degrees is exact (90 deg = pi/2, as the thesis
+    tables), any other value a symbol substituted at emission."""
+    deg = math.degrees(value)
+    if abs(deg - round(deg)) < 1e-9:
+        return sp.Integer(round(deg)) * _deg
+    sym = sp.Symbol(name, real=True)
+    params[sym] = float(value)
+    return sym
+
+
+def dh_from_model(model) -> tuple[DHRobot, dict[sp.Symbol, float]]:
+    """The symbolic DH table of a robot's model file (``models.RobotModel``) and the
+    numbers of its symbols (SI).
+
+    Joint i's variable q_i is added to theta (revolute) or d (prismatic), the other
+    parameters are fixed: zero lengths stay 0, whole-degree angles are exact, every other
+    value is a symbol named after its table entry (a2, d3, ...). For the thesis arms this
+    is Table 3.1 / 3.2 exactly (``PUMA260``, ``MICROBO``).
+    """
+    if model.n_joints != 6:
+        raise ValueError(f"{model.path}: robot.n_joints = {model.n_joints}: the derivation "
+                         "handles six-joint arms")
+    params: dict[sp.Symbol, float] = {}
+    links = []
+    for j, q in zip(model.joints, Q):
+        i = j.index
+        prismatic = j.kind == "prismatic"
+        if prismatic:
+            if j.d != 0.0:
+                raise ValueError(f"{model.path}: joints.{i}.d: offset {j.d} on the joint "
+                                 "variable is not supported by the derivation")
+            d, theta = q, _angle(j.theta, f"theta{i}", params)
+        else:
+            if j.theta != 0.0:
+                raise ValueError(f"{model.path}: joints.{i}.theta: offset {j.theta} on the "
+                                 "joint variable is not supported by the derivation")
+            d, theta = _length(j.d, f"d{i}", params), q
+        links.append(DHLink(d, theta, _angle(j.alpha, f"alpha{i}", params),
+                            _length(j.a, f"a{i}", params), prismatic=prismatic))
+    return DHRobot(model.name, tuple(links), tuple(params)), params

@@ -177,6 +177,13 @@ def _kernel_table(kernels: list[Kernel]) -> str:
     return "\n".join(lines)
 
 
+def _coefficient_names(kernels: list[Kernel]) -> tuple[str, ...]:
+    """The gravity coefficients' names, as the gravity kernel takes them."""
+    k = next(k for k in kernels if k.name == "gravity")
+    c = next(a for a in k.inputs if a.name == "c")
+    return tuple(str(s) for s in c.value)
+
+
 def module_source(kernels: list[Kernel], spec: RobotSpec) -> str:
     params = {}
     for k in kernels:
@@ -211,7 +218,7 @@ JOINT_KINDS = {kinds!r}
 #: joint ranges (rad; m for prismatic joints), from the model file
 LOWER = numpy.array({list(spec.lower)!r})
 UPPER = numpy.array({list(spec.upper)!r})
-GRAVITY_COEFFS = {tuple(spec.gravity_coeffs)!r}
+GRAVITY_COEFFS = {_coefficient_names(kernels)!r}
 Config = _rt.{config}
 CONFIGS = Config.all()
 '''

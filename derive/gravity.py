@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 
-from derive.dh import Q, DHRobot, a2, d4
+from derive.dh import Q, DHRobot
 from derive.forward import base_to_link, link_to_link, tidy
 
 g0 = sp.Symbol("g", positive=True)
@@ -60,6 +61,7 @@ class GravityModel:
 def _group(robot: DHRobot, general: sp.Matrix, meanings: dict[str, sp.Expr],
            com, tool_com) -> GravityModel:
     """Rewrite ``general`` as regressor * coefficients and prove the rewrite exact."""
+    lengths = {g0, *robot.params}
     names = tuple(meanings)
     syms = tuple(sp.Symbol(n, real=True) for n in names)
     # eliminate one mass-moment combination per coefficient: solve meaning_j = c_j for
@@ -69,7 +71,7 @@ def _group(robot: DHRobot, general: sp.Matrix, meanings: dict[str, sp.Expr],
         rows.append(sp.expand(e))
     unknowns = []
     for name, expr in meanings.items():
-        free = sorted((s for s in sp.expand(expr).free_symbols if s not in (g0, a2, d4)),
+        free = sorted((s for s in sp.expand(expr).free_symbols if s not in lengths),
                       key=sp.default_sort_key)
         unknowns.append(free)
     elim = {}
@@ -85,7 +87,9 @@ def _group(robot: DHRobot, general: sp.Matrix, meanings: dict[str, sp.Expr],
     regressor = sp.Matrix([[tidy(g.coeff(s)) for s in syms] for g in grouped])
     residual = [sp.simplify(sp.expand(g - sum(regressor[i, j] * syms[j] for j in range(len(syms)))))
                 for i, g in enumerate(grouped)]
-    assert all(r == 0 for r in residual), f"{robot.name}: gravity does not group: {residual}"
+    if not all(r == 0 for r in residual):
+        raise ValueError(f"{robot.name}: gravity_grouping: eq. 4.20 does not group into the "
+                         f"model file's coefficients; remainder {residual}")
     # 4.26: a point mass m_t at d_t along z6 joins link 6 (mass and first moment add)
     shifted = {}
     for name, expr in meanings.items():
@@ -95,42 +99,122 @@ def _group(robot: DHRobot, general: sp.Matrix, meanings: dict[str, sp.Expr],
                         tuple(shifted[n] for n in names), tuple(com))
 
 
-def puma_gravity() -> GravityModel:
-    """PUMA 260 with the centres of mass of 4.21, grouped as in 4.24."""
-    from derive.dh import PUMA260
 
-    (x1, y1, z1), (x2, y2, z2), (x3, y3, z3), (x4, y4, z4), (x5, y5, z5), (x6, y6, z6) = COM
-    com = [(0, 0, z1), (x2, 0, z2), (0, 0, z3), (0, y4, 0), (0, 0, z5), (0, 0, z6)]
-    general = gravity_general(PUMA260, com)
-    m1, m2, m3, m4, m5, m6 = MASSES
-    meanings = {
-        "c12": g0 * (m2 * x2 + a2 * (m2 + m3 + m4 + m5 + m6)),
-        "c13": -g0 * (m3 * z3 + m4 * y4 + d4 * (m4 + m5 + m6)),
-        "c15": -g0 * (m5 * z5 + m6 * z6),
-    }
-    # the tool: link 6's first moment m6*z6 grows by m_t*d_t
-    tool = {m6: m6 + m_t, z6: (m6 * z6 + m_t * d_t) / (m6 + m_t)}
-    return _group(PUMA260, general, meanings, com, tool)
+#: the tool load of 4.26 as a substitution: a point mass m_t at d_t along z6 joins link 6
+#: (mass and first moment add)
+_M6 = MASSES[5]
+_X6, _Y6, _Z6 = COM[5]
+TOOL = {_M6: _M6 + m_t, _X6: _M6 * _X6 / (_M6 + m_t), _Y6: _M6 * _Y6 / (_M6 + m_t),
+        _Z6: (_M6 * _Z6 + m_t * d_t) / (_M6 + m_t)}
 
 
-def microbo_gravity() -> GravityModel:
-    """Microbo: 4.20 with the prismatic h; centres of mass chosen as on the PUMA.
+def _symbols(robot: DHRobot) -> dict[str, sp.Symbol]:
+    """The names a model file's grouping may use: masses, centres of mass, g, DH lengths."""
+    out = {s.name: s for s in (*MASSES, *(c for r in COM for c in r), g0, *robot.params)}
+    return out
 
-    The thesis measured no Microbo gravity (4.1: its gearing made that impractical), so
-    the grouping is ours: links 4-6 carry their mass on the joint-4 axis (y4) and on the
-    tool axis (z5, z6); links 1-3 anywhere.
+
+def grouped_gravity(robot: DHRobot, com_form, meanings) -> GravityModel:
+    """4.20 with the model file's centre-of-mass form, grouped into its named coefficients
+    (thesis 4.21 and 4.24 for the PUMA 260)."""
+    names = _symbols(robot)
+
+    def parse(text: str, where: str) -> sp.Expr:
+        try:
+            e = sp.sympify(text, locals=names)
+        except (sp.SympifyError, SyntaxError, TypeError) as exc:
+            raise ValueError(f"{robot.name}: gravity_grouping.{where}: {text!r} is not an expression: {exc}") from None
+        unknown = e.free_symbols - set(names.values())
+        if unknown:
+            raise ValueError(f"{robot.name}: gravity_grouping.{where}: unknown symbol(s) "
+                             f"{sorted(map(str, unknown))} (use m1..m6, x1..z6, g and the DH lengths)")
+        return e
+
+    com = [tuple(parse(x, f"com_form[{k}]") for x in row) for k, row in enumerate(com_form)]
+    general = gravity_general(robot, com)
+    return _group(robot, general, {n: parse(t, f"meanings.{n}") for n, t in meanings}, com, TOOL)
+
+
+def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityModel:
+    """The minimal identifiable set of gravity coefficients of an arm, found from its table.
+
+    tau_g is linear in the 24 inertial parameters m_k and m_k r_k; expanded in sines and
+    cosines of the joint variables, its columns (one per parameter) span a space whose
+    dimension is the number of identifiable combinations. The first moments are kept in
+    the order x1, y1, z1, x2, ... and the masses last, each where it adds to the rank (at
+    the model's lengths ``values``); every other column is solved exactly as a combination
+    of the kept ones, which folds its parameter into theirs (as 4.24 folds a2 (m2+..+m6)
+    into c12). Coefficient ``c<axis><k>`` is g times the group led by m_k <axis>_k (N m or N).
     """
-    from derive.dh import MICROBO
+    moments = [sp.Symbol(f"{a}{k}_moment", real=True) for k in range(1, 7) for a in "xyz"]
+    phi = moments + list(MASSES)
+    com = [tuple(moments[3 * k + j] / MASSES[k] for j in range(3)) for k in range(6)]
+    tau = sp.Matrix([sp.expand(e) for e in gravity_general(robot, com)])
+    gens = [f(q) for q in Q for f in (sp.sin, sp.cos)]
 
-    (x1, y1, z1), (x2, y2, z2), (x3, y3, z3), (x4, y4, z4), (x5, y5, z5), (x6, y6, z6) = COM
-    com = [(x1, y1, z1), (x2, y2, z2), (x3, y3, z3), (0, y4, 0), (0, 0, z5), (0, 0, z6)]
-    general = gravity_general(MICROBO, com)
-    m1, m2, m3, m4, m5, m6 = MASSES
-    # named as models/microbo.toml names them: c12 the lift force of the vertical axis
-    # (N), c15 with the PUMA's definition (N m)
-    meanings = {
-        "c12": g0 * (m2 + m3 + m4 + m5 + m6),
-        "c15": -g0 * (m5 * z5 + m6 * z6),
-    }
-    tool = {m6: m6 + m_t, z6: (m6 * z6 + m_t * d_t) / (m6 + m_t)}
-    return _group(MICROBO, general, meanings, com, tool)
+    def coefficients(expr: sp.Expr) -> dict:
+        poly = sp.Poly(sp.expand(sp.expand_trig(expr)), *gens)
+        return dict(poly.terms())
+
+    cols = []  # per parameter: {(row, monomial): coefficient}
+    for p in phi:
+        col = {}
+        for i in range(6):
+            for mono, c in coefficients(sp.diff(tau[i], p)).items():
+                col[(i, mono)] = c
+        cols.append(col)
+    keys = sorted(set().union(*cols), key=str)
+    c_sym = sp.Matrix([[col.get(k, 0) for col in cols] for k in keys])
+    c_num = np.array(c_sym.subs(values).evalf(), dtype=float)
+    kept: list[int] = []
+    for j in range(len(phi)):
+        trial = kept + [j]
+        if np.linalg.matrix_rank(c_num[:, trial], tol=1e-9 * max(1.0, np.abs(c_num).max())) == len(trial):
+            kept = trial
+    # rows that make the kept columns square and regular, for the exact solves
+    rows: list[int] = []
+    for r in range(len(keys)):
+        trial = rows + [r]
+        if np.linalg.matrix_rank(c_num[trial][:, kept]) == len(trial):
+            rows = trial
+        if len(rows) == len(kept):
+            break
+    a = c_sym.extract(rows, kept)
+    beta = {j: phi[j] for j in kept}
+    for j in range(len(phi)):
+        if j in kept:
+            continue
+        k = a.LUsolve(c_sym.extract(rows, [j])).applyfunc(sp.simplify)
+        check = (c_sym.extract(list(range(len(keys))), kept) * k - c_sym[:, j]).applyfunc(sp.simplify)
+        if any(e != 0 for e in check):
+            raise ValueError(f"{robot.name}: gravity column {phi[j]} is not a fixed combination of the kept ones")
+        for n, jj in enumerate(kept):
+            beta[jj] = beta[jj] + k[n] * phi[j]
+    to_links = {moments[3 * k + j]: MASSES[k] * COM[k][j] for k in range(6) for j in range(3)}
+    names, meanings, columns = [], {}, []
+    for jj in kept:
+        p = phi[jj]
+        name = f"c{p.name[0]}{p.name[1]}" if p in moments else f"cm{p.name[1:]}"
+        names.append(name)
+        meanings[name] = sp.expand(g0 * beta[jj].subs(to_links))
+        columns.append(jj)
+    regressor = sp.Matrix([[sp.expand(sp.diff(tau[i], phi[jj]) / g0) for jj in columns] for i in range(6)])
+    regressor = regressor.applyfunc(tidy)
+    syms = tuple(sp.Symbol(n, real=True) for n in names)
+    # exact: tau = regressor * (g beta), beta in the moments
+    beta_m = [g0 * beta[jj] for jj in columns]
+    residual = (tau - regressor * sp.Matrix(beta_m)).applyfunc(lambda e: sp.simplify(sp.expand(sp.expand_trig(e))))
+    if any(e != 0 for e in residual):
+        raise ValueError(f"{robot.name}: minimal gravity regressor is not exact: {list(residual)}")
+    general = gravity_general(robot, [tuple(r) for r in COM])
+    tool = tuple(sp.simplify(sp.expand(meanings[n].subs(TOOL, simultaneous=True) - meanings[n])) for n in names)
+    return GravityModel(robot, general, tuple(names), syms, tuple(meanings[n] for n in names),
+                        regressor, tool, tuple(tuple(r) for r in COM))
+
+
+def gravity_model(spec) -> GravityModel:
+    """The gravity model of a ``derive.robots.RobotSpec``: the model file's grouping when it
+    gives one, else the minimal identifiable set."""
+    if spec.com_form is not None:
+        return grouped_gravity(spec.dh, spec.com_form, spec.meanings)
+    return minimal_gravity(spec.dh, spec.params)

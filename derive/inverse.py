@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from derive.dh import MICROBO, PUMA260, Q, DHRobot, a2, d3, d4
+from derive.dh import Q, DHRobot
 from derive.forward import link_to_link, tidy
 
 nx, ny, nz, ox, oy, oz, ax, ay, az, px, py, pz = sp.symbols(
@@ -59,6 +59,8 @@ class IKSolution:
     guards: tuple[tuple[str, sp.Expr, str, str], ...]  # (name, expr, error, message)
     wrist_given_q4: tuple[sp.Expr, sp.Expr]  # q5, q6 with q1..q4 as inputs
     named: dict[str, sp.Expr]  # intermediate quantities, for the report
+    kind: str  # "articulated" (PUMA class) or "cylindrical" (Microbo class)
+    indicators: tuple[sp.Expr, ...]  # functions of q whose signs are the config signs
 
 
 def premultiplied(robot: DHRobot, i: int, pose: sp.Matrix = POSE) -> tuple[sp.Matrix, sp.Matrix]:
@@ -98,11 +100,15 @@ def _unknown_coefficients(expr: sp.Expr, s: sp.Expr, c: sp.Expr) -> tuple[sp.Exp
     return a_, b_, rest
 
 
-def puma_ik() -> IKSolution:
-    """PUMA 260, eqs. 3.22-3.41; config signs arm, elbow, wrist (each +1 or -1)."""
-    r = PUMA260
+def articulated_ik(r: DHRobot) -> IKSolution:
+    """The PUMA class (thesis eqs. 3.22-3.41 for the PUMA 260), derived from the table of
+    ``r``: six revolute joints, a1 = 0 with the shoulder axes perpendicular, joints 2 and 3
+    parallel, a spherical wrist at the origin of frame 6; the elbow offset a3 and the base
+    height d1 may be non-zero (PUMA 560). Config signs arm, elbow, wrist (each +1 or -1).
+    """
     q1, q2, q3, q4, q5, q6 = Q
     s1, c1 = sp.sin(q1), sp.cos(q1)
+    a2 = r.links[1].a
     eqs: list[PickedEquation] = []
 
     # theta1: row 3 of the 4th column of A1^-1 T6 = U2 (3.23): px S1 - py C1 = d3
@@ -111,24 +117,33 @@ def puma_ik() -> IKSolution:
     e_p3 = pick(r, "3.23", 1, 3, 4)
     eqs += [e_p1, e_p2, e_p3]
     a_, b_, rest = _unknown_coefficients(e_p3.lhs - e_p3.rhs, s1, c1)
-    assert rest == -d3, rest
+    d3 = -rest  # the offset of the arm's plane from the joint-1 axis (d2 + d3)
+    _require(r, not (d3.free_symbols & (set(Q) | set(POSE))),
+             "row 3 of A1^-1 T6 = U2 must fix theta1 alone (px S1 - py C1 = const)")
     theta1 = solve_sin_cos(a_, b_, d3, arm)
     radicand1 = a_**2 + b_**2 - d3**2
 
-    # theta3: sum of squares of rows 1, 2 of (3.23) (3.25): 2 a2 d4 S3 = d
-    fp = e_p1.lhs  # C1 px + S1 py
+    # theta3: sum of squares of rows 1, 2 of (3.23) (3.25): f S3 - g C3 = d
+    fp, fz = e_p1.lhs, e_p2.lhs  # C1 px + S1 py, pz (pz - d1 with a base height)
     squares = sp.expand(sp.trigsimp(sp.expand(e_p1.rhs**2 + e_p2.rhs**2)))
-    coeff_s3 = squares.coeff(sp.sin(q3))
-    assert sp.simplify(coeff_s3 + 2 * a2 * d4) == 0, coeff_s3
-    assert sp.simplify(squares - coeff_s3 * sp.sin(q3) - a2**2 - d4**2) == 0
-    f = 2 * a2 * d4
-    d = a2**2 + d4**2 - fp**2 - pz**2
-    # elbow up <=> elbow above the shoulder-wrist line <=> arm*C3 < 0 (see report)
-    # f^2 - d^2 factored as (f - d)(f + d): near the stretched elbow the difference of
-    # squares would cancel catastrophically, the factors do not (a2 = d4 makes f - d exact)
-    reach2 = fp**2 + pz**2
-    radicand3_q1 = (reach2 - (a2 - d4) ** 2) * ((a2 + d4) ** 2 - reach2)
-    theta3_of_q1 = solve_sin_cos(f, 0, d, -arm * elbow, radicand3_q1)
+    f = -squares.coeff(sp.sin(q3))
+    g = squares.coeff(sp.cos(q3))
+    const = sp.expand(squares + f * sp.sin(q3) - g * sp.cos(q3))
+    _require(r, not (const.free_symbols & set(Q)) and not (f.free_symbols & set(Q))
+             and not (g.free_symbols & set(Q)) and f != 0,
+             "the wrist centre's distance from the shoulder must depend on theta3 alone")
+    # forearm length from the elbow axis to the wrist centre: L^2 = a3^2 + d4^2
+    forearm = sp.sqrt(sp.expand(const - a2**2))
+    _require(r, sp.expand(f**2 + g**2 - 4 * a2**2 * forearm**2) == 0,
+             "rows 1, 2 of U2 must be the two-link form a2 + forearm (parallel joints 2, 3)")
+    d = const - fp**2 - fz**2
+    # elbow up <=> elbow above the shoulder-wrist line <=> arm*cos(theta3 - phi) < 0 with
+    # phi = atan2(a3, d4) the forearm's angle offset (see report)
+    # the difference of squares factored as (r^2 - (a2 - L)^2)((a2 + L)^2 - r^2): near the
+    # stretched elbow the difference would cancel catastrophically, the factors do not
+    reach2 = fp**2 + fz**2
+    radicand3_q1 = (reach2 - (a2 - forearm) ** 2) * ((a2 + forearm) ** 2 - reach2)
+    theta3_of_q1 = solve_sin_cos(f, -g, d, -arm * elbow, radicand3_q1)
     theta3 = theta3_of_q1.subs(q1, theta1)
     radicand3 = radicand3_q1.subs(q1, theta1)
 
@@ -141,18 +156,28 @@ def puma_ik() -> IKSolution:
     lin = [
         (e.lhs - e.rhs).subs({s23: sv, c23: cv}) for e in (e_23a, e_23b)
     ]
+    if any(e.free_symbols & {q2} for e in lin):
+        # trigsimp wrote some products as sums (sin(q1 + q2 + q3)/2 ...): expand in q1, q3
+        # and the angle t = q2 + q3, then read S23, C23 off
+        t = sp.Symbol("t23", real=True)
+        lin = [sp.expand(sp.expand_trig((e.lhs - e.rhs).subs(q2, t - q3))).subs(
+            {sp.sin(t): sv, sp.cos(t): cv}) for e in (e_23a, e_23b)]
+        lin = [sp.expand(sp.expand_trig(e)) for e in lin]
+    _require(r, all(not (e.free_symbols & {q2}) for e in lin),
+             "rows 1, 3 of the 4th column of A3^-1..A1^-1 T6 = U4 must be linear in S23, C23")
     sol = sp.solve(lin, [sv, cv], dict=True)[0]
     num_s, den_s = sp.fraction(sp.factor(sol[sv]))
     num_c, den_c = sp.fraction(sp.factor(sol[cv]))
     assert sp.simplify(den_s - den_c) == 0
     den = sp.expand(den_s)
     # the common denominator must be fp^2 + pz^2 > 0 so that it drops out of atan2
-    sgn = 1 if sp.expand(den - (fp**2 + pz**2)) == 0 else -1
-    assert sp.expand(den - sgn * (fp**2 + pz**2)) == 0, den
+    sgn = 1 if sp.expand(den - (fp**2 + fz**2)) == 0 else -1
+    _require(r, sp.expand(den - sgn * (fp**2 + fz**2)) == 0,
+             f"theta2 + theta3: denominator {den} is not the squared shoulder-wrist distance")
     theta23_of_q13 = sp.atan2(sgn * num_s, sgn * num_c)  # in terms of q1 and q3
     theta23 = theta23_of_q13.subs({q1: theta1, q3: theta3}, simultaneous=True)
     theta2 = theta23 - theta3
-    fold = (fp**2 + pz**2).subs(q1, theta1)
+    fold = (fp**2 + fz**2).subs(q1, theta1)
 
     # theta4: rows 1, 2 of the 3rd column of (3.28) (3.31): rhs -C4 S5, -S4 S5
     e_4a = pick(r, "3.31", 3, 1, 3)
@@ -161,7 +186,7 @@ def puma_ik() -> IKSolution:
     # the right-hand sides are k*C4*S5 and k*S4*S5 with k = +-1: read k off
     k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
     k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
-    assert k_c in (1, -1) and k_s in (1, -1)
+    _require(r, k_c in (1, -1) and k_s in (1, -1), "the wrist must be spherical (3.31: +-C4 S5, +-S4 S5)")
     # wrist = sign(S5) selects the branch (the 180 degree shift of the text after 3.31)
     y4 = wrist * k_s * e_4b.lhs
     x4 = wrist * k_c * e_4a.lhs
@@ -174,6 +199,7 @@ def puma_ik() -> IKSolution:
     eqs += [e_5a, e_5b]
     ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
     kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
+    _require(r, ks5 in (1, -1) and kc5 in (1, -1), "the wrist must be spherical (3.33: +-S5, +-C5)")
     theta5_of_q1234 = sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs)
 
     # theta6: rows 1, 2 of the 2nd column of A5^-1..A1^-1 T6 = U6 (3.35)
@@ -182,6 +208,7 @@ def puma_ik() -> IKSolution:
     eqs += [e_6a, e_6b]
     ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
     kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
+    _require(r, ks6 in (1, -1) and kc6 in (1, -1), "3.35 must read +-S6, +-C6")
     theta6_of_q12345 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
 
     sub123 = {q1: theta1, q2: theta2, q3: theta3}
@@ -191,30 +218,37 @@ def puma_ik() -> IKSolution:
     theta6 = theta6_of_q12345.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
     theta6_given_q4 = theta6_of_q12345.subs({q5: theta5_of_q1234})
 
-    scale = (a2 + d4 + d3) ** 2
+    scale = (a2 + forearm + sp.Abs(d3)) ** 2
     guards = (
         ("guard_arm_reach", radicand1 + REACH_RTOL * (px**2 + py**2 + d3**2), "Unreachable",
          "the wrist centre lies inside the cylinder of radius d3 about the joint-1 axis"),
-        ("guard_elbow_reach", radicand3 + REACH_RTOL * f**2, "Unreachable",
+        ("guard_elbow_reach", radicand3 + REACH_RTOL * (2 * a2 * forearm) ** 2, "Unreachable",
          "the wrist centre is farther from the shoulder than a2 + d4 (beyond the stretched elbow)"),
         ("guard_folded", fold - FOLD_RTOL * scale, "Singular",
          "the wrist centre is at the shoulder (elbow fully folded): theta2 is undetermined"),
         ("guard_wrist", wrist_norm - SINGULAR_TOL, "Singular",
          "sin(theta5) = 0: joints 4 and 6 are aligned and only theta4 + theta6 is determined"),
     )
+    # configuration indicators: h is the wrist centre's distance in front of the joint-1
+    # axis in the arm's plane (sign = arm); cos(theta3 - phi) the elbow's bend (3.24, 3.27)
+    h = tidy(e_p1.rhs)
+    bend = (f * sp.cos(q3) + g * sp.sin(q3)) / (2 * a2 * forearm)  # = cos(theta3 - phi)
     named = {
         "f_p": fp, "f": f, "d": d, "r2": px**2 + py**2, "u1": a2 * sp.cos(q3),
-        "u2": d4 - a2 * sp.sin(q3), "theta1": theta1, "theta3": theta3_of_q1,
+        "u2": forearm - a2 * sp.sin(q3), "theta1": theta1, "theta3": theta3_of_q1,
         "theta23": theta23_of_q13, "theta4": theta4_of_q123, "theta5": theta5_of_q1234,
-        "theta6": theta6_of_q12345,
+        "theta6": theta6_of_q12345, "h": h, "bend": bend, "forearm": forearm, "d_off": d3,
     }
+    indicators = (h, -h * sp.expand(bend), sp.sin(q5))
     return IKSolution(r, tuple(eqs), (theta1, theta2, theta3, theta4, theta5, theta6),
-                      (arm, elbow, wrist), guards, (theta5_of_q1234, theta6_given_q4), named)
+                      (arm, elbow, wrist), guards, (theta5_of_q1234, theta6_given_q4), named,
+                      "articulated", indicators)
 
 
-def microbo_ik() -> IKSolution:
-    """Microbo Ecureuil, eqs. 3.42-3.53; config sign wrist (+1 or -1)."""
-    r = MICROBO
+def cylindrical_ik(r: DHRobot) -> IKSolution:
+    """The Microbo class (thesis eqs. 3.42-3.53 for the Microbo Ecureuil): a revolute
+    column, vertical and radial prismatic joints meeting its axis, a spherical wrist;
+    config sign wrist (+1 or -1)."""
     q1, q2, q3, q4, q5, q6 = Q
     eqs: list[PickedEquation] = []
     # 3.42: the fourth column of A1^-1 T6 = U2 (cylindrical coordinates)
@@ -222,7 +256,8 @@ def microbo_ik() -> IKSolution:
     e_p2 = pick(r, "3.42", 1, 2, 4)
     e_p3 = pick(r, "3.42", 1, 3, 4)
     eqs += [e_p1, e_p2, e_p3]
-    assert e_p2.rhs == 0 and e_p3.rhs == q2 and e_p1.rhs == q3
+    _require(r, e_p2.rhs == 0 and e_p3.rhs == q2 and e_p1.rhs == q3,
+             "the 4th column of A1^-1 T6 = U2 must be (d3, 0, d2): cylindrical coordinates")
     # -px S1 + py C1 = 0 with d3 = px C1 + py S1 > 0 (d3 cannot be negative): 3.43
     theta1 = sp.atan2(py, px)
     ext2 = pz  # 3.49
@@ -235,7 +270,7 @@ def microbo_ik() -> IKSolution:
     eqs += [e_4c, e_4a, e_4b]
     k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
     k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
-    assert k_c in (1, -1) and k_s in (1, -1)
+    _require(r, k_c in (1, -1) and k_s in (1, -1), "the wrist must be spherical (3.45)")
     theta4_of_q1 = sp.atan2(wrist * k_s * e_4b.lhs, wrist * k_c * e_4a.lhs)
     wrist_norm = sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2)
 
@@ -269,4 +304,72 @@ def microbo_ik() -> IKSolution:
     named = {"theta1": theta1, "d2": ext2, "d3": ext3, "theta4": theta4_of_q1,
              "theta5": theta5_of_q14, "theta6": theta6_of_q145}
     return IKSolution(r, tuple(eqs), (theta1, ext2, ext3, theta4, theta5, theta6), (wrist,),
-                      guards, (theta5_of_q14, theta6_given_q4), named)
+                      guards, (theta5_of_q14, theta6_given_q4), named, "cylindrical",
+                      (sp.sin(q5),))
+
+
+class OutsideClass(ValueError):
+    """The arm is outside the classes with a closed-form inverse the derivation knows."""
+
+
+def _require(r: DHRobot, ok: bool, why: str) -> None:
+    if not ok:
+        raise OutsideClass(f"{r.name}: {why}")
+
+
+def _zero(e) -> bool:
+    return sp.sympify(e) == 0
+
+
+def _quarter(e) -> bool:
+    return sp.sympify(e) in (sp.pi / 2, -sp.pi / 2)
+
+
+def _wrist_reasons(r: DHRobot) -> list[str]:
+    """Why the last three joints are not a spherical wrist at the origin of frame 6."""
+    l4, l5, l6 = r.links[3:]
+    out = []
+    if any(link.prismatic for link in (l4, l5, l6)):
+        out.append("joints 4-6 must be revolute")
+    if not all(_zero(x) for x in (l4.a, l5.a, l6.a, l5.d, l6.d)):
+        out.append("a4 = a5 = a6 = 0 and d5 = d6 = 0 (wrist axes meeting at the origin of frame 6)")
+    if not (_quarter(l4.alpha) and _quarter(l5.alpha)):
+        out.append("alpha4, alpha5 = +-90 deg (perpendicular wrist axes)")
+    return out
+
+
+def class_reasons(r: DHRobot) -> dict[str, list[str]]:
+    """For each class with a closed-form inverse, the conditions ``r`` fails (empty = in it)."""
+    l1, l2, l3 = r.links[:3]
+    wrist = _wrist_reasons(r)
+    art = []
+    if any(link.prismatic for link in r.links[:3]):
+        art.append("joints 1-3 must be revolute")
+    if not (_zero(l1.a) and _quarter(l1.alpha)):
+        art.append("a1 = 0 and alpha1 = +-90 deg (joint 1 axis meets joint 2 axis at right angles)")
+    if not (_zero(l2.alpha) and _zero(l2.d) and not _zero(l2.a)):
+        art.append("alpha2 = 0, d2 = 0, a2 != 0 (joints 2 and 3 parallel, upper arm of length a2)")
+    if not _quarter(l3.alpha):
+        art.append("alpha3 = +-90 deg")
+    if _zero(r.links[3].d):
+        art.append("d4 != 0 (a forearm)")
+    cyl = []
+    if [link.prismatic for link in r.links[:3]] != [False, True, True]:
+        cyl.append("joint kinds revolute, prismatic, prismatic")
+    elif not (all(_zero(x) for x in (l1.a, l1.alpha, l1.d, l2.a, l3.a, l3.alpha, l3.theta))
+              and _quarter(l2.alpha) and _quarter(l2.theta) and _zero(r.links[3].d)):
+        cyl.append("vertical joint 2 and radial joint 3 meeting the joint-1 axis (Table 3.2 form)")
+    return {"articulated (PUMA class)": art + wrist, "cylindrical (Microbo class)": cyl + wrist}
+
+
+def solve_ik(r: DHRobot) -> IKSolution:
+    """The closed-form inverse of ``r``, chosen by the shape of its DH table; an arm outside
+    both classes is refused with the conditions it fails."""
+    reasons = class_reasons(r)
+    if not reasons["articulated (PUMA class)"]:
+        return articulated_ik(r)
+    if not reasons["cylindrical (Microbo class)"]:
+        return cylindrical_ik(r)
+    why = "; ".join(f"not {k}: needs {', '.join(v)}" for k, v in reasons.items())
+    raise OutsideClass(f"{r.name}: no closed-form inverse kinematics for this DH table ({why}). "
+                       "Pieper's closed forms need a spherical wrist and an arm of one of these shapes.")

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from derive.dh import Q, a2, d4
+from derive.dh import Q
 from derive.forward import t6, t6_chained, tidy
 from derive.gravity import COM, MASSES, GravityModel, d_t, g0, m_t, gravity_general
 from derive.inverse import POSE_INPUT, IKSolution, SINGULAR_TOL
@@ -78,12 +78,7 @@ def build_kernels(d: Derivation) -> list[Kernel]:
            [Arg("q56", sp.Matrix([q5w, q6w]), "theta5, theta6")], source="3.33, 3.35, 3.46, 3.47")
 
     # configuration indicators: sign of each is the configuration of q
-    s5 = sp.sin(Q[4])
-    if robot == "puma260":
-        h = a2 * sp.cos(Q[1]) - d4 * sp.sin(Q[1] + Q[2])
-        ind = sp.Matrix([h, -h * sp.cos(Q[2]), s5])
-    else:
-        ind = sp.Matrix([s5])
+    ind = sp.Matrix(d.ik.indicators)
     kernel("config_indicators", "values whose signs are the configuration of q "
            "(" + ", ".join(spec.config_fields) + ")", [qarg],
            [Arg("indicator", ind, "sign = configuration")], source="3.24, 3.27, 3.39, 3.51")
@@ -104,7 +99,7 @@ def build_kernels(d: Derivation) -> list[Kernel]:
     jr, jr_inv, y = d.diff.j4_reduced, d.diff.j4_reduced_inv, d.diff.y
     y_inv = y.inv()
     dc4 = j4 * dq
-    inv_guards = _jacobian_guards(robot)
+    inv_guards = _jacobian_guards(d.ik)
     tri = triangular_form(d.diff)
     for frame in (4, 6):
         st = _structure_hints(tri, y, bb, bbt, frame, dq, dc, f, tau) if tri is not None else {}
@@ -135,7 +130,7 @@ def build_kernels(d: Derivation) -> list[Kernel]:
 
     # -- gravity -----------------------------------------------------------------------
     gm = d.gravity
-    if tuple(gm.coeff_names) != tuple(spec.gravity_coeffs):
+    if spec.gravity_coeffs and tuple(gm.coeff_names) != tuple(spec.gravity_coeffs):
         raise ValueError(f"{spec.model_path}: gravity_coeffs: data file has "
                          f"{list(spec.gravity_coeffs)}, the derivation groups 4.20 into "
                          f"{list(gm.coeff_names)}")
@@ -168,17 +163,19 @@ def build_kernels(d: Derivation) -> list[Kernel]:
     return ks
 
 
-def _jacobian_guards(robot: str) -> list[Guard]:
+def _jacobian_guards(ik: IKSolution) -> list[Guard]:
+    """Where 4J' (or 4J) is singular: the denominators of its inverse, by IK class."""
     s5 = sp.sin(Q[4])
     wrist = _guard("guard_wrist", sp.Abs(s5) - SINGULAR_TOL, "Singular",
                    "sin(theta5) = 0: wrist singularity, joints 4 and 6 aligned")
-    if robot == "puma260":
-        h = a2 * sp.cos(Q[1]) - d4 * sp.sin(Q[1] + Q[2])
+    if ik.kind == "articulated":
+        h, bend = ik.named["h"], ik.named["bend"]
+        a2 = ik.robot.links[1].a
         return [
-            _guard("guard_shoulder", sp.Abs(h) - SINGULAR_TOL * (a2 + d4), "Singular",
+            _guard("guard_shoulder", sp.Abs(h) - SINGULAR_TOL * (a2 + ik.named["forearm"]), "Singular",
                    "h = a2 C2 - d4 S23 = 0: the wrist centre is on the d3-cylinder about "
                    "the joint-1 axis (shoulder singularity)"),
-            _guard("guard_elbow", sp.Abs(sp.cos(Q[2])) - SINGULAR_TOL, "Singular",
+            _guard("guard_elbow", sp.Abs(bend) - SINGULAR_TOL, "Singular",
                    "cos(theta3) = 0: the elbow is stretched or fully folded"),
             wrist,
         ]

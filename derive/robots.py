@@ -1,20 +1,24 @@
-"""The numbers the derivation needs from a robot's model file, and their cross-check.
+"""The numbers and structure the derivation needs from a robot's model file.
 
-The symbolic DH tables of ``derive.dh`` fix the structure (which parameters are zero,
-the alpha signs, joint kinds); the numbers (a2, d3, d4, gravity, joint ranges) come from
-``models/<robot>.toml`` through ``models.load_robot``. Before anything is
-emitted, every DH entry of the data file is compared with the symbolic table, so a model
-file that disagrees with the derivation stops ``make derive`` with a clear message.
+Everything comes from ``models/<robot>.toml`` through ``models.load_robot``: the DH table
+(``derive.dh.dh_from_model``: fixed lengths become symbols such as a2, d3, substituted only
+when code is emitted), joint kinds and ranges, gravity, and the optional gravity grouping
+(centre-of-mass form and coefficient meanings, as thesis eqs. 4.21 and 4.24). No robot is
+known by name: a new arm is a model file (and its URDF) under models/.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import sympy as sp
 
-from derive.dh import MICROBO, PUMA260, DHRobot, a2, d3, d4
+from derive.dh import DHRobot, dh_from_model
 from derive.gravity import g0
+from derive.inverse import class_reasons
+
+#: the configuration signs of each inverse-kinematics class
+CONFIG_FIELDS = {"articulated (PUMA class)": ("arm", "elbow", "wrist"),
+                 "cylindrical (Microbo class)": ("wrist",)}
 
 
 @dataclass(frozen=True)
@@ -23,54 +27,46 @@ class RobotSpec:
 
     name: str
     dh: DHRobot
-    params: dict[sp.Symbol, float]  # a2, d3, d4, g (SI)
+    params: dict[sp.Symbol, float]  # the table's length symbols and g (SI)
     kinds: tuple[str, ...]
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     config_fields: tuple[str, ...]
     gravity_coeffs: tuple[str, ...]
     model_path: str
+    com_form: tuple[tuple[str, str, str], ...] | None = None  # eq. 4.21-style assumptions
+    meanings: tuple[tuple[str, str], ...] | None = None  # (coefficient, expression), eq. 4.24
+    thesis: bool = False  # the DH table is the thesis's (Table 3.1 / 3.2): audit against the print
 
 
-def _dh_value(link, field: str, params: dict[sp.Symbol, float]) -> float | None:
-    """Numeric value of a DH entry, or None if it is the joint variable."""
-    expr = getattr(link, field)
-    expr = sp.sympify(expr)
-    if expr.free_symbols - set(params):
-        return None
-    return float(expr.subs(params))
+def robot_names() -> tuple[str, ...]:
+    """Every robot with a data file under models/ (``models.available_robots``)."""
+    from models import available_robots
+
+    return tuple(available_robots())
 
 
 def load_spec(name: str) -> RobotSpec:
-    """Read ``models/<name>.toml`` and check it against the symbolic DH table."""
+    """Read ``models/<name>.toml`` into the derivation's view of the robot."""
     from models import load_robot
 
     model = load_robot(name)
-    dh = {"puma260": PUMA260, "microbo": MICROBO}[name]
-    joints = model.joints
-    params: dict[sp.Symbol, float] = {g0: float(model.gravity)}
-    if name == "puma260":
-        params.update({a2: joints[1].a, d3: joints[2].d, d4: joints[3].d})
-    for i, (link, joint) in enumerate(zip(dh.links, joints), start=1):
-        kind = "prismatic" if link.prismatic else "revolute"
-        if joint.kind != kind:
-            raise ValueError(f"{model.path}: joints.{i}.kind: data file says {joint.kind}, "
-                             f"the derivation (Table 3.1/3.2) needs {kind}")
-        for field in ("a", "alpha", "d", "theta"):
-            want = _dh_value(link, field, params)
-            got = getattr(joint, field)
-            if want is None:  # the joint variable: the data file must have no offset
-                if abs(got) > 1e-12:
-                    raise ValueError(f"{model.path}: joints.{i}.{field}: offset {got} on the "
-                                     "joint variable is not supported by the derivation")
-                continue
-            if not math.isclose(got, want, rel_tol=1e-12, abs_tol=1e-12):
-                raise ValueError(f"{model.path}: joints.{i}.{field}: data file has {got}, "
-                                 f"the derivation's table (A matrices 3.4-3.15) needs {want}")
-    fields = ("arm", "elbow", "wrist") if name == "puma260" else ("wrist",)
+    dh, lengths = dh_from_model(model)
+    params: dict[sp.Symbol, float] = {g0: float(model.gravity), **lengths}
+    fields = ()
+    for cls, reasons in class_reasons(dh).items():
+        if not reasons:
+            fields = CONFIG_FIELDS[cls]
+            break
+    grouping = model.gravity_grouping
+    thesis = all(model.source(f"joints.{j.index}.{f}").tag.startswith("thesis ")
+                 for j in model.joints for f in ("a", "alpha", "d"))
     return RobotSpec(
-        name=name, dh=dh, params=params, kinds=tuple(j.kind for j in joints),
+        name=name, dh=dh, params=params, kinds=tuple(j.kind for j in model.joints),
         lower=tuple(float(x) for x in model.lower), upper=tuple(float(x) for x in model.upper),
         config_fields=fields, gravity_coeffs=tuple(model.gravity_coeffs),
         model_path=str(model.path),
+        com_form=grouping.com_form if grouping else None,
+        meanings=tuple(grouping.meanings.items()) if grouping else None,
+        thesis=thesis,
     )

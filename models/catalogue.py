@@ -23,7 +23,8 @@ def available_robots() -> list[str]:
     return sorted(p.stem for p in models_dir().glob("*.toml"))
 
 
-def _resolve(name_or_path: str | os.PathLike[str]) -> Path:
+def data_file(name_or_path: str | os.PathLike[str]) -> Path:
+    """The data file of a robot name (in :func:`models_dir`) or the given ``.toml`` path."""
     text = os.fspath(name_or_path)
     if text.endswith(".toml") or os.sep in text or "/" in text:
         return Path(text)
@@ -39,7 +40,7 @@ def load_robot(name_or_path: str | os.PathLike[str]) -> RobotModel:
     Raises ModelError for a missing, malformed or inconsistent data file or URDF.
     Results are cached per file and reloaded when the data file or its URDF changes.
     """
-    path = _resolve(name_or_path)
+    path = data_file(name_or_path)
     if not path.is_file():
         known = ", ".join(available_robots()) or "none"
         raise ModelError(path, "<file>", f"no such robot data file (robots in {models_dir()}: {known})")

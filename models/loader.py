@@ -13,7 +13,7 @@ import numpy as np
 from .drive import Friction
 from .exceptions import ModelError
 from .quantities import Matrix, Source, Value, Vector
-from .robot import Conversion, Joint, LinkInertial, Motors, RobotModel
+from .robot import Conversion, GravityGrouping, Joint, LinkInertial, Motors, RobotModel
 from .units import JOINT_DIMS, JOINT_KINDS, UNITS
 from .urdf import check_urdf
 
@@ -54,8 +54,9 @@ class Loader:
         if tag == "estimate":
             if not why.strip():
                 raise self.fail(field, "estimate without 'why' (the reasoning behind the value)")
-        elif not tag.startswith("thesis "):
-            raise self.fail(field, f"source {tag!r} is neither 'thesis <reference>' nor 'estimate'")
+        elif not (tag.startswith("thesis ") or tag.startswith("published ")):
+            raise self.fail(field, f"source {tag!r} is neither 'thesis <reference>', "
+                                   "'published <reference>' nor 'estimate'")
         src = Source(tag, why)
         self.sources[field] = src
         return src
@@ -167,7 +168,9 @@ class Loader:
 
     # -- the file ----------------------------------------------------------------------
 
-    def load(self) -> RobotModel:
+    def load(self, check: bool = True) -> RobotModel:
+        """The model of the data file; ``check=False`` skips the URDF check (for writing
+        the URDF from the data file: models.urdf_write)."""
         try:
             with open(self.path, "rb") as fh:
                 data = tomllib.load(fh)
@@ -176,7 +179,8 @@ class Loader:
         except OSError as exc:
             raise self.fail("<file>", f"cannot read: {exc}") from None
         self.check_keys(data, "<top level>", {"robot", "joints", "poses", "links", "gravity_coeffs",
-                                              "gravity_friction_error", "friction", "motors", "conversion"})
+                                              "gravity_friction_error", "gravity_grouping", "friction", "motors",
+                                              "conversion"})
 
         robot = self.table(data, "robot", "robot")
         self.check_keys(robot, "robot", {"name", "title", "n_joints", "urdf", "gravity"})
@@ -200,6 +204,7 @@ class Loader:
         poses = self.poses(data, joints)
         links = self.links(data, n)
         coeffs = self.gravity_coeffs(data)
+        grouping = self.gravity_grouping(data, n, coeffs)
         gfe = None
         if "gravity_friction_error" in data:
             names_n = len(self.table(data, "gravity_friction_error", "gravity_friction_error").get("values", []))
@@ -217,9 +222,10 @@ class Loader:
             gravity=gravity, poses=MappingProxyType(poses), links=links,
             gravity_coeffs=MappingProxyType(coeffs), gravity_friction_error=gfe,
             friction=friction, motors=motors, conversion=conversion,
-            sources=MappingProxyType(dict(self.sources)),
+            sources=MappingProxyType(dict(self.sources)), gravity_grouping=grouping,
         )
-        check_urdf(model)
+        if check:
+            check_urdf(model)
         return model
 
     def joints(self, data: Mapping[str, Any], n: int) -> tuple[Joint, ...]:
@@ -303,8 +309,30 @@ class Loader:
         return tuple(out)
 
     def gravity_coeffs(self, data: Mapping[str, Any]) -> dict[str, Value]:
+        if "gravity_coeffs" not in data:  # a new arm before its coefficients are known
+            return {}
         raw = self.table(data, "gravity_coeffs", "gravity_coeffs")
         return {k: self.value(raw, k, f"gravity_coeffs.{k}", ("torque", "force")) for k in raw}
+
+    def gravity_grouping(self, data: Mapping[str, Any], n: int,
+                         coeffs: Mapping[str, Value]) -> GravityGrouping | None:
+        """The optional [gravity_grouping] table: centre-of-mass form and coefficient meanings."""
+        if "gravity_grouping" not in data:
+            return None
+        field = "gravity_grouping"
+        raw = self.table(data, "gravity_grouping", field)
+        self.check_keys(raw, field, {"com_form", "meanings", "source", "why"})
+        form = raw.get("com_form")
+        if not isinstance(form, list) or len(form) != n or not all(
+                isinstance(r, list) and len(r) == 3 and all(isinstance(x, str) and x.strip() for x in r) for r in form):
+            raise self.fail(f"{field}.com_form", f"must be a list of {n} lists of 3 expressions (strings)")
+        meanings = self.table(raw, "meanings", f"{field}.meanings")
+        if list(meanings) != list(coeffs):
+            raise self.fail(f"{field}.meanings", f"names {list(meanings)} differ from gravity_coeffs {list(coeffs)}")
+        if not all(isinstance(v, str) and v.strip() for v in meanings.values()):
+            raise self.fail(f"{field}.meanings", "each meaning must be a non-empty expression string")
+        src = self.source_of(raw, field)
+        return GravityGrouping(tuple(tuple(r) for r in form), MappingProxyType(dict(meanings)), src)
 
     def friction(self, data: Mapping[str, Any]) -> Friction:
         raw = self.table(data, "friction", "friction")

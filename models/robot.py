@@ -65,6 +65,22 @@ class LinkInertial:
 
 
 @dataclass(frozen=True)
+class GravityGrouping:
+    """How the derivation groups the gravity vector into named coefficients (optional).
+
+    ``com_form[k]``: the centre of mass of link k+1 assumed by the grouping, three SymPy
+    expressions in frame k+1 (``"0"``, ``"x2"``, ...), as thesis eq. 4.21; ``meanings``:
+    each coefficient of ``gravity_coeffs`` as a SymPy expression in the masses ``m1..m6``,
+    the centre-of-mass symbols, ``g`` and the DH lengths (``a2``, ``d4``, ...), as
+    eq. 4.24. Without a grouping the derivation finds the minimal identifiable set itself.
+    """
+
+    com_form: tuple[tuple[str, str, str], ...]
+    meanings: Mapping[str, str]
+    source: Source
+
+
+@dataclass(frozen=True)
 class Motors:
     """Motor constants: torque sensitivity sigma_i (eq. 4.3, N*m/A) and Table 4.1 extras."""
 
@@ -117,6 +133,7 @@ class RobotModel:
     motors: Motors
     conversion: Conversion
     sources: Mapping[str, Source]
+    gravity_grouping: "GravityGrouping | None" = None
 
     @property
     def kinds(self) -> tuple[str, ...]:

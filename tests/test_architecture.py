@@ -15,7 +15,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("models", "derive", "rci", "rccl", "calib")
-GENERATED = ("rccl/kinematics/puma260.py", "rccl/kinematics/microbo.py")   # written by `make derive`
+# written by `make derive`: one module per robot data file under models/
+GENERATED = tuple(f"rccl/kinematics/{p.stem}.py" for p in sorted((ROOT / "models").glob("*.toml")))
 LONG_LINES = 600
 LONG_REASON = "Why this module is long:"
 

@@ -12,7 +12,8 @@ from derive import thesis_print as tp
 from derive.dh import MICROBO, PUMA260, Q, a_matrices
 from derive.emit_python import _function, _lower
 from derive.forward import t6
-from derive.gravity import microbo_gravity, puma_gravity
+from derive.gravity import gravity_model
+from derive.robots import load_spec
 from derive.jacobian import d_map, f_map
 from derive.kernel import Arg, Guard, Kernel
 from derive.compare import equal, namespace, parse, verdict
@@ -43,6 +44,14 @@ def test_microbo_t6_print_lost_one_sign():
                 for key, text in tp.T6_MICROBO.items()}
     assert verdicts.pop("ny") == "sign"  # printed - C6 S1 S5, derived + C6 S1 S5
     assert set(verdicts.values()) == {"confirmed"}
+
+
+def puma_gravity():
+    return gravity_model(load_spec("puma260"))
+
+
+def microbo_gravity():
+    return gravity_model(load_spec("microbo"))
 
 
 def test_puma_gravity_groups_into_4_24():

@@ -186,7 +186,7 @@ def test_models_dir_env_override(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     assert models_dir() == root
     assert load_robot("microbo").path == root / "microbo.toml"
     with pytest.raises(ModelError, match="no such robot data file"):
-        load_robot("puma560")
+        load_robot("stanford_arm")
 
 
 def test_reloads_after_edit(tmp_path: Path) -> None:
@@ -280,6 +280,16 @@ BROKEN = {
     "URDF zero axis": ("microbo", "urdf/microbo.urdf", '<axis xyz="0 0 1"/>\n    <limit lower="0.2"',
                        '<axis xyz="0 0 0"/>\n    <limit lower="0.2"', "joint joint3.axis", "zero axis"),
     "URDF not XML": ("microbo", "urdf/microbo.urdf", "</robot>", "</robt>", "<file>", "not valid XML"),
+    "grouping names differ from the coefficients": ("puma260", "puma260.toml", 'c15 = "-g*(m5*z5 + m6*z6)"',
+                                                    'c16 = "-g*(m5*z5 + m6*z6)"', "gravity_grouping.meanings",
+                                                    "differ from gravity_coeffs"),
+    "grouping com_form short": ("microbo", "microbo.toml", '["0", "0", "z6"]]', ']', "gravity_grouping.com_form",
+                                "list of 6 lists"),
+    "published source without a reference": ("puma560", "puma560.toml",
+                                              'source = "published [CA94] standard DH, a4" }',
+                                              'source = "published" }', "joints.4.a", "neither"),
+    "PUMA 560 URDF elbow offset disagrees": ("puma560", "urdf/puma560.urdf", '<origin xyz="0.0203 0 0"',
+                                             '<origin xyz="0.0 0 0"', "link link3", "differs from DH frame 3"),
 }
 
 

@@ -84,6 +84,11 @@ def _tune_gravity(pmodel: pin.Model, model, coeffs: dict[str, float]) -> None:
     if model.name == "puma260":
         moves = {"c12": (2, np.array([1.0, 0, 0]), 1.0), "c13": (3, np.array([0, 0, 1.0]), -1.0),
                  "c15": (6, np.array([0, 0, 1.0]), -1.0)}
+    elif model.gravity_grouping is None:
+        # the derivation's minimal set (derive.gravity.minimal_gravity): c<axis><k> is
+        # g (m_k <axis>_k + ...), so it moves the centre of mass of link k along <axis>
+        moves = {n: (int(n[2]), np.eye(3)["xyz".index(n[1])], 1.0) for n in model.gravity_coeffs
+                 if len(n) == 3 and n[1] in "xyz" and n[2].isdigit()}
     else:
         moves = {"c15": (6, np.array([0, 0, 1.0]), -1.0)}
     for name, value in coeffs.items():
