@@ -37,6 +37,7 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
+from rci.zenoh_bus import undeclare
 
 from . import events as ev
 from .bus_events import arm_key, check_name, error_reply, flags_key, flags_of, position_from_wire, set_key
@@ -258,11 +259,7 @@ class ArmServer:
 
     def close(self) -> None:
         ev.remove_listener(self._changed)
-        for obj in (self._token, *self._declared):
-            try:
-                obj.undeclare()
-            except Exception:
-                pass
+        undeclare(self._token, *self._declared)
         self._out.put(None)
         self._publisher.join(2.0)
         ev.detach(self.arm)

@@ -62,9 +62,11 @@ from typing import Any
 import numpy as np
 
 from rci.bus import Bus, decode, encode
+from rci.zenoh_bus import undeclare
 
 from . import exceptions as rccl_exceptions
-from .events import (ABORTED, FAULT, NULL, START, Deadlock, EFT, EventError, UnknownEvent, code_name)
+from .events import (NULL, START, Deadlock, EFT, EventError, UnknownEvent, code_name,
+                     never_starts)
 from .position import EQ, TL, Position, joint_position, makeposition
 from .transform import T6, Trsf
 
@@ -480,11 +482,7 @@ class BusEvents:
             self._absorb(flags)
 
     def close(self) -> None:
-        for obj in self._declared:
-            try:
-                obj.undeclare()
-            except Exception:
-                pass
+        undeclare(*self._declared)
 
     # -- why a wait cannot end (caller holds the condition) ---------------------------------------
     def _check_blocked(self, eft: RemoteEFT, started: bool) -> None:
@@ -497,7 +495,7 @@ class BusEvents:
                 via = "" if e is eft else f" (it waits for {e.describe()})"
                 raise ArmLost(f"wait_ev: {eft.describe()} will never {'start' if started else 'end'}{via}: the "
                               f"process serving arm {e.arm!r} left the bus {ago:.3f} s ago; the robot holds that arm")
-        why = self._never_starts(eft, set())
+        why = never_starts(eft, self._predecessor)
         if why is not None:
             raise Deadlock(f"wait_ev: {eft.describe()} can never {'start' if started else 'end'}: {why}")
 
@@ -520,28 +518,6 @@ class BusEvents:
         for p in reversed(lst[:i]):
             if p.status >= 0:
                 return p
-        return None
-
-    def _never_starts(self, e: RemoteEFT, seen: set) -> str | None:
-        if e.status != NULL or e.stop != NULL:
-            return None
-        if id(e) in seen:
-            return f"{e.describe()} waits for itself"
-        seen.add(id(e))
-        if e.start == NULL:
-            if e.after is None:
-                return f"the start flag of {e.describe()} is not set and nothing will set it (start_ev it first)"
-            src = e.after
-            if src.status in (FAULT, ABORTED):
-                return f"{e.describe()} waits for {src.describe()}, which ended {code_name(src.status)}"
-            why = self._never_starts(src, seen)
-            if why is not None:
-                return f"{e.describe()} waits for {src.describe()}; {why}"
-        p = self._predecessor(e)
-        if p is not None:
-            why = self._never_starts(p, seen)
-            if why is not None:
-                return f"{e.describe()} is queued behind {p.describe()}; {why}"
         return None
 
 

@@ -435,7 +435,7 @@ def wait_ev(eft: EFT, *, started: bool = False, timeout: float | None = None, po
     arm = _arm_named(eft.arm)
     with _lock:
         while not done():
-            why = _never_starts(eft)
+            why = never_starts(eft)
             if why is not None:
                 raise Deadlock(f"wait_ev: {eft.describe()} can never {'start' if started else 'end'}: {why}")
             if deadline is not None and time.monotonic() > deadline:
@@ -546,26 +546,31 @@ def _waits_for(e: EFT, target: EFT, seen: set | None = None) -> list[EFT] | None
     return None
 
 
-def _never_starts(e: EFT, seen: set | None = None) -> str | None:
-    """Why ``e`` can never start (or end), or None if it can."""
-    if e._status != NULL or e._stop != NULL:      # started, or stopped: it will end
+def never_starts(e, predecessor: Callable = None, seen: set | None = None) -> str | None:
+    """Why the motion of EFT ``e`` can never start (or end), or None if it can.
+
+    Reads only the public flags (``start``, ``stop``, ``status``, ``after``, ``describe()``),
+    so it serves local EFTs and rccl.bus_events' remote ones alike; ``predecessor(e)``: the
+    motion queued before ``e`` on its arm that has not ended (default: this process's queues)."""
+    predecessor = predecessor or _predecessor
+    if e.status != NULL or e.stop != NULL:      # started, or stopped: it will end
         return None
     seen = seen if seen is not None else set()
     if id(e) in seen:
         return f"{e.describe()} waits for itself"
     seen.add(id(e))
-    if e._start == NULL:
+    if e.start == NULL:
         if e.after is None:
             return f"the start flag of {e.describe()} is not set and nothing will set it (start_ev it first)"
         src = e.after
-        if src._status in (FAULT, ABORTED):
-            return f"{e.describe()} waits for {src.describe()}, which ended {code_name(src._status)}"
-        why = _never_starts(src, seen)
+        if src.status in (FAULT, ABORTED):
+            return f"{e.describe()} waits for {src.describe()}, which ended {code_name(src.status)}"
+        why = never_starts(src, predecessor, seen)
         if why is not None:
             return f"{e.describe()} waits for {src.describe()}; {why}"
-    p = _predecessor(e)
+    p = predecessor(e)
     if p is not None:
-        why = _never_starts(p, seen)
+        why = never_starts(p, predecessor, seen)
         if why is not None:
             return f"{e.describe()} is queued behind {p.describe()}; {why}"
     return None

@@ -41,7 +41,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .workcell_data import OVERFLOW, ChannelFull, MultiError
-from .zenoh_bus import ZenohLinkError, open_session
+from .zenoh_bus import ZenohLinkError, open_session, undeclare
 
 
 # --- the codec -------------------------------------------------------------------------
@@ -157,11 +157,7 @@ class BusShared:
         """Nothing to do: every write is published at once (no lockstep barrier across processes)."""
 
     def close(self) -> None:
-        for obj in (self._sub, self._queryable, *self._publishers.values()):
-            try:
-                obj.undeclare()
-            except Exception:
-                pass
+        undeclare(self._sub, self._queryable, *self._publishers.values())
 
 
 # --- channels (t2, t3) -------------------------------------------------------------------
@@ -275,11 +271,7 @@ class BusChannel:
         """Nothing to do across processes (no lockstep barrier)."""
 
     def close(self) -> None:
-        for obj in self._declared:
-            try:
-                obj.undeclare()
-            except Exception:
-                pass
+        undeclare(*self._declared)
 
 
 # --- the bus ----------------------------------------------------------------------------

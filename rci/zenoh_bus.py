@@ -91,6 +91,18 @@ def _threads() -> set[int]:
         return set()
 
 
+def undeclare(*objs) -> None:
+    """Undeclare Zenoh publishers, subscribers, queryables and tokens, skipping None; a close
+    path: one that fails (its session already closed) does not stop the others."""
+    for obj in objs:
+        if obj is None:
+            continue
+        try:
+            obj.undeclare()
+        except Exception:
+            pass
+
+
 def _realtime_threads(tids: set[int], priority: int) -> bool:
     """Run ``tids`` (Zenoh's runtime threads) under SCHED_FIFO ``priority`` where the OS
     allows: a frame crosses them on its way to and from the control thread, and a
@@ -274,13 +286,7 @@ class ControllerPort:
 
     def close(self) -> None:
         self.is_open = False
-        for name in ("watch", "token", "pub", "sub"):
-            obj = self.__dict__.pop(name, None)
-            if obj is not None:
-                try:
-                    obj.undeclare()
-                except Exception:
-                    pass
+        undeclare(*(self.__dict__.pop(name, None) for name in ("watch", "token", "pub", "sub")))
         session = self.__dict__.pop("session", None)
         if session is not None:
             try:
@@ -359,11 +365,7 @@ class RobotEndpoint:
             self._new.clear()
         for c in conns:
             c.close()
-        for obj in (self.hello, self.watch, self.token):
-            try:
-                obj.undeclare()
-            except Exception:
-                pass
+        undeclare(self.hello, self.watch, self.token)
         try:
             self.session.close()
         except Exception:
@@ -405,9 +407,5 @@ class Connection:
 
     def close(self) -> None:
         self.endpoint.forget(self)
-        for obj in (self.sub, self.pub):
-            try:
-                obj.undeclare()
-            except Exception:
-                pass
+        undeclare(self.sub, self.pub)
         self.pipe.close()
