@@ -9,19 +9,17 @@ beyond a prismatic stroke, a PUMA-only configuration letter.
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pytest
 
-import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import BadRequest, SingularPath, UnreachableTarget
 from rccl.limits import load_limits
 from rccl.plots import line_deviation, pinocchio_fk
 from rccl.transform import rot, trsl
 
-SimulaProcess = pytest.importorskip("rci.simula.process").SimulaProcess
+from rccl_arm import go as shared_go, lockstep_simula, open_arm as shared_open_arm, tail
 
 # joint 1 rad, joints 2-3 m (vertical and radial strokes), joints 4-6 rad: away from theta5 = pi
 START = np.array([0.2, 0.20, 0.32, math.radians(-80.0), math.radians(100.0), 0.1])
@@ -30,10 +28,7 @@ LIM = load_limits("microbo")
 
 @pytest.fixture(scope="module")
 def sim():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # Python kinematics when the C kernels are not built
-        with SimulaProcess("-p", "--power-on", robot="microbo", lockstep=True) as s:
-            yield s
+    yield from lockstep_simula("microbo")
 
 
 @pytest.fixture(scope="module")
@@ -42,22 +37,12 @@ def world():
 
 
 def open_arm(sim, rate_hz: int = 36):
-    return rccl.open(sim.url, robot="microbo", rate_hz=rate_hz, record=True, on_error="raise", timeout=2.0)
+    return shared_open_arm(sim, "microbo", rate_hz)
 
 
 def go(arm, q, name="start"):
     """Joint-mode move to joint values q; returns T6 there."""
-    arm.setmod("joint")
-    arm.setvel(0.1, 1.5)
-    p = makeposition(name, T6, EQ, Trsf(name.upper(), arm.kinematics.fk(q)), TL, T6)
-    arm.move(p)
-    arm.waitfor(p.end)
-    return arm.t6
-
-
-def tail(arm, n0):
-    tr = arm.trace[n0:]
-    return np.array([x[1] for x in tr]), np.array([x[2] for x in tr])
+    return shared_go(arm, q, name, rot_speed=1.5)
 
 
 def test_world_model_agrees_with_the_generated_kinematics(world):

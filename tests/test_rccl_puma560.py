@@ -5,18 +5,15 @@ simula reports. The controller's kinematics are rccl.kinematics.puma560 (generat
 `make derive` from models/puma560.toml)."""
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
-import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.limits import load_limits
 from rccl.plots import line_deviation, pinocchio_fk
 from rccl.transform import rot, trsl
 
-SimulaProcess = pytest.importorskip("rci.simula.process").SimulaProcess
+from rccl_arm import go as shared_go, lockstep_simula, open_arm as shared_open_arm, tail
 
 # away from the shoulder, elbow (cos(theta3 - atan2(a3, d4)) = 0) and wrist singularities
 START = np.array([0.2, 1.2, -2.8, 0.3, -0.8, 0.1])
@@ -25,10 +22,7 @@ LIM = load_limits("puma560")
 
 @pytest.fixture(scope="module")
 def sim():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        with SimulaProcess("-p", "--power-on", robot="puma560", lockstep=True) as s:
-            yield s
+    yield from lockstep_simula("puma560")
 
 
 @pytest.fixture(scope="module")
@@ -37,22 +31,12 @@ def world():
 
 
 def open_arm(sim, rate_hz: int = 36):
-    return rccl.open(sim.url, robot="puma560", rate_hz=rate_hz, record=True, on_error="raise", timeout=2.0)
+    return shared_open_arm(sim, "puma560", rate_hz)
 
 
 def go(arm, q, name="start"):
     """Joint-mode move to joint values q; returns T6 there."""
-    arm.setmod("joint")
-    arm.setvel(0.1, 1.0)
-    p = makeposition(name, T6, EQ, Trsf(name.upper(), arm.kinematics.fk(q)), TL, T6)
-    arm.move(p)
-    arm.waitfor(p.end)
-    return arm.t6
-
-
-def tail(arm, n0):
-    tr = arm.trace[n0:]
-    return np.array([x[1] for x in tr]), np.array([x[2] for x in tr])
+    return shared_go(arm, q, name, rot_speed=1.0)
 
 
 def test_world_model_agrees_with_the_generated_kinematics(world):
