@@ -103,13 +103,25 @@ def _link_args(link: str) -> tuple[str, ...]:
     return ("--zenoh", "bench/puma260", "--zenoh-listen", f"tcp/127.0.0.1:{port}")
 
 
+def _pin_threads(pid: int, cpu: int) -> None:
+    """Every thread of process ``pid`` (simula's Zenoh threads, which it started before the
+    bench pinned its main thread) to ``cpu``, as the controller's Zenoh threads are (they
+    inherit the control thread's CPU). Each frame passes from a Zenoh thread to the main
+    thread; on one CPU that hand-off is a wake-up where the sender runs (see
+    ``rci.realtime.pin_to_cpus``)."""
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        pin_to_cpus({cpu}, int(tid))
+
+
 def run_rate(rate: int, seconds: float, cpu: int | None = None, link: str = "socket") -> dict:
     conv = Conversions.for_robot("puma260")
     load0, steal0 = os.getloadavg()[0], _steal_ticks()
     with SimulaProcess("-p", "--power-on", "--rate", str(rate), *_link_args(link), lockstep=False) as sim:
         pinned: bool | str = "no"
         if cpu is not None:
-            pinned = pin_to_cpus({cpu}, sim.proc.pid)          # simula's (single) thread
+            pinned = pin_to_cpus({cpu}, sim.proc.pid)          # simula's thread (over the socket, its only one)
+            if link == "zenoh" and pinned is True:
+                _pin_threads(sim.proc.pid, cpu)                # simula's Zenoh threads with it
             if pinned is True:
                 pinned = pin_to_cpus({cpu})                    # this thread: the control thread inherits it
         with Session(sim.url, "puma260", rate_hz=rate, overrun="count", timeout=0.5, on_error="raise") as s:

@@ -202,6 +202,23 @@ class _Pipe:
                 pass
 
 
+def _on_zenoh_thread(fn):
+    """``fn`` as a Zenoh callback run by the Zenoh thread that received the sample.
+
+    zenoh-python's default (``indirect``) runs a Python callback on a thread of its own,
+    which Zenoh's thread wakes for every sample: an ordinary (SCHED_OTHER) thread, created
+    with the CPU affinity of whoever declared the subscriber. Next to a real-time control
+    thread pinned to one CPU, every frame then waited for that ordinary thread to get the
+    CPU, and on a loaded machine it waited 50-150 ms now and then (the robot's watchdog
+    ended the control; bench/rci_loop.py, 2026-11-26). Run directly, the callback is one
+    hop shorter and runs at the priority of Zenoh's threads (``open_session``); it only
+    copies the payload into a socket pair, so it holds the interpreter lock a few
+    microseconds and never blocks."""
+    import zenoh
+
+    return zenoh.handlers.Callback(fn, indirect=False)
+
+
 def _put(publisher, data: bytes) -> None:
     publisher.put(data)
 
@@ -230,11 +247,12 @@ class ControllerPort:
         self.session = open_session(a.connect or (DEFAULT_ENDPOINT,), a.listen, a.lease_ms, priority)
         self.pipe = _Pipe()
         try:
-            self.sub = self.session.declare_subscriber(a.keyexpr("c", self.id, "up"),
-                                                       lambda s: self.pipe.push(s.payload.to_bytes()))
+            self.sub = self.session.declare_subscriber(
+                a.keyexpr("c", self.id, "up"), _on_zenoh_thread(lambda s: self.pipe.push(s.payload.to_bytes())))
             self.pub = _declare_publisher(self.session, a.keyexpr("c", self.id, "down"))
             self.token = self.session.liveliness().declare_token(a.keyexpr("c", self.id))
-            self.watch = self.session.liveliness().declare_subscriber(a.keyexpr("robot"), self._robot_liveliness)
+            self.watch = self.session.liveliness().declare_subscriber(a.keyexpr("robot"),
+                                                                     _on_zenoh_thread(self._robot_liveliness))
             self._hello(timeout)
         except BaseException:
             self.close()
@@ -310,7 +328,8 @@ class RobotEndpoint:
         self._lock = threading.Lock()
         a = address
         self.token = self.session.liveliness().declare_token(a.keyexpr("robot"))
-        self.watch = self.session.liveliness().declare_subscriber(a.keyexpr("c", "*"), self._controller_liveliness)
+        self.watch = self.session.liveliness().declare_subscriber(a.keyexpr("c", "*"),
+                                                                 _on_zenoh_thread(self._controller_liveliness))
         self.hello = self.session.declare_queryable(a.keyexpr("hello"), self._on_hello)
 
     def url(self) -> str:
@@ -382,8 +401,8 @@ class Connection:
         self.id = cid
         self.address = f"zenoh connection {cid}"
         self.pipe = _Pipe()
-        self.sub = endpoint.session.declare_subscriber(a.keyexpr("c", cid, "down"),
-                                                       lambda s: self.pipe.push(s.payload.to_bytes()))
+        self.sub = endpoint.session.declare_subscriber(
+            a.keyexpr("c", cid, "down"), _on_zenoh_thread(lambda s: self.pipe.push(s.payload.to_bytes())))
         self.pub = _declare_publisher(endpoint.session, a.keyexpr("c", cid, "up"))
 
     def fileno(self) -> int:
