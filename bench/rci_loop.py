@@ -399,7 +399,8 @@ def main(argv: list[str] | None = None) -> int:
         r = run_rate(rate, args.seconds, None if args.cpu < 0 else args.cpu, link="zenoh")
         print(f"{rate:5d} Hz over Zenoh: cycles {r['cycles']}, missed {r['warm_missed']} (warm-up) + {r['steady_missed']}, "
               f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
-              f"RCI work p99 {r['overhead_p99'] * 1e6:.0f} us, load {r['load0']:.1f} -> {r['load']:.1f}", flush=True)
+              f"RCI work p99 {r['overhead_p99'] * 1e6:.0f} us, HOW gaps > 2 periods {r['long_gaps']}, "
+              f"load {r['load0']:.1f} -> {r['load']:.1f}, steal {r['steal_ms']:.0f} ms, {r['pinned']}", flush=True)
         results.append(r)
     bus = None
     if not args.only_stress and args.zenoh_rates:
