@@ -16,12 +16,17 @@ Key expressions (``KEY`` is the robot's name on the bus, e.g. ``lab/puma260``):
 
 A connection is a byte stream like a socket: on each side a local socket pair carries
 what the subscriber receives to the reader's ``select()``, so the link's framing, its
-waits and its wake-up work unchanged. When a side's liveliness token disappears (the
-process died, its host or network went away: Zenoh notices within its lease, a few
-seconds by default, ``lease`` in the address below sets it) the other side reads end of
-file: the controller's control ends with a link fault, the robot holds the arm as for a
-dropped socket. A controller that stops sending while alive is caught by the robot's
-watchdog, as on every link.
+waits and its wake-up work unchanged. The subscriber's callback runs on the Zenoh thread
+that received the frame (``_on_zenoh_thread``), and Zenoh's threads run at the reader's
+real-time priority + 1 on the CPUs of the thread that opened the session: pin the
+controller (and all of simula's threads, ``taskset -a``) to one CPU for 1 kHz
+(docs/zenoh.md, "Speed").
+
+When a side's liveliness token disappears (the process died, its host or network went
+away: Zenoh notices within its lease, a few seconds by default, ``lease`` in the address
+below sets it) the other side reads end of file: the controller's control ends with a
+link fault, the robot holds the arm as for a dropped socket. A controller that stops
+sending while alive is caught by the robot's watchdog, as on every link.
 
 Address: ``zenoh/KEY[?connect=ENDPOINT][&listen=ENDPOINT][&lease=MS]``; endpoints are
 Zenoh locators (``tcp/127.0.0.1:7447``). Without ``connect`` a controller connects to
@@ -205,15 +210,16 @@ class _Pipe:
 def _on_zenoh_thread(fn):
     """``fn`` as a Zenoh callback run by the Zenoh thread that received the sample.
 
-    zenoh-python's default (``indirect``) runs a Python callback on a thread of its own,
-    which Zenoh's thread wakes for every sample: an ordinary (SCHED_OTHER) thread, created
-    with the CPU affinity of whoever declared the subscriber. Next to a real-time control
-    thread pinned to one CPU, every frame then waited for that ordinary thread to get the
-    CPU, and on a loaded machine it waited 50-150 ms now and then (the robot's watchdog
-    ended the control; bench/rci_loop.py, 2026-11-26). Run directly, the callback is one
-    hop shorter and runs at the priority of Zenoh's threads (``open_session``); it only
-    copies the payload into a socket pair, so it holds the interpreter lock a few
-    microseconds and never blocks."""
+    zenoh-python's default (``indirect``) hands every sample to a Python thread of its own:
+    an ordinary (SCHED_OTHER) thread with the CPU affinity of the thread that declared the
+    subscriber. A frame then waited for that thread to get a CPU behind every other
+    process, and next to real-time threads pinned to the same CPU it waited for whole
+    periods: at 1 kHz on a loaded machine the robot's watchdog (100 cycles without a CHG)
+    ended the control within a second, and at 50 Hz unpinned within seconds (measured
+    2026-11-26, docs/zenoh.md "Speed"). Run directly, the callback is one hop shorter and
+    runs at the priority of Zenoh's threads (``open_session``); it only copies the payload
+    into a socket pair (or marks end of file), so it holds the interpreter lock for
+    microseconds and never waits on anything but that lock."""
     import zenoh
 
     return zenoh.handlers.Callback(fn, indirect=False)
