@@ -162,30 +162,52 @@ def open_session(connect: tuple[str, ...] = (), listen: tuple[str, ...] = (), le
 
 
 class _Pipe:
-    """A local socket pair: Zenoh callbacks write into ``inlet``; the reader selects on ``outlet``."""
+    """A local socket pair: Zenoh callbacks write into ``inlet``; the reader selects on ``outlet``.
+
+    The callbacks run on Zenoh's own threads (``_on_zenoh_thread``), which must never wait
+    for a reader: ``inlet`` does not block, and a reader that leaves the pair full has
+    stopped reading; the pipe then ends (``overflowed``), as simula counts a TCP client
+    that does not read as gone. The pair holds ``BUFFER`` bytes of socket buffer, where the
+    OS allows (net.core.wmem_max): about 10,000 frames, 10 s at 1 kHz (the default buffer
+    held 278 frames of 100 bytes)."""
+
+    BUFFER = 4 << 20
 
     def __init__(self) -> None:
         self.outlet, self.inlet = socket.socketpair()
         self.outlet.setblocking(False)
+        self.inlet.setblocking(False)
+        try:
+            self.inlet.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, self.BUFFER)
+        except OSError:
+            pass
         self.lock = threading.Lock()
         self.closed = False
+        self.overflowed = False
 
     def push(self, data: bytes) -> None:
         with self.lock:
-            if not self.closed:
-                try:
-                    self.inlet.sendall(data)
-                except OSError:
-                    pass
+            if self.closed or self.overflowed:
+                return
+            try:
+                self.inlet.sendall(data)
+            except BlockingIOError:
+                self.overflowed = True
+                self._shut()
+            except OSError:
+                pass
+
+    def _shut(self) -> None:
+        try:
+            self.inlet.shutdown(socket.SHUT_WR)
+        except OSError:
+            pass
 
     def end(self) -> None:
         """End of file for the reader (the other side is gone)."""
         with self.lock:
             if not self.closed:
-                try:
-                    self.inlet.shutdown(socket.SHUT_WR)
-                except OSError:
-                    pass
+                self._shut()
 
     def read(self, n: int = 65536) -> bytes | None:
         """What is there (b"" if nothing), None at end of file."""
@@ -293,6 +315,9 @@ class ControllerPort:
     def read(self, n: int = 4096) -> bytes:
         data = self.pipe.read(n)
         if data is None:
+            if self.pipe.overflowed:
+                raise ZenohLinkError(f"{self.portstr}: frames from the robot were not read "
+                                     "(the local buffer filled up); link ended")
             raise ZenohLinkError(f"{self.portstr}: the robot left the Zenoh bus")
         return data
 

@@ -76,6 +76,60 @@ def test_no_robot_on_the_key_is_a_clear_open_error():
         _session(url, start_timeout=2.0).open()
 
 
+def test_a_frame_reaches_the_reader_on_zenohs_own_thread():
+    """The link's callbacks run on the Zenoh thread that received the frame, not on a Python
+    thread of zenoh-python's (an ordinary thread that waited whole periods under load)."""
+    import threading
+
+    from rci.zenoh_bus import _declare_publisher, _on_zenoh_thread, _Pipe, open_session
+
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    robot, controller = open_session(listen=(endpoint,)), open_session(connect=(endpoint,))
+    pipe, threads = _Pipe(), []
+
+    def got(sample) -> None:
+        with open(f"/proc/self/task/{threading.get_native_id()}/comm") as f:
+            threads.append(f.read().strip())
+        pipe.push(sample.payload.to_bytes())
+
+    sub = controller.declare_subscriber("rcci/t/up", _on_zenoh_thread(got))
+    try:
+        pub = _declare_publisher(robot, "rcci/t/up")
+        deadline = time.monotonic() + WAIT
+        received = b""
+        while len(received) < 3 and time.monotonic() < deadline:
+            pub.put(b"f")
+            time.sleep(0.05)
+            received += pipe.read() or b""
+        assert received[:3] == b"fff"
+        assert threads and all(name.startswith("rx-") for name in threads), threads
+    finally:
+        sub.undeclare()
+        controller.close()
+        robot.close()
+        pipe.close()
+
+
+def test_a_reader_that_stops_reading_ends_its_pipe_and_zenohs_thread_never_waits():
+    from rci.zenoh_bus import _Pipe
+
+    pipe = _Pipe()
+    t0 = time.monotonic()
+    pushed = 0
+    while not pipe.overflowed and pushed < 1_000_000:
+        pipe.push(b"x" * 100)
+        pushed += 1
+    assert pipe.overflowed and time.monotonic() - t0 < 5.0
+    assert pushed > 250                              # at least the OS's default buffer's worth
+    kept = b""
+    while (data := pipe.read()) is not None:         # what fitted, then end of file
+        assert data, "an overflowed pipe must read as ended, not as empty"
+        kept += data
+    assert 0 < len(kept) < pushed * 100
+    pipe.push(b"late")                               # after the end: ignored, no error
+    pipe.close()
+
+
 def test_a_control_over_the_bus_moves_the_arm_and_releases_it():
     with _simula() as sim:
         assert sim.url.startswith("zenoh/test/puma?connect=tcp/127.0.0.1:")
