@@ -391,7 +391,8 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
     ``lose_acks``: ArmServer's test hook."""
     import rccl
     with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY) as bus, \
-            rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout) as arm:
+            rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
+                      on_error="raise") as arm:
         server = ArmServer(arm, bus, name, priority=BUS_PRIORITY, lose_sets=lose_sets, lose_acks=lose_acks)
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, lambda *_: server.stop())
@@ -400,6 +401,9 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
             server.serve()
             if any(e.status >= 0 for e in server.efts.values()):   # stopped by a signal mid-plan
                 ev.stop_abort(arm)
+        except Exception as exc:         # the control ended with a fault, published by serve()
+            print(f"{name}: the control ended: {type(exc).__name__}: {exc}", flush=True)
+            return 1
         finally:
             server.close()
     print(f"{name}: released", flush=True)

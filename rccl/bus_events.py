@@ -365,6 +365,11 @@ class BusEvents:
                                "is stopped, hung or cut off)")
         return True
 
+    def fault(self, arm: str) -> str | None:
+        """The fault ``arm``'s process published when its control ended (None if none)."""
+        with self._cond:
+            return self._faults.get(arm)
+
     def flags(self, arm: str, serial: int) -> dict:
         """The latest flags published for EFT ``serial`` of ``arm`` ({} if none yet)."""
         with self._cond:
