@@ -10,10 +10,17 @@ to ``rccl.events`` under its name, and then:
 * publishes every change of its EFTs' flags on ``rcci/CELL/flags/ARM/SERIAL`` (from a
   publishing thread: the control level only hands a copy over, it never waits for the
   network) and answers queries for the latest;
-* applies ``start_ev`` / ``stop_ev`` publications (``rcci/CELL/flags/set``) to its EFTs;
+* applies ``start_ev`` / ``stop_ev`` messages (``rcci/CELL/flags/set``) to its EFTs, once
+  each, and acknowledges every copy (``rcci/CELL/arm/ARM/ack``);
 * starts a motion queued with ``start=`` an EFT of another arm the moment it learns,
   from that arm's publication, that the motion ended (or at once if it already had);
-* publishes ``rcci/CELL/arm/ARM/fault`` and ends when its arm's control ends with a fault.
+* says it is alive every ``HEARTBEAT_S`` (``rcci/CELL/arm/ARM/alive``);
+* watches the planning levels' liveliness tokens: when one ends, or when this process
+  finds itself stalled longer than that planning level's silence, it aborts the motions
+  that planning level queued (the arm holds) and says why (``rcci/CELL/arm/ARM/held``,
+  and a line on stdout);
+* publishes ``rcci/CELL/arm/ARM/fault`` and ends (exit status 1) when its arm's control
+  ends with a fault.
 
 Its liveliness token ``rcci/CELL/arm/ARM`` is declared once it serves and ends with the
 process. Run it from the shell:

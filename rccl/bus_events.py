@@ -25,20 +25,35 @@ that A's motion ended (DONE, LIMIT, MONITOR or any code a program gave; not FAUL
 ABORTED, as in one process): no round trip through the planning level. The latency is
 one bus hop (A's process to B's, through the process they both connect to) plus at most
 one sample of B (its trajectory level looks at its queue once per sample). ``start_ev``
-and ``stop_ev`` are one publication that sets the flags of EFTs of several arms at once;
+and ``stop_ev`` are one message that sets the flags of EFTs of several arms at once;
 each arm acts on it at its next sample (arms with independent clocks: within one sample
-of each other, plus the bus's spread of a few hundred microseconds).
+of each other, plus the bus's spread of a few hundred microseconds). The message carries
+this planning level's id and a sequence number; each arm applies it once and acknowledges
+every copy with the flags of its EFTs named; ``start_ev`` / ``stop_ev`` send it again every
+``RESEND_S`` until every arm addressed has acknowledged it (a lost message or a lost
+acknowledgement costs ``RESEND_S``, nothing is applied twice) or is lost (``ArmLost``).
 
-**Faults.** The planning process watches each arm process's liveliness token; a process
-that dies (killed, crashed, its host cut off) ends its token and every ``wait_ev`` on
-its motions, or on motions that wait for them, raises ``ArmLost`` (a killed process: at
-once, its TCP link closes; a hung or unreachable one: after three unanswered asks for
-its flags by a wait that heard nothing for a second each, or the bus's lease,
-``Bus(lease_ms=...)``, 10 s by default). The robot holds that arm (its watchdog, or the
+**Faults.** The planning process watches each arm process's liveliness token and its
+heartbeat (every ``HEARTBEAT_S``). A process that dies (killed, crashed) ends its token at
+once (its TCP link closes); one that stops (SIGSTOP, hung) or is cut off goes silent: after
+``silence`` s (``SILENCE_S`` by default) without a heartbeat it is lost, and stays lost for
+this planning level even if it speaks again (only a new process, a new token, is heard).
+Every ``wait_ev`` on a lost arm's motions, or on motions that wait for them, raises
+``ArmLost``; so do requests to it, at once. The robot holds that arm (its watchdog, or the
 end of the link). An arm whose control ends with a fault publishes it: ``wait_ev`` raises
 ``RemoteFault`` with the arm process's message. A request no arm process answers within
 ``request_timeout`` raises ``ArmLost``; nothing waits without a bound except ``wait_ev``
 with ``timeout=None`` on a motion that is still running.
+
+The arm processes watch the planning level in turn: it declares a liveliness token
+(``rcci/CELL/planner/ID``), and when it ends (the planning process died or left the bus)
+each arm process stops every motion that planning level queued and that has not ended
+(ABORTED: a running one halts at its next sample, held and queued ones are deleted); the
+arm holds where it is under its process's control, which keeps serving (a planning
+process that comes back drives it again). An arm process that finds itself stalled longer
+than a planning level's silence (it was stopped, then continued) does the same for that
+planning level's motions: that planning level has given it up, so nothing it queued may
+resume unseen.
 
 Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is served under):
 
@@ -46,7 +61,11 @@ Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is serv
 ``rcci/CELL/arm/ARM/request``      queryable: move, info, free, abort, close (JSON in, JSON out)
 ``rcci/CELL/arm/ARM/fault``        publication: the arm's control ended with this fault
 ``rcci/CELL/flags/ARM/SERIAL``     publication (and queryable: the latest) of one EFT's flags
-``rcci/CELL/flags/set``            publication: start_ev / stop_ev on EFTs of any arms
+``rcci/CELL/flags/set``            publication: start_ev / stop_ev on EFTs of any arms (planner id, sequence number)
+``rcci/CELL/arm/ARM/ack``          publication: the arm applied (or already had) that start_ev / stop_ev, its EFTs' flags
+``rcci/CELL/arm/ARM/alive``        publication: the arm process's heartbeat, every ``HEARTBEAT_S``
+``rcci/CELL/arm/ARM/held``         publication: the arm process aborted a planning level's motions, and why
+``rcci/CELL/planner/ID``           liveliness: a planning level (``BusEvents``) is there
 
 Positions cross as joint angles (``joint_position``: rebuilt with the arm process's own
 kinematics) or as a T6 (any other position, evaluated when ``move_ev`` sends it: a

@@ -108,8 +108,8 @@ def test_a_lost_start_ev_is_sent_again_then_a_stopped_arm_process_is_given_up_an
         a = ev.move_ev(puma, _waist(puma, 0.5, "long_way"))
         ev.wait_ev(a, started=True, timeout=5.0)
         time.sleep(0.2)
+        t_stop = time.monotonic()                  # before the signal: the figure can only be too long
         os.kill(proc.pid, signal.SIGSTOP)
-        t_stop = time.monotonic()
         with pytest.raises(ArmLost, match="'puma' went silent: no heartbeat for"):
             ev.wait_ev(a, timeout=10.0)
         detected = time.monotonic() - t_stop
@@ -163,8 +163,8 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
         time.sleep(0.1)
         q2 = _q(sim)
         assert abs(q2[0] - q1[0]) > 5e-3                      # the waist is on its way (0.5 rad)
+        t_kill = time.monotonic()                  # before the signal: the figure can only be too long
         os.kill(planner.pid, signal.SIGKILL)
-        t_kill = time.monotonic()
         said = _line(proc, 5.0, "aborted, the arm holds")
         assert planner.wait(5) == -signal.SIGKILL
         assert "left the bus" in said and f"motion(s) #{serials[0]}, #{serials[1]} aborted" in said
