@@ -47,8 +47,9 @@ from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import undeclare
 
 from . import events as ev
-from .bus_events import (HEARTBEAT_S, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
-                         position_from_wire, set_key)
+from .bus_events import HEARTBEAT_S
+from .bus_wire import (arm_key, check_name, error_reply, flags_key, flags_of, planner_key, position_from_wire,
+                       set_key)
 from .events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)

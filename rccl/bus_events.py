@@ -55,22 +55,7 @@ than a planning level's silence (it was stopped, then continued) does the same f
 planning level's motions: that planning level has given it up, so nothing it queued may
 resume unseen.
 
-Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is served under):
-
-``rcci/CELL/arm/ARM``              liveliness: the arm's process serves it
-``rcci/CELL/arm/ARM/request``      queryable: move, info, free, abort, close (JSON in, JSON out)
-``rcci/CELL/arm/ARM/fault``        publication: the arm's control ended with this fault
-``rcci/CELL/flags/ARM/SERIAL``     publication (and queryable: the latest) of one EFT's flags
-``rcci/CELL/flags/set``            publication: start_ev / stop_ev on EFTs of any arms (planner id, sequence number)
-``rcci/CELL/arm/ARM/ack``          publication: the arm applied (or already had) that start_ev / stop_ev, its EFTs' flags
-``rcci/CELL/arm/ARM/alive``        publication: the arm process's heartbeat, every ``HEARTBEAT_S``
-``rcci/CELL/arm/ARM/held``         publication: the arm process aborted a planning level's motions, and why
-``rcci/CELL/planner/ID``           liveliness: a planning level (``BusEvents``) is there
-
-Positions cross as joint angles (``joint_position``: rebuilt with the arm process's own
-kinematics) or as a T6 (any other position, evaluated when ``move_ev`` sends it: a
-functional transform does not cross). Times in the flags (``t_started``, ``t_ended``) are
-the arm process's ``time.monotonic()``, comparable between processes of one host.
+Key expressions and what crosses the bus: ``rccl.bus_wire``.
 """
 from __future__ import annotations
 
@@ -83,11 +68,11 @@ import numpy as np
 from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import undeclare
 
-from . import exceptions as rccl_exceptions
-from .events import (NULL, START, Deadlock, EFT, EventError, UnknownEvent, code_name,
-                     never_starts)
-from .position import EQ, TL, Position, joint_position, makeposition
-from .transform import T6, Trsf
+from .bus_wire import (KNOWN_ERRORS, arm_key, check_name, flags_key, planner_key, position_to_wire,
+                       set_key)
+from .bus_wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
+from .events import NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
+from .position import Position
 
 REQUEST_TIMEOUT_S = 5.0
 REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
@@ -103,71 +88,6 @@ class ArmLost(EventError):
 
 class RemoteFault(EventError):
     """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
-
-
-# --- key expressions ------------------------------------------------------------------------
-def arm_key(cell: str, arm: str, *parts: str) -> str:
-    return "/".join(("rcci", cell, "arm", arm) + parts)
-
-
-def flags_key(cell: str, arm: str, serial: int | str) -> str:
-    return f"rcci/{cell}/flags/{arm}/{serial}"
-
-
-def set_key(cell: str) -> str:
-    return f"rcci/{cell}/flags/set"
-
-
-def planner_key(cell: str, planner: str) -> str:
-    """The liveliness token of one planning level (a ``BusEvents``): the arm processes watch it."""
-    return f"rcci/{cell}/planner/{planner}"
-
-
-def check_name(name: Any, what: str) -> str:
-    if not isinstance(name, str) or not name or any(c in name for c in "/*$#? "):
-        raise EventError(f"{what}: {name!r} is not a plain name (no '/', '*', '$', '#', '?', spaces)")
-    return name
-
-
-# --- the wire forms -------------------------------------------------------------------------
-def flags_of(eft: EFT, arm: str) -> dict:
-    """One EFT's flags as published (JSON)."""
-    return {"arm": arm, "serial": eft.serial, "where": eft.where, "start": eft.start, "stop": eft.stop,
-            "status": eft.status, "version": eft.version, "t_start_set": eft.t_start_set, "t_started": eft.t_started,
-            "t_ended": eft.t_ended,
-            "traj_started": eft.traj_started, "traj_ended": eft.traj_ended}
-
-
-def position_to_wire(position: Any) -> dict:
-    """A position as it crosses the bus: its joint angles if it has them, else its T6 now."""
-    if not isinstance(position, Position):
-        raise EventError(f"move_ev: {position!r} is not a Position (rccl.makeposition, rccl.joint_position)")
-    joints = getattr(position, "joints", None)
-    if joints is not None:
-        return {"name": position.name, "joints": [float(x) for x in joints]}
-    return {"name": position.name, "t6": np.asarray(position.solve(), dtype=float).tolist()}
-
-
-def position_from_wire(data: Any, kinematics) -> Position:
-    """The position ``position_to_wire`` sent, rebuilt with this arm's kinematics."""
-    if not isinstance(data, dict) or not isinstance(data.get("name"), str):
-        raise EventError(f"move request: the position must be {{'name', 'joints' | 't6'}}, got {data!r}")
-    if "joints" in data:
-        return joint_position(data["name"], kinematics, np.asarray(data["joints"], dtype=float))
-    t6 = np.asarray(data.get("t6"), dtype=float)
-    if t6.shape != (4, 4) or not np.all(np.isfinite(t6)):
-        raise EventError(f"move request {data['name']!r}: t6 must be a finite 4x4 matrix")
-    return makeposition(data["name"], T6, EQ, Trsf(data["name"].upper(), t6), TL, T6)
-
-
-#: error classes an arm process's reply may name (anything else arrives as RemoteFault)
-_KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock)}
-_KNOWN_ERRORS.update({name: cls for name, cls in vars(rccl_exceptions).items()
-                      if isinstance(cls, type) and issubclass(cls, Exception)})
-
-
-def error_reply(exc: BaseException) -> dict:
-    return {"error": str(exc), "type": type(exc).__name__}
 
 
 # --- the planning process's view ---------------------------------------------------------------
@@ -447,7 +367,7 @@ class BusEvents:
                 continue
             answer = decode(reply.ok.payload.to_bytes())
             if "error" in answer:
-                cls = _KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
+                cls = KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
                 raise cls(f"{where}: arm {arm!r} (its process) says: {answer['error']}")
             return answer
         with self._cond:
