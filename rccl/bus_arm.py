@@ -72,7 +72,7 @@ class ArmServer:
     (a running one halts at the next sample, queued ones are deleted): the arm holds where
     it is, under this process's control, and the reason is printed and published on
     ``rcci/CELL/arm/ARM/held``. So is it when this process itself was stalled (stopped, or
-    starved) longer than a planning level's silence: that planning level has given the arm
+    starved) longer than a planning level's silence: that planning level may have given the arm
     up, and nothing it queued may go on unseen."""
 
     def __init__(self, arm, bus: Bus, name: str, report_to: str | None = "planning", priority: int = 0,
@@ -293,7 +293,7 @@ class ArmServer:
                 late = {p for p, silence in self._planners.items() if gap > silence}
             if late:
                 self._hold(lambda p: p in late, f"this process was stalled {gap:.3f} s, longer than its planning "
-                                                "level's silence: that planning level has given the arm up")
+                                                "level's silence: that planning level may have given the arm up")
             n += 1
             self._put(key, encode({"n": n, "t": now}))
 

@@ -52,7 +52,7 @@ each arm process stops every motion that planning level queued and that has not 
 arm holds where it is under its process's control, which keeps serving (a planning
 process that comes back drives it again). An arm process that finds itself stalled longer
 than a planning level's silence (it was stopped, then continued) does the same for that
-planning level's motions: that planning level has given it up, so nothing it queued may
+planning level's motions: that planning level may have given it up, so nothing it queued may
 resume unseen.
 
 Key expressions and what crosses the bus: ``rccl.bus_wire``.
