@@ -159,24 +159,30 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
         stack.callback(_end, proc)
         serials = [int(x) for x in _line(planner, 30.0, "moving").split()[1:]]
         time.sleep(0.2)
-        q1 = _q(sim)
+        t1, q1 = time.monotonic(), _q(sim)
         time.sleep(0.1)
-        q2 = _q(sim)
-        assert abs(q2[0] - q1[0]) > 5e-3                      # the waist is on its way (0.5 rad)
+        t2, q2 = time.monotonic(), _q(sim)
+        speed = abs(q2[0] - q1[0]) / (t2 - t1)                 # rad/s: the waist is on its way (0.5 rad)
+        assert speed > 0.05
         t_kill = time.monotonic()                  # before the signal: the figure can only be too long
         os.kill(planner.pid, signal.SIGKILL)
         said = _line(proc, 5.0, "aborted, the arm holds")
         assert planner.wait(5) == -signal.SIGKILL
         assert "left the bus" in said and f"motion(s) #{serials[0]}, #{serials[1]} aborted" in said
-        detected = float(said.rsplit("t=", 1)[1].rstrip(")")) - t_kill     # one host: one monotonic clock
+        t_held = float(said.rsplit("t=", 1)[1].rstrip(")"))     # one host: one monotonic clock
+        detected = t_held - t_kill
         assert 0.0 < detected < 0.5, f"the arm process learned of the lost planner after {detected:.3f} s"
-        # the arm holds where it is, under its control (simula's owner is still the arm process)
+        # the arm holds where it is, under its control (simula's owner is still the arm process):
+        # the waist went on at most until the arm process's next samples, far short of its target
         time.sleep(0.1)
         s3 = sim.command("state")
         time.sleep(0.4)
         s4 = sim.command("state")
         q3, q4 = np.array(s3["state"]["q"]), np.array(s4["state"]["q"])
-        assert np.max(np.abs(q4 - q3)) < 1e-5 and abs(q3[0] - q2[0]) < 0.02
+        assert np.max(np.abs(q4 - q3)) < 1e-5
+        went_on = abs(q3[0] - q2[0])
+        assert went_on <= speed * (t_held - t2 + 5.0 / RATE_HZ) + 1e-3 and went_on < 0.25, \
+            f"the waist went on {went_on:.4f} rad after the planner was killed ({speed:.3f} rad/s)"
         assert s4["owner"]["running"] and not s4["owner"]["faulted"]
 
         # a planning process comes back on the same endpoint: the arm process (a Zenoh client)
