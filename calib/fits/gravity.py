@@ -6,7 +6,6 @@ from typing import Any
 from calib.fitting import FitOutcome
 from calib.gravity import fit_gravity, row_result
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.robot import GRAVITY_NAMES
 from calib.tables import combination, table_4_8_4_9
 
 THESIS_4_8 = {  # Table 4.8 as printed: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2)
@@ -19,7 +18,7 @@ THESIS_4_9 = {"c12": (5.509, 0.15, 0.080), "c13": (-1.762, 0.04, 0.010), "c15": 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
     joints = sorted({t.joint_index() for t in traces})
     drive = info.drive.with_sigma(inputs.sigma(joints))
-    res = fit_gravity(traces, drive, inputs.regressor(), GRAVITY_NAMES, notes=notes)
+    res = fit_gravity(traces, drive, inputs.regressor(), info.gravity_names, notes=notes)
     res = res.with_scale_error(inputs.sigma_scale_error(joints))
     sec: dict[str, Any] = {n: float(v) for n, v in zip(res.names, res.value)}
     sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
