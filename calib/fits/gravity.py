@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from calib.fitting import FitOutcome
 from calib.gravity import fit_gravity, row_result
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
@@ -63,17 +65,26 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     return L + [""]
 
 
-def record(req: RecordRequest) -> None:
+def plans(info, speed_deg: float = 20.0, extra: int = 2) -> list:
+    """The gravity sweeps for the arm of ``info`` (calib.experiments.gravity_plans): Table 4.7's
+    where they identify its coefficients, else sweeps chosen by its regressor, each joint's
+    rows weighted by its data-file friction (what remains of it in W1 - W2)."""
     from calib.experiments import gravity_plans
+
+    fr = info.nominal["friction"]
+    noise = (np.asarray(fr["coulomb_pos"]["values"], float) + np.asarray(fr["coulomb_neg"]["values"], float)) / 2
+    return gravity_plans(info.regressor, info.lower, info.upper, speed_deg, names=info.gravity_names,
+                         kinds=info.kinds, noise=np.where(noise > 0, noise, 1.0), extra=extra)
+
+
+def record(req: RecordRequest) -> None:
     from calib.program import record_plans
 
-    record_plans(req, gravity_plans(req.info.regressor, req.info.lower, req.info.upper))
+    record_plans(req, plans(req.info))
 
 
 def regen(ctx: RegenContext) -> list:
-    from calib.experiments import gravity_plans
-
-    return [((), p) for p in gravity_plans(ctx.info.regressor, ctx.info.lower, ctx.info.upper)]
+    return [((), p) for p in plans(ctx.info)]
 
 
 KIND = FitKind(
