@@ -178,10 +178,37 @@ def _idle_joints(regressor: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, 
     return idle
 
 
+def _short_tour(A: np.ndarray, poses: list[np.ndarray], picked: list[int], keep: float) -> list[int]:
+    """``picked`` (rows of A) in the order of a nearest-neighbour tour (joint space, largest
+    joint change: what a move between sweeps takes), each stop after the first swapped for
+    the candidate nearest the one before it that keeps det(A_S^T A_S) above ``keep`` times
+    that of ``picked`` (the identified region's volume, at least sqrt(keep) of it)."""
+    P = np.array(poses)
+    M = A[picked].T @ A[picked]
+    floor = np.linalg.slogdet(M)[1] + np.log(keep)
+    rest = list(picked)
+    tour = [rest.pop(0)]
+    while rest:
+        here = P[tour[-1]]
+        cur = min(rest, key=lambda c: float(np.abs(P[c] - here).max()))
+        rest.remove(cur)
+        a = A[cur]
+        trial = M - np.outer(a, a) + A[:, :, None] * A[:, None, :]       # every candidate in its place
+        sign, logdet = np.linalg.slogdet(trial)
+        ok = (sign > 0) & (logdet >= floor)
+        ok[tour + rest] = False
+        ok[cur] = True
+        dist = np.where(ok, np.abs(P - here).max(axis=1), np.inf)
+        best = int(np.argmin(dist))
+        M = M - np.outer(a, a) + np.outer(A[best], A[best])
+        tour.append(best)
+    return tour
+
+
 def identifying_sweeps(regressor: Callable[[np.ndarray], np.ndarray], names: tuple[str, ...],
                        lower: np.ndarray, upper: np.ndarray, kinds: tuple[str, ...],
                        noise: np.ndarray, margin: float, extra: int = 0, candidates: int = 400,
-                       seed: int = 1985) -> list[Sweep]:
+                       seed: int = 1985, keep: float = 0.25) -> list[Sweep]:
     """Gravity sweeps for an arm Table 4.7 does not serve, chosen by its regressor.
 
     A 180-degree sweep of a revolute joint measures one row of the regressor, the joint's
@@ -193,7 +220,8 @@ def identifying_sweeps(regressor: Callable[[np.ndarray], np.ndarray], names: tup
     k are picked greedily (the largest part of a row outside the span of those already
     picked) and improved by exchanges that raise |det| (the volume of the identified
     region), then ``extra`` more by their leverage. The order is a nearest-neighbour tour
-    from the first. No repeat: the fit takes the friction pattern out with each sweep's
+    from the first, each stop traded for a nearer pose where the volume stays above
+    ``keep`` of the best (the moves between sweeps took as long as the sweeps). No repeat: the fit takes the friction pattern out with each sweep's
     own up/down profile (calib.gravity). CalibError, naming them, when coefficients cannot
     be identified by any such sweep (a prismatic joint's mass term, say)."""
     from calib.exceptions import CalibError
@@ -202,7 +230,9 @@ def identifying_sweeps(regressor: Callable[[np.ndarray], np.ndarray], names: tup
     rng = np.random.default_rng(seed)
     joints = [i for i, kind in enumerate(kinds)
               if kind == "revolute" and upper[i] - lower[i] >= np.pi + 2 * margin]
-    lo_all, hi_all = lower + margin, upper - margin
+    # held joints keep ``margin`` (rad) inside their ranges, a prismatic one 5 % of its stroke
+    pad = np.where(np.array(kinds) == "revolute", margin, 0.05 * (upper - lower))
+    lo_all, hi_all = lower + pad, upper - pad
     # joints gravity does not see (a vertical joint 1) stay mid-range: shorter moves between sweeps
     idle = _idle_joints(regressor, lo_all, hi_all, rng)
     pool: list[tuple[int, np.ndarray]] = []
@@ -246,12 +276,7 @@ def identifying_sweeps(regressor: Callable[[np.ndarray], np.ndarray], names: tup
         lev = np.einsum("ij,jk,ik->i", A, M, A)
         lev[picked] = -1.0
         picked.append(int(np.argmax(lev)))
-    tour = [picked.pop(0)]
-    while picked:
-        here = pool[tour[-1]][1]
-        nxt = min(picked, key=lambda c: float(np.abs(pool[c][1] - here).max()))
-        picked.remove(nxt)
-        tour.append(nxt)
+    tour = _short_tour(A, [q for _, q in pool], picked, keep)
     out = []
     for n, c in enumerate(tour, start=1):
         i, q = pool[c]
