@@ -300,7 +300,10 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
     return plans
 
 
-def _identifying_plans(regressor, lower, upper, speed_deg, trips, names, kinds, noise, extra) -> list[MeasurementPlan]:
+def _identifying_plans(regressor, lower, upper, speed_deg, trips, names, kinds, noise,
+                       extra) -> list[MeasurementPlan]:
+    """gravity_plans for an arm Table 4.7 does not serve: one main sweep per chosen pose, its
+    turns at GRAVITY_TURN_ACCEL, with room inside the ranges for them and the warm-up."""
     n = len(lower)
     k = np.asarray(regressor((np.asarray(lower) + np.asarray(upper)) / 2)).shape[1]
     names = tuple(names) if names is not None else tuple(f"c{m + 1}" for m in range(k))

@@ -221,9 +221,10 @@ def identifying_sweeps(regressor: Callable[[np.ndarray], np.ndarray], names: tup
     picked) and improved by exchanges that raise |det| (the volume of the identified
     region), then ``extra`` more by their leverage. The order is a nearest-neighbour tour
     from the first, each stop traded for a nearer pose where the volume stays above
-    ``keep`` of the best (the moves between sweeps took as long as the sweeps). No repeat: the fit takes the friction pattern out with each sweep's
-    own up/down profile (calib.gravity). CalibError, naming them, when coefficients cannot
-    be identified by any such sweep (a prismatic joint's mass term, say)."""
+    ``keep`` of the best (the moves between sweeps took as long as the sweeps). No
+    repeat: the fit takes the friction pattern out with each sweep's own up/down profile
+    (calib.gravity). CalibError, naming them, when coefficients cannot be identified by any
+    such sweep (a prismatic joint's mass term, say)."""
     from calib.exceptions import CalibError
 
     k = len(names)
