@@ -56,6 +56,7 @@ demo: derive-if-needed
 bench: $(STAMP)
 	$(PY) bench/rci_loop.py
 	$(PY) -m bench.faults
+	$(PY) -m bench.zenoh_flags
 	$(PY) bench/rccl_cycle.py
 	$(PY) bench/rccl_adaptive.py
 	$(PY) bench/calib_fit.py

@@ -15,16 +15,22 @@ from calib.params import read_params, update_params
 from calib.progress import progress
 from calib.robot import robot_info
 
+DEFAULT_ROBOT = "puma260"   # the thesis's arm: the default where the input does not name one
+
 
 def _fit_files(args: argparse.Namespace, kind) -> int:
     """``calib fit KIND FILES``: a kind's inputs that are not logs (kinematics: CSV files of
-    end poses measured by an external instrument)."""
-    _, table, sections = kind.fit_files(args.logs)
-    print(f"calib fit {kind.name}: {len(args.logs)} file(s) of robot puma260\n")
+    end poses measured by an external instrument), which do not say their arm: ``--robot``,
+    by default the thesis's PUMA 260, said in the output."""
+    robot = args.robot or DEFAULT_ROBOT
+    robot_info(robot)            # a robot calib cannot model is refused before the fit
+    _, table, sections = kind.fit_files(args.logs, robot)
+    how = "--robot" if args.robot else "the default; --robot names another arm"
+    print(f"calib fit {kind.name}: {len(args.logs)} file(s) of robot {robot} ({how})\n")
     print(table)
     if args.params:
-        _existing_params(args.params, "puma260")
-        update_params(args.params, "puma260", sections, _command(), kind.name, [])
+        _existing_params(args.params, robot)
+        update_params(args.params, robot, sections, _command(), kind.name, [])
         print(f"\nwrote {args.params}")
     return 0
 
@@ -82,6 +88,8 @@ def _fit(args: argparse.Namespace) -> int:
         if tr.experiment != args.kind:
             raise CalibError(f"{tr.path}: is a '{tr.experiment}' log, not a '{args.kind}' one")
     robot = traces[0].robot
+    if args.robot and args.robot != robot:
+        raise CalibError(f"--robot {args.robot}: the logs are of robot {robot!r} ({traces[0].path})")
     info = robot_info(robot)
     params = _existing_params(args.params, robot)
     outcome = run_fit(args.kind, traces, info, params, assume_datafile=args.assume_datafile,
@@ -99,8 +107,9 @@ def _fit(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="calib", description=(
-        "Calibrate the PUMA 260's torque sensitivities, friction and gravity loading (thesis "
-        "chapter 4) and its kinematic errors (3.84) from recorded logs. See docs/calib.md."))
+        "Calibrate an arm's torque sensitivities, friction and gravity loading (thesis chapter 4, "
+        "the PUMA 260's by default) and its kinematic errors (3.84) from recorded logs; the logs "
+        "name their arm. See docs/calib.md."))
     sub = parser.add_subparsers(dest="command", required=True)
     fit = sub.add_parser("fit", help="fit one kind of parameter from logs and print the thesis table")
     fit.add_argument("kind", choices=registry.names(),
@@ -118,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
                           "a fit is refused")
     fit.add_argument("--allow-truncated", action="store_true",
                      help="fit the records before the cut of a log that was not closed")
+    fit.add_argument("--robot", metavar="ROBOT",
+                     help="the arm (models/ROBOT.toml): logs name their own, and a different one here is "
+                          f"refused; inputs that do not (pose CSV files) default to {DEFAULT_ROBOT}")
     fit.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     fit.set_defaults(func=_fit)
     add_commands(sub)

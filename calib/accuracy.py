@@ -103,7 +103,8 @@ def positioning_error(truth_params: str, fitted_params: str, n: int = 20, seed: 
     truth = load_calibrated(truth_params, robot)
     goals = targets(n, seed, robot)
     out = []
-    with SimulaProcess("-p", "--power-on", "--warm", "--params", truth_params, lockstep=True, seed=seed) as sim:
+    with SimulaProcess("-p", "--power-on", "--warm", "--params", truth_params, robot=robot,
+                       lockstep=True, seed=seed) as sim:
         for name, kin in (("nominal DH table", load_kinematics(robot)),
                           ("calibrated (calib fit kinematics)", calibrated_kinematics(fitted_params, robot)),
                           ("the truth's own (floor)", calibrated_kinematics(truth_params, robot))):

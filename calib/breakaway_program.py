@@ -81,11 +81,11 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     Each ramp starts from the motor torque that holds the arm against gravity (the data
     file's gravity model, through G^-T), so that both directions ramp from the balance.
     """
-    from calib.robot import GRAVITY_NAMES, robot_info
+    from calib.robot import robot_info
 
     info = robot_info(robot)
     gravity = info.gravity(np.array([info.nominal["gravity_coeffs"][n]["value"]
-                                     for n in GRAVITY_NAMES]))
+                                     for n in info.gravity_names]))
     conv = Conversions.for_robot(robot)
     rate = plan.rate_hz
     j = plan.joint - 1

@@ -25,7 +25,10 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
 
     traces = load_traces([p for p in progress(paths, len(paths), "reading logs",
                                               enabled=False if quiet else None)])
-    info = robot_info(traces[0].robot)
+    robots = sorted({t.robot for t in traces})
+    if len(robots) > 1:
+        raise CalibError(f"the logs are of different robots ({', '.join(robots)}): fit each arm's logs apart")
+    info = robot_info(robots[0])
     outcomes = {}
     for kind in registry.names("order"):
         sel = [t for t in traces if t.experiment == kind]
@@ -128,10 +131,10 @@ def _record_on_own_simula(args: argparse.Namespace) -> int:
                          f"programs start the simulas they need); not {' '.join(rest)!r}")
     if args.kind == "kinematics":
         path = os.path.join(args.out, "kinematics.rcilog")
-        n = record_kinematics(path, seed, params, touches_per_face=max(1, args.touches // 3))
+        n = record_kinematics(path, seed, params, touches_per_face=max(1, args.touches // 3), robot=args.robot)
         print(f"kinematics: {n} records -> {path}")
         return 0
-    regen(args.out, seed, (args.kind,), params)
+    regen(args.out, seed, (args.kind,), params, robot=args.robot)
     return 0
 
 

@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from calib.paths import Path, PathSegment, sweep_path
-from calib.poses import TABLE_4_7, TABLE_4_8_SWEEPS, main_sweep, repeat_sweep
+from calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
+                         table_4_7_identifies)
 
 DEG = np.pi / 180
 ACCEL = 1.5  # rad/s^2 at the turns: gentle, so the servo keeps the setpoint
@@ -84,7 +85,10 @@ class MeasurementPlan:
 WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)
 
 
-def sweep_warmup(q: np.ndarray, joint: int, lo: float, hi: float, speed: float = 30 * DEG,
+WARMUP_SPEED = 30 * DEG  # rad/s of the warm-up sweeps
+
+
+def sweep_warmup(q: np.ndarray, joint: int, lo: float, hi: float, speed: float = WARMUP_SPEED,
                  seconds: float = WARMUP_S, dwell: float = 0.1) -> Path:
     """Back-and-forth over the window for about ``seconds`` s, so that the joint is warm
     ("once a joint had warmed up, successive measurements ... very high repeatability")."""
@@ -114,15 +118,40 @@ def friction_top_speed(joint: int, lo: float, hi: float, lower: np.ndarray,
     return float(min(0.9 * vmax[joint - 1], np.sqrt(2 * SWEEP_ACCEL * room)))
 
 
-def _robot_limits() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+THESIS_ARM = "puma260"   # the arm FRICTION_POSES were chosen for (and the default of the plans)
+
+
+def _robot_limits(robot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     from models import load_robot
 
-    m = load_robot("puma260")
+    m = load_robot(robot)
     return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)
 
 
+def check_friction_pose(info, joint: int, lo: float, hi: float, q: np.ndarray, points: int = 61) -> None:
+    """Refuse (CalibError) a friction window of ``joint`` (1-based) over which gravity does work
+    on the arm of ``info`` (calib.robot.RobotInfo), judged by its regressor: the mean of every
+    column of the joint's row over [lo, hi] must vanish (4.5.4), whatever the coefficients.
+    FRICTION_POSES were chosen on the PUMA 260; another arm needs poses of its own."""
+    from calib.exceptions import CalibError
+
+    th = np.linspace(lo, hi, points)
+    rows = []
+    for x in th:
+        qq = q.copy()
+        qq[joint - 1] = x
+        rows.append(np.asarray(info.regressor(qq))[joint - 1])
+    mean = np.abs(np.trapezoid(np.array(rows), th, axis=0) / (hi - lo))
+    if mean.max() > 1e-9:
+        names = ", ".join(n for n, m in zip(info.gravity_names, mean) if m > 1e-9)
+        raise CalibError(f"robot {info.name}: gravity does work on joint {joint} over its friction window "
+                         f"[{np.degrees(lo):.0f}, {np.degrees(hi):.0f}] deg at the pose "
+                         f"{np.round(np.degrees(q), 1).tolist()} deg (through {names}); the friction poses "
+                         f"(calib.experiments.FRICTION_POSES) are the {THESIS_ARM}'s, this arm needs its own")
+
+
 def friction_plans(joints=range(1, 7), speeds_deg=None,
-                   trips: tuple[int, ...] | int | None = None) -> list[MeasurementPlan]:
+                   trips: tuple[int, ...] | int | None = None, robot=None) -> list[MeasurementPlan]:
     """4.5.4: passes in both directions at several constant speeds, no potential-energy change.
 
     By default each joint runs the FRICTION_SPEEDS_DEG up to its top speed
@@ -134,15 +163,25 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
     both plans sweep the same window.
     The sweeps turn without standing still, so a joint stays as warm at the top speed
     as at the slowest (idle time cools it, 4.5.3), after FRICTION_WARMUP_S of warm-up.
+    ``robot`` (calib.robot.RobotInfo; None: the thesis's arm) gives the joint ranges and
+    speeds, and each window is checked on its gravity model (check_friction_pose).
     """
-    lower, upper, vmax = _robot_limits()
+    from calib.exceptions import CalibError
+
+    lower, upper, vmax = _robot_limits(THESIS_ARM if robot is None else robot.name)
     plans = []
     for j in joints:
         qdeg, half = FRICTION_POSES[j]
         q = np.array(qdeg, float) * DEG
         lo, hi = q[j - 1] - half * DEG, q[j - 1] + half * DEG
+        if robot is not None:
+            check_friction_pose(robot, j, lo, hi, q)
         if speeds_deg is None:
-            top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
+            try:
+                top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
+            except ValueError as exc:
+                arm = THESIS_ARM if robot is None else robot.name
+                raise CalibError(f"robot {arm}: {exc} (calib.experiments.FRICTION_POSES)") from None
             slowest = 2 * half / MAX_PASS_S          # deg/s: no pass longer than MAX_PASS_S
             cand = [(v, n) for v, n in zip(FRICTION_SPEEDS_DEG, FRICTION_TRIPS)
                     if slowest <= v < top]
@@ -189,19 +228,32 @@ SENSITIVITY_MASS = {1: 4.0, 2: 4.0, 3: 4.0, 4: 1.0, 5: 1.0, 6: 1.0}
 
 
 def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7),
-                      speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0) -> list[MeasurementPlan]:
+                      speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0,
+                      robot=None) -> list[MeasurementPlan]:
     """4.5.2: the same arc with the pulley's mass and without it (two simula runs).
 
     The pulley is a simula load option (``--load pulley:...``); its string winds on a
     drum on the joint axis, and the mass rises as the joint angle increases (sign +1).
-    ``mass_kg`` None takes SENSITIVITY_MASS.
+    ``mass_kg`` None takes SENSITIVITY_MASS. The arcs start from the friction poses (the
+    thesis arm's); ``robot`` (calib.robot.RobotInfo, None: the thesis's arm) has them checked
+    against its joint ranges.
     """
+    from calib.exceptions import CalibError
+
+    lower, upper, _ = _robot_limits(THESIS_ARM if robot is None else robot.name)
     plans = []
     for j in joints:
         mass_j = SENSITIVITY_MASS[j] if mass_kg is None else mass_kg
         qdeg, _ = FRICTION_POSES[j]
         q = np.array(qdeg, float) * DEG
         lo, hi = q[j - 1] - arc_deg / 2 * DEG, q[j - 1] + arc_deg / 2 * DEG
+        ends = np.tile(q, (2, 1))
+        ends[:, j - 1] = lo - 4 * DEG, hi + 4 * DEG
+        if np.any(ends < lower) or np.any(ends > upper):
+            arm = THESIS_ARM if robot is None else robot.name
+            raise CalibError(f"robot {arm}: the sensitivity arc of joint {j} from the friction pose "
+                             f"{list(qdeg)} deg leaves the joint ranges (calib.experiments.FRICTION_POSES "
+                             f"are the {THESIS_ARM}'s)")
         for mass in (mass_j, 0.0):
             path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
             meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
@@ -214,9 +266,23 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
     return plans
 
 
+GRAVITY_TURN_ACCEL = 6.0  # rad/s^2 at the turns of the sweeps chosen by the regressor: short
+# ramps beyond the 180-degree window, which must fit in ranges such as the PUMA 560's
+# 200-degree joint 5 (the Table 4.7 sweeps keep ACCEL, as recorded in the shipped logs)
+SWEEP_SPARE = 2 * DEG     # rad beyond sweep_path's own turn margin, for the servo's rounding
+
+
 def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarray,
-                  upper: np.ndarray, speed_deg: float = 20.0, trips: int = 1) -> list[MeasurementPlan]:
-    """4.5.6: each Table 4.7 sweep and its friction-cancelling repeat (4.49-4.51)."""
+                  upper: np.ndarray, speed_deg: float = 20.0, trips: int = 1, *,
+                  names: tuple[str, ...] | None = None, kinds: tuple[str, ...] | None = None,
+                  noise: np.ndarray | None = None, extra: int = 2) -> list[MeasurementPlan]:
+    """4.5.6: each Table 4.7 sweep and its friction-cancelling repeat (4.49-4.51), when they
+    serve the arm (calib.poses.table_4_7_identifies: the thesis's PUMA 260); for any other
+    arm, sweeps chosen by its regressor to identify every coefficient (``names``: its
+    columns), ``extra`` beyond the fewest, each row weighted by the joint's expected
+    ``noise`` (its friction; default equal), without repeats (calib.poses.identifying_sweeps)."""
+    if not table_4_7_identifies(regressor, lower, upper, kinds):
+        return _identifying_plans(regressor, lower, upper, speed_deg, trips, names, kinds, noise, extra)
     plans = []
     for name, joint in TABLE_4_8_SWEEPS:
         main = main_sweep(name, joint)
@@ -231,6 +297,31 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
                     "log_set": [f"gravity-{tag}-main"] + ([f"gravity-{tag}-repeat"] if repeat is not None else [])}
             plans.append(MeasurementPlan(f"gravity-{tag}-{sw.role}", path, meta,
                               warmup=sweep_warmup(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi)))
+    return plans
+
+
+def _identifying_plans(regressor, lower, upper, speed_deg, trips, names, kinds, noise,
+                       extra) -> list[MeasurementPlan]:
+    """gravity_plans for an arm Table 4.7 does not serve: one main sweep per chosen pose, its
+    turns at GRAVITY_TURN_ACCEL, with room inside the ranges for them and the warm-up."""
+    n = len(lower)
+    k = np.asarray(regressor((np.asarray(lower) + np.asarray(upper)) / 2)).shape[1]
+    names = tuple(names) if names is not None else tuple(f"c{m + 1}" for m in range(k))
+    kinds = tuple(kinds) if kinds is not None else ("revolute",) * n
+    noise = np.ones(n) if noise is None else np.asarray(noise, dtype=float)
+    v, warm = speed_deg * DEG, WARMUP_SPEED
+    # sweep_path turns v^2 / 2a + 2 deg beyond the window, the warm-up (at ACCEL) likewise
+    margin = max(v * v / (2 * GRAVITY_TURN_ACCEL), warm * warm / (2 * ACCEL)) + 2 * DEG + SWEEP_SPARE
+    plans = []
+    for sw in identifying_sweeps(regressor, names, np.asarray(lower), np.asarray(upper), kinds, noise,
+                                 margin, extra=extra):
+        j = sw.joint - 1
+        path = sweep_path(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi, [v], trips, GRAVITY_TURN_ACCEL)
+        name = f"gravity-{sw.name}-j{sw.joint}-main"
+        meta = {"experiment": "gravity", "joint": sw.joint, "position": sw.name, "role": "main",
+                "q_start": list(sw.q_start), "phi_low": sw.phi_low, "repeat_kind": sw.how, "log_set": [name]}
+        plans.append(MeasurementPlan(name, path, meta,
+                                     warmup=sweep_warmup(sw.q_start, j, sw.phi_low, sw.phi_low + np.pi)))
     return plans
 
 

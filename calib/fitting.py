@@ -23,7 +23,7 @@ import numpy as np
 from calib import registry
 from calib.exceptions import CalibError
 from calib.logs import motors_of
-from calib.robot import GRAVITY_NAMES, RobotInfo
+from calib.robot import RobotInfo
 from calib.trace import Trace
 
 # what fits each input, for the refusal's message
@@ -121,19 +121,21 @@ class Inputs:
         return lambda q: np.asarray(reg(q)) @ c
 
     def gravity(self) -> np.ndarray:
-        """Gravity loading coefficients (c12, c13, c15), N m."""
+        """Gravity loading coefficients of the arm's regressor (``info.gravity_names``; PUMA 260:
+        c12, c13, c15), N m (N on a prismatic joint)."""
+        names = self.info.gravity_names
         got = self.params.get("gravity_coeffs", {})
-        vals = np.array([float(got.get(n, np.nan)) for n in GRAVITY_NAMES])
-        gap = [n for n, v in zip(GRAVITY_NAMES, vals) if not np.isfinite(v)]
+        vals = np.array([float(got.get(n, np.nan)) for n in names])
+        gap = [n for n, v in zip(names, vals) if not np.isfinite(v)]
         if gap:
             if not self.assume:
                 raise self._missing("gravity", f"gravity loading coefficients {', '.join(gap)} (Table 4.9)")
-            nominal = {n: float(self.info.nominal["gravity_coeffs"][n]["value"]) for n in GRAVITY_NAMES}
-            for k, n in enumerate(GRAVITY_NAMES):
+            nominal = {n: float(self.info.nominal["gravity_coeffs"][n]["value"]) for n in names}
+            for k, n in enumerate(names):
                 if n in gap:
                     vals[k] = nominal[n]
             self.assumed.append(f"{self.kind}: gravity coefficients " + ", ".join(f"{n} = {nominal[n]:.3f}" for n in gap)
-                                + f" N m, Table 4.9 from models/{self.info.name}.toml")
+                                + f" N m, from models/{self.info.name}.toml")
         return vals
 
 

@@ -33,7 +33,8 @@ import numpy as np
 from calib.drive import Drive
 from calib.exceptions import FitError, LogError
 from calib.logs import clipped_note, saturated_mask
-from calib.lsq import bounded_lsq
+from calib.lsq import bounded_lsq, coverage_factor
+from calib.poses import unidentified
 from calib.trace import Trace
 from calib.work import Pass, find_passes, up_down_half_difference, window_work
 
@@ -85,6 +86,7 @@ class GravityResult:
     direction_diff: np.ndarray
     friction_error: np.ndarray
     rows: list[GravityRow]
+    factor: float = 3.0          # the fit's sd times this in ``error`` (calib.lsq.coverage_factor)
 
     def with_scale_error(self, relative: float) -> "GravityResult":
         """The errors with a relative scale uncertainty of the torques added (the fitted
@@ -220,10 +222,13 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     ``noise`` (6,) is the expected scatter of a joint's tau0 in relative terms: what
     remains of friction in W1 - W2 grows with the joint's friction, so rows are weighted
     by 1 / noise[joint]^2; by default each swept joint's friction as the sweeps
-    themselves measure it (``sweep_friction``), so no other fit's values are needed.  error = sqrt((2 std of the fit)^2 + (half the
-    difference between the fits of the two directions)^2), the thesis's combination of
-    measurement uncertainty and direction; friction_error = how much the result moves
-    without the repeat (4.49).
+    themselves measure it (``sweep_friction``), so no other fit's values are needed.
+    error = sqrt((t sd of the fit)^2 + (half the difference between the fits of the two
+    directions)^2): the thesis's combination of measurement uncertainty and direction, with
+    the fit's part a 99.73 % interval as everywhere in calib (t = calib.lsq.coverage_factor
+    of the fit's degrees of freedom; the thesis printed 2 sd); friction_error = how much the
+    result moves without the repeat (4.49). FitError naming them when the sweeps leave
+    coefficients open (calib.poses.unidentified).
     """
     passes = [p for tr in traces for p in sweep_passes(tr, drive, notes)]
     if noise is None:
@@ -232,6 +237,11 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
             noise = None          # a joint swept one way only: equal weights
     rows = gravity_rows(passes, regressor)
     k = len(names)
+    open_ = unidentified(np.array([r.row for r in rows]).reshape(-1, k), names)
+    if open_:
+        raise FitError(f"the gravity logs do not identify {', '.join(open_)}: no sweep among them "
+                       "(its joint's regressor row at its start pose) separates them; record the sweeps "
+                       "`calib record gravity --robot ROBOT` chooses for the arm")
     value, std = _solve(rows, True, k, "gravity loading", noise)
     lone = {p.joint for p in passes if p.role == "main"} - {p.joint for p in passes if p.role == "repeat"}
     if lone:        # sweeps without a repeat: once more with their directions' friction asymmetry
@@ -250,9 +260,10 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
         ddiff = np.abs(by_dir[0] - by_dir[1])
     else:
         ddiff = np.zeros(k)
-    error = np.sqrt((2 * std) ** 2 + (ddiff / 2) ** 2)
+    factor = coverage_factor(len(rows) - k)
+    error = np.sqrt((factor * std) ** 2 + (ddiff / 2) ** 2)
     return GravityResult(names=names, value=value, error=error, fit_std=std,
-                         direction_diff=ddiff, friction_error=np.abs(value - raw), rows=rows)
+                         direction_diff=ddiff, friction_error=np.abs(value - raw), rows=rows, factor=factor)
 
 
 def friction_asymmetry(traces: list[Trace], drive: Drive, regressor: Regressor, coeffs: np.ndarray,

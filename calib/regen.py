@@ -55,10 +55,11 @@ def _simula_args(params: str | None, extra: list[str]) -> list[str]:
     return (["--params", params] if params else []) + list(extra)
 
 
-def _run(url: str, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None) -> None:
+def _run(url: str, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None,
+         robot: str) -> None:
     t0 = time.monotonic()
     raw = os.path.join(work, plan.name + ".rcilog")
-    info = run_plan(url, plan, raw, rate_hz=plan.rate_hz,
+    info = run_plan(url, plan, raw, robot, rate_hz=plan.rate_hz,
                     extra_meta={"truth": truth_meta(seed, params, _simula_args(params, plan.simula_args))})
     _report_log(plan.name, info.records, _store(raw, out_dir), t0)
 
@@ -68,22 +69,24 @@ class _Simula:
     run once more from the arm's ready position; its warm-up makes up for the lost
     warmth)."""
 
-    def __init__(self, args: tuple[str, ...], seed: int, params: str | None) -> None:
+    def __init__(self, args: tuple[str, ...], seed: int, params: str | None, robot: str) -> None:
         from rci.simula.process import SimulaProcess
 
-        self.make = lambda: SimulaProcess("-p", *_simula_args(params, list(args)), lockstep=True, seed=seed)
+        self.robot = robot
+        self.make = lambda: SimulaProcess("-p", *_simula_args(params, list(args)), robot=robot,
+                                          lockstep=True, seed=seed)
         self.sim = self.make().start()
 
     def run(self, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None) -> None:
         try:
-            _run(self.sim.url, plan, out_dir, work, seed, params)
+            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot)
         except CalibError as exc:
             if self.sim.proc is None or self.sim.proc.poll() is None:
                 raise                                    # simula is alive: a real error
             print(f"{plan.name}: simula exited ({exc}); starting it again", flush=True)
             self.sim.stop()
             self.sim = self.make().start()
-            _run(self.sim.url, plan, out_dir, work, seed, params)
+            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot)
 
     def stop(self) -> None:
         self.sim.stop()
@@ -96,44 +99,46 @@ def record_breakaway(ctx: RegenContext) -> None:
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
     args = _simula_args(ctx.params, [])
-    with SimulaProcess("-p", *args, lockstep=True, seed=ctx.seed) as sim:
+    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
         for plan in breakaway_plans(static, ctx.info.drive.G):
             t0 = time.monotonic()
             raw = os.path.join(ctx.work, plan.name + ".rcilog")
-            n = run_breakaway(sim.url, plan, raw, extra_meta={"truth": truth_meta(ctx.seed, ctx.params, args)})
+            n = run_breakaway(sim.url, plan, raw, ctx.info.name, extra_meta={"truth": truth_meta(ctx.seed, ctx.params, args)})
             _report_log(plan.name, n, _store(raw, ctx.out_dir), t0)
 
 
 def record_kinematics(out_path: str, seed: int, params: str | None,
-                      touches_per_face: int = KINEMATIC_TOUCHES, plan_seed: int = 1985) -> int:
-    """The kinematic touches on a fresh lockstep simula with the fixture and the probe
-    (``--env``, calib.touch.simula_words); returns the records logged."""
+                      touches_per_face: int = KINEMATIC_TOUCHES, plan_seed: int = 1985,
+                      robot: str = "puma260") -> int:
+    """The kinematic touches of ``robot`` (default the thesis's arm) on a fresh lockstep simula
+    with the fixture and the probe (``--env``, calib.touch.simula_words); returns the records logged."""
     from calib.touch import simula_words, touch_plan
     from calib.touch_program import run_touches
     from rci.simula.process import SimulaProcess
 
-    plan = touch_plan(touches_per_face, seed=plan_seed)
+    plan = touch_plan(touches_per_face, seed=plan_seed, robot=robot)
     env = [w for word in simula_words(plan.fixture, plan.tip) for w in ("--env", word)]
     args = _simula_args(params, env)
-    with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
-        return run_touches(sim.url, plan, out_path, extra_meta={"truth": truth_meta(seed, params, args)})
+    with SimulaProcess("-p", *args, robot=robot, lockstep=True, seed=seed) as sim:
+        return run_touches(sim.url, plan, out_path, robot, extra_meta={"truth": truth_meta(seed, params, args)})
 
 
 def record_kinematics_log(ctx: RegenContext) -> None:
     """The shipped kinematics log: :func:`record_kinematics`, compressed into ``ctx.out_dir``."""
     t0 = time.monotonic()
     raw = os.path.join(ctx.work, "kinematics.rcilog")
-    n = record_kinematics(raw, ctx.seed, ctx.params)
+    n = record_kinematics(raw, ctx.seed, ctx.params, robot=ctx.info.name)
     _report_log("kinematics", n, _store(raw, ctx.out_dir), t0)
 
 
 def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = None,
-          quiet: bool = False) -> None:
-    """Record every log of ``kinds`` into ``out_dir`` (against simula with ``params``); a
-    progress bar over the simula programs unless ``quiet`` (calib.progress)."""
+          quiet: bool = False, robot: str = "puma260") -> None:
+    """Record every log of ``kinds`` of ``robot`` (default the thesis's arm) into ``out_dir``
+    (against simula with ``params``); a progress bar over the simula programs unless ``quiet``
+    (calib.progress)."""
     from calib.progress import progress
 
-    info = robot_info("puma260")
+    info = robot_info(robot)
     os.makedirs(out_dir, exist_ok=True)
     work = os.path.join(out_dir, ".work")
     os.makedirs(work, exist_ok=True)
@@ -151,7 +156,7 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
                 if args:           # a pulley simula lives for its one program
                     for key in [k for k in sims if k]:
                         sims.pop(key).stop()
-                sims[args] = _Simula(args, seed, params)
+                sims[args] = _Simula(args, seed, params, robot)
             sims[args].run(plan, out_dir, work, seed, params)
     finally:
         for sim in sims.values():
@@ -171,10 +176,10 @@ def _main(args: argparse.Namespace) -> int:
         from rci.simula.params import load_params, truth_from_model
 
         try:            # refuse a bad file before hours of recording
-            load_params(args.params, "puma260", truth_from_model(load_robot("puma260")))
+            load_params(args.params, args.robot, truth_from_model(load_robot(args.robot)))
         except ParamsError as exc:
             raise CalibError(str(exc)) from None
-    regen(args.out, args.seed, kinds, args.params, quiet=args.quiet)
+    regen(args.out, args.seed, kinds, args.params, quiet=args.quiet, robot=args.robot)
     return 0
 
 
@@ -187,5 +192,7 @@ def add_regen(sub: Any) -> None:
     p.add_argument("--kinds", help=f"comma-separated subset of {','.join(registry.names('record_order'))}")
     p.add_argument("--params", metavar="FILE",
                    help="simula parameter file: the truth to record against (default: the robot data file)")
+    p.add_argument("--robot", default="puma260",
+                   help="the arm's model (models/ROBOT.toml), default puma260 (the shipped logs' arm)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_main)

@@ -85,7 +85,7 @@ class FitKind:
     * ``record(request) -> None``: record its logs on the robot at ``request.url``.
     * ``regen(ctx) -> list[(simula_args, MeasurementPlan)]``: plans to run on simula, in order; a kind
       whose programs need a simula of their own records them here and returns [].
-    * ``fit_files(paths)``: see the field.
+    * ``fit_files(paths, robot)``: see the field.
     """
 
     name: str
@@ -100,9 +100,9 @@ class FitKind:
     record: Callable[[RecordRequest], None]
     regen: Callable[[RegenContext], list[tuple[tuple[str, ...], "MeasurementPlan"]]]
     plot: Callable[["FitOutcome", str, str], list[str]] | None = None
-    #: inputs that are not logs (kinematics: CSV files of measured poses): paths -> (results,
-    #: table text, parameter-file sections); None: logs only
-    fit_files: Callable[[list[str]], tuple[Any, str, dict[str, dict[str, Any]]]] | None = None
+    #: inputs that are not logs (kinematics: CSV files of measured poses, which do not say their
+    #: arm): (paths, robot) -> (results, table text, parameter-file sections); None: logs only
+    fit_files: Callable[[list[str], str], tuple[Any, str, dict[str, dict[str, Any]]]] | None = None
     missing_log: str = "the fit lacks its measurements"   # what a log set given only in part costs
 
 

@@ -93,7 +93,7 @@ def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitO
         L[summary_at:summary_at] = [
             f"**Summary.** {verdict}: the thesis's stated uncertainty of the truth for Tables "
             "4.1, 4.2, 4.3 and 4.9, this project's tolerance for Table 4.5 (the thesis states "
-            f"none), and calib's own printed uncertainty ({SD}) for Tables 4.2 and 4.3 and the "
+            f"none), and calib's own printed uncertainty ({SD}) for Tables 4.2, 4.3 and 4.9 and the "
             f"kinematic errors. Rows within, per check: {tabs}. `tests/test_calib_shipped.py` "
             "asserts these rows; `tests/test_calib_coverage.py` runs the fits on short simula "
             "recordings of two other seeds against the same non-thesis truth.", ""]

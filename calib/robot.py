@@ -1,9 +1,9 @@
 """What calib needs to know about a robot: its drive conversions and its gravity model.
 
 Both come from the runtime (rci.conversions and the models package for the drive, the
-generated rccl.kinematics module for the gravity regressor of 4.24), so calib fits the
-very model the controller uses; until the generated module offers a regressor, calib
-uses 4.24 in the form the data file documents (thesis_regressor).
+generated rccl.kinematics module for the gravity regressor, 4.24 for the PUMA 260 and the
+derivation's minimal set of coefficients for any other arm), so calib fits the very model
+the controller uses, whatever the arm: nothing here depends on the robot's name.
 """
 from __future__ import annotations
 
@@ -18,9 +18,6 @@ import numpy as np
 from calib.drive import Drive
 from calib.exceptions import CalibError
 
-GRAVITY_NAMES = ("c12", "c13", "c15")
-
-
 @dataclass(frozen=True)
 class RobotInfo:
     """A robot's drive, gravity model and nominal (data-file) parameters, SI units."""
@@ -31,9 +28,11 @@ class RobotInfo:
     nominal: dict
     lower: np.ndarray
     upper: np.ndarray
+    gravity_names: tuple[str, ...]    # the regressor's columns (PUMA 260: c12, c13, c15)
+    kinds: tuple[str, ...]            # "revolute" or "prismatic" per joint
 
     def gravity(self, coeffs: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-        """tau_g(q) (N m) for the coefficients (c12, c13, c15)."""
+        """tau_g(q) (N m) for the coefficients in the order of ``gravity_names``."""
         c = np.asarray(coeffs, dtype=float)
         return lambda q: np.asarray(self.regressor(q)) @ c
 
@@ -48,28 +47,15 @@ def _data_file(path: Path) -> dict:
         raise CalibError(f"{path}: cannot read robot data file: {exc.strerror}") from None
 
 
-def thesis_regressor(q: np.ndarray) -> np.ndarray:
-    """Eq. 4.24 as a regressor (6,3) in (c12, c13, c15): tau_g = Y(q) c, q in rad."""
-    t1, t2, t3, t4, t5, t6 = np.asarray(q, dtype=float)
-    s23, c23 = np.sin(t2 + t3), np.cos(t2 + t3)
-    w = c23 * np.cos(t4) * np.sin(t5) + np.cos(t5) * s23
-    Y = np.zeros((6, 3))
-    Y[1] = [np.cos(t2), s23, w]
-    Y[2] = [0.0, s23, w]
-    Y[3, 2] = -s23 * np.sin(t4) * np.sin(t5)
-    Y[4, 2] = c23 * np.sin(t5) + np.cos(t4) * np.cos(t5) * s23
-    return Y
-
-
-def _regressor(name: str) -> Callable[[np.ndarray], np.ndarray]:
+def _gravity_model(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], tuple[str, ...]]:
+    """The generated module's gravity regressor (q (n,) rad -> (n, k)) and its column names."""
     try:
         kin = importlib.import_module(f"rccl.kinematics.{name}")
-        reg = kin.gravity_regressor
+        reg, names = kin.gravity_regressor, tuple(kin.GRAVITY_COEFFS)
     except (ImportError, AttributeError):
-        if name != "puma260":
-            raise CalibError(f"no gravity model for robot {name!r}") from None
-        return thesis_regressor
-    return lambda q: np.asarray(reg(np.asarray(q, dtype=float)), dtype=float).reshape(6, -1)
+        raise CalibError(f"robot {name!r}: no generated gravity regressor (rccl.kinematics.{name}."
+                         "gravity_regressor); run `make derive` after adding its model file") from None
+    return (lambda q: np.asarray(reg(np.asarray(q, dtype=float)), dtype=float).reshape(len(q), -1)), names
 
 
 def robot_info(name: str) -> RobotInfo:
@@ -89,5 +75,7 @@ def robot_info(name: str) -> RobotInfo:
     drive = Drive(R=np.array(conv.R), G=np.array(conv.G),
                   amps_per_adc=conv.v_g / np.array(conv.sense_resistance),
                   sigma=np.array(conv.sigma), encoder_offset=np.array(conv.encoder_offset))
-    return RobotInfo(name, drive, _regressor(name), _data_file(model.path),
-                     np.array(model.lower, dtype=float), np.array(model.upper, dtype=float))
+    regressor, names = _gravity_model(model.name)
+    return RobotInfo(name, drive, regressor, _data_file(model.path),
+                     np.array(model.lower, dtype=float), np.array(model.upper, dtype=float),
+                     names, tuple(model.kinds))

@@ -10,10 +10,17 @@ to ``rccl.events`` under its name, and then:
 * publishes every change of its EFTs' flags on ``rcci/CELL/flags/ARM/SERIAL`` (from a
   publishing thread: the control level only hands a copy over, it never waits for the
   network) and answers queries for the latest;
-* applies ``start_ev`` / ``stop_ev`` publications (``rcci/CELL/flags/set``) to its EFTs;
+* applies ``start_ev`` / ``stop_ev`` messages (``rcci/CELL/flags/set``) to its EFTs, once
+  each, and acknowledges every copy (``rcci/CELL/arm/ARM/ack``);
 * starts a motion queued with ``start=`` an EFT of another arm the moment it learns,
   from that arm's publication, that the motion ended (or at once if it already had);
-* publishes ``rcci/CELL/arm/ARM/fault`` and ends when its arm's control ends with a fault.
+* says it is alive every ``HEARTBEAT_S`` (``rcci/CELL/arm/ARM/alive``);
+* watches the planning levels' liveliness tokens: when one ends, or when this process
+  finds itself stalled longer than that planning level's silence, it aborts the motions
+  that planning level queued (the arm holds) and says why (``rcci/CELL/arm/ARM/held``,
+  and a line on stdout);
+* publishes ``rcci/CELL/arm/ARM/fault`` and ends (exit status 1) when its arm's control
+  ends with a fault.
 
 Its liveliness token ``rcci/CELL/arm/ARM`` is declared once it serves and ends with the
 process. Run it from the shell:
@@ -40,7 +47,9 @@ from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import undeclare
 
 from . import events as ev
-from .bus_events import arm_key, check_name, error_reply, flags_key, flags_of, position_from_wire, set_key
+from .bus_events import HEARTBEAT_S
+from .bus_wire import (arm_key, check_name, error_reply, flags_key, flags_of, planner_key, position_from_wire,
+                       set_key)
 from .events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
@@ -53,9 +62,21 @@ class ArmServer:
     ``report_to``: a task (default the planning level) that gets, on the bus channel
     ``ARM -> report_to``, one message per motion that ends: ``{"serial", "where", "status",
     "q"}`` with the joint angles the robot reported then (rad); None for no reports.
-    ``priority`` > 0: the thread that publishes the flags runs under SCHED_FIFO at it."""
+    ``priority`` > 0: the threads that publish the flags and the heartbeat run under
+    SCHED_FIFO at it. ``lose_sets`` / ``lose_acks``: a test hook, the first that many
+    start_ev / stop_ev messages (their acknowledgements) are dropped here, as if the bus
+    had lost them.
 
-    def __init__(self, arm, bus: Bus, name: str, report_to: str | None = "planning", priority: int = 0) -> None:
+    The planning levels are watched: when one's liveliness token ends (its process died or
+    left the bus), every motion it queued here that has not ended is stopped with ABORTED
+    (a running one halts at the next sample, queued ones are deleted): the arm holds where
+    it is, under this process's control, and the reason is printed and published on
+    ``rcci/CELL/arm/ARM/held``. So is it when this process itself was stalled (stopped, or
+    starved) longer than a planning level's silence: that planning level may have given the arm
+    up, and nothing it queued may go on unseen."""
+
+    def __init__(self, arm, bus: Bus, name: str, report_to: str | None = "planning", priority: int = 0,
+                 lose_sets: int = 0, lose_acks: int = 0) -> None:
         import zenoh
         self.arm = arm
         self.bus = bus
@@ -71,19 +92,30 @@ class ArmServer:
         self._out: queue.Queue = queue.Queue()
         self._requests: queue.Queue = queue.Queue()
         self._stop = threading.Event()
+        self._closed = threading.Event()
         self._block = zenoh.CongestionControl.BLOCK
+        self._kind_delete = zenoh.SampleKind.DELETE
+        self._owner: dict[int, str] = {}                  # EFT serial -> the planning level that queued it
+        self._planners: dict[str, float] = {}             # planning level -> its silence (s)
+        self._planners_gone: set[str] = set()
+        self._applied: dict[tuple[str, int], None] = {}   # start_ev / stop_ev messages applied (planner, seq)
+        self.lose_sets, self.lose_acks = int(lose_sets), int(lose_acks)
+        self.held: list[dict] = []                        # what was aborted for a lost planning level, and why
         self.reports = bus.channel(name, report_to, capacity=16) if report_to else None
         s = bus.session
         self._publisher = threading.Thread(target=self._publish_loop, name=f"flags-{name}", daemon=True)
         self._publisher.start()
+        self._heart = threading.Thread(target=self._heartbeat, name=f"alive-{name}", daemon=True)
         ev.add_listener(self._changed)
         self._declared = [
             s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
             s.declare_subscriber(set_key(self.cell), self._on_set),
             s.declare_queryable(flags_key(self.cell, name, "*"), self._on_flags_query),
             s.declare_queryable(arm_key(self.cell, name, "request"), self._requests.put),
+            s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
         ]
         self._token = s.liveliness().declare_token(arm_key(self.cell, name))
+        self._heart.start()
 
     # -- the flags out ------------------------------------------------------------------------
     def _changed(self, eft: ev.EFT) -> None:
@@ -91,16 +123,30 @@ class ArmServer:
         if eft.arm == self.name:
             self._out.put(flags_of(eft, self.name))
 
-    def _publish_loop(self) -> None:
-        if self.priority > 0:          # the flags leave as soon as the control level hands them over
+    def _realtime(self) -> None:
+        if self.priority > 0:          # what this thread sends leaves as soon as it is handed over
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
             except (OSError, AttributeError):
                 pass
+
+    def _put(self, key: str, data: bytes) -> None:
+        """Publish from a thread of this server's (never from the control level)."""
+        try:
+            self.bus.session.put(key, data, congestion_control=self._block, express=True)
+        except Exception as exc:
+            if not self.bus.session.is_closed():
+                print(f"{self.name}: not published on {key}: {exc}", file=sys.stderr)
+
+    def _publish_loop(self) -> None:
+        self._realtime()
         while True:
             flags = self._out.get()
             if flags is None:
                 return
+            if isinstance(flags, tuple):            # (key, data): an acknowledgement, a notice
+                self._put(*flags)
+                continue
             data = encode(flags)
             with self._lock:
                 self._latest[flags["serial"]] = data
@@ -171,17 +217,85 @@ class ArmServer:
             self._fire(known, ready)
 
     def _on_set(self, sample) -> None:
-        """start_ev / stop_ev from the planning level: set the flags of this arm's EFTs named."""
+        """start_ev / stop_ev from the planning level: set the flags of this arm's EFTs named,
+        once per message (``planner``, ``seq``), and acknowledge every copy with their flags."""
         try:
             m = decode(sample.payload.to_bytes())
             flag, code = m["flag"], int(m["code"])
-            mine = [self.efts[int(s)] for a, s in m["efts"] if a == self.name and int(s) in self.efts]
-        except (ValueError, KeyError, TypeError):
+            named = [int(s) for a, s in m["efts"] if a == self.name]
+            msg_id = (str(m.get("planner")), int(m.get("seq", 0)))
+        except (ValueError, KeyError, TypeError, AttributeError):
+            return
+        if not named:
+            return
+        with self._lock:
+            if self.lose_sets > 0:                # the test hook: as if the bus lost it
+                self.lose_sets -= 1
+                print(f"{self.name}: test hook: {flag}_ev message {msg_id[1]} dropped", file=sys.stderr, flush=True)
+                return
+            first = msg_id not in self._applied
+            self._applied[msg_id] = None
+            while len(self._applied) > 1024:
+                self._applied.pop(next(iter(self._applied)))
+            mine = [self.efts[s] for s in named if s in self.efts]
+        if first:
+            try:
+                (ev.start_ev if flag == "start" else ev.stop_ev)(code, *mine)
+            except EventError:
+                pass                   # freed meanwhile; the planning level checked the rest
+        with self._lock:
+            if self.lose_acks > 0:
+                self.lose_acks -= 1
+                print(f"{self.name}: test hook: acknowledgement of message {msg_id[1]} dropped", file=sys.stderr,
+                      flush=True)
+                return
+        ack = {"planner": msg_id[0], "seq": msg_id[1], "arm": self.name, "flags": [flags_of(e, self.name) for e in mine]}
+        self._out.put((arm_key(self.cell, self.name, "ack"), encode(ack)))   # after the flags it changed
+
+    # -- the planning levels and this process's own stalls --------------------------------------
+    def _on_planner(self, sample) -> None:
+        planner = str(sample.key_expr).rsplit("/", 1)[-1]
+        if sample.kind != self._kind_delete:
+            return
+        with self._lock:
+            self._planners_gone.add(planner)
+        self._hold(lambda p: p == planner, f"the planning process {planner} left the bus (its liveliness token ended)")
+
+    def _hold(self, whose, why: str) -> None:
+        """Stop (ABORTED) every motion not ended that a planning level ``whose(planner)`` queued:
+        the arm holds where it is; say why (printed, and published on ``.../held``)."""
+        t = time.monotonic()
+        with self._lock:
+            efts = [e for s, e in self.efts.items() if whose(self._owner.get(s)) and e.status >= 0]
+        if not efts:
             return
         try:
-            (ev.start_ev if flag == "start" else ev.stop_ev)(code, *mine)
+            ev.stop_ev(ABORTED, *efts)
         except EventError:
-            pass                   # freed meanwhile; the planning level checked the rest
+            efts = [e for e in efts if not e.freed]
+            ev.stop_ev(ABORTED, *efts)
+        notice = {"arm": self.name, "why": why, "aborted": [e.serial for e in efts], "t": t}
+        self.held.append(notice)
+        print(f"{self.name}: {why}: motion(s) {', '.join(f'#{e.serial}' for e in efts)} aborted, the arm holds "
+              f"(t={t:.6f})", flush=True)
+        self._out.put((arm_key(self.cell, self.name, "held"), encode(notice)))
+
+    def _heartbeat(self) -> None:
+        """Say this process is alive every ``HEARTBEAT_S``; a beat that comes late by more than a
+        planning level's silence means this process was stalled and that planning level has
+        given the arm up: hold what it queued."""
+        self._realtime()
+        key, n, last = arm_key(self.cell, self.name, "alive"), 0, time.monotonic()
+        while not self._closed.wait(HEARTBEAT_S):
+            now = time.monotonic()
+            gap, last = now - last, now
+            with self._lock:
+                late = {p for p, silence in self._planners.items() if gap > silence}
+            if late:
+                self._hold(lambda p: p in late, f"this process was stalled {gap:.3f} s, longer than its planning "
+                                                "level's silence: that planning level may have given the arm up")
+            n += 1
+            self._put(key, encode({"n": n, "t": now}))
 
     # -- requests -------------------------------------------------------------------------------
     def _answer(self, query) -> None:
@@ -194,6 +308,12 @@ class ArmServer:
 
     def _do(self, r: dict) -> dict:
         op = r.get("op")
+        planner = r.get("planner")
+        if planner is not None:
+            with self._lock:
+                if planner in self._planners_gone:
+                    raise EventError(f"arm {self.name!r}: the planning process {planner} has left the bus")
+                self._planners[str(planner)] = float(r.get("silence", 1e9))
         if op == "info":
             return {"robot": self.arm.robot, "rate_hz": self.arm.rate_hz, "q": self.arm.q}
         if op == "move":
@@ -204,6 +324,7 @@ class ArmServer:
                 for s in r["serials"]:
                     self.efts.pop(int(s), None)
                     self._latest.pop(int(s), None)
+                    self._owner.pop(int(s), None)
             return {"freed": len(r["serials"])}
         if op == "abort":
             ev.stop_abort(self.arm)
@@ -233,7 +354,10 @@ class ArmServer:
                 self._follow((src_arm, src_serial), eft, code, start.get("flags"))
         else:
             eft = ev.move_ev(self.arm, position, start=start)
-        self.efts[eft.serial] = eft
+        with self._lock:
+            self.efts[eft.serial] = eft
+            if r.get("planner") is not None:
+                self._owner[eft.serial] = str(r["planner"])
         return {"serial": eft.serial, "flags": flags_of(eft, self.name)}
 
     # -- the serving loop -------------------------------------------------------------------------
@@ -258,21 +382,26 @@ class ArmServer:
         self._stop.set()
 
     def close(self) -> None:
+        self._stop.set()
+        self._closed.set()
         ev.remove_listener(self._changed)
         undeclare(self._token, *self._declared)
         self._out.put(None)
         self._publisher.join(2.0)
+        self._heart.join(2.0)
         ev.detach(self.arm)
 
 
 def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
-        lease_ms: int | None = None, timeout: float | None = None) -> int:
+        lease_ms: int | None = None, timeout: float | None = None, lose_sets: int = 0, lose_acks: int = 0) -> int:
     """The arm process: open the arm, serve it until told to stop, release it. ``timeout``: the
-    control's wait for a HOW (s; None: two periods, rci.Session's default)."""
+    control's wait for a HOW (s; None: two periods, rci.Session's default); ``lose_sets`` /
+    ``lose_acks``: ArmServer's test hook."""
     import rccl
     with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY) as bus, \
-            rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout) as arm:
-        server = ArmServer(arm, bus, name, priority=BUS_PRIORITY)
+            rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
+                      on_error="raise") as arm:
+        server = ArmServer(arm, bus, name, priority=BUS_PRIORITY, lose_sets=lose_sets, lose_acks=lose_acks)
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, lambda *_: server.stop())
         print(f"{name}: serving", flush=True)
@@ -280,6 +409,9 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
             server.serve()
             if any(e.status >= 0 for e in server.efts.values()):   # stopped by a signal mid-plan
                 ev.stop_abort(arm)
+        except Exception as exc:         # the control ended with a fault, published by serve()
+            print(f"{name}: the control ended: {type(exc).__name__}: {exc}", flush=True)
+            return 1
         finally:
             server.close()
     print(f"{name}: released", flush=True)
@@ -287,13 +419,17 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
 
 
 def spawn(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
-          lease_ms: int | None = None, how_timeout: float | None = None, timeout: float = 30.0) -> subprocess.Popen:
+          lease_ms: int | None = None, how_timeout: float | None = None, timeout: float = 30.0,
+          extra: tuple[str, ...] = ()) -> subprocess.Popen:
     """Start an arm process (``python -m rccl.bus_arm``) and wait until it serves (at most
-    ``timeout`` s); the caller ends it (``close`` request, or terminate/kill the Popen)."""
+    ``timeout`` s); the caller ends it (``close`` request, or terminate/kill the Popen).
+    ``extra``: more of its options (``--lose-sets N``). Its stdout stays a pipe: after the
+    ``serving`` line it tells what it aborted and why (``_hold``)."""
     argv = [sys.executable, "-m", "rccl.bus_arm", name, url, robot, "--cell", cell, "--rate", str(rate_hz)]
     argv += [x for e in bus_endpoints for x in ("--bus", e)]
     argv += ["--lease", str(lease_ms)] if lease_ms is not None else []
     argv += ["--timeout", str(how_timeout)] if how_timeout is not None else []
+    argv += list(extra)
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
     deadline, buf = time.monotonic() + timeout, b""
     while b"\n" not in buf:
@@ -324,8 +460,15 @@ def _cli(argv: list[str] | None = None) -> int:
     ap.add_argument("--lease", type=int, default=None, help="the bus's lease (ms): how soon a lost peer is noticed")
     ap.add_argument("--timeout", type=float, default=None,
                     help="the control's wait for the robot's HOW (s; default two periods)")
+    ap.add_argument("--lose-sets", type=int, default=0, metavar="N",
+                    help="test hook: drop the first N start_ev/stop_ev messages, as if the bus lost them")
+    ap.add_argument("--lose-acks", type=int, default=0, metavar="N",
+                    help="test hook: drop the acknowledgements of the first N start_ev/stop_ev messages")
     a = ap.parse_args(argv)
-    return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout)
+    for opt in ("lose_sets", "lose_acks"):
+        if getattr(a, opt) < 0:
+            ap.error(f"--{opt.replace('_', '-')} must be >= 0, got {getattr(a, opt)}")
+    return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout, a.lose_sets, a.lose_acks)
 
 
 if __name__ == "__main__":

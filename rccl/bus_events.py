@@ -25,33 +25,37 @@ that A's motion ended (DONE, LIMIT, MONITOR or any code a program gave; not FAUL
 ABORTED, as in one process): no round trip through the planning level. The latency is
 one bus hop (A's process to B's, through the process they both connect to) plus at most
 one sample of B (its trajectory level looks at its queue once per sample). ``start_ev``
-and ``stop_ev`` are one publication that sets the flags of EFTs of several arms at once;
+and ``stop_ev`` are one message that sets the flags of EFTs of several arms at once;
 each arm acts on it at its next sample (arms with independent clocks: within one sample
-of each other, plus the bus's spread of a few hundred microseconds).
+of each other, plus the bus's spread of a few hundred microseconds). The message carries
+this planning level's id and a sequence number; each arm applies it once and acknowledges
+every copy with the flags of its EFTs named; ``start_ev`` / ``stop_ev`` send it again every
+``RESEND_S`` until every arm addressed has acknowledged it (a lost message or a lost
+acknowledgement costs ``RESEND_S``, nothing is applied twice) or is lost (``ArmLost``).
 
-**Faults.** The planning process watches each arm process's liveliness token; a process
-that dies (killed, crashed, its host cut off) ends its token and every ``wait_ev`` on
-its motions, or on motions that wait for them, raises ``ArmLost`` (a killed process: at
-once, its TCP link closes; a hung or unreachable one: after three unanswered asks for
-its flags by a wait that heard nothing for a second each, or the bus's lease,
-``Bus(lease_ms=...)``, 10 s by default). The robot holds that arm (its watchdog, or the
+**Faults.** The planning process watches each arm process's liveliness token and its
+heartbeat (every ``HEARTBEAT_S``). A process that dies (killed, crashed) ends its token at
+once (its TCP link closes); one that stops (SIGSTOP, hung) or is cut off goes silent: after
+``silence`` s (``SILENCE_S`` by default) without a heartbeat it is lost, and stays lost for
+this planning level even if it speaks again (only a new process, a new token, is heard).
+Every ``wait_ev`` on a lost arm's motions, or on motions that wait for them, raises
+``ArmLost``; so do requests to it, at once. The robot holds that arm (its watchdog, or the
 end of the link). An arm whose control ends with a fault publishes it: ``wait_ev`` raises
 ``RemoteFault`` with the arm process's message. A request no arm process answers within
 ``request_timeout`` raises ``ArmLost``; nothing waits without a bound except ``wait_ev``
 with ``timeout=None`` on a motion that is still running.
 
-Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is served under):
+The arm processes watch the planning level in turn: it declares a liveliness token
+(``rcci/CELL/planner/ID``), and when it ends (the planning process died or left the bus)
+each arm process stops every motion that planning level queued and that has not ended
+(ABORTED: a running one halts at its next sample, held and queued ones are deleted); the
+arm holds where it is under its process's control, which keeps serving (a planning
+process that comes back drives it again). An arm process that finds itself stalled longer
+than a planning level's silence (it was stopped, then continued) does the same for that
+planning level's motions: that planning level may have given it up, so nothing it queued may
+resume unseen.
 
-``rcci/CELL/arm/ARM``              liveliness: the arm's process serves it
-``rcci/CELL/arm/ARM/request``      queryable: move, info, free, abort, close (JSON in, JSON out)
-``rcci/CELL/arm/ARM/fault``        publication: the arm's control ended with this fault
-``rcci/CELL/flags/ARM/SERIAL``     publication (and queryable: the latest) of one EFT's flags
-``rcci/CELL/flags/set``            publication: start_ev / stop_ev on EFTs of any arms
-
-Positions cross as joint angles (``joint_position``: rebuilt with the arm process's own
-kinematics) or as a T6 (any other position, evaluated when ``move_ev`` sends it: a
-functional transform does not cross). Times in the flags (``t_started``, ``t_ended``) are
-the arm process's ``time.monotonic()``, comparable between processes of one host.
+Key expressions and what crosses the bus: ``rccl.bus_wire``.
 """
 from __future__ import annotations
 
@@ -64,15 +68,18 @@ import numpy as np
 from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import undeclare
 
-from . import exceptions as rccl_exceptions
-from .events import (NULL, START, Deadlock, EFT, EventError, UnknownEvent, code_name,
-                     never_starts)
-from .position import EQ, TL, Position, joint_position, makeposition
-from .transform import T6, Trsf
+from .bus_wire import (KNOWN_ERRORS, arm_key, check_name, flags_key, planner_key, position_to_wire,
+                       set_key)
+from .bus_wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
+from .events import NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
+from .position import Position
 
 REQUEST_TIMEOUT_S = 5.0
 REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
 MUTE_REFRESHES = 3       # ... and gives an arm up as lost after this many unanswered asks in a row
+HEARTBEAT_S = 0.05       # an arm process says it is alive this often (s)
+SILENCE_S = 0.5          # the planning level gives up an arm it has not heard from for this long (s)
+RESEND_S = 0.1           # start_ev / stop_ev are sent again after this long without every arm's acknowledgement (s)
 
 
 class ArmLost(EventError):
@@ -81,66 +88,6 @@ class ArmLost(EventError):
 
 class RemoteFault(EventError):
     """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
-
-
-# --- key expressions ------------------------------------------------------------------------
-def arm_key(cell: str, arm: str, *parts: str) -> str:
-    return "/".join(("rcci", cell, "arm", arm) + parts)
-
-
-def flags_key(cell: str, arm: str, serial: int | str) -> str:
-    return f"rcci/{cell}/flags/{arm}/{serial}"
-
-
-def set_key(cell: str) -> str:
-    return f"rcci/{cell}/flags/set"
-
-
-def check_name(name: Any, what: str) -> str:
-    if not isinstance(name, str) or not name or any(c in name for c in "/*$#? "):
-        raise EventError(f"{what}: {name!r} is not a plain name (no '/', '*', '$', '#', '?', spaces)")
-    return name
-
-
-# --- the wire forms -------------------------------------------------------------------------
-def flags_of(eft: EFT, arm: str) -> dict:
-    """One EFT's flags as published (JSON)."""
-    return {"arm": arm, "serial": eft.serial, "where": eft.where, "start": eft.start, "stop": eft.stop,
-            "status": eft.status, "version": eft.version, "t_start_set": eft.t_start_set, "t_started": eft.t_started,
-            "t_ended": eft.t_ended,
-            "traj_started": eft.traj_started, "traj_ended": eft.traj_ended}
-
-
-def position_to_wire(position: Any) -> dict:
-    """A position as it crosses the bus: its joint angles if it has them, else its T6 now."""
-    if not isinstance(position, Position):
-        raise EventError(f"move_ev: {position!r} is not a Position (rccl.makeposition, rccl.joint_position)")
-    joints = getattr(position, "joints", None)
-    if joints is not None:
-        return {"name": position.name, "joints": [float(x) for x in joints]}
-    return {"name": position.name, "t6": np.asarray(position.solve(), dtype=float).tolist()}
-
-
-def position_from_wire(data: Any, kinematics) -> Position:
-    """The position ``position_to_wire`` sent, rebuilt with this arm's kinematics."""
-    if not isinstance(data, dict) or not isinstance(data.get("name"), str):
-        raise EventError(f"move request: the position must be {{'name', 'joints' | 't6'}}, got {data!r}")
-    if "joints" in data:
-        return joint_position(data["name"], kinematics, np.asarray(data["joints"], dtype=float))
-    t6 = np.asarray(data.get("t6"), dtype=float)
-    if t6.shape != (4, 4) or not np.all(np.isfinite(t6)):
-        raise EventError(f"move request {data['name']!r}: t6 must be a finite 4x4 matrix")
-    return makeposition(data["name"], T6, EQ, Trsf(data["name"].upper(), t6), TL, T6)
-
-
-#: error classes an arm process's reply may name (anything else arrives as RemoteFault)
-_KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock)}
-_KNOWN_ERRORS.update({name: cls for name, cls in vars(rccl_exceptions).items()
-                      if isinstance(cls, type) and issubclass(cls, Exception)})
-
-
-def error_reply(exc: BaseException) -> dict:
-    return {"error": str(exc), "type": type(exc).__name__}
 
 
 # --- the planning process's view ---------------------------------------------------------------
@@ -224,13 +171,32 @@ class RemoteEFT:
 
 
 class BusEvents:
-    """The event-flag primitives of ``rccl.events`` for arms served on the bus of ``bus.cell``."""
+    """The event-flag primitives of ``rccl.events`` for arms served on the bus of ``bus.cell``.
 
-    def __init__(self, bus: Bus, request_timeout: float = REQUEST_TIMEOUT_S) -> None:
+    ``silence``: an arm whose process has not been heard (its heartbeat, every ``HEARTBEAT_S``)
+    for this long (s) is lost: stopped, hung or cut off. This planning level declares a
+    liveliness token (``rcci/CELL/planner/ID``): the arm processes abort the motions it
+    queued when it ends. ``sets_sent`` / ``sets_resent`` count start_ev / stop_ev messages."""
+
+    def __init__(self, bus: Bus, request_timeout: float = REQUEST_TIMEOUT_S, silence: float = SILENCE_S) -> None:
+        import uuid
+
         import zenoh
+        if not silence > HEARTBEAT_S:
+            raise EventError(f"BusEvents: silence must be longer than the arms' heartbeat ({HEARTBEAT_S} s), "
+                             f"got {silence!r}")
         self.bus = bus
         self.cell = bus.cell
         self.request_timeout = request_timeout
+        self.silence = float(silence)
+        self.id = uuid.uuid4().hex[:16]                     # this planning level, as the arm processes know it
+        self._alive: dict[str, float] = {}                  # arm -> time.monotonic() it was last heard
+        self._why_lost: dict[str, str] = {}                 # arm -> why it is lost
+        self._acks: dict[int, set[str]] = {}                # set message -> arms that acknowledged it
+        self._seq = 0
+        self._last_turn = 0.0                               # time.monotonic() of a waiting loop's last turn
+        self.sets_sent = 0
+        self.sets_resent = 0
         self._cond = threading.Condition()
         self._flags: dict[tuple[str, int], dict] = {}
         self._issued: dict[str, list[RemoteEFT]] = {}      # per arm, in the order move_ev queued them
@@ -246,6 +212,9 @@ class BusEvents:
             s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
             s.declare_subscriber(arm_key(self.cell, "*", "fault"), self._on_fault),
             s.liveliness().declare_subscriber(arm_key(self.cell, "*"), self._on_liveliness, history=True),
+            s.declare_subscriber(arm_key(self.cell, "*", "alive"), self._on_alive),
+            s.declare_subscriber(arm_key(self.cell, "*", "ack"), self._on_ack),
+            s.liveliness().declare_token(planner_key(self.cell, self.id)),
         ]
 
     # -- what the bus tells ---------------------------------------------------------------
@@ -276,12 +245,69 @@ class BusEvents:
         with self._cond:
             if sample.kind == self._kind_delete:
                 self._present.discard(name)
-                self._lost[name] = time.monotonic()
-            else:
+                if name not in self._lost:
+                    self._lost[name] = time.monotonic()
+                    self._why_lost[name] = "left the bus (its liveliness token ended)"
+            else:                         # a process serves it (again): a new process, heard from now
                 self._present.add(name)
                 self._lost.pop(name, None)
+                self._why_lost.pop(name, None)
                 self._faults.pop(name, None)
+                self._alive[name] = time.monotonic()
             self._cond.notify_all()
+
+    def _on_alive(self, sample) -> None:
+        """An arm process's heartbeat. One given up for its silence stays lost (a stale process
+        that comes back is ignored: only a new process, a new liveliness token, is heard again)."""
+        name = str(sample.key_expr).split("/")[-2]
+        with self._cond:
+            if name not in self._lost:
+                self._alive[name] = time.monotonic()
+
+    def _on_ack(self, sample) -> None:
+        """An arm process applied (or had already applied) start_ev / stop_ev message ``seq``."""
+        try:
+            m = decode(sample.payload.to_bytes())
+            if m.get("planner") != self.id:
+                return
+            seq, arm, flags = int(m["seq"]), str(m["arm"]), list(m["flags"])
+        except (ValueError, KeyError, TypeError, AttributeError):
+            return
+        for f in flags:
+            self._absorb(f)
+        with self._cond:
+            if seq in self._acks:
+                self._acks[seq].add(arm)
+            self._cond.notify_all()
+
+    def _watching(self, poll: float) -> bool:
+        """A waiting loop's turn: True if the previous turn (of any wait) ran within ``poll`` +
+        ``silence``/2, i.e. this process has been watching all along. After a gap (the first turn
+        of a wait, or this process itself stopped or starved) the arms' heartbeats may still be
+        queued behind it: the turn only primes the watch."""
+        now = time.monotonic()
+        on_time = now - self._last_turn <= poll + self.silence / 2
+        self._last_turn = now
+        return on_time
+
+    def _silent(self, arm: str) -> bool:
+        """``arm`` has not been heard for ``silence`` s: declare it lost (caller holds the
+        condition and has checked ``_watching``)."""
+        if arm in self._lost:
+            return True
+        now = time.monotonic()
+        heard = self._alive.get(arm, now)
+        if now - heard <= self.silence:
+            return False
+        self._lost[arm] = heard
+        self._why_lost[arm] = (f"went silent: no heartbeat for {now - heard:.3f} s (> {self.silence} s: its process "
+                               "is stopped, hung or cut off)")
+        return True
+
+    def fault(self, arm: str) -> str | None:
+        """The fault ``arm``'s process published when its control ended (None if none)."""
+        with self._cond:
+            return self._faults.get(arm)
 
     def flags(self, arm: str, serial: int) -> dict:
         """The latest flags published for EFT ``serial`` of ``arm`` ({} if none yet)."""
@@ -301,6 +327,8 @@ class BusEvents:
         if not self._is_present(name):
             raise ArmLost(f"no process serves arm {name!r} on {arm_key(self.cell, name)} within {timeout} s "
                           "(is its arm process (python -m rccl.bus_arm) running and connected to this bus?)")
+        with self._cond:
+            self._alive.setdefault(name, time.monotonic())
         info = self.request(name, {"op": "info"}, "arm")
         self._arms[name] = RemoteArm(self, name, info)
         return self._arms[name]
@@ -328,18 +356,18 @@ class BusEvents:
         """Ask ``arm``'s process; its answer, or the error it names raised here (``ArmLost`` at
         once for an arm whose process left the bus, after ``request_timeout`` s for one that is mute)."""
         with self._cond:
-            lost = self._lost.get(arm)
+            lost, why = self._lost.get(arm), self._why_lost.get(arm, "left the bus")
         if lost is not None:
-            raise ArmLost(f"{where}: arm {arm!r}'s process left the bus {time.monotonic() - lost:.3f} s ago "
-                          f"(its liveliness token {arm_key(self.cell, arm)} ended)")
-        replies = self.bus.session.get(arm_key(self.cell, arm, "request"), payload=encode(payload),
+            raise ArmLost(f"{where}: arm {arm!r} is lost: its process {why}, {time.monotonic() - lost:.3f} s ago")
+        wire = {**payload, "planner": self.id, "silence": self.silence}
+        replies = self.bus.session.get(arm_key(self.cell, arm, "request"), payload=encode(wire),
                                        timeout=self.request_timeout)
         for reply in replies:
             if reply.ok is None:
                 continue
             answer = decode(reply.ok.payload.to_bytes())
             if "error" in answer:
-                cls = _KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
+                cls = KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
                 raise cls(f"{where}: arm {arm!r} (its process) says: {answer['error']}")
             return answer
         with self._cond:
@@ -403,11 +431,52 @@ class BusEvents:
                 e.stop_sent = int(code)
         self._publish_set("stop", code, checked)
 
-    def _publish_set(self, flag: str, code: int, efts: list[RemoteEFT]) -> None:
+    def _publish_set(self, flag: str, code: int, efts: list[RemoteEFT], poll: float = 0.02) -> None:
+        """Publish one start_ev / stop_ev message and send it again every ``RESEND_S`` until every
+        arm it addresses has acknowledged it (each applies a message once: a copy only brings its
+        acknowledgement again) or is lost (its token ended, or silent for ``silence`` s); then
+        ``ArmLost`` names the arms that did not get it. Returns once all did (one bus round
+        trip, a few milliseconds on one host)."""
         import zenoh
-        message = {"flag": flag, "code": int(code), "efts": [[e.arm, e.serial] for e in efts]}
-        self.bus.session.put(set_key(self.cell), encode(message), congestion_control=zenoh.CongestionControl.BLOCK,
-                             express=True)
+        if not efts:
+            return
+        with self._cond:
+            self._seq += 1
+            seq = self._seq
+            self._acks[seq] = set()
+        message = {"flag": flag, "code": int(code), "efts": [[e.arm, e.serial] for e in efts],
+                   "planner": self.id, "seq": seq}
+        data, addressed = encode(message), {e.arm for e in efts}
+        sends = 0
+        try:
+            while True:
+                self.bus.session.put(set_key(self.cell), data, congestion_control=zenoh.CongestionControl.BLOCK,
+                                     express=True)
+                sends += 1
+                self.sets_sent += 1
+                self.sets_resent += sends > 1
+                resend_at = time.monotonic() + RESEND_S
+                with self._cond:
+                    while True:
+                        pending = addressed - self._acks[seq]
+                        if self._watching(poll):
+                            for arm in pending:
+                                self._silent(arm)
+                        lost = {a for a in pending if a in self._lost}
+                        if pending <= lost or time.monotonic() >= resend_at:
+                            break
+                        self._cond.wait(poll)
+                if not pending:
+                    return
+                if pending <= lost:
+                    raise ArmLost(f"{flag}_ev({code}): not applied by arm(s) " + ", ".join(
+                        f"{a!r} (its process {self._why_lost.get(a, 'left the bus')})" for a in sorted(lost)))
+                if sends * RESEND_S > self.request_timeout:
+                    raise ArmLost(f"{flag}_ev({code}): arm(s) {sorted(pending)} did not acknowledge it in "
+                                  f"{sends} sends over {self.request_timeout} s")
+        finally:
+            with self._cond:
+                self._acks.pop(seq, None)
 
     def status_ev(self, eft: RemoteEFT) -> int:
         """The status flag as last published: NULL pending, > 0 running, < 0 ended."""
@@ -429,6 +498,10 @@ class BusEvents:
             with self._cond:
                 if done():
                     return eft.status
+                if self._watching(poll):
+                    for e in self._chain(eft):
+                        if e.status >= 0:
+                            self._silent(e.arm)
                 self._check_blocked(eft, started)
                 if deadline is not None and time.monotonic() > deadline:
                     raise TimeoutError(f"wait_ev: {eft!r} after {timeout} s")
@@ -493,8 +566,9 @@ class BusEvents:
             if e.arm in self._lost and e.status >= 0:
                 ago = time.monotonic() - self._lost[e.arm]
                 via = "" if e is eft else f" (it waits for {e.describe()})"
+                why = self._why_lost.get(e.arm, "left the bus")
                 raise ArmLost(f"wait_ev: {eft.describe()} will never {'start' if started else 'end'}{via}: the "
-                              f"process serving arm {e.arm!r} left the bus {ago:.3f} s ago; the robot holds that arm")
+                              f"process serving arm {e.arm!r} {why}, {ago:.3f} s ago; the robot holds that arm")
         why = never_starts(eft, self._predecessor)
         if why is not None:
             raise Deadlock(f"wait_ev: {eft.describe()} can never {'start' if started else 'end'}: {why}")

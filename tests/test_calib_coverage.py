@@ -5,7 +5,9 @@ For each seed a short calibration set is recorded on real lockstep simula proces
 with calib/logs/simula-truth.toml (torque sensitivities 5-8 % off Table 4.1, friction 5-20 %
 off Tables 4.2-4.5, gravity coefficients off Table 4.9, DH errors): sensitivity runs of the
 motors the later fits need, friction sweeps of joints 2 and 6, the gravity sweeps j5, j3B
-(with their repeats) and j2, and 30 kinematic touches. The logs carry their truth
+(with their repeats) and j2, and (first seed only: the touches are most of the recording
+time, and the shipped logs' seed 1985 is the second seed they are held to) 30 kinematic
+touches. The logs carry their truth
 (meta.truth); the fits are chained through one parameter file exactly as `calib report` does
 (no value assumed from the data file), and every value is compared with the truth the logs
 name. The shipped logs (seed 1985, full length) are held to the same in test_calib_shipped.
@@ -27,6 +29,7 @@ from calib.truth import truth_meta, truth_of
 TRUTH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "calib", "logs",
                      "simula-truth.toml")
 SEEDS = (11, 23)
+TOUCH_SEED = SEEDS[0]     # the seed whose set includes the kinematic touches
 INFO = robot_info("puma260")
 
 
@@ -64,7 +67,8 @@ def calibrated(request, tmp_path_factory):
         gravity = [p for p in gravity_plans(INFO.regressor, INFO.lower, INFO.upper)
                    if p.meta["position"] in ("j5", "j3B", "j2") and p.name != "gravity-j3B-j2-main"]
         _record(sim, gravity, out, seed, args)
-    record_kinematics(os.path.join(out, "kinematics.rcilog"), seed, TRUTH, touches_per_face=10)
+    if seed == TOUCH_SEED:
+        record_kinematics(os.path.join(out, "kinematics.rcilog"), seed, TRUTH, touches_per_face=10)
     paths = sorted(os.path.join(out, f) for f in os.listdir(out) if f.endswith(".rcilog"))
     res = fit_all(paths, os.path.join(out, "fitted.toml"))
     res["truth"] = truth_of(res["traces"], INFO)
@@ -112,6 +116,7 @@ def test_gravity_coefficients_within_their_printed_error(calibrated):
                                                           g.direction_diff, [(r.position, r.joint, r.direction, r.tau0) for r in g.rows])
 
 
+@pytest.mark.parametrize("calibrated", [TOUCH_SEED], indirect=True, ids=[f"seed{TOUCH_SEED}"])
 def test_kinematic_errors_within_their_printed_uncertainty(calibrated):
     fit = calibrated["outcomes"]["kinematics"].results
     E = calibrated["truth"].dh_errors.ravel()
@@ -127,6 +132,7 @@ def test_kinematic_errors_within_their_printed_uncertainty(calibrated):
     assert fit.rms_position_before > 2e-4 and fit.rms_position_after < 2e-5
 
 
+@pytest.mark.parametrize("calibrated", [TOUCH_SEED], indirect=True, ids=[f"seed{TOUCH_SEED}"])
 def test_the_parameter_file_is_a_truth_simula_and_rccl_take(calibrated):
     """What calib wrote loads in simula (--params) and in RCCL (rccl.calibrated)."""
     from rccl.calibrated import load_calibrated

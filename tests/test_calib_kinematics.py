@@ -56,3 +56,33 @@ def test_command_reads_poses_and_reports_bad_lines(tmp_path, capsys):
     bad.write_text(lines[0] + "\n1,2,3\n")
     assert main(["fit", "kinematics", str(bad)]) == 2
     assert f"{bad}: record 2" in capsys.readouterr().err
+
+
+def test_pose_files_of_another_arm_take_robot(tmp_path, capsys):
+    """Pose files name no arm: `--robot puma560` fits them with the PUMA 560's table (and says
+    so); without it the output names the PUMA 260 it assumed, which does not fit them."""
+    from calib.params import read_params
+
+    m = load_robot("puma560")
+    dh = np.array([[j.theta, j.d, j.a, j.alpha] for j in m.joints])
+    rng = np.random.default_rng(8)
+    e_true = rng.normal(0, 1, 24) * SCALE
+    T6 = fk_function(dh)
+    lines = []
+    for q in rng.uniform(m.lower, m.upper, size=(30, 6)):
+        P = np.array(T6(q, e_true))
+        R = P[:3, :3]
+        angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+        w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) * angle / (2 * np.sin(angle))
+        lines.append(",".join(f"{x:.12g}" for x in (*q, *P[:3, 3], *w)))
+    poses = tmp_path / "poses560.csv"
+    poses.write_text("\n".join(lines) + "\n")
+    params = tmp_path / "fitted.toml"
+    assert main(["fit", "kinematics", str(poses), "--robot", "puma560", "-p", str(params)]) == 0
+    out = capsys.readouterr().out
+    assert "of robot puma560 (--robot)" in out
+    assert read_params(str(params))["calib"]["robot"] == "puma560"
+    assert main(["fit", "kinematics", str(poses), "-p", str(params)]) == 2      # the file is the PUMA 560's
+    assert "holds parameters of robot 'puma560'" in capsys.readouterr().err
+    assert main(["fit", "kinematics", str(poses)]) == 0
+    assert "of robot puma260 (the default; --robot names another arm)" in capsys.readouterr().out

@@ -180,3 +180,22 @@ def test_regen_logs_records_gravity_logs_that_fit(tmp_path):
     assert len(logs) == 10
     # recorded against the data file's simula, so Table 4.1's sensitivities are its own
     assert main(["fit", "gravity", *logs, "-q", "--assume-datafile"]) == 0
+
+
+def test_the_thesis_poses_are_checked_on_the_arm_they_are_given():
+    """The PUMA 260's friction poses suit it (the same plans as the default's), and another
+    arm's are refused with the reason, not recorded: on the PUMA 560 joint 1's window does not
+    fit its +-160 deg, and joint 2's leaves gravity doing work (cy2, and cx3 with its elbow offset a3)."""
+    from calib.exceptions import CalibError
+    from calib.experiments import check_friction_pose
+
+    assert [p.name for p in friction_plans(robot=INFO)] == [p.name for p in friction_plans()]
+    for mine, default in zip(friction_plans([2], robot=INFO), friction_plans([2])):
+        np.testing.assert_array_equal(mine.path.sample(72), default.path.sample(72))
+    other = robot_info("puma560")
+    with pytest.raises(CalibError, match=r"robot puma560: joint 1: .*no room.*FRICTION_POSES"):
+        friction_plans([1], robot=other)
+    qdeg, half = FRICTION_POSES[2]
+    q = np.radians(qdeg)
+    with pytest.raises(CalibError, match=r"robot puma560: gravity does work on joint 2 .*through cy2, cx3"):
+        check_friction_pose(other, 2, q[1] - np.radians(half), q[1] + np.radians(half), q)

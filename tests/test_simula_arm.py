@@ -264,6 +264,36 @@ def test_params_file_changes_the_ground_truth(tmp_path):
     assert arm.conv.sigma[0] == 0.07
 
 
+@pytest.mark.parametrize("robot, changes", [
+    ("puma560", {"cy2": 1.5, "cz3": 9.2, "cx4": 0.05, "cz5": 0.06, "cy6": -0.02}),   # the minimal set
+    ("microbo", {"c15": -0.4}),                                                  # a [gravity_grouping]
+])
+def test_params_file_moves_the_gravity_of_any_arm(tmp_path, robot, changes):
+    """Changed coefficients of an arm other than the thesis's: simula's Pinocchio gravity is
+    the generated regressor (rccl.kinematics) with the new values, on random poses."""
+    import importlib
+
+    model = load_robot(robot)
+    kin = importlib.import_module(f"rccl.kinematics.{robot}")
+    p = tmp_path / "fit.toml"
+    p.write_text(f'[calib]\nschema = "rcci-calib-params/1"\nrobot = "{robot}"\n\n[gravity_coeffs]\n'
+                 + "".join(f"{n} = {v}\n" for n, v in changes.items()))
+    arm = SimulatedArm(model, load_params(p, robot, truth_from_model(model)), seed=0, start="ready")
+    c = np.array([changes.get(n, model.gravity_coeffs[n].value) for n in kin.GRAVITY_COEFFS])
+    for q in np.random.default_rng(3).uniform(model.lower, model.upper, (20, model.n_joints)):
+        want = np.asarray(kin.gravity_regressor(q)).reshape(model.n_joints, -1) @ c
+        np.testing.assert_allclose(arm.gravity(q), want, atol=1e-9)
+
+
+def test_a_mass_coefficient_cannot_be_moved(tmp_path):
+    """The Microbo's c12 is g times the masses the lift carries: no centre of mass changes it."""
+    model = load_robot("microbo")
+    p = tmp_path / "fit.toml"
+    p.write_text('[calib]\nschema = "rcci-calib-params/1"\nrobot = "microbo"\n\n[gravity_coeffs]\nc12 = 200.0\n')
+    with pytest.raises(ParamsError, match="c12 of robot microbo cannot be changed"):
+        SimulatedArm(model, load_params(p, "microbo", truth_from_model(model)), seed=0, start="ready")
+
+
 @pytest.mark.parametrize("text, match", [
     ("not toml [", "not valid TOML"),
     ('[calib]\nschema = "other"\nrobot = "puma260"\n', "schema"),

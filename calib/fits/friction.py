@@ -154,13 +154,13 @@ def record(req: RecordRequest) -> None:
     from calib.experiments import friction_plans
     from calib.program import record_plans
 
-    record_plans(req, friction_plans(req.joints))
+    record_plans(req, friction_plans(req.joints, robot=req.info))
 
 
 def regen(ctx: RegenContext) -> list:
     from calib.experiments import friction_plans
 
-    return [((), p) for p in friction_plans()]
+    return [((), p) for p in friction_plans(robot=ctx.info)]
 
 
 KIND = FitKind(

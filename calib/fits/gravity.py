@@ -3,23 +3,36 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from calib.fitting import FitOutcome
 from calib.gravity import fit_gravity, row_result
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.robot import GRAVITY_NAMES
 from calib.tables import combination, table_4_8_4_9
 
 THESIS_4_8 = {  # Table 4.8 as printed: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2)
     ("j5", 5): ("c15", -1.191), ("j4", 4): ("c15", -1.193), ("j3B", 3): ("c13", -1.744),
     ("j2", 2): ("c12", 5.509), ("j3B", 2): ("c12 - c13", 7.288), ("j3A", 3): ("c13 + c15", -1.938),
 }
-THESIS_4_9 = {"c12": (5.509, 0.15, 0.080), "c13": (-1.762, 0.04, 0.010), "c15": (-1.192, 0.005, 0.010)}
+
+
+def thesis_4_9(info) -> dict[str, tuple[float, float, float]] | None:
+    """Table 4.9 as the arm's data file holds it (value, uncertainty, friction error per
+    coefficient), when every coefficient's source is the thesis's table; None for an arm
+    the thesis did not measure (its report then has no thesis columns)."""
+    coeffs = info.nominal.get("gravity_coeffs", {})
+    fe = info.nominal.get("gravity_friction_error", {})
+    friction = dict(zip(fe.get("names", []), fe.get("values", [])))
+    if not coeffs or not all(str(c.get("source", "")).startswith("thesis Table 4.9") and "uncertainty" in c
+                             and n in friction for n, c in coeffs.items()):
+        return None
+    return {n: (float(c["value"]), float(c["uncertainty"]), float(friction[n])) for n, c in coeffs.items()}
 
 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
     joints = sorted({t.joint_index() for t in traces})
     drive = info.drive.with_sigma(inputs.sigma(joints))
-    res = fit_gravity(traces, drive, inputs.regressor(), GRAVITY_NAMES, notes=notes)
+    res = fit_gravity(traces, drive, inputs.regressor(), info.gravity_names, notes=notes)
     res = res.with_scale_error(inputs.sigma_scale_error(joints))
     sec: dict[str, Any] = {n: float(v) for n, v in zip(res.names, res.value)}
     sec.update({f"{n}_error": float(e) for n, e in zip(res.names, res.error)})
@@ -30,6 +43,8 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
 
 def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     g, truth = out.results, ctx.truth
+    thesis = thesis_4_9(ctx.info)
+    printed = THESIS_4_8 if thesis is not None else {}
     L = ["## Table 4.8: gravity loading measurements", "",
          "tau0 is the gravity torque at the start of a pass, d (W1 - W2) / 2 minus the same "
          "for the friction-cancelling repeat (4.51), in N m; the regressor row says which "
@@ -43,38 +58,49 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "|---|---|---|---|---|---|---|---|"]
     for r in g.rows:
         name, val = row_result(r, g)
-        th = THESIS_4_8.get((r.position, r.joint))
+        th = printed.get((r.position, r.joint))
         ths = f"{th[1]:.3f} ({th[0]})" if th else "-"
         L.append(f"| {r.position} | {r.joint} | {'+' if r.direction > 0 else '-'} | "
                  f"{combination(r.row, g.names)} | {ths} | {r.tau0:.3f} | {r.raw_tau0:.3f} | {name} = {val:.3f} |")
     L += ["", "## Table 4.9: gravity loading coefficients (N m)", "",
-          "fit +- error: sqrt((2 sd of the fit)^2 + (half the difference of the two directions' "
-          "fits)^2), the thesis's combination (4.5.6).", "",
+          f"fit +- error: sqrt(({g.factor:.2f} sd of the fit)^2 + (half the difference of the two "
+          "directions' fits)^2), the thesis's combination (4.5.6) with the fit's part a 99.73 % "
+          "interval (Student's t; the thesis printed 2 sd).", "",
           "| coefficient | thesis | thesis friction error | truth | fit | fit friction error | abs(fit - truth) "
           "| within thesis bound | within fit error |",
           "|---|---|---|---|---|---|---|---|---|"]
     for k, n in enumerate(g.names):
-        tv, te, tf = THESIS_4_9[n]
+        tv, te, tf = (thesis or {}).get(n, (float("nan"),) * 3)
         ts, tt = ("-", float("nan")) if truth is None else (f"{truth.gravity[k]:.3f}", float(truth.gravity[k]))
         d = abs(g.value[k] - tt)
-        L.append(f"| {n} | {tv:.3f} +- {te:.3f} | {tf:.3f} | {ts} | {g.value[k]:.3f} +- {g.error[k]:.3f} | "
+        ths = f"{tv:.3f} +- {te:.3f} | {tf:.3f}" if np.isfinite(tv) else "- | -"
+        L.append(f"| {n} | {ths} | {ts} | {g.value[k]:.3f} +- {g.error[k]:.3f} | "
                  f"{g.friction_error[k]:.3f} | {d:.4f} | "
-                 + (f"{ctx.check('4.9', d <= te)} | {ctx.check('4.9 fit', d <= g.error[k])} |"
-                    if truth is not None else "- | - |"))
+                 + ((ctx.check('4.9', d <= te) if np.isfinite(te) else "-")
+                    + f" | {ctx.check('4.9 fit', d <= g.error[k])} |" if truth is not None else "- | - |"))
     return L + [""]
 
 
-def record(req: RecordRequest) -> None:
+def plans(info, speed_deg: float = 20.0, extra: int = 2) -> list:
+    """The gravity sweeps for the arm of ``info`` (calib.experiments.gravity_plans): Table 4.7's
+    where they identify its coefficients, else sweeps chosen by its regressor, each joint's
+    rows weighted by its data-file friction (what remains of it in W1 - W2)."""
     from calib.experiments import gravity_plans
+
+    fr = info.nominal["friction"]
+    noise = (np.asarray(fr["coulomb_pos"]["values"], float) + np.asarray(fr["coulomb_neg"]["values"], float)) / 2
+    return gravity_plans(info.regressor, info.lower, info.upper, speed_deg, names=info.gravity_names,
+                         kinds=info.kinds, noise=np.where(noise > 0, noise, 1.0), extra=extra)
+
+
+def record(req: RecordRequest) -> None:
     from calib.program import record_plans
 
-    record_plans(req, gravity_plans(req.info.regressor, req.info.lower, req.info.upper))
+    record_plans(req, plans(req.info))
 
 
 def regen(ctx: RegenContext) -> list:
-    from calib.experiments import gravity_plans
-
-    return [((), p) for p in gravity_plans(ctx.info.regressor, ctx.info.lower, ctx.info.upper)]
+    return [((), p) for p in plans(ctx.info)]
 
 
 KIND = FitKind(

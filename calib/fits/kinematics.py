@@ -2,6 +2,7 @@
 end poses measured by an external instrument (CSV)."""
 from __future__ import annotations
 
+import importlib
 import os
 import tempfile
 
@@ -32,13 +33,13 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     return FitOutcome("kinematics", table(fit_), {"kinematics": sec}, fit_, {"touches": t})
 
 
-def fit_poses(paths: list[str]):
-    """The fit of end poses measured by an instrument (CSV files of q and T6), with its
-    section: ``(fit, table text, {"kinematics": section})``."""
+def fit_poses(paths: list[str], robot: str):
+    """The fit of end poses of ``robot`` measured by an instrument (CSV files of q and T6), with
+    its section: ``(fit, table text, {"kinematics": section})``."""
     from calib.kinematics import fit_kinematics, nominal_dh, read_poses, section, table
 
     Q, T = zip(*(read_poses(p) for p in paths))
-    fit_ = fit_kinematics(nominal_dh("puma260"), np.vstack(Q), np.concatenate(T))
+    fit_ = fit_kinematics(nominal_dh(robot), np.vstack(Q), np.concatenate(T))
     return fit_, table(fit_), {"kinematics": section(fit_)}
 
 
@@ -48,20 +49,21 @@ def _accuracy(ctx: ReportContext) -> dict:
     from calib.truth import log_truth
     from rccl.calibrated import calibrated_kinematics, load_calibrated
     from rccl.session import load_kinematics
-    import rccl.kinematics.puma260 as nominal
 
+    robot = ctx.info.name
+    nominal = importlib.import_module(f"rccl.kinematics.{robot}")
     t = log_truth(next(tr for tr in ctx.traces if tr.experiment == "kinematics"))
     with tempfile.TemporaryDirectory(prefix="calib-truth-") as tmp:
         truth_file = os.path.join(tmp, "truth.toml")
         with open(truth_file, "w", encoding="utf-8") as f:
-            f.write(t.get("params_toml") or "[calib]\nschema = \"rcci-calib-params/1\"\nrobot = \"puma260\"\n")
+            f.write(t.get("params_toml") or f"[calib]\nschema = \"rcci-calib-params/1\"\nrobot = \"{robot}\"\n")
         if "[kinematics]" not in (t.get("params_toml") or ""):
             return {"skipped": "the logs' truth has no DH errors: the nominal model is exact"}
-        rows = positioning_error(truth_file, ctx.params_path, n=ACCURACY_TARGETS, seed=int(t["seed"]))
+        rows = positioning_error(truth_file, ctx.params_path, n=ACCURACY_TARGETS, seed=int(t["seed"]), robot=robot)
     load = os.getloadavg()
-    cost = {"nominal": cycle_cost(load_kinematics("puma260")),
-            "calibrated": cycle_cost(calibrated_kinematics(ctx.params_path)),
-            "ik_nominal": ik_cost(nominal), "ik_calibrated": ik_cost(load_calibrated(ctx.params_path)),
+    cost = {"nominal": cycle_cost(load_kinematics(robot), robot=robot),
+            "calibrated": cycle_cost(calibrated_kinematics(ctx.params_path, robot), robot=robot),
+            "ik_nominal": ik_cost(nominal), "ik_calibrated": ik_cost(load_calibrated(ctx.params_path, robot)),
             "load": (load, os.getloadavg())}
     return {"rows": rows, "cost": cost, "targets": ACCURACY_TARGETS}
 
@@ -164,7 +166,7 @@ def record(req: RecordRequest) -> None:
     from calib.touch import touch_plan
     from calib.touch_program import run_touches
 
-    plan = touch_plan(max(1, req.args.touches // 3))
+    plan = touch_plan(max(1, req.args.touches // 3), robot=req.robot)
     path = os.path.join(req.out, plan.name + ".rcilog")
     n = run_touches(req.url, plan, path, req.robot, extra_meta=req.extra_meta)
     print(f"{plan.name}: {n} records -> {path}")

@@ -48,7 +48,7 @@ def record(req: RecordRequest) -> None:
     from calib.experiments import sensitivity_plans
     from calib.program import record_plans
 
-    record_plans(req, [p for p in sensitivity_plans(req.args.mass, req.args.radius, req.joints)
+    record_plans(req, [p for p in sensitivity_plans(req.args.mass, req.args.radius, req.joints, robot=req.info)
                        if (p.meta["load"]["mass_kg"] > 0) == req.args.loaded])
 
 
@@ -56,7 +56,7 @@ def regen(ctx: RegenContext) -> list:
     """Without the mass on the shared simula; with it, a simula with the pulley load per joint."""
     from calib.experiments import sensitivity_plans
 
-    plans = sensitivity_plans(None, RADIUS_M)
+    plans = sensitivity_plans(None, RADIUS_M, robot=ctx.info)
     return ([((), p) for p in plans if not p.simula_args]
             + [(tuple(p.simula_args), p) for p in plans if p.simula_args])
 

@@ -21,7 +21,7 @@ import sys
 from dataclasses import replace
 
 from models import ModelError
-from models import load_robot
+from models import available_robots, load_robot
 from .arm import SimulatedArm
 from .control import ControlChannel
 from .exceptions import SimulaError
@@ -39,7 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
     start.add_argument("-c", dest="start", action="store_const", const="nest",
                        help="start in the nest position, calibrated")
     p.add_argument("-v", "--verbose", action="store_true", help="print joint angles once per simulated second")
-    p.add_argument("--robot", default="puma260", help="robot model: puma260 (default) or microbo")
+    p.add_argument("--robot", default="puma260",
+                   help=f"robot model, a data file models/ROBOT.toml ({', '.join(available_robots())}) or its "
+                        "path; default puma260")
     p.add_argument("--lockstep", action="store_true",
                    help="advance one period per CHG received (deterministic, as fast as possible)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback only)")

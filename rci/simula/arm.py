@@ -72,34 +72,68 @@ class SensorSample:
     inport1: int
 
 
-def _tune_gravity(pmodel: pin.Model, model, coeffs: dict[str, float]) -> None:
-    """Move centres of mass so that the URDF's gravity loading has the coefficients ``coeffs``.
+def gravity_moves(model) -> dict[str, tuple[int, np.ndarray, float]]:
+    """Which centre of mass each gravity coefficient of ``model`` moves in simula, read from
+    the model file: ``name -> (link k, unit axis in DH frame k, s)`` with
+    d coefficient = s g m_k d(axis coordinate of link k's centre of mass).
 
-    The data file solved x2, z3, z6 (PUMA) from Table 4.9 the same way; a fitted
-    coefficient moves the same first moment: c12 = g[m2 x2 + ...], c13 = -g[m3 z3 + ...],
-    c15 = -g(m5 z5 + m6 z6) (eq. 4.24), each in its link's DH frame.
+    * With ``[gravity_grouping]``, each coefficient's meaning (a SymPy expression in the
+      masses and centre-of-mass coordinates, eq. 4.24 for the PUMA 260) names candidates: a
+      coordinate the link's ``com_form`` leaves free that enters this meaning linearly and no
+      other one. The heaviest such link is moved (the smallest shift; for the PUMA 260 x2,
+      z3 and z6, the first moments the data file solved from Table 4.9).
+    * Without it, the derivation's minimal set (derive.gravity.minimal_gravity): ``c<axis><k>``
+      is g (m_k <axis>_k + ...), and m_k <axis>_k enters no other coefficient.
+
+    A coefficient with no such coordinate (one that fixes link masses) is left out.
     """
+    names = list(model.gravity_coeffs)
+    grouping = model.gravity_grouping
+    if grouping is None:
+        return {n: (int(n[2]), np.eye(3)["xyz".index(n[1])], 1.0) for n in names
+                if len(n) == 3 and n[0] == "c" and n[1] in "xyz" and n[2].isdigit()}
+    import sympy as sp
+
+    masses = {li.index: li.mass for li in model.links}
+    values = {sp.Symbol(f"m{k}"): m for k, m in masses.items()} | {sp.Symbol("g"): model.gravity}
+    meanings = {n: sp.sympify(grouping.meanings[n]) for n in names}
+    moves: dict[str, tuple[int, np.ndarray, float]] = {}
+    for name in names:
+        best = None
+        for k, form in enumerate(grouping.com_form, start=1):
+            for axis, text in enumerate(form):
+                coord = sp.Symbol(text.strip())
+                if not text.strip().isidentifier() or any(
+                        coord in meanings[o].free_symbols for o in names if o != name):
+                    continue
+                slope = sp.diff(meanings[name], coord).subs(values)
+                if slope.free_symbols or slope == 0:
+                    continue
+                if best is None or masses[k] > masses[best[0]]:
+                    best = (k, np.eye(3)[axis], float(slope) / (model.gravity * masses[k]))
+        if best is not None:
+            moves[name] = best
+    return moves
+
+
+def _tune_gravity(pmodel: pin.Model, model, coeffs: dict[str, float]) -> None:
+    """Move centres of mass so that the URDF's gravity loading has the coefficients ``coeffs``:
+    each changed coefficient moves the first moment ``gravity_moves`` names for it, in its
+    link's DH frame (the data file solved its centres of mass from the coefficients the same
+    way)."""
     g = model.gravity
     masses = {li.index: li.mass for li in model.links}
-    if model.name == "puma260":
-        moves = {"c12": (2, np.array([1.0, 0, 0]), 1.0), "c13": (3, np.array([0, 0, 1.0]), -1.0),
-                 "c15": (6, np.array([0, 0, 1.0]), -1.0)}
-    elif model.gravity_grouping is None:
-        # the derivation's minimal set (derive.gravity.minimal_gravity): c<axis><k> is
-        # g (m_k <axis>_k + ...), so it moves the centre of mass of link k along <axis>
-        moves = {n: (int(n[2]), np.eye(3)["xyz".index(n[1])], 1.0) for n in model.gravity_coeffs
-                 if len(n) == 3 and n[1] in "xyz" and n[2].isdigit()}
-    else:
-        moves = {"c15": (6, np.array([0, 0, 1.0]), -1.0)}
-    for name, value in coeffs.items():
-        delta_c = value - model.gravity_coeffs[name].value
-        if abs(delta_c) < 1e-15:
-            continue
+    changed = {n: v - model.gravity_coeffs[n].value for n, v in coeffs.items()
+               if abs(v - model.gravity_coeffs[n].value) >= 1e-15}
+    if not changed:
+        return
+    moves = gravity_moves(model)
+    for name, delta_c in changed.items():
         if name not in moves:
             raise ParamsError(f"gravity coefficient {name} of robot {model.name} cannot be changed in simula "
                               f"(it fixes link masses, not a centre of mass)")
-        link, axis, sign = moves[name]
-        shift = sign * delta_c / (g * masses[link]) * axis          # in DH frame `link`
+        link, axis, slope = moves[name]
+        shift = delta_c / (slope * g * masses[link]) * axis          # in DH frame `link`
         fid = pmodel.getFrameId(f"link{link}")
         frame = pmodel.frames[fid]
         jid = frame.parentJoint

@@ -22,17 +22,19 @@ from ..realtime import pin_to_cpus
 from .process import SimulaProcess
 
 
-def probe(rate: int, seconds: float, lockstep: bool, args: list[str], cpu: int | None = None) -> dict:
-    """Run one control of ``seconds`` (simulated) at ``rate`` Hz; return the statistics.
+def probe(rate: int, seconds: float, lockstep: bool, args: list[str], cpu: int | None = None,
+          robot: str = "puma260") -> dict:
+    """Run one control of ``seconds`` (simulated) at ``rate`` Hz on a simula of ``robot``;
+    return the statistics.
 
     ``cpu``: pin simula and this controller to that CPU (see ``rci.realtime.pin_to_cpus``).
     """
-    with SimulaProcess("-p", "--power-on", *args, lockstep=lockstep) as sim:
+    with SimulaProcess("-p", "--power-on", *args, robot=robot, lockstep=lockstep) as sim:
         if cpu is not None:
             pin_to_cpus({cpu}, sim.proc.pid)
             pin_to_cpus({cpu})
         link = open_link(sim.url)
-        link.send(protocol.HELLO, 0, protocol.Hello("puma260", rate, "probe").encode())
+        link.send(protocol.HELLO, 0, protocol.Hello(robot, rate, "probe").encode())
         if link.recv(10.0) is None:
             raise RuntimeError("simula did not answer HELLO")
         link.send(protocol.START, 1, protocol.Start(rate).encode())
@@ -65,6 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rate", type=int, default=1000)
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--lockstep", action="store_true")
+    ap.add_argument("--robot", default="puma260", help="simula's arm (models/ROBOT.toml), default puma260")
     ap.add_argument("--no-fifo", action="store_true", help="leave this controller at normal priority")
     ap.add_argument("--cpu", type=int, default=-1, help="pin simula and this controller to one CPU (-1: no)")
     a, rest = ap.parse_known_args(argv)
@@ -73,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(80))
         except OSError:
             pass
-    r = probe(a.rate, a.seconds, a.lockstep, rest, None if a.cpu < 0 else a.cpu)
+    r = probe(a.rate, a.seconds, a.lockstep, rest, None if a.cpu < 0 else a.cpu, a.robot)
     if a.lockstep:
         print(f"lockstep {r['rate_hz']} Hz: {r['cycles']} cycles in {r['wall_s']:.2f} s wall = "
               f"{r['simulated_s'] / r['wall_s']:.1f} simulated s per wall s ({r['cycles'] / r['wall_s']:.0f} cycles/s)")

@@ -1,0 +1,100 @@
+"""`calib fit gravity` on an arm other than the thesis's: the PUMA 560 and its ten minimal
+coefficients (models/puma560.toml, derive.gravity.minimal_gravity).
+
+Table 4.7's sweeps were chosen for the PUMA 260's three coefficients; for the PUMA 560 calib
+chooses its own (calib.poses.identifying_sweeps): the fewest 180-degree sweeps whose
+regressor rows identify all ten. They are recorded here by calib's own measurement program
+(calib.program.run_plan, as `calib record gravity --robot puma560` runs it) on a real
+lockstep `simula --robot puma560` whose truth is not the data file's (a parameter file moves
+five coefficients, cz4/cx5/cx6 stay 0), then fitted by the `calib fit gravity` command; every
+coefficient must lie within the uncertainty it prints of the simulated arm's truth (the
+Pinocchio gravity of simula's URDF, fitted to the regressor by calib.truth).
+"""
+from __future__ import annotations
+
+import glob
+import os
+
+import numpy as np
+import pytest
+
+from calib.exceptions import CalibError
+from calib.robot import robot_info
+
+ROBOT = "puma560"
+TRUTH = {"cy2": 1.5, "cz3": 9.2, "cx4": 0.05, "cz5": 0.06, "cy6": -0.02}
+SPEED_DEG = 60.0     # deg/s: three times the thesis's 20, to keep the run short
+
+
+def test_table_4_7_does_not_serve_the_puma560_and_ten_sweeps_do():
+    from calib.fits.gravity import plans
+    from calib.poses import TABLE_4_8_SWEEPS, main_sweep, table_4_7_identifies, unidentified
+
+    info = robot_info(ROBOT)
+    assert not table_4_7_identifies(info.regressor, info.lower, info.upper, info.kinds)
+    rows = []                            # what the thesis's positions would measure, were they reachable
+    for name, joint in TABLE_4_8_SWEEPS:
+        q = main_sweep(name, joint).q_start
+        rows.append(info.regressor(q)[joint - 1])
+    assert np.linalg.matrix_rank(np.array(rows)) == 5          # five combinations of the ten
+    assert "cz5" not in unidentified(np.array(rows), info.gravity_names)
+    ps = plans(info, SPEED_DEG, extra=0)
+    assert len(ps) == len(info.gravity_names) == 10
+    A = []
+    for p in ps:
+        q = np.array(p.meta["q_start"])
+        q[p.meta["joint"] - 1] = p.meta["phi_low"]
+        A.append(info.regressor(q)[p.meta["joint"] - 1])
+        for path in (p.path, p.warmup):      # sweeps, turns and warm-ups inside the joint ranges
+            s = path.sample(36)
+            assert np.all(s >= info.lower) and np.all(s <= info.upper), p.name
+    assert unidentified(np.array(A), info.gravity_names) == []
+    assert len(plans(info)) == 12            # what `calib record gravity` records: two to spare
+
+
+def test_coefficients_no_sweep_can_measure_are_named():
+    """The Microbo's c12 is the weight its vertical lift carries: no revolute sweep sees it."""
+    from calib.fits.gravity import plans
+
+    with pytest.raises(CalibError, match=r"gravity coefficients c12 cannot be identified"):
+        plans(robot_info("microbo"))
+
+
+def test_calib_fit_gravity_on_the_puma560(tmp_path, capsys):
+    from calib.__main__ import main
+    from calib.fits.gravity import plans
+    from calib.logs import load_trace
+    from calib.program import run_plan
+    from calib.truth import truth_meta, truth_of
+    from rci.simula.process import SimulaProcess
+
+    truth_file = tmp_path / "truth.toml"
+    truth_file.write_text(f'[calib]\nschema = "rcci-calib-params/1"\nrobot = "{ROBOT}"\n\n[gravity_coeffs]\n'
+                          + "".join(f"{n} = {v}\n" for n, v in TRUTH.items()))
+    info = robot_info(ROBOT)
+    args = ["--warm", "--params", str(truth_file)]
+    with SimulaProcess("-p", *args, robot=ROBOT, lockstep=True, seed=5) as sim:
+        for plan in plans(info, SPEED_DEG, extra=0):
+            plan.warmup = None           # a warm simula (--warm): no warm-up needed
+            run_plan(sim.url, plan, str(tmp_path / f"{plan.name}.rcilog"), ROBOT, rate_hz=36,
+                     extra_meta={"truth": truth_meta(5, str(truth_file), args)})
+    logs = sorted(glob.glob(str(tmp_path / "*.rcilog")))
+    params = str(tmp_path / "fitted.toml")
+    assert main(["fit", "gravity", *logs, "--assume-datafile", "-q", "-p", params]) == 0
+    printed = capsys.readouterr().out
+    assert f"10 log(s) of robot {ROBOT}" in printed
+    from calib.params import read_params
+
+    fitted = read_params(params)
+    assert fitted["calib"]["robot"] == ROBOT
+    truth = truth_of([load_trace(p) for p in logs], info)
+    assert truth.gravity_fit_residual < 1e-9
+    for k, name in enumerate(info.gravity_names):
+        want = TRUTH.get(name, info.nominal["gravity_coeffs"][name]["value"])
+        assert truth.gravity[k] == pytest.approx(want, abs=1e-9)
+        value, error = fitted["gravity_coeffs"][name], fitted["gravity_coeffs"][f"{name}_error"]
+        assert f"{name:>11}  {value:7.3f} +- {error:5.3f}" in printed
+        assert abs(value - truth.gravity[k]) <= error, (name, value, error, truth.gravity[k])
+    # a fit of another arm's logs with --robot naming the PUMA 260 is refused, not reinterpreted
+    assert main(["fit", "gravity", *logs, "--robot", "puma260", "--assume-datafile", "-q"]) == 2
+    assert "the logs are of robot 'puma560'" in capsys.readouterr().err
