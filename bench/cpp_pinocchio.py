@@ -2,18 +2,20 @@
 
 Part of `make bench` (bench/run.py adds its section to reports/bench.md); alone:
 ``python -m bench.cpp_pinocchio`` prints the section. For every robot whose C kernels are
-compiled, it builds bench/cpp/vs_pinocchio.cpp (Pinocchio's URDF parser and algorithms,
-from the headers and libraries of the ``pin`` wheel under ``site-packages/cmeel.prefix``)
-linked with bench/cpp/kernel_rows.c around the robot's generated
-``rccl/kinematics/_c/<robot>.c`` (its kernels, cut before the CPython runtime), into
-build/bench/ (untracked; rebuilt when a source, a flag or the compiler changes), and runs
-it on the same random configurations for both sides.
+compiled, it builds bench/cpp/vs_pinocchio.cpp (Pinocchio's algorithms, from the headers
+and libraries of the ``pin`` wheel under ``site-packages/cmeel.prefix``) linked with
+bench/cpp/kernel_rows.c around the robot's generated ``rccl/kinematics/_c/<robot>.c`` (its
+kernels, cut before the CPython runtime), into build/bench/ (untracked; rebuilt when a
+source, a flag or the compiler changes), and runs it on the same random configurations for
+both sides. The robot's model is Pinocchio's own: its URDF parser (the wheel's compiled
+C++, through ``pinocchio.buildModelFromUrdf``) builds it, and :func:`model_text` hands its
+joints, link inertias and frames to the program, which rebuilds it with Pinocchio's
+``addJoint``/``appendBodyToJoint``/``addFrame`` (including the parser's header would
+cost most of the program's compile).
 
-The ``pin`` wheel ships Pinocchio's headers and libraries but not two header-only
-dependencies its headers include: Eigen (``Eigen/Core``) and urdfdom-headers
-(``urdf_model/model.h``). They come from the cmeel packages ``cmeel-eigen`` and
-``cmeel-urdfdom-headers`` (the ``bench`` and ``test`` extras of pyproject.toml); without
-cmeel-eigen, CasADi's copy of Eigen 3.4 is used.
+The ``pin`` wheel ships Pinocchio's headers and libraries but not Eigen, which its headers
+include: it comes from the cmeel package ``cmeel-eigen`` (the ``bench`` and ``test``
+extras of pyproject.toml); without it, CasADi's copy of Eigen 3.4 is used.
 """
 from __future__ import annotations
 
@@ -40,15 +42,32 @@ C_FLAGS = ["-O3", "-fno-math-errno", "-Wno-unused-variable", "-Wno-unused-functi
 #: Pinocchio's side: -O3, no -march=native (see CXX_NOTE), its algorithms instantiated from
 #: the headers in this program (not the wheel's precompiled instantiations)
 CXX_FLAGS = ["-O3", "-DNDEBUG", "-std=c++17"]
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How the comparison program is built, and where it is cached: ``BENCH`` is what make
+    bench times; ``CHECK`` only has to compute the same numbers (tests/test_bench_cpp.py), so
+    its C++ side is compiled without optimisation and with the wheel's precompiled template
+    instantiations (PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION, which the wheel's CMake targets
+    set for their users; the program then hands Pinocchio each configuration as the
+    Eigen::VectorXd those instantiations take), in a folder of its own: about a third of the
+    CPU of the BENCH build. The kernels' side is the same in both (C_FLAGS, the extension's)."""
+
+    name: str
+    cxx_flags: tuple[str, ...]
+    folder: Path
+
+
+BENCH = Profile("bench", tuple(CXX_FLAGS), BUILD)
+CHECK = Profile("check", ("-O0", "-std=c++17", "-DPINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION"), BUILD / "check")
 #: the compile definitions of the wheel's pinocchio CMake targets (pinocchioTargets.cmake)
 PIN_DEFINES = ["-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
-               "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
-               "-DPINOCCHIO_WITH_URDFDOM"]
-PIN_LIBS = ["-lpinocchio_parsers", "-lpinocchio_default"]
-CXX_NOTE = ("-march=native is not used on the C++ side: built with it, the program's Model "
-            "(Eigen with AVX) does not match the one the wheel's libpinocchio_parsers returns "
-            "(built for baseline x86-64), and the program crashes in ~ModelTpl at load "
-            "(also with -DEIGEN_MAX_ALIGN_BYTES=16)")
+               "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12"]
+PIN_LIBS = ["-lpinocchio_default"]
+CXX_NOTE = ("-march=native is not used on the C++ side: the wheel's libraries are built for "
+            "baseline x86-64, and a program built with it (Eigen with AVX) crashed on the Model type "
+            "they share (also with -DEIGEN_MAX_ALIGN_BYTES=16)")
 
 #: the goal of issue 16: generated C at least this many times faster per configuration
 GOAL = 5.0
@@ -72,12 +91,11 @@ class Toolchain:
     prefix: Path            # site-packages/cmeel.prefix
     eigen: Path             # folder holding Eigen/Core
     eigen_source: str       # which package it came from
-    urdf_headers: Path      # folder holding urdf_model/model.h
     python_include: Path    # Python.h: kin_prelude.h includes it (types only)
 
     def describe(self) -> str:
         return (f"Pinocchio headers and libraries from the `pin` wheel ({self.prefix.parent.name}/{self.prefix.name}), "
-                f"Eigen from {self.eigen_source}, urdf_model from cmeel-urdfdom-headers")
+                f"Eigen from {self.eigen_source}")
 
 
 def toolchain() -> Toolchain:
@@ -103,15 +121,12 @@ def toolchain() -> Toolchain:
             pass
     if not (eigen / "Eigen" / "Core").is_file():
         missing.append("Eigen's headers (Eigen/Core: not in the `pin` wheel; pip install cmeel-eigen)")
-    urdf = prefix / "include" / "urdfdom_headers"
-    if not (urdf / "urdf_model" / "model.h").is_file():
-        missing.append("urdfdom-headers (urdf_model/model.h: not in the `pin` wheel; pip install cmeel-urdfdom-headers)")
     pyinc = Path(sysconfig.get_paths()["include"])
     if not (pyinc / "Python.h").is_file():
         missing.append(f"Python.h ({pyinc})")
     if missing:
         raise ToolchainError("bench.cpp_pinocchio: missing " + "; ".join(missing))
-    return Toolchain(cc, cxx, prefix, eigen, source, urdf, pyinc)
+    return Toolchain(cc, cxx, prefix, eigen, source, pyinc)
 
 
 def _compiler_id(exe: str) -> str:
@@ -141,25 +156,26 @@ def kernels_source(robot: str) -> str:
     return text[:cut]
 
 
-def build(robot: str, tc: Toolchain | None = None) -> Path:
-    """The comparison program of ``robot`` in build/bench/, compiled unless an identical build exists."""
+def build(robot: str, tc: Toolchain | None = None, profile: Profile = BENCH) -> Path:
+    """The comparison program of ``robot`` in ``profile.folder``, compiled unless an identical build exists."""
     tc = tc or toolchain()
-    BUILD.mkdir(parents=True, exist_ok=True)
-    cxx_inc = [f"-I{tc.prefix / 'include'}", f"-I{tc.eigen}", f"-I{tc.urdf_headers}", f"-I{SRC}"]
+    out = profile.folder
+    out.mkdir(parents=True, exist_ok=True)
+    cxx_inc = [f"-I{tc.prefix / 'include'}", f"-I{tc.eigen}", f"-I{SRC}"]
     # Pinocchio's side does not depend on the robot: one object for every robot
-    pin_key = _digest(SRC / "vs_pinocchio.cpp", SRC / "kernel_rows.h", CXX_FLAGS, PIN_DEFINES, cxx_inc,
+    pin_key = _digest(SRC / "vs_pinocchio.cpp", SRC / "kernel_rows.h", list(profile.cxx_flags), PIN_DEFINES, cxx_inc,
                       _compiler_id(tc.cxx), (tc.prefix / "include" / "pinocchio" / "config.hpp"))
-    pin_obj = BUILD / f"vs_pinocchio-{pin_key}.o"
+    pin_obj = out / f"vs_pinocchio-{pin_key}.o"
     if not pin_obj.exists():
         tmp = pin_obj.with_suffix(f".{os.getpid()}.tmp")
-        _compile([tc.cxx, *CXX_FLAGS, *PIN_DEFINES, *cxx_inc, "-c", str(SRC / "vs_pinocchio.cpp"), "-o", str(tmp)],
+        _compile([tc.cxx, *profile.cxx_flags, *PIN_DEFINES, *cxx_inc, "-c", str(SRC / "vs_pinocchio.cpp"), "-o", str(tmp)],
                  "bench/cpp/vs_pinocchio.cpp")
         tmp.replace(pin_obj)
     src = kernels_source(robot)
     k_key = _digest(src, *(KERNEL_DIR / h for h in ("kin_prelude.h",)), SRC / "kernel_rows.c", SRC / "kernel_rows.h",
                     C_FLAGS, _compiler_id(tc.cc), str(tc.python_include))
-    inc = BUILD / f"{robot}-{k_key}.inc"
-    k_obj = BUILD / f"{robot}-kernels-{k_key}.o"
+    inc = out / f"{robot}-{k_key}.inc"
+    k_obj = out / f"{robot}-kernels-{k_key}.o"
     if not k_obj.exists():
         inc.write_text(src)
         tmp = k_obj.with_suffix(f".{os.getpid()}.tmp")
@@ -167,7 +183,7 @@ def build(robot: str, tc: Toolchain | None = None) -> Path:
                   f'-DRCCL_KERNELS="{inc}"', "-c", str(SRC / "kernel_rows.c"), "-o", str(tmp)],
                  f"the {robot} kernels")
         tmp.replace(k_obj)
-    exe = BUILD / f"vs_pinocchio-{robot}-{pin_key}-{k_key}"
+    exe = out / f"vs_pinocchio-{robot}-{pin_key}-{k_key}"
     if not exe.exists():
         lib = tc.prefix / "lib"
         tmp = exe.with_suffix(f".{os.getpid()}.tmp")
@@ -175,6 +191,37 @@ def build(robot: str, tc: Toolchain | None = None) -> Path:
                  f"(linking) the {robot} comparison")
         tmp.replace(exe)
     return exe
+
+
+def _numbers(values) -> str:
+    return " ".join(f"{float(v):.17g}" for v in values)
+
+
+def model_text(robot: str) -> str:
+    """The model of ``models/urdf/<robot>.urdf`` as Pinocchio's URDF parser builds it, in the
+    program's model file format (bench/cpp/vs_pinocchio.cpp): per joint its type, axis, parent,
+    placement in the parent joint (rotation row-major, then translation, m) and the link
+    inertia in the joint frame (mass kg, centre of mass m, rotational inertia kg m^2 about
+    it); then the frames link4 and link6 (parent joint, placement). Printed with 17 digits:
+    the program reads back the same doubles."""
+    import pinocchio as pin
+    model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
+    lines = []
+    for j in range(1, model.njoints):
+        joint, y = model.joints[j], model.inertias[j]
+        axis = getattr(joint.extract(), "axis", np.zeros(3))
+        m = model.jointPlacements[j]
+        i = y.inertia
+        lines.append(f"joint {model.names[j]} {joint.shortname()} {_numbers(axis)} {model.parents[j]} "
+                     f"{_numbers(m.rotation.ravel())} {_numbers(m.translation)} {_numbers([y.mass])} "
+                     f"{_numbers(y.lever)} {_numbers([i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])}")
+    for name in ("link4", "link6"):
+        if not model.existFrame(name):
+            raise ToolchainError(f"models/urdf/{robot}.urdf: no frame {name}")
+        f = model.frames[model.getFrameId(name)]
+        lines.append(f"frame {name} {f.parentJoint} {_numbers(f.placement.rotation.ravel())} "
+                     f"{_numbers(f.placement.translation)}")
+    return "\n".join(lines) + "\n"
 
 
 def gravity_coefficients(robot: str) -> np.ndarray:
@@ -203,18 +250,20 @@ class Run:
         return self.ns[(op, "pinocchio")] / self.ns[(op, side)]
 
 
-def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False, tc: Toolchain | None = None) -> Run:
-    """Build (if needed) and run the comparison on configurations ``q`` (N x 6, rad and m)."""
+def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False, tc: Toolchain | None = None,
+        profile: Profile = BENCH) -> Run:
+    """Build (if needed) and run the comparison on configurations ``q`` (N x 6, rad and m);
+    ``profile`` CHECK for agreement only (its timings are not make bench's)."""
     q = np.ascontiguousarray(q, dtype=float)
     if q.ndim != 2 or q.shape[1] != 6 or len(q) == 0:
         raise ValueError(f"bench.cpp_pinocchio.run: q must be N x 6 with N >= 1, got shape {q.shape}")
-    exe = build(robot, tc)
+    exe = build(robot, tc, profile)
     tag = f"{robot}-{os.getpid()}"
-    qf, cf, rf = (BUILD / f"{tag}.{x}.bin" for x in ("q", "c", "res"))
+    qf, cf, rf, mf = (profile.folder / f"{tag}.{x}" for x in ("q.bin", "c.bin", "res.bin", "model.txt"))
     q.tofile(qf)
     gravity_coefficients(robot).tofile(cf)
-    urdf = ROOT / "models" / "urdf" / f"{robot}.urdf"
-    cmd = [str(exe), str(urdf), str(qf), str(cf), str(repeats)] + ([str(rf)] if with_results else [])
+    mf.write_text(model_text(robot))
+    cmd = [str(exe), str(mf), str(qf), str(cf), str(repeats)] + ([str(rf)] if with_results else [])
     try:
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0:
@@ -236,7 +285,7 @@ def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False,
                 at += 2 * k
         return out
     finally:
-        for f in (qf, cf, rf):
+        for f in (qf, cf, rf, mf):
             f.unlink(missing_ok=True)
 
 
@@ -303,10 +352,12 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
          f"{n} random configurations (uniform over the joint ranges) in one process; each figure is the best of "
          f"{reps} rounds, a round running every timed pass over them once, in turn (so that both sides see the "
          "same moments of the machine's load), in nanoseconds per configuration.", "",
-         f"- {tc.describe()}; the wheel ships neither Eigen nor urdfdom-headers, which its headers include.",
+         f"- {tc.describe()}; the wheel does not ship Eigen, which its headers include.",
          f"- Pinocchio: `{' '.join(['g++', *CXX_FLAGS])}` plus the wheel's CMake compile definitions, algorithms "
-         "instantiated from the headers in the program, URDF read by `pinocchio::urdf::buildModel` "
-         f"(libpinocchio_parsers), linked `{' '.join(PIN_LIBS)}` with an rpath to the wheel's lib/. {CXX_NOTE}.",
+         f"instantiated from the headers in the program, linked `{' '.join(PIN_LIBS)}` with an rpath to the wheel's "
+         "lib/; the model is the one Pinocchio's URDF parser builds from `models/urdf/<robot>.urdf` "
+         "(`pinocchio.buildModelFromUrdf`), its joints, link inertias and frames rebuilt in the program with "
+         f"`addJoint`/`appendBodyToJoint`/`addFrame` (bench/cpp_pinocchio.py `model_text`). {CXX_NOTE}.",
          f"- Generated C: `{' '.join(['gcc', *C_FLAGS])}` (setup.py's flags); sines and cosines "
          + ("four at a time with AVX2+FMA (kin_prelude.h), chosen at run time as in the extension."
             if runs[0].vector_trig else "from libm (this CPU lacks AVX2+FMA)."),

@@ -219,13 +219,15 @@ def pose_error(t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, float]:
 def measure_ik(mod, cm, model, data, fid, cas, Q: np.ndarray, big: dict[int, np.ndarray], rng) -> dict:
     out: dict = {}
     T = cm.fk(Q)[0]
-    cfg = np.array(mod.Config(1, 1, 1).signs, dtype=float)
+    signs = np.array(mod.Config().signs, dtype=float)   # every sign +1
+    cfg = signs if len(signs) > 1 else signs[0]        # the kernel's config: signs, or one sign (a scalar)
+    out["n_configs"] = len(mod.Config.all())
     t1 = T[0]
     out["c_ik_call"] = per_call(lambda: cm.ik(t1, cfg))
     out["py_ik_call"] = per_call(lambda: mod._ik_one(t1, cfg))
     out["cas_ik_call"] = per_call(lambda: cas["ik"](t1, cfg))
     out["c_ik_all_call"] = per_call(lambda: cm.ik_all(t1))
-    config = mod.Config(1, 1, 1)  # made once: building a Config (a dataclass) costs more than ik
+    config = mod.Config()  # made once: building a Config (a dataclass) costs more than ik
     out["public_ik_call"] = per_call(lambda: mod.ik(t1, config))
     out["public_ik_all_call"] = per_call(lambda: mod.ik_all(t1))
     q1 = Q[0]
@@ -237,7 +239,7 @@ def measure_ik(mod, cm, model, data, fid, cas, Q: np.ndarray, big: dict[int, np.
     out["public_ik_all_1000"] = once(lambda: mod.ik_all(Tp), repeat=2) / 1000
     for n, Qb in big.items():
         Tb = cm.fk(Qb)[0]
-        cfgs = np.broadcast_to(cfg, (n, len(cfg))).copy()
+        cfgs = np.broadcast_to(cfg, (n,) + np.shape(cfg)).copy()
         out[f"c_ik_{n}"] = once(lambda: cm.ik(Tb, cfgs), repeat=2) / n
         out[f"c_ik_all_{n}"] = once(lambda: cm.ik_all(Tb), repeat=2) / n
         out[f"py_ik_{n}"] = once(lambda: mod._ik_many(Tb, cfgs)) / n
@@ -319,7 +321,7 @@ def ratio(a: float, b: float) -> str:
 FLOOR_GOAL = 2.0
 
 
-def floor_summary(ops: list[Op], sizes: list[int], bw: dict[str, float]) -> list[str]:
+def floor_summary(robot: str, ops: list[Op], sizes: list[int], bw: dict[str, float]) -> list[str]:
     """The batched public call against the memory floor: the worst computation per N, with
     out= and with a fresh result, and the goal (<= FLOOR_GOAL times the floor)."""
     L = []
@@ -331,27 +333,40 @@ def floor_summary(ops: list[Op], sizes: list[int], bw: dict[str, float]) -> list
             worst[key] = (name, rat[name])
         (no, ro), (nf, rf) = worst["out"], worst["pub"]
         verdict = "met" if ro <= FLOOR_GOAL else f"not met: {ro / FLOOR_GOAL:.2f}x over the goal"
-        L.append(f"- N = {n:.0e}: public call with `out=` at most {ro:.2f}x the memory floor ({no}; goal <= "
+        L.append(f"- {robot}, N = {n:.0e}: public call with `out=` at most {ro:.2f}x the memory floor ({no}; goal <= "
                  f"{FLOOR_GOAL:g}x: {verdict}); with a fresh result at most {rf:.2f}x ({nf}"
                  + ("" if rf <= FLOOR_GOAL else f", {rf / FLOOR_GOAL:.2f}x over the goal: the page faults of new memory")
                  + ").")
     return L
 
 
-def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[int], n_pin: dict[int, int],
-                 public: dict, elapsed: float, cpp: list[str] | None = None) -> None:
+@dataclass
+class RobotBench:
+    """The measurements of one robot: per computation (ops), the public calls, inverse kinematics."""
+
+    robot: str
+    ops: list[Op]
+    public: dict[str, tuple[float, float]]   # call -> (seconds, Pinocchio's seconds)
+    ik: dict
+
+
+def write_report(path: Path, benches: list[RobotBench], sizes: list[int], n_pin: dict[int, int],
+                 shared: dict, elapsed: float, cpp: list[str] | None = None) -> None:
+    robots = ", ".join(b.robot for b in benches)
+    bw = shared["_bandwidth"]
     L = ["# Kinematics benchmark: generated C, generated Python, CasADi, Pinocchio", "",
-         f"Command: `{COMMAND}` (bench/run.py); robot: {robot}; measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
-         f"in one run of {elapsed:.0f} s; load average (1 min) {public['_load'][0]:.2f} at the start, "
-         f"{public['_load'][1]:.2f} at the end (2 cores: figures are trustworthy when it stays below 1).", ""]
+         f"Command: `{COMMAND}` (bench/run.py); robots: {robots}; measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
+         f"in one run of {elapsed:.0f} s; load average (1 min) {shared['_load'][0]:.2f} at the start, "
+         f"{shared['_load'][1]:.2f} at the end (2 cores: figures are trustworthy when it stays below 1).", ""]
     L += machine()
     L += ["", "Summary of the goals of issue 16 (details in the sections below):", ""]
-    if "_cpp" in public:
-        runs = public["_cpp"]
+    if "_cpp" in shared:
+        runs = shared["_cpp"]
         L += [f"- generated C vs Pinocchio's C++, one thread, one configuration per call / batched (goal >= "
               f"{cpp_pinocchio.GOAL:g}x for FK and the Jacobian): "
               + "; ".join(cpp_pinocchio.summary(r) for r in runs) + "."]
-    L += floor_summary(ops, sizes, public["_bandwidth"])
+    for b in benches:
+        L += floor_summary(b.robot, b.ops, sizes, bw)
     L += ["",
           "Ratios are Pinocchio's time over the back end's (bigger is faster). `C` is the compiled",
           "kernel called directly (`rccl.kinematics._c.<robot>.<kernel>`, which checks shapes and NaN",
@@ -360,48 +375,53 @@ def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[in
           "Pinocchio the equivalent call on `models/urdf/<robot>.urdf`: FK = forwardKinematics +",
           "updateFramePlacement; Jacobian = computeFrameJacobian(LOCAL); the four Jacobian",
           "computations = that Jacobian times, transposed times, or solved against the vector;",
-          "gravity = computeGeneralizedGravity.",
-          "",
-          "## One call from Python (latency, microseconds)", "",
-          "| computation | C | Python | CasADi | Pinocchio | C vs Pinocchio | target >= 3x |",
-          "|---|---:|---:|---:|---:|---:|---|"]
-    for op in ops:
-        r = op.results
-        sp_ = r["pin_call"] / r["c_call"]
-        L.append(f"| {op.name} | {us(r['c_call'])} | {us(r['py_call'])} | {us(r['cas_call'])} | {us(r['pin_call'])} | "
-                 f"{sp_:.3g}x | {'reached' if sp_ >= 3 else f'missed ({sp_:.2g}x)'} |")
-    L += ["", "Through the public API (`rccl.kinematics.<robot>.fk(q)` etc.): float64 numpy arrays (one",
+          "gravity = computeGeneralizedGravity.", "",
+          "Through the public API (`rccl.kinematics.<robot>.fk(q)` etc.): float64 numpy arrays (one",
           "configuration or a batch), gravity coefficients as an array or a mapping of floats or of",
           "`Value` records, poses and Configs for `ik`/`ik_all`/`config_of` take the C fast entry",
           "(shape, NaN, pose, guard and result checks in C); anything else (lists, other dtypes,",
           "failing checks) goes through the Python checks of `rccl/kinematics/runtime.py`, which",
           "build the error messages. Frame 6 for the Jacobian computations.", "",
-          "| call | microseconds | Pinocchio | vs Pinocchio | target >= 3x |", "|---|---:|---:|---:|---|"]
-    for name, val in public.items():
-        if name.startswith("_"):  # not a row: bandwidth, threads, load
-            continue
-        t, tp = val
-        sp_ = tp / t
-        L.append(f"| {name} | {us(t)} | {us(tp)} | {ratio(tp, t)} | {'reached' if sp_ >= 3 else f'missed ({sp_:.2g}x)'} |")
-    bw = public["_bandwidth"]
-    L += ["", "## Batched throughput", "",
-          f"Memory bandwidth of this machine, measured in this run (400 MB arrays, best of 3): copy "
+          f"Batched throughput: memory bandwidth of this machine, measured in this run (400 MB arrays, best of 3): copy "
           f"{bw['copy'] / 1e9:.1f} GB/s (read + written), writes to warm memory {bw['write'] / 1e9:.1f} GB/s, "
           f"writes to freshly allocated memory {bw['first_touch'] / 1e9:.2f} GB/s (first touch: the page faults "
           "of new memory; measured at the end of the run, on pages the VM has backed before; memory the VM has not "
           "touched yet is far slower, so the first large results of a run, e.g. the first `C kernel` row, can cost "
           "several times more than the kernel). The memory floor of a row is its bytes (inputs read + result written) at the copy "
-          f"bandwidth. Threads: large batches are split over {public['_threads']} thread(s) "
+          f"bandwidth. Threads: large batches are split over {shared['_threads']} thread(s) "
           "(`RCCL_KINEMATICS_THREADS`, default the online CPUs).", "",
           "Columns: `C kernel` the bare kernel (`_c.<robot>.<kernel>`, fresh results); `public` the public call "
           "(`rccl.kinematics.<robot>.fk(Q)` etc., checks of inputs, guards and results in C) with a fresh result, "
           "and with `out=` a preallocated one; each the best of 3 calls. The target is judged on the public call "
           "with `out=`: it is the steady state of a program that computes batches repeatedly (the result buffer "
           "is reused), while the fresh figure also measures how fast this VM maps new pages, which no kernel "
-          "can change; its ratio is given beside it.",
-          ]
+          "can change; its ratio is given beside it.", ""]
+    for b in benches:
+        L += robot_section(b, sizes, n_pin, bw)
+    L += cpp or []
+    path.write_text("\n".join(L) + "\n")
+
+
+def robot_section(b: RobotBench, sizes: list[int], n_pin: dict[int, int], bw: dict[str, float]) -> list[str]:
+    """One robot's tables: single calls, public calls, batched throughput, inverse kinematics."""
+    ops, ik = b.ops, b.ik
+    L = [f"## {b.robot}", "",
+         f"### {b.robot}: one call from Python (latency, microseconds)", "",
+         "| computation | C | Python | CasADi | Pinocchio | C vs Pinocchio | target >= 3x |",
+         "|---|---:|---:|---:|---:|---:|---|"]
+    for op in ops:
+        r = op.results
+        sp_ = r["pin_call"] / r["c_call"]
+        L.append(f"| {op.name} | {us(r['c_call'])} | {us(r['py_call'])} | {us(r['cas_call'])} | {us(r['pin_call'])} | "
+                 f"{sp_:.3g}x | {'reached' if sp_ >= 3 else f'missed ({sp_:.2g}x)'} |")
+    L += ["", f"### {b.robot}: through the public API (microseconds)", "",
+          "| call | microseconds | Pinocchio | vs Pinocchio | target >= 3x |", "|---|---:|---:|---:|---|"]
+    for name, val in b.public.items():
+        t, tp = val
+        sp_ = tp / t
+        L.append(f"| {name} | {us(t)} | {us(tp)} | {ratio(tp, t)} | {'reached' if sp_ >= 3 else f'missed ({sp_:.2g}x)'} |")
     for n in sizes:
-        L += ["", f"### N = {n:.0e} (nanoseconds per configuration)", "",
+        L += ["", f"### {b.robot}: batched, N = {n:.0e} (nanoseconds per configuration)", "",
               f"Pinocchio: a Python loop over {n_pin[n]:.0e} configurations.", "",
               "| computation | C kernel | public | public, out= | memory floor | Python (numpy) | CasADi map | "
               "Pinocchio loop | out= vs Pinocchio | fresh vs Pinocchio | target >= 50x (out=) |",
@@ -413,19 +433,19 @@ def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[in
             L.append(f"| {op.name} | {ns(r[f'c_{n}'])} | {ns(r[f'pub_{n}'])} | {ns(r[f'out_{n}'])} | {ns(floor)} | "
                      f"{ns(r[f'py_{n}'])} | {ns(r[f'cas_{n}'])} | {ns(r[f'pin_{n}'])} | {sp_:.3g}x | "
                      f"{r[f'pin_{n}'] / r[f'pub_{n}']:.3g}x | {'reached' if sp_ >= 50 else f'missed ({sp_:.3g}x)'} |")
-    L += ["", "## Inverse kinematics", "",
-          "Closed form (thesis 3.19-3.53), one configuration (`ik`) and all eight (`ik_all`, one",
+    L += ["", f"### {b.robot}: inverse kinematics", "",
+          f"Closed form (thesis 3.19-3.53), one configuration (`ik`) and all {ik['n_configs']} (`ik_all`, one",
           "kernel with subexpressions shared between configurations):", "",
           "| | C | Python | CasADi |", "|---|---:|---:|---:|",
           f"| one call, one configuration (us) | {us(ik['c_ik_call'])} | {us(ik['py_ik_call'])} | {us(ik['cas_ik_call'])} |",
-          f"| one call, all 8 configurations (us) | {us(ik['c_ik_all_call'])} | | |",
+          f"| one call, all {ik['n_configs']} configurations (us) | {us(ik['c_ik_all_call'])} | | |",
           f"| public `ik(T, config)` / `ik_all(T)` (us) | {us(ik['public_ik_call'])} / {us(ik['public_ik_all_call'])} | | |",
           f"| public `ik(T, config, q_ref=q)` / `config_of(q)` (us) | {us(ik['public_ik_ref_call'])} / {us(ik['public_config_of_call'])} | | |",
           f"| public `ik_all(T)` on a batch of 1000 poses (us per pose; checks, deduplication and the lists built in C) | {us(ik['public_ik_all_1000'])} | | |"]
     for n in sizes:
         t8 = ik[f"c_ik_all_{n}"]
         L.append(f"| batched N = {n:.0e}: one configuration (ns/pose) | {ns(ik[f'c_ik_{n}'])} | {ns(ik[f'py_ik_{n}'])} | |")
-        L.append(f"| batched N = {n:.0e}: all 8 configurations (ns/pose; target <= 1000) | {ns(t8)} "
+        L.append(f"| batched N = {n:.0e}: all {ik['n_configs']} configurations (ns/pose; target <= 1000) | {ns(t8)} "
                  f"({'reached' if t8 <= 1e-6 else f'missed by {t8 / 1e-6:.2f}x'}) | | |")
     L += ["",
           f"Accuracy of the closed form: over 2000 random poses, {ik['c_ik_all_valid']:.2f} valid solutions per pose on "
@@ -440,39 +460,26 @@ def write_report(path: Path, robot: str, ops: list[Op], ik: dict, sizes: list[in
           f"| DLS on Pinocchio | {us(ik['dls_time'])} | {ik['dls_ok'] * 100:.0f}% | {ik['dls_iters']:.1f} | "
           f"{ik['dls_pos']:.1e} | {ik['dls_rot']:.1e} |",
           f"| closed form, C kernel, one configuration (time of the bare kernel call) | {us(ik['c_ik_call'])} | 100% | - | {ik['cf_pos']:.1e} | {ik['cf_rot']:.1e} |",
-          f"| closed form, C kernel, all 8 (batched) | {us(ik[f'c_ik_all_{sizes[0]}'])} | | | | |",
+          f"| closed form, C kernel, all {ik['n_configs']} (batched) | {us(ik[f'c_ik_all_{sizes[0]}'])} | | | | |",
           ""]
-    L += cpp or []
-    path.write_text("\n".join(L) + "\n")
+    return L
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robot", default="puma260")
-    ap.add_argument("--sizes", default="100000,1000000")
-    ap.add_argument("--out", default=str(ROOT / "reports" / "bench.md"))
-    ap.add_argument("--no-cpp", action="store_true",
-                    help="leave out the C++ comparison with Pinocchio (bench/cpp_pinocchio.py)")
-    args = ap.parse_args(argv)
-    t_start = time.perf_counter()
-    load_start = os.getloadavg()[0]
-    rng = np.random.default_rng(7)
-    sizes = [int(s) for s in args.sizes.split(",")]
-    ops, (mod, cm, model, data, fid, cas) = build_ops(args.robot, rng)
+def measure_robot(robot: str, sizes: list[int], n_pin: dict[int, int], rng: np.random.Generator) -> RobotBench:
+    """Every table's measurements for one robot."""
+    ops, (mod, cm, model, data, fid, cas) = build_ops(robot, rng)
     big = {n: random_q(mod, n, rng) for n in sizes}
-    # the Pinocchio loop runs the full N (the brief asks for it); it dominates the run time
-    n_pin = {n: n for n in sizes}
     Q1 = random_q(mod, 10, rng)
-    for op in progress(ops, "kinematics"):
+    for op in progress(ops, f"kinematics {robot}"):
         t0 = time.perf_counter()
         measure_op(op, Q1, big, n_pin)
-        print(f"bench: {op.name}: {time.perf_counter() - t0:.1f} s", flush=True)
+        print(f"bench: {robot}: {op.name}: {time.perf_counter() - t0:.1f} s", flush=True)
     q = Q1[0]
     pin = {op.name: op.results["pin_call"] for op in ops}
     c_vec = np.array([0.5] * len(mod.GRAVITY_COEFFS))
     c_map = dict(zip(mod.GRAVITY_COEFFS, c_vec))
     from models import load_robot
-    model_coeffs = load_robot(args.robot).gravity_coeffs  # what rccl.adaptive passes
+    model_coeffs = load_robot(robot).gravity_coeffs  # what rccl.adaptive passes
     v = np.linspace(0.1, 0.6, 6)
     public = {
         "fk(q)": (per_call(lambda: mod.fk(q)), pin["fk"]),
@@ -486,18 +493,39 @@ def main(argv: list[str] | None = None) -> int:
         "gravity(q, model.gravity_coeffs), the loaded model's mapping of Values": (
             per_call(lambda: mod.gravity(q, model_coeffs)), pin["gravity"]),
     }
-    public["_bandwidth"] = bandwidth()
-    public["_threads"] = cm.threads()
     ik = measure_ik(mod, cm, model, data, fid, cas, random_q(mod, 5000, rng), big, rng)
-    print(f"bench: ik: done", flush=True)
+    print(f"bench: {robot}: ik: done", flush=True)
+    return RobotBench(robot, ops, public, ik)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", action="append",
+                    help="a robot to measure (repeatable); default every robot with compiled C kernels")
+    ap.add_argument("--sizes", default="100000,1000000")
+    ap.add_argument("--out", default=str(ROOT / "reports" / "bench.md"))
+    ap.add_argument("--no-cpp", action="store_true",
+                    help="leave out the C++ comparison with Pinocchio (bench/cpp_pinocchio.py)")
+    args = ap.parse_args(argv)
+    robots = args.robot or cpp_pinocchio.robots()
+    if not robots:
+        raise SystemExit("bench: no robot has compiled C kernels; run `pip install -e .` first")
+    t_start = time.perf_counter()
+    load_start = os.getloadavg()[0]
+    rng = np.random.default_rng(7)
+    sizes = [int(s) for s in args.sizes.split(",")]
+    # the Pinocchio loop runs the full N (the brief asks for it); it dominates the run time
+    n_pin = {n: n for n in sizes}
+    benches = [measure_robot(robot, sizes, n_pin, rng) for robot in robots]
+    shared: dict = {"_bandwidth": bandwidth(), "_threads": backend.c_module(robots[0]).threads()}
     cpp: list[str] = []
     if not args.no_cpp:
         # every robot with compiled kernels, not only --robot: a C++ program per robot, a few seconds each
         runs, tc = cpp_pinocchio.measure()
-        public["_cpp"] = runs
+        shared["_cpp"] = runs
         cpp = cpp_pinocchio.section(runs, tc)
-    public["_load"] = (load_start, os.getloadavg()[0])
-    write_report(Path(args.out), args.robot, ops, ik, sizes, n_pin, public, time.perf_counter() - t_start, cpp)
+    shared["_load"] = (load_start, os.getloadavg()[0])
+    write_report(Path(args.out), benches, sizes, n_pin, shared, time.perf_counter() - t_start, cpp)
     print(f"bench: wrote {args.out} in {time.perf_counter() - t_start:.0f} s")
     return 0
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 import json
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import sympy as sp
@@ -253,10 +253,24 @@ def _c_string(s: str) -> str:
 TRIG_BLOCK = 64
 
 
-def _vector_trig(prog: LoweredKernel) -> tuple[list[str], list[tuple[str, str, int]], str, int] | None:
-    """The kernel split for batches: (argument statements, [(local, sin|cos, argument index)],
-    row body reading the trig values from ``tv[t * ts]``, number of arguments); None when a sine or cosine takes
-    an argument that is not a sum of inputs (then the plain row loop is used)."""
+@dataclass(frozen=True)
+class TrigSplit:
+    """A kernel split for vector sines and cosines: its trig arguments, then the row."""
+
+    locals: list[str]                    # C statements of the arguments' helper sums (const double x_i = ...)
+    args: list[str]                      # C expressions of the distinct arguments, in lane order
+    table: list[tuple[str, str, int]]    # (row local, sin | cos, argument index), in tv order
+    row: str                             # the row body, reading its trig values from tv[t * ts]
+
+    @property
+    def stmts(self) -> list[str]:
+        """The block loop's statements for row r: helper sums, then ta[i][r] = argument i."""
+        return self.locals + [f"ta[{i}][r] = {a};" for i, a in enumerate(self.args)]
+
+
+def _vector_trig(prog: LoweredKernel) -> TrigSplit | None:
+    """The kernel split for vector sines and cosines; None when a sine or cosine takes an
+    argument that is not a sum of inputs (then the plain row loop is used)."""
     trig_funcs = [(sym, f) for sym, f in prog.trig if isinstance(f, (sp.sin, sp.cos))]
     if not trig_funcs:
         return None
@@ -280,7 +294,6 @@ def _vector_trig(prog: LoweredKernel) -> tuple[list[str], list[tuple[str, str, i
             arg_index[text] = len(args)
             args.append(text)
         table.append((sym.name, "sin" if isinstance(f, sp.sin) else "cos", arg_index[text]))
-    stmts += [f"ta[{i}][r] = {a};" for i, a in enumerate(args)]
     lines = kernel_body(prog).splitlines()
     local = {name: t for t, (name, _, _) in enumerate(table)}
     row = []
@@ -290,7 +303,7 @@ def _vector_trig(prog: LoweredKernel) -> tuple[list[str], list[tuple[str, str, i
             row.append(f"    const double {head} = tv[{local[head]} * ts];")
         else:
             row.append(line)
-    return stmts, table, "\n".join(row), len(args)
+    return TrigSplit(stmts, args, table, "\n".join(row))
 
 
 def _slot(slot: dict[tuple[int, str], int], arg: int, fn: str) -> str:
@@ -299,9 +312,42 @@ def _slot(slot: dict[tuple[int, str], int], arg: int, fn: str) -> str:
     return "NULL" if t is None else f"tv[{t}]"
 
 
-def _batch_vector(prog: LoweredKernel, split) -> str:
+#: lanes of a vector of the sine/cosine code (kin_prelude.h: AVX2, 4 doubles)
+LANES = 4
+
+
+def _one_row_trig(prog: LoweredKernel, split: TrigSplit) -> str:
+    """The single-row path's sines and cosines: the row's arguments straight into vector
+    registers, all of them in one stretch of AVX2 code (kin_prelude.h vtrig_row), into the
+    row's ``tv``. Only the sines and cosines: the row itself stays in the caller, compiled as
+    the block path's rows are (the same code gives the same bits; GCC's SLP vectorizer with
+    AVX2 rounds some rows differently)."""
     k = prog.kernel
-    stmts, table, row, nargs = split
+    nin = len(prog.in_names)
+    params = [f"const double *restrict in{i}" for i in range(nin)] + ["double *restrict tv"]
+    nv = -(-len(split.args) // LANES)
+    lanes = split.args + ["0.0"] * (nv * LANES - len(split.args))
+    vectors = ", ".join(f"_mm256_setr_pd({', '.join(lanes[v * LANES:(v + 1) * LANES])})" for v in range(nv))
+    fill = " ".join(f"tv[{t}] = {'sv' if fn == 'sin' else 'cv'}[{a}];" for t, (_, fn, a) in enumerate(split.table))
+    locals_ = "".join(f"\n    {st}" for st in split.locals)
+    return f"""
+/* {k.name} for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_{k.name}({", ".join(params)})
+{{{locals_}
+    const __m256d x[{nv}] = {{{vectors}}};
+    double sv[{nv * LANES}], cv[{nv * LANES}];
+    if (!vtrig_row(x, sv, cv, {nv})) return 0;
+    {fill}
+    return 1;
+}}
+"""
+
+
+def _batch_vector(prog: LoweredKernel, split: TrigSplit) -> str:
+    k = prog.kernel
+    table = split.table
     nin, nout = len(prog.in_names), len(prog.out_names)
     params = ["const double *restrict tv", "Py_ssize_t ts"]
     params += [f"const double *restrict in{i}" for i in range(nin)]
@@ -311,35 +357,31 @@ def _batch_vector(prog: LoweredKernel, split) -> str:
                      + [f"outb{i} + (r0 + r) * os[{i}]" for i in range(nout)])
     # one reduction per argument gives its sine and cosine together (kin_prelude.h)
     slot = {(a, fn): t for t, (_, fn, a) in enumerate(table)}
+    nargs = len(split.args)
     trig = "\n".join(
         f"        vtrig_sincos(ta[{a}], {_slot(slot, a, 'sin')}, {_slot(slot, a, 'cos')}, m);"
         for a in range(nargs))
-    one_trig = f"vtrig_sincos(a, sv, cv, {nargs});"
-    one_call = ", ".join(["tv", "1"] + [f"in{i}" for i in range(nin)] + [f"(double *)out[{i}]" for i in range(nout)])
+    one_ins = [f"(const double *)in[{i}]" for i in range(nin)]
+    one_call = ", ".join(["t1", "1"] + one_ins + [f"(double *)out[{i}]" for i in range(nout)])
     return f"""
 #ifdef RCCL_VECTOR_TRIG
 /* {k.name} for batches: the row above with its sines and cosines precomputed */
 static inline void kv_{k.name}({", ".join(params)})
 {{
-{row}
+{split.row}
 }}
-
+{_one_row_trig(prog, split)}
 /* blocks of {TRIG_BLOCK} rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {{
     if (!have_vector_trig) return 0;
-    if (n == 1) {{  /* one row: its sines (and cosines) side by side in the vector lanes */
-        {'; '.join(f'const double *restrict in{i} = (const double *)in[{i}]' for i in range(nin))};
-        double ta[{nargs}][1], sv[{nargs}], cv[{nargs}], tv[{len(table)}];
-        const int r = 0;
-        {" ".join(stmts)}
-        double a[{nargs}];
-        for (int i = 0; i < {nargs}; ++i) a[i] = ta[i][0];
-        {one_trig}
-        {" ".join(f"tv[{t}] = {'sv' if fn == 'sin' else 'cv'}[{a}];" for t, (_, fn, a) in enumerate(table))}
-        kv_{k.name}({one_call});
-        return 1;
+    if (n == 1) {{  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[{len(table)}];
+        if (kv1_{k.name}({", ".join(one_ins + ["t1"])})) {{
+            kv_{k.name}({one_call});
+            return 1;
+        }}
     }}
     {'; '.join(f'const double *inb{i} = (const double *)in[{i}]' for i in range(nin))};
     {'; '.join(f'double *outb{i} = out[{i}]' for i in range(nout))};
@@ -348,7 +390,7 @@ static int batch_vector_{k.name}(Py_ssize_t n, const double *const *in, const Py
         const int m = n - r0 < {TRIG_BLOCK} ? (int)(n - r0) : {TRIG_BLOCK};
         for (int r = 0; r < m; ++r) {{
             {ins};
-            {" ".join(stmts)}
+            {" ".join(split.stmts)}
         }}
 {trig}
         for (int r = 0; r < m; ++r)

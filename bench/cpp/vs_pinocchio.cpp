@@ -1,9 +1,13 @@
 // The generated C kernels of one robot against Pinocchio's C++ on the same configurations,
 // in one process, one thread (bench/cpp_pinocchio.py builds and runs it; see there).
 //
-//   vs_pinocchio URDF Q.bin C.bin REPEATS [RESULTS.bin]
+//   vs_pinocchio MODEL Q.bin C.bin REPEATS [RESULTS.bin]
 //
-// URDF     the robot's URDF (models/urdf/<robot>.urdf), read by pinocchio::urdf::buildModel
+// MODEL    the robot's Pinocchio model as Pinocchio's URDF parser built it from
+//          models/urdf/<robot>.urdf (bench/cpp_pinocchio.py model_text): one line per joint
+//          `joint NAME TYPE AX AY AZ PARENT R(9, row-major) P(3) MASS LEVER(3) I(xx xy yy xz yz zz)`
+//          and per frame `frame NAME PARENT_JOINT R(9) P(3)`, rebuilt here with addJoint,
+//          appendBodyToJoint and addFrame (the parser's own header costs most of a compile)
 // Q.bin    N configurations, N x 6 doubles (rad, m), row-major, native byte order
 // C.bin    the gravity coefficients of the generated gravity kernel (doubles)
 // REPEATS  rounds: each timing is the best of its passes over the N configurations, one per
@@ -24,7 +28,6 @@
 #include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
-#include <pinocchio/parsers/urdf.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -33,6 +36,7 @@
 #include <functional>
 #include <iostream>
 #include <limits>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -43,6 +47,15 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using RowMajor6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
 using RowMajor4 = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
+#ifdef PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION
+// The agreement-only build (bench/cpp_pinocchio.py CHECK): the algorithms the wheel's
+// libraries instantiate take an Eigen::VectorXd; a copy of each configuration into one
+// lets this program use them instead of compiling its own (most of the compile time).
+using QArg = Eigen::VectorXd;
+#else
+// The timed build: the configuration read in place, the algorithms compiled here at -O3.
+using QArg = Eigen::Map<const Eigen::Matrix<double, 6, 1>>;
+#endif
 
 std::vector<double> read_doubles(const std::string &path)
 {
@@ -54,6 +67,66 @@ std::vector<double> read_doubles(const std::string &path)
     in.seekg(0);
     in.read(reinterpret_cast<char *>(v.data()), bytes);
     return v;
+}
+
+pinocchio::SE3 read_se3(std::istream &in)
+{
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> r;
+    Eigen::Vector3d p;
+    for (int i = 0; i < 9; ++i) in >> r.data()[i];
+    for (int i = 0; i < 3; ++i) in >> p[i];
+    return pinocchio::SE3(Eigen::Matrix3d(r), p);
+}
+
+// The joint model of a parsed model's joint: its type (Pinocchio's shortname) and axis.
+pinocchio::JointModel joint_model(const std::string &type, const Eigen::Vector3d &axis)
+{
+    if (type == "JointModelRX") return pinocchio::JointModelRX();
+    if (type == "JointModelRY") return pinocchio::JointModelRY();
+    if (type == "JointModelRZ") return pinocchio::JointModelRZ();
+    if (type == "JointModelRevoluteUnaligned") return pinocchio::JointModelRevoluteUnaligned(axis);
+    if (type == "JointModelPX") return pinocchio::JointModelPX();
+    if (type == "JointModelPY") return pinocchio::JointModelPY();
+    if (type == "JointModelPZ") return pinocchio::JointModelPZ();
+    if (type == "JointModelPrismaticUnaligned") return pinocchio::JointModelPrismaticUnaligned(axis);
+    throw std::runtime_error("joint type " + type + " is not one this program rebuilds");
+}
+
+// The model file of bench/cpp_pinocchio.py (see the top of this file) into `model`.
+void read_model(const std::string &path, pinocchio::Model &model)
+{
+    std::ifstream file(path);
+    if (!file) throw std::runtime_error("cannot read " + path);
+    std::string line;
+    int lineno = 0;
+    while (std::getline(file, line)) {
+        ++lineno;
+        std::istringstream in(line);
+        std::string kind, name;
+        in >> kind >> name;
+        if (kind == "joint") {
+            std::string type;
+            Eigen::Vector3d axis, lever;
+            pinocchio::JointIndex parent;
+            in >> type >> axis[0] >> axis[1] >> axis[2] >> parent;
+            const pinocchio::SE3 placement = read_se3(in);
+            double mass, i[6];
+            in >> mass >> lever[0] >> lever[1] >> lever[2];
+            for (double &x : i) in >> x;
+            if (!in) throw std::runtime_error(path + ":" + std::to_string(lineno) + ": not a joint line");
+            const pinocchio::JointIndex j = model.addJoint(parent, joint_model(type, axis), placement, name);
+            model.appendBodyToJoint(j, pinocchio::Inertia(mass, lever, pinocchio::Symmetric3(i[0], i[1], i[2], i[3], i[4], i[5])),
+                                    pinocchio::SE3::Identity());
+        } else if (kind == "frame") {
+            pinocchio::JointIndex parent;
+            in >> parent;
+            const pinocchio::SE3 placement = read_se3(in);
+            if (!in) throw std::runtime_error(path + ":" + std::to_string(lineno) + ": not a frame line");
+            model.addFrame(pinocchio::Frame(name, parent, placement, pinocchio::BODY));
+        } else if (!kind.empty()) {
+            throw std::runtime_error(path + ":" + std::to_string(lineno) + ": unknown line kind " + kind);
+        }
+    }
 }
 
 // One timed pass over all N configurations: what is computed and by whom.
@@ -95,12 +168,12 @@ RowMajor6 jacobian4_from(const pinocchio::Data &data, pinocchio::FrameIndex f4, 
 int main(int argc, char **argv)
 {
     if (argc < 5 || argc > 6) {
-        std::fprintf(stderr, "usage: %s URDF Q.bin C.bin REPEATS [RESULTS.bin]\n", argv[0]);
+        std::fprintf(stderr, "usage: %s MODEL Q.bin C.bin REPEATS [RESULTS.bin]\n", argv[0]);
         return 2;
     }
     try {
         pinocchio::Model model;
-        pinocchio::urdf::buildModel(argv[1], model);
+        read_model(argv[1], model);
         pinocchio::Data data(model);
         if (model.nq != 6 || model.nv != 6)
             throw std::runtime_error(std::string(argv[1]) + ": expected 6 joint variables, Pinocchio finds nq = "
@@ -117,7 +190,7 @@ int main(int argc, char **argv)
                                      + rccl_robot() + " gravity kernel takes " + std::to_string(rccl_gravity_ncoeffs()));
         if (repeats < 1) throw std::runtime_error("REPEATS must be >= 1");
         const long n = long(q.size() / 6);
-        auto qi = [&](long i) { return Eigen::Map<const Eigen::Matrix<double, 6, 1>>(q.data() + 6 * i); };
+        auto qi = [&](long i) { return QArg(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(q.data() + 6 * i)); };
 
         const int vector_trig = rccl_vector_trig(1);
         std::printf("vector_trig - %d\n", vector_trig);

@@ -16,6 +16,16 @@
 #include <numpy/arrayobject.h>
 #endif
 
+/* No fused multiply-adds but those written as intrinsics, whatever the flags (e.g. a
+ * build with -march=native): a row must round alike on every path (one configuration,
+ * a block of a batch, no AVX2), so that one configuration and the same one in a batch
+ * give the same bits. */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+#pragma GCC optimize("fp-contract=off")
+#endif
+
 #if defined(__x86_64__) && defined(__GNUC__)
 /* Sine and cosine of 4 doubles at once with AVX2 and FMA, for the batched rows (and a
  * single row's angles side by side), when the CPU has both (checked at import); else
@@ -75,38 +85,31 @@ static void vtrig_big_lanes(const double *x, double *st, double *ct, int n)
         if (fabs(x[j]) > VTRIG_BIG) { st[j] = sin(x[j]); ct[j] = cos(x[j]); }
 }
 
-/* 4 < m <= 8 sines and cosines (one row's angles): both vectors in one stretch of
- * straight code, so that the CPU overlaps their dependency chains, and no copies of the
- * first four lanes. 0 (nothing written) when a lane is beyond VTRIG_BIG. */
-__attribute__((target("avx2,fma"))) static inline int vtrig_sincos_few(const double *x, double *s, double *c, int m)
+/* One row's sines and cosines: its nv vectors of arguments x (unused lanes 0) into
+ * s[0, 4 nv) and c[0, 4 nv), all vectors in one stretch of straight code (inlined into the
+ * generated kv1_<kernel>, whose arguments go from the inputs straight into the lanes, with
+ * no trip through memory), so that the CPU overlaps their dependency chains. 0 when a lane
+ * is beyond VTRIG_BIG: then the caller takes the block path (vtrig_sincos), which sends
+ * such lanes to libm. */
+#define VTRIG_TARGET __attribute__((target("avx2,fma")))
+VTRIG_TARGET __attribute__((always_inline)) static inline int vtrig_row(const __m256d *x, double *s, double *c, int nv)
 {
     const __m256d big = _mm256_set1_pd(VTRIG_BIG);
     const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
-    double xt[4] = {0, 0, 0, 0}, st[4], ct[4];
-    for (int j = 4; j < m; ++j) xt[j - 4] = x[j];
-    const __m256d v0 = _mm256_loadu_pd(x), v1 = _mm256_loadu_pd(xt);
-    __m256d s0, c0, s1, c1;
-    sincos4(v0, &s0, &c0);
-    sincos4(v1, &s1, &c1);
-    if (_mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v0, abs_mask), big, _CMP_GT_OQ))
-        | _mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(v1, abs_mask), big, _CMP_GT_OQ)))
-        return 0;
-    _mm256_storeu_pd(st, s1);
-    _mm256_storeu_pd(ct, c1);
-    if (s) _mm256_storeu_pd(s, s0);
-    if (c) _mm256_storeu_pd(c, c0);
-    for (int j = 4; j < m; ++j) {
-        if (s) s[j] = st[j - 4];
-        if (c) c[j] = ct[j - 4];
+    __m256d far = _mm256_setzero_pd();
+    for (int v = 0; v < nv; ++v) {
+        __m256d sv, cv;
+        sincos4(x[v], &sv, &cv);
+        _mm256_storeu_pd(s + 4 * v, sv);
+        _mm256_storeu_pd(c + 4 * v, cv);
+        far = _mm256_or_pd(far, _mm256_cmp_pd(_mm256_and_pd(x[v], abs_mask), big, _CMP_GT_OQ));
     }
-    return 1;
+    return !_mm256_movemask_pd(far);
 }
 
 /* m sines and cosines of x (s or c may be NULL: not wanted) */
 __attribute__((target("avx2,fma"))) static void vtrig_sincos(const double *x, double *s, double *c, int m)
 {
-    if (m > 4 && m <= 8 && vtrig_sincos_few(x, s, c, m))
-        return;
     const __m256d big = _mm256_set1_pd(VTRIG_BIG);
     const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
     double st[4], ct[4];

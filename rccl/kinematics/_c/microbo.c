@@ -88,22 +88,29 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
 }
 
+/* fk for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[0], in0[3], in0[4], in0[5])};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[4][1], sv[4], cv[4], tv[8];
-        const int r = 0;
-        ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5];
-        double a[4];
-        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 4);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
-        kv_fk(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[8];
+        if (kv1_fk((const double *)in[0], t1)) {
+            kv_fk(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -206,22 +213,29 @@ static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const d
     out0[1] = atan2((t1*(c_3*t2 + s_2*in0[9]) - t0*(c_1*in0[1] + s_0*in0[5]))/sqrt(t0*t0 + t1*t1), s_2*t2 - c_3*in0[9]);
 }
 
+/* ik_wrist for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_ik_wrist(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in1[0], in1[3], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in1[0]; ta[1][r] = in1[3];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_ik_wrist(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_ik_wrist((const double *)in[0], (const double *)in[1], t1)) {
+            kv_ik_wrist(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -270,22 +284,29 @@ static inline void kv_config_indicators(const double *restrict tv, Py_ssize_t ts
     out0[0] = s_0;
 }
 
+/* config_indicators for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[4], 0.0, 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[1][1], sv[1], cv[1], tv[1];
-        const int r = 0;
-        ta[0][r] = in0[4];
-        double a[1];
-        for (int i = 0; i < 1; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 1);
-        tv[0] = sv[0];
-        kv_config_indicators(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[1];
+        if (kv1_config_indicators((const double *)in[0], t1)) {
+            kv_config_indicators(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -411,22 +432,29 @@ static inline void kv_jacobian4(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 0.0;
 }
 
+/* jacobian4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_jacobian4(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_jacobian4((const double *)in[0], t1)) {
+            kv_jacobian4(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -573,22 +601,29 @@ static inline void kv_jacobian6(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 1.0;
 }
 
+/* jacobian6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], in0[5], 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_jacobian6(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_jacobian6((const double *)in[0], t1)) {
+            kv_jacobian6(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -656,22 +691,29 @@ static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_
     out0[5] = in1[4] - t0;
 }
 
+/* cartesian_from_joint4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_cartesian_from_joint4(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_cartesian_from_joint4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_cartesian_from_joint4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -736,22 +778,29 @@ static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t t
     out0[5] = s_2*in1[3] - c_3*in1[4];
 }
 
+/* torque_from_force4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_torque_from_force4(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_torque_from_force4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_torque_from_force4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -840,22 +889,29 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
     out2[0] = fabs(s_2) - 1e-09;
 }
 
+/* joint_from_cartesian4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_joint_from_cartesian4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_joint_from_cartesian4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
@@ -938,22 +994,29 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     out2[0] = fabs(s_2) - 1e-09;
 }
 
+/* force_from_torque4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_force_from_torque4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_force_from_torque4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
@@ -1044,22 +1107,29 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     out0[5] = s_2*z6 - c_3*z7;
 }
 
+/* cartesian_from_joint6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], in0[5], 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_cartesian_from_joint6(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_cartesian_from_joint6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_cartesian_from_joint6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1139,22 +1209,29 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     out0[5] = in1[5]*(c_3*c_3 + s_2*s_2);
 }
 
+/* torque_from_force6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], in0[5], 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_torque_from_force6(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_torque_from_force6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_torque_from_force6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1264,22 +1341,29 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     out2[0] = fabs(s_2) - 1e-09;
 }
 
+/* joint_from_cartesian6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], in0[5], 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_joint_from_cartesian6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_joint_from_cartesian6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
@@ -1383,22 +1467,29 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     out2[0] = fabs(s_2) - 1e-09;
 }
 
+/* force_from_torque6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], in0[5], 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_force_from_torque6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_force_from_torque6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
@@ -1464,22 +1555,29 @@ static inline void kv_gravity(const double *restrict tv, Py_ssize_t ts, const do
     out0[5] = 0.0;
 }
 
+/* gravity for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_gravity(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_gravity((const double *)in[0], (const double *)in[1], t1)) {
+            kv_gravity(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1556,22 +1654,29 @@ static inline void kv_gravity_regressor(const double *restrict tv, Py_ssize_t ts
     out0[11] = 0.0;
 }
 
+/* gravity_regressor for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4];
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_gravity_regressor(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_gravity_regressor((const double *)in[0], t1)) {
+            kv_gravity_regressor(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -1648,22 +1753,29 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     out0[5] = 9.81*in1[5]*(c_1*t2_n - c_3*s_0*t0);
 }
 
+/* gravity_links for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[3], in0[4], in0[5], 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1]; const double *restrict in2 = (const double *)in[2];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_gravity_links(tv, 1, in0, in1, in2, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_gravity_links((const double *)in[0], (const double *)in[1], (const double *)in[2], t1)) {
+            kv_gravity_links(t1, 1, (const double *)in[0], (const double *)in[1], (const double *)in[2], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
     double *outb0 = out[0];

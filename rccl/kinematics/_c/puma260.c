@@ -116,22 +116,30 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     out0[9] = out0[2]*out0[4] - out0[0]*out0[6];
 }
 
+/* fk for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[0], in0[1], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[6][1], sv[6], cv[6], tv[12];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
-        double a[6];
-        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 6);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5];
-        kv_fk(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[12];
+        if (kv1_fk((const double *)in[0], t1)) {
+            kv_fk(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -312,22 +320,30 @@ static inline void kv_ik(const double *restrict tv, Py_ssize_t ts, const double 
     out4[0] = sqrt(t31 + t32) - 1e-09;
 }
 
+/* ik for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_ik(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    const __m256d x[1] = {_mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[1][1], sv[1], cv[1], tv[2];
-        const int r = 0;
-        const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0;
-        double a[1];
-        for (int i = 0; i < 1; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 1);
-        tv[0] = sv[0]; tv[1] = cv[0];
-        kv_ik(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3], (double *)out[4]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[2];
+        if (kv1_ik((const double *)in[0], (const double *)in[1], t1)) {
+            kv_ik(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3], (double *)out[4]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3]; double *outb4 = out[4];
@@ -401,22 +417,30 @@ static inline void kv_ik_wrist(const double *restrict tv, Py_ssize_t ts, const d
     out0[1] = atan2((t1_n*(s_4*t4 - c_5*in0[9]) - t2*(c_3*t5 + s_2*t3))/sqrt(t1_n*t1_n + t2*t2), c_3*t3 - s_2*t5);
 }
 
+/* ik_wrist for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_ik_wrist(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in1[1] + in1[2];
+    const __m256d x[1] = {_mm256_setr_pd(in1[0], in1[3], x_0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[3][1], sv[3], cv[3], tv[6];
-        const int r = 0;
-        const double x_0 = in1[1] + in1[2]; ta[0][r] = in1[0]; ta[1][r] = in1[3]; ta[2][r] = x_0;
-        double a[3];
-        for (int i = 0; i < 3; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 3);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2];
-        kv_ik_wrist(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[6];
+        if (kv1_ik_wrist((const double *)in[0], (const double *)in[1], t1)) {
+            kv_ik_wrist(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -480,22 +504,30 @@ static inline void kv_config_indicators(const double *restrict tv, Py_ssize_t ts
     out0[2] = s_2;
 }
 
+/* config_indicators for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[1] = {_mm256_setr_pd(in0[1], in0[2], in0[4], x_0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = sv[3];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[4][1], sv[4], cv[4], tv[4];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[4]; ta[3][r] = x_0;
-        double a[4];
-        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 4);
-        tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = sv[3];
-        kv_config_indicators(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_config_indicators((const double *)in[0], t1)) {
+            kv_config_indicators(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -654,22 +686,32 @@ static inline void kv_jacobian4(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 0.0;
 }
 
+/* jacobian4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const double x_1 = in0[2] - in0[3];
+    const double x_2 = in0[2] + in0[3];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, x_1, x_2, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = cv[2]; tv[4] = sv[3]; tv[5] = cv[3]; tv[6] = sv[4]; tv[7] = cv[4]; tv[8] = sv[5]; tv[9] = cv[5]; tv[10] = sv[6]; tv[11] = cv[6];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[7][1], sv[7], cv[7], tv[12];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; const double x_1 = in0[2] - in0[3]; const double x_2 = in0[2] + in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2;
-        double a[7];
-        for (int i = 0; i < 7; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 7);
-        tv[0] = cv[0]; tv[1] = cv[1]; tv[2] = sv[2]; tv[3] = cv[2]; tv[4] = sv[3]; tv[5] = cv[3]; tv[6] = sv[4]; tv[7] = cv[4]; tv[8] = sv[5]; tv[9] = cv[5]; tv[10] = sv[6]; tv[11] = cv[6];
-        kv_jacobian4(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[12];
+        if (kv1_jacobian4((const double *)in[0], t1)) {
+            kv_jacobian4(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -855,22 +897,30 @@ static inline void kv_jacobian6(const double *restrict tv, Py_ssize_t ts, const 
     out0[35] = 1.0;
 }
 
+/* jacobian6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[6][1], sv[6], cv[6], tv[11];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
-        double a[6];
-        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 6);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
-        kv_jacobian6(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[11];
+        if (kv1_jacobian6((const double *)in[0], t1)) {
+            kv_jacobian6(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -965,22 +1015,30 @@ static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_
     out0[5] = in1[4] + c_4*t3 + s_3*t2;
 }
 
+/* cartesian_from_joint4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[5][1], sv[5], cv[5], tv[9];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
-        double a[5];
-        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 5);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
-        kv_cartesian_from_joint4(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[9];
+        if (kv1_cartesian_from_joint4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_cartesian_from_joint4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1072,22 +1130,30 @@ static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t t
     out0[5] = c_6*in1[4] - s_5*in1[3];
 }
 
+/* torque_from_force4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[5][1], sv[5], cv[5], tv[9];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
-        double a[5];
-        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 5);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
-        kv_torque_from_force4(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[9];
+        if (kv1_torque_from_force4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_torque_from_force4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1199,22 +1265,30 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
     out3[0] = fabs(s_5) - 1e-09;
 }
 
+/* joint_from_cartesian4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[5][1], sv[5], cv[5], tv[9];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
-        double a[5];
-        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 5);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
-        kv_joint_from_cartesian4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[9];
+        if (kv1_joint_from_cartesian4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_joint_from_cartesian4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
@@ -1316,22 +1390,30 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     out3[0] = fabs(s_5) - 1e-09;
 }
 
+/* force_from_torque4 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[5][1], sv[5], cv[5], tv[9];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
-        double a[5];
-        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 5);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
-        kv_force_from_torque4(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[9];
+        if (kv1_force_from_torque4((const double *)in[0], (const double *)in[1], t1)) {
+            kv_force_from_torque4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
@@ -1445,22 +1527,30 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     out0[5] = c_6*z7 - s_5*z6;
 }
 
+/* cartesian_from_joint6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[6][1], sv[6], cv[6], tv[11];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
-        double a[6];
-        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 6);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
-        kv_cartesian_from_joint6(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[11];
+        if (kv1_cartesian_from_joint6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_cartesian_from_joint6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1573,22 +1663,30 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     out0[5] = c_6*z13 - s_5*z12;
 }
 
+/* torque_from_force6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[6][1], sv[6], cv[6], tv[11];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
-        double a[6];
-        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 6);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
-        kv_torque_from_force6(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[11];
+        if (kv1_torque_from_force6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_torque_from_force6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -1721,22 +1819,30 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     out3[0] = fabs(s_5) - 1e-09;
 }
 
+/* joint_from_cartesian6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[6][1], sv[6], cv[6], tv[11];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
-        double a[6];
-        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 6);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
-        kv_joint_from_cartesian6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[11];
+        if (kv1_joint_from_cartesian6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_joint_from_cartesian6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
@@ -1859,22 +1965,30 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     out3[0] = fabs(s_5) - 1e-09;
 }
 
+/* force_from_torque6 for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[6][1], sv[6], cv[6], tv[11];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
-        double a[6];
-        for (int i = 0; i < 6; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 6);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
-        kv_force_from_torque6(tv, 1, in0, in1, (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[11];
+        if (kv1_force_from_torque6((const double *)in[0], (const double *)in[1], t1)) {
+            kv_force_from_torque6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
@@ -1957,22 +2071,30 @@ static inline void kv_gravity(const double *restrict tv, Py_ssize_t ts, const do
     out0[5] = 0.0;
 }
 
+/* gravity for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[1] = {_mm256_setr_pd(in0[1], in0[3], in0[4], x_0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1];
-        double ta[4][1], sv[4], cv[4], tv[7];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
-        double a[4];
-        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 4);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
-        kv_gravity(tv, 1, in0, in1, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[7];
+        if (kv1_gravity((const double *)in[0], (const double *)in[1], t1)) {
+            kv_gravity(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
@@ -2077,22 +2199,30 @@ static inline void kv_gravity_regressor(const double *restrict tv, Py_ssize_t ts
     out0[17] = 0.0;
 }
 
+/* gravity_regressor for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[1] = {_mm256_setr_pd(in0[1], in0[3], in0[4], x_0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[4][1], sv[4], cv[4], tv[7];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0;
-        double a[4];
-        for (int i = 0; i < 4; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 4);
-        tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3];
-        kv_gravity_regressor(tv, 1, in0, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[7];
+        if (kv1_gravity_regressor((const double *)in[0], t1)) {
+            kv_gravity_regressor(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
@@ -2201,22 +2331,30 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     out0[5] = 9.81*in1[5]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
 }
 
+/* gravity_links for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict tv)
+{
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[3], in0[4], in0[5]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0]; const double *restrict in1 = (const double *)in[1]; const double *restrict in2 = (const double *)in[2];
-        double ta[5][1], sv[5], cv[5], tv[10];
-        const int r = 0;
-        const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ta[4][r] = x_0;
-        double a[5];
-        for (int i = 0; i < 5; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 5);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4];
-        kv_gravity_links(tv, 1, in0, in1, in2, (double *)out[0]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[10];
+        if (kv1_gravity_links((const double *)in[0], (const double *)in[1], (const double *)in[2], t1)) {
+            kv_gravity_links(t1, 1, (const double *)in[0], (const double *)in[1], (const double *)in[2], (double *)out[0]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
     double *outb0 = out[0];
@@ -2896,22 +3034,31 @@ static inline void kv_ik_all(const double *restrict tv, Py_ssize_t ts, const dou
     out1[31] = t209;
 }
 
+/* ik_all for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_ik_all(const double *restrict in0, double *restrict tv)
+{
+    const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]);
+    const __m256d x[1] = {_mm256_setr_pd(x_0, x_1, 0.0, 0.0)};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
+    return 1;
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
-    if (n == 1) {  /* one row: its sines (and cosines) side by side in the vector lanes */
-        const double *restrict in0 = (const double *)in[0];
-        double ta[2][1], sv[2], cv[2], tv[4];
-        const int r = 0;
-        const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
-        double a[2];
-        for (int i = 0; i < 2; ++i) a[i] = ta[i][0];
-        vtrig_sincos(a, sv, cv, 2);
-        tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1];
-        kv_ik_all(tv, 1, in0, (double *)out[0], (double *)out[1]);
-        return 1;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[4];
+        if (kv1_ik_all((const double *)in[0], t1)) {
+            kv_ik_all(t1, 1, (const double *)in[0], (double *)out[0], (double *)out[1]);
+            return 1;
+        }
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0]; double *outb1 = out[1];
