@@ -232,8 +232,9 @@ def check_gravity(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult, seed:
         e_links = max(e_links, np.abs(mod.gravity_links(q, masses, coms) - g).max())
         e_coeff = max(e_coeff, np.abs(mod.gravity(q, c_links) - g).max())
         e_reg = max(e_reg, np.abs(mod.gravity_regressor(q) @ c_links - mod.gravity(q, c_links)).max())
+    origin = next(iter(model.gravity_coeffs.values())).source.tag
     res.record("gravity 4.24, model-file coefficients vs URDF (N m, N)", e_table, len(qs),
-               "PUMA: Table 4.9 values; the URDF centres of mass were solved from them and written with 11 digits, which bounds this error")
+               f"the model file's coefficients ({origin}); the URDF's inertials carry 11 digits, which bounds this error")
     res.record("gravity 4.24, coefficients of the URDF inertials (N m, N)", e_coeff, len(qs))
     res.record("gravity 4.20, URDF link masses and centres of mass (N m, N)", e_links, len(qs))
     res.record("gravity regressor Y(q) c = gravity(q, c)", e_reg, len(qs))
