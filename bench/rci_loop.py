@@ -96,11 +96,8 @@ def _link_args(link: str) -> tuple[str, ...]:
     """simula's options for the link under test: TCP (default) or the Zenoh bus on loopback."""
     if link == "socket":
         return ()
-    import socket as _socket
-    with _socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    return ("--zenoh", "bench/puma260", "--zenoh-listen", f"tcp/127.0.0.1:{port}")
+    from rci.zenoh_bus import free_endpoint
+    return ("--zenoh", "bench/puma260", "--zenoh-listen", free_endpoint())
 
 
 def _pin_threads(pid: int, cpu: int) -> None:
@@ -165,11 +162,9 @@ def bus_round_trip(n: int = 2000) -> dict:
     """Round trip of a channel message between two processes over the Zenoh bus (rci.bus):
     planning -> echo process -> planning, one message in flight, a 6-float payload."""
     from rci.bus import Bus
-    import socket as _socket
+    from rci.zenoh_bus import free_endpoint
 
-    with _socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    endpoint = free_endpoint()
     with Bus("bench-echo", tasks=("planning",), listen=(endpoint,)) as bus:
         out, back = bus.channel("planning", "echo", 64, "block"), bus.channel("echo", "planning", 64, "block")
         proc = subprocess.Popen([sys.executable, "-c", ECHO, endpoint], stdout=subprocess.PIPE, text=True,

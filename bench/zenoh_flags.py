@@ -33,7 +33,6 @@ import importlib.util
 import os
 import platform
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -50,6 +49,7 @@ from rccl import bus_arm  # noqa: E402
 from rccl.bus_events import HEARTBEAT_S, RESEND_S, SILENCE_S, ArmLost, BusEvents  # noqa: E402
 from rccl.position import joint_position  # noqa: E402
 from rci.bus import Bus  # noqa: E402
+from rci.zenoh_bus import free_endpoint  # noqa: E402
 from rci.simula.process import SimulaProcess  # noqa: E402
 
 COMMAND = "make bench  (python -m bench.zenoh_flags)"
@@ -63,12 +63,6 @@ def _example():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-def _endpoint() -> str:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 def _simula(stack: ExitStack, robot: str) -> SimulaProcess:
@@ -105,7 +99,7 @@ def flag_latencies(runs: int, rate_hz: int) -> dict[str, list[float]]:
     out: dict[str, list[float]] = {"hop": [], "began": [], "spread": [], "start_ev": []}
     with ExitStack() as stack:
         sims = {name: _simula(stack, robot) for name, robot in ex.ARMS.items()}
-        listen = _endpoint()
+        listen = free_endpoint()
         bus = stack.enter_context(Bus("bench-flags", tasks=("planning",), listen=(listen,),
                                       priority=bus_arm.BUS_PRIORITY))
         for name, robot in ex.ARMS.items():
@@ -150,7 +144,7 @@ def planner_killed(rate_hz: int) -> float:
     """SIGKILL the planning process mid-motion; seconds until the arm process held the arm."""
     with ExitStack() as stack:
         sim = _simula(stack, "puma260")
-        listen = _endpoint()
+        listen = free_endpoint()
         planner = subprocess.Popen([sys.executable, str(PLANNER), "bench-orphan", listen, "puma", "0.3"],
                                    stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
         stack.callback(_end, planner)
@@ -169,7 +163,7 @@ def arm_stopped(rate_hz: int) -> float:
     """SIGSTOP the arm process while the plan waits on its motion; seconds until ``ArmLost``."""
     with ExitStack() as stack:
         sim = _simula(stack, "puma260")
-        listen = _endpoint()
+        listen = free_endpoint()
         bus = stack.enter_context(Bus("bench-stall", tasks=("planning",), listen=(listen,)))
         proc = bus_arm.spawn("puma", sim.url, "puma260", "bench-stall", (listen,), rate_hz, how_timeout=HOW_TIMEOUT_S)
         stack.callback(_end, proc)

@@ -27,6 +27,7 @@ import sys
 from contextlib import ExitStack
 
 from rccl import petri
+from rci.zenoh_bus import free_endpoint
 
 
 def plan(ev, puma, mic, pos=None) -> dict:
@@ -118,19 +119,12 @@ def _end(proc) -> None:
         proc.wait(5)
 
 
-def _free_endpoint() -> str:
-    import socket
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
-
-
 def _bus_main(a, ap) -> int:
     with ExitStack() as stack:
         if a.simula:
             from rci.simula.process import SimulaProcess
             urls = {name: stack.enter_context(SimulaProcess("-p", "--power-on", "--zenoh", f"lab/{name}",
-                                                            "--zenoh-listen", _free_endpoint(),
+                                                            "--zenoh-listen", free_endpoint(),
                                                             "--watchdog-time", str(a.watchdog), robot=robot,
                                                             lockstep=False)).url
                     for name, robot in ARMS.items()}
@@ -138,7 +132,7 @@ def _bus_main(a, ap) -> int:
             urls = dict(zip(ARMS, a.urls))
         else:
             ap.error("give two link URLs (PUMA, Microbo) or --simula")
-        out = run_bus(urls, a.listen or _free_endpoint(), a.rate, a.how_timeout)
+        out = run_bus(urls, a.listen or free_endpoint(), a.rate, a.how_timeout)
     for arm, r in out["reports"]:
         print(f"{arm} reports: motion #{r['serial']} to {r['where']} ended {r['status']}, "
               f"waist at {r['q'][0]:+.4f} rad")

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import socket
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rci.bus import Bus
+from rci.zenoh_bus import free_endpoint
 from rci.chg import POS
 from rci.conversions import Conversions
 from rci.session import Session
@@ -96,12 +96,6 @@ def run_arm(name: str, url: str, bus_endpoints: tuple[str, ...], rate_hz: int = 
     return 0
 
 
-def _free_endpoint() -> str:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
-
-
 def plan(urls: dict[str, str], bus_listen: str, seconds: float, quiet: bool = False) -> list[dict]:
     """The planning process: start the arms' processes, collect the reports, stop them."""
     reports: list[dict] = []
@@ -165,13 +159,13 @@ def _cli(argv: list[str] | None = None) -> int:
         if a.simula:
             from rci.simula.process import SimulaProcess
             urls = {name: stack.enter_context(SimulaProcess(
-                "-p", "--zenoh", f"lab/{name}", "--zenoh-listen", _free_endpoint(), robot=robot, lockstep=False)).url
+                "-p", "--zenoh", f"lab/{name}", "--zenoh-listen", free_endpoint(), robot=robot, lockstep=False)).url
                 for name, robot in ROBOTS.items()}
         elif len(a.urls) == 2:
             urls = dict(zip(ROBOTS, a.urls))
         else:
             ap.error("give two link URLs (PUMA, Microbo) or --simula")
-        reports = plan(urls, a.bus or _free_endpoint(), a.seconds)
+        reports = plan(urls, a.bus or free_endpoint(), a.seconds)
     print(f"{len(reports)} reports from the Microbo's process")
     return 0 if reports else 1
 

@@ -47,6 +47,14 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 HELLO_TIMEOUT_S = 5.0
 
 
+def free_endpoint(host: str = "127.0.0.1") -> str:
+    """A Zenoh TCP locator on a port of ``host`` that is free now (``tcp/HOST:PORT``), for a
+    session that listens: the OS picks the port, which is released for Zenoh to bind."""
+    with socket.socket() as sock:
+        sock.bind((host, 0))
+        return f"tcp/{host}:{sock.getsockname()[1]}"
+
+
 class ZenohLinkError(OSError):
     """The Zenoh link cannot be set up or has failed (says which key and why)."""
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import textwrap
@@ -23,6 +22,7 @@ from rci import codes
 from rci.chg import POS
 from rci.exceptions import ControlTerminated, DeviceError, RobotBusy
 from rci.session import Session
+from rci.zenoh_bus import free_endpoint
 from rci.simula.process import SimulaProcess
 from rci.zenoh_bus import ZenohAddress, ZenohLinkError
 
@@ -31,14 +31,8 @@ WAIT = 10.0
 WATCHDOG_S = 0.25
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _simula(*args: str, key: str = "test/puma", lockstep: bool = True) -> SimulaProcess:
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = free_endpoint()
     return SimulaProcess("-p", "--power-on", "--zenoh", key, "--zenoh-listen", endpoint, *args, lockstep=lockstep)
 
 
@@ -71,7 +65,7 @@ def test_the_address_parses_and_refuses_what_it_cannot_use():
 
 
 def test_no_robot_on_the_key_is_a_clear_open_error():
-    url = f"zenoh/nobody/here?connect=tcp/127.0.0.1:{_free_port()}"
+    url = f"zenoh/nobody/here?connect={free_endpoint()}"
     with pytest.raises(DeviceError, match="cannot open robot link 'zenoh/nobody/here"):
         _session(url, start_timeout=2.0).open()
 
@@ -83,7 +77,7 @@ def test_a_frame_reaches_the_reader_on_zenohs_own_thread():
 
     from rci.zenoh_bus import _declare_publisher, _on_zenoh_thread, _Pipe, open_session
 
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = free_endpoint()
     robot, controller = open_session(listen=(endpoint,)), open_session(connect=(endpoint,))
     pipe, threads = _Pipe(), []
 
@@ -306,7 +300,7 @@ def _bus_peer(endpoint: str, overflow: str, n: int) -> subprocess.Popen:
 def test_shared_data_and_a_blocking_channel_between_two_processes_lose_nothing():
     from rci.bus import Bus
 
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = free_endpoint()
     with Bus("test-cell", tasks=("planning",), listen=(endpoint,)) as bus:
         bus.shared["plan"] = np.eye(3)
         channel = bus.channel("arm", "planning", capacity=4, overflow="block")
@@ -334,7 +328,7 @@ def test_shared_data_and_a_blocking_channel_between_two_processes_lose_nothing()
 def test_a_late_joiner_reads_shared_data_written_before_it_came():
     from rci.bus import Bus
 
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = free_endpoint()
     with Bus("test-cell", tasks=("planning",), listen=(endpoint,)) as bus:
         bus.shared["plan"] = [1, 2, 3]
         bus.channel("arm", "planning", capacity=4, overflow="drop_oldest")
@@ -349,7 +343,7 @@ def test_a_late_joiner_reads_shared_data_written_before_it_came():
 def test_a_dropping_channel_keeps_the_newest_and_counts_the_lost():
     from rci.bus import Bus
 
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = free_endpoint()
     with Bus("test-cell", tasks=("planning",), listen=(endpoint,)) as bus:
         channel = bus.channel("arm", "planning", capacity=4, overflow="drop_oldest")
         peer = _bus_peer(endpoint, "drop_oldest", 50)
@@ -371,7 +365,7 @@ def test_a_channel_end_that_is_not_this_processes_task_is_refused():
     from rci.bus import Bus
     from rci.multi import MultiError
 
-    with Bus("test-cell", tasks=("planning",), listen=(f"tcp/127.0.0.1:{_free_port()}",)) as bus:
+    with Bus("test-cell", tasks=("planning",), listen=(free_endpoint(),)) as bus:
         channel = bus.channel("arm", "planning")
         with pytest.raises(MultiError, match="'arm' is not a task of this process"):
             channel.send({"x": 1})
@@ -388,12 +382,12 @@ def test_two_arms_in_two_processes_coordinated_over_the_bus():
     spec = importlib.util.spec_from_file_location("two_arms_bus", ROOT / "examples" / "two_arms_bus.py")
     example = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(example)
-    with SimulaProcess("-p", "--zenoh", "lab/puma", "--zenoh-listen", f"tcp/127.0.0.1:{_free_port()}",
+    with SimulaProcess("-p", "--zenoh", "lab/puma", "--zenoh-listen", free_endpoint(),
                        robot="puma260", lockstep=False) as puma, \
-            SimulaProcess("-p", "--zenoh", "lab/microbo", "--zenoh-listen", f"tcp/127.0.0.1:{_free_port()}",
+            SimulaProcess("-p", "--zenoh", "lab/microbo", "--zenoh-listen", free_endpoint(),
                           robot="microbo", lockstep=False) as microbo:
         reports = example.plan({"puma": puma.url, "microbo": microbo.url},
-                               f"tcp/127.0.0.1:{_free_port()}", seconds=3.0, quiet=True)
+                               free_endpoint(), seconds=3.0, quiet=True)
         assert not puma.command("state")["running"] and not microbo.command("state")["running"]
     assert len(reports) >= 4
     swung = [r for r in reports if r["sample"] >= 36]           # after the Microbo caught up

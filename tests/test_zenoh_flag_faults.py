@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import select
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -28,18 +27,13 @@ from rccl.bus_events import SILENCE_S, ArmLost, BusEvents
 from rccl.events import DONE, EventError
 from rccl.position import joint_position
 from rci.bus import Bus
+from rci.zenoh_bus import free_endpoint
 from rci.simula.process import SimulaProcess
 
 HERE = Path(__file__).resolve().parent
 RATE_HZ = 50
 HOW_TIMEOUT_S = 0.25          # the arm process's wait for a HOW: generous on a loaded 2-core machine
 WATCHDOG_S = 0.25             # simula holds the arm after this long without a CHG
-
-
-def _endpoint() -> str:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 def _simula(stack: ExitStack) -> SimulaProcess:
@@ -84,7 +78,7 @@ def _waist(arm, delta: float, name: str):
 def test_a_lost_start_ev_is_sent_again_then_a_stopped_arm_process_is_given_up_and_stays_given_up():
     with ExitStack() as stack:
         sim = _simula(stack)
-        listen = _endpoint()
+        listen = free_endpoint()
         bus = stack.enter_context(Bus("flags-stall", tasks=("planning",), listen=(listen,)))
         proc = bus_arm.spawn("puma", sim.url, "puma260", "flags-stall", (listen,), RATE_HZ, how_timeout=HOW_TIMEOUT_S,
                              extra=("--lose-sets", "1", "--lose-acks", "1"))
@@ -150,7 +144,7 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
     the arm again."""
     with ExitStack() as stack:
         sim = _simula(stack)
-        listen = _endpoint()
+        listen = free_endpoint()
         planner = subprocess.Popen([sys.executable, str(HERE / "bus_planner.py"), "flags-orphan", listen, "puma", "0.5"],
                                    stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
         stack.callback(_end, planner)

@@ -11,7 +11,6 @@ from __future__ import annotations
 import importlib.util
 import os
 import signal
-import socket
 import time
 from contextlib import ExitStack
 from pathlib import Path
@@ -26,6 +25,7 @@ from rccl.exceptions import MotionError
 from rccl.position import joint_position
 from rccl.session import load_kinematics
 from rci.bus import Bus
+from rci.zenoh_bus import free_endpoint
 from rci.simula.process import SimulaProcess
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
@@ -40,12 +40,6 @@ def _example():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-def _endpoint() -> str:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 def _simula(stack: ExitStack, robot: str) -> SimulaProcess:
@@ -75,7 +69,7 @@ def test_the_two_arm_plan_runs_unchanged_across_three_processes():
     ex = _example()
     with ExitStack() as stack:
         sims = {name: _simula(stack, robot) for name, robot in ex.ARMS.items()}
-        out = ex.run_bus({n: s.url for n, s in sims.items()}, _endpoint(), RATE_HZ, how_timeout=HOW_TIMEOUT_S)
+        out = ex.run_bus({n: s.url for n, s in sims.items()}, free_endpoint(), RATE_HZ, how_timeout=HOW_TIMEOUT_S)
         truth = {n: np.array(s.command("state")["state"]["q"]) for n, s in sims.items()}
     e = out["efts"]
     assert {k: x.status for k, x in e.items()} == {"a": DONE, "b": DONE, "c": DONE, "d": DONE}
@@ -111,7 +105,7 @@ def test_flags_errors_and_a_killed_arm_process_mid_plan():
     process killed while the plan waits: ArmLost within a bound, the robot holds the arm."""
     with ExitStack() as stack:
         sims = {"puma": _simula(stack, "puma260"), "microbo": _simula(stack, "microbo")}
-        listen = _endpoint()
+        listen = free_endpoint()
         bus = stack.enter_context(Bus("flags-faults", tasks=("planning",), listen=(listen,)))
         procs = {}
         for name, robot in (("puma", "puma260"), ("microbo", "microbo")):
