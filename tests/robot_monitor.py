@@ -163,6 +163,7 @@ class Monitor:
         self._msg_seq = 0
         self._listener: socket.socket | None = None
         self._owner = ""
+        self._newcomers: list[tuple[socket.socket, float]] = []   # accepted, refused once their HELLO came
 
     # --- transport entry points ---------------------------------------------------
     def serve_fd(self, fd: int, closer: Callable[[], None] | None = None) -> None:
@@ -194,6 +195,9 @@ class Monitor:
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                 self._owner = "%s:%d" % conn.getpeername()[:2]
                 self.serve_fd(conn.fileno(), conn.close)
+                for late, _ in self._newcomers:      # arrived while it was served: refused all the same
+                    self._refuse(late)
+                self._newcomers = []
         finally:
             srv.close()
 
@@ -307,17 +311,39 @@ class Monitor:
                 self._send(stream, protocol.BYE, self._msg(), frame.payload)
 
     def _refuse_newcomers(self) -> None:
-        """One controller at a time: a connection arriving while one is served gets ERROR(ST_BUSY)."""
+        """One controller at a time: a connection arriving while one is served gets ERROR(ST_BUSY).
+
+        The refusal answers the newcomer's HELLO (as simula's does): sent before it, it could
+        reach a controller that still discards stale input before greeting. Never blocks the
+        served control: a newcomer is looked at again each cycle until its HELLO is there.
+        """
         srv = self._listener
         if srv is None:
             return
         try:
             ready, _, _ = select.select([srv], [], [], 0)
-            if not ready:
-                return
-            conn, _ = srv.accept()
+            if ready:
+                conn, _ = srv.accept()
+                self._newcomers.append((conn, time.monotonic()))
         except OSError:
+            pass
+        if not self._newcomers:
             return
+        socks = [c for c, _ in self._newcomers]
+        try:
+            readable, _, _ = select.select(socks, [], [], 0)
+        except OSError:
+            readable = socks
+        now = time.monotonic()
+        waiting = []
+        for conn, since in self._newcomers:
+            if conn in readable or now - since > 2.0:
+                self._refuse(conn)
+            else:
+                waiting.append((conn, since))
+        self._newcomers = waiting
+
+    def _refuse(self, conn: socket.socket) -> None:
         try:
             msg = protocol.ErrorMsg(codes.ST_BUSY, f"robot busy: owned by the controller at {self._owner}; "
                                                    f"one controller at a time")

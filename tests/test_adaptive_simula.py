@@ -200,6 +200,7 @@ def test_conditional_motion_runs_on_contact_and_drops_the_rest_of_the_queue():
     import rccl.adaptive
     from rccl import EQ, T6, TL, Trsf, makeposition
     from rccl.adaptive.exceptions import SpecError
+    from rccl.events import START, move_ev, start_ev
     from rccl.transform import trsl
 
     with environment_simula(*g.ENV) as sim:
@@ -216,7 +217,11 @@ def test_conditional_motion_runs_on_contact_and_drops_the_rest_of_the_queue():
             arm.setmod("cartesian")
             arm.setvel(0.01, math.radians(10))
             arm.limit("fz", g.LIMIT_N)
-            r_down = arm.move(pos["DOWN"])
+            # DOWN waits for its start flag until the branch and the continuation are queued: a
+            # lockstep simula runs faster than real time, so the contact could otherwise come
+            # before this thread attaches the branch (cond then refuses: "has already ended")
+            e_down = move_ev(arm, pos["DOWN"], start=None)
+            r_down = e_down.request
             arm.setvel(0.03, math.radians(20))
             r_back = arm.cond("fz", pos["BACK"])          # on contact: back off up and sideways
             r_aside = arm.move(pos["ASIDE"])              # the normal continuation: dropped on contact
@@ -224,6 +229,7 @@ def test_conditional_motion_runs_on_contact_and_drops_the_rest_of_the_queue():
                 arm.last = r_back
                 arm.cond("fz", pos["ASIDE"])              # the tree stays pruned
             arm.last = r_aside
+            start_ev(START, e_down)
             arm.waitfor(r_down)
             assert r_down.ended.what == "fz" and r_down.chosen is r_back
             arm.waitfor(r_back, timeout=30)

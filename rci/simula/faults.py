@@ -366,12 +366,14 @@ class _Run:
                 res.hung.append(f"controller process did not start: {line!r}")
                 return
             time.sleep(RUN_BEFORE_S if not self.lockstep else 0.2)
-            self.t_inject = time.monotonic()
             state = self.sim.command("state")
             self.inject_seq = state["cycle"]
             if not state["running"]:
                 res.invalid = "the control ended before the fault was injected"
                 return
+            # the fault's time is the signal's, not the state query's before it (a loaded
+            # machine can take tens of ms to answer it, and the arm moves on meanwhile)
+            self.t_inject = time.monotonic()
             os.kill(proc.pid, signal.SIGKILL if self.c.process == "kill-controller" else signal.SIGSTOP)
             ev = self._wait_event(5.0)
             if ev is None:
