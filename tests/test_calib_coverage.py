@@ -2,7 +2,8 @@
 (the second under `-m slow`; the shipped logs are the default suite's second seed),
 every fitted value within the uncertainty calib prints for it.
 
-For each seed a short calibration set is recorded on real lockstep simula processes started
+For each seed a short calibration set is recorded on real lockstep simula processes (two
+recording at a time, each on its own simula) started
 with calib/logs/simula-truth.toml (torque sensitivities 5-8 % off Table 4.1, friction 5-20 %
 off Tables 4.2-4.5, gravity coefficients off Table 4.9, DH errors): sensitivity runs of the
 motors the later fits need, friction sweeps of joints 2 and 6, the gravity sweeps j5, j3B
@@ -16,6 +17,7 @@ name. The shipped logs (seed 1985, full length) are held to the same in test_cal
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -52,27 +54,47 @@ def calibrated(request, tmp_path_factory):
     seed = request.param
     out = str(tmp_path_factory.mktemp(f"coverage{seed}"))
     args = ["--params", TRUTH, "--warm"]
-    # each friction joint on a fresh, warm simula: a joint that stood a minute has cooled by
-    # a few per cent (4.5.3), which the slow-to-fast sweep would read as viscous friction
-    for j, speeds in ((2, (15, 25, 60, 100, 150)), (6, (20, 30, 80, 150, 250))):
+
+    def friction(j: int, speeds: tuple[int, ...]) -> None:
+        # each friction joint on a fresh, warm simula: a joint that stood a minute has cooled by
+        # a few per cent (4.5.3), which the slow-to-fast sweep would read as viscous friction
         with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
             _record(sim, friction_plans([j], speeds_deg=speeds, trips=(1, 1, 2, 2, 3)), out, seed, args)
-    with SimulaProcess("-p", *args, "--test-channel", lockstep=True, seed=seed) as sim:
-        # the pulley's mass hung on and taken off between runs (simula's control channel),
-        # as a lab would (the channel's load command needs --test-channel), instead of a simula
-        # per loaded run as regen-logs starts
-        for plan in sensitivity_plans(None, 0.05, joints=(2, 3, 5, 6), speeds_deg=(25, 40), trips=3):
-            load = plan.meta["load"]
-            spec = (f"pulley:joint={plan.meta['joint']},mass={load['mass_kg']},radius={load['radius_m']}"
-                    if load["mass_kg"] > 0 else "none")
-            assert sim.command(f"load {spec}")["ok"]
-            _record(sim, [plan], out, seed, args)
-        assert sim.command("load none")["ok"]
-        gravity = [p for p in gravity_plans(INFO.regressor, INFO.lower, INFO.upper)
-                   if p.meta["position"] in ("j5", "j3B", "j2") and p.name != "gravity-j3B-j2-main"]
-        _record(sim, gravity, out, seed, args)
-    if seed == TOUCH_SEED:
+
+    def sensitivity() -> None:
+        with SimulaProcess("-p", *args, "--test-channel", lockstep=True, seed=seed) as sim:
+            # the pulley's mass hung on and taken off between runs (simula's control channel),
+            # as a lab would (the channel's load command needs --test-channel), instead of a simula
+            # per loaded run as regen-logs starts
+            for plan in sensitivity_plans(None, 0.05, joints=(2, 3, 5, 6), speeds_deg=(25, 40), trips=3):
+                load = plan.meta["load"]
+                spec = (f"pulley:joint={plan.meta['joint']},mass={load['mass_kg']},radius={load['radius_m']}"
+                        if load["mass_kg"] > 0 else "none")
+                assert sim.command(f"load {spec}")["ok"]
+                _record(sim, [plan], out, seed, args)
+
+    def gravity() -> None:
+        with SimulaProcess("-p", *args, lockstep=True, seed=seed) as sim:
+            plans = [p for p in gravity_plans(INFO.regressor, INFO.lower, INFO.upper)
+                     if p.meta["position"] in ("j5", "j3B", "j2") and p.name != "gravity-j3B-j2-main"]
+            _record(sim, plans, out, seed, args)
+
+    def touches() -> None:
         record_kinematics(os.path.join(out, "kinematics.rcilog"), seed, TRUTH, touches_per_face=10)
+
+    # every recording on a simula of its own, two at a time (a lockstep pair of simula and
+    # controller keeps about one CPU busy): about half the wall time of one after the other
+    # (the touches are about 40 % of the whole, hence the pairing)
+    lanes = [[sensitivity, gravity, lambda: friction(6, (20, 30, 80, 150, 250))],
+             [lambda: friction(2, (15, 25, 60, 100, 150))] + ([touches] if seed == TOUCH_SEED else [])]
+
+    def run_lane(lane) -> None:
+        for job in lane:
+            job()
+
+    with ThreadPoolExecutor(max_workers=len(lanes)) as pool:
+        for done in [pool.submit(run_lane, lane) for lane in lanes]:
+            done.result()
     paths = sorted(os.path.join(out, f) for f in os.listdir(out) if f.endswith(".rcilog"))
     res = fit_all(paths, os.path.join(out, "fitted.toml"))
     res["truth"] = truth_of(res["traces"], INFO)
