@@ -112,6 +112,26 @@ class Request:
                 return
         callback(self)
 
+    def attach_conditional(self, branch, on_attach: Callable[[], None] | None = None) -> bool:
+        """Add a conditional branch (5.6.1) unless this motion has ended; False (nothing added) if it has.
+
+        Atomic with :meth:`conditionals` once the motion has ended: a branch is either seen by
+        the trajectory level that ended it or refused here, never lost in between.
+        ``on_attach`` runs under the same lock just before the branch is added.
+        """
+        with self._finish_lock:
+            if self.status not in ("queued", "running"):
+                return False
+            if on_attach is not None:
+                on_attach()
+            self.conditional.append(branch)
+            return True
+
+    def conditionals(self) -> list:
+        """The conditional branches attached so far (a copy; see :meth:`attach_conditional`)."""
+        with self._finish_lock:
+            return list(self.conditional)
+
     def wait(self, timeout: float | None = None) -> bool:
         """Block until this request completes; True if it did."""
         return self._done.wait(timeout)

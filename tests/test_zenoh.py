@@ -149,38 +149,45 @@ def test_a_second_controller_on_the_bus_gets_busy_and_the_control_goes_on():
             owner.release()
 
 
+def _fault_after_running(inject, attempts: int = 3) -> tuple[ControlTerminated, int, float]:
+    """Run a 50 Hz real-time control over Zenoh for 0.3 s, then ``inject(sim)``; returns the
+    control's end, the last cycle before the fault and the seconds from the fault to its end.
+
+    A run whose control ended before the fault (a late HOW on a loaded machine, not the fault
+    under test) is repeated, up to ``attempts`` runs in all.
+    """
+    for _ in range(attempts):
+        with _simula(lockstep=False) as sim:
+            s = _session(sim.url, rate_hz=50, realtime=True)
+            try:
+                with s:
+                    s.control(_mover(s))
+                    try:
+                        s.wait(0.3)
+                    except ControlTerminated:
+                        continue
+                    last = s.how.cycle
+                    inject(sim)
+                    t_fault = time.monotonic()
+                    with pytest.raises(ControlTerminated) as e:
+                        s.wait(2.0)
+                    return e.value, last, time.monotonic() - t_fault
+            finally:
+                if sim.proc.poll() is None:
+                    os.kill(sim.proc.pid, signal.SIGCONT)
+    raise AssertionError(f"the control ended before the fault in all {attempts} runs")
+
+
 def test_the_robot_killed_ends_the_control_with_a_severe_link_fault():
-    with _simula(lockstep=False) as sim:
-        s = _session(sim.url, rate_hz=50, realtime=True)
-        with s:
-            s.control(_mover(s))
-            s.wait(0.3)
-            last = s.how.cycle
-            os.kill(sim.proc.pid, signal.SIGKILL)
-            t_kill = time.monotonic()
-            with pytest.raises(ControlTerminated) as e:
-                s.wait(2.0)
-            detected = time.monotonic() - t_kill
-    t = e.value.termination
+    err, last, detected = _fault_after_running(lambda sim: os.kill(sim.proc.pid, signal.SIGKILL))
+    t = err.termination
     assert t.number in (codes.R_BTEST, codes.R_TIMEOUT) and t.severe
     assert t.cycle - last <= 2 and detected < 2 * 0.02 + 0.05
 
 
 def test_the_robot_stopped_is_a_timeout():
-    with _simula(lockstep=False) as sim:
-        s = _session(sim.url, rate_hz=50, realtime=True)
-        try:
-            with s:
-                s.control(_mover(s))
-                s.wait(0.3)
-                os.kill(sim.proc.pid, signal.SIGSTOP)
-                t_stop = time.monotonic()
-                with pytest.raises(ControlTerminated) as e:
-                    s.wait(2.0)
-                detected = time.monotonic() - t_stop
-        finally:
-            os.kill(sim.proc.pid, signal.SIGCONT)
-    assert e.value.termination.number == codes.R_TIMEOUT
+    err, _, detected = _fault_after_running(lambda sim: os.kill(sim.proc.pid, signal.SIGSTOP))
+    assert err.termination.number == codes.R_TIMEOUT
     assert detected < 2 * 0.02 + 0.1
 
 

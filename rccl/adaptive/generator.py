@@ -52,8 +52,7 @@ class AdaptiveGenerator(TrajectoryGenerator):
 
     # -- 5.6.1: what follows a motion ended early ------------------------------------------
     def _ended_early(self, req: Request, end: MotionEnd) -> None:
-        with req._finish_lock:     # see AdaptiveArm.cond: a branch added while the motion ran is seen here
-            branch = choose(req.conditional, end)
+        branch = choose(req.conditionals(), end)    # Request.attach_conditional: none lost at the end
         if branch is not None:   # 5.6.1: the pruned tree; everything else queued is dropped
             for dropped in self.queue.clear():
                 dropped.dropped_by = req

@@ -102,14 +102,8 @@ class AdaptiveArm(Arm):
             raise SpecError("cond: a conditional motion cannot have conditional motions of its own (5.6.1)")
         req = Request(position, position.snapshot(), _replace(self.params), next(self._serial))
         req.is_conditional = True
-        last = self.last
-        # under the request's finish lock: the trajectory level reads the branches under it once the
-        # motion has ended, so a branch is either seen there or refused here, never lost in between
-        with last._finish_lock:
-            if last.status not in ("queued", "running"):
-                raise SpecError(f"cond: the motion to {last.position.name} has already ended")
-            position.end.expect()
-            last.conditional.append(Conditional(when, req))
+        if not self.last.attach_conditional(Conditional(when, req), on_attach=position.end.expect):
+            raise SpecError(f"cond: the motion to {self.last.position.name} has already ended")
         return req
 
     def _pending(self) -> list[MotionCheck]:
