@@ -46,7 +46,7 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
-from rci.zenoh_bus import on_zenoh_thread, undeclare
+from rci.zenoh_bus import undeclare
 
 from . import events as ev
 from .bus_heartbeat import HEARTBEAT_S, Heartbeat
@@ -121,7 +121,7 @@ class ArmServer:
             s.declare_queryable(flags_key(self.cell, name, "*"), self._on_flags_query),
             s.declare_queryable(arm_key(self.cell, name, "request"), self._requests.put),
             s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
-            s.declare_subscriber(planner_key(self.cell, "*", "alive"), on_zenoh_thread(self._on_planner_alive)),
+            s.declare_subscriber(planner_key(self.cell, "*", "alive"), self._on_planner_alive),
         ]
         self._token = s.liveliness().declare_token(arm_key(self.cell, name))
         self._heart.start()
@@ -275,7 +275,7 @@ class ArmServer:
         self._give_up(planner, f"the planning process {planner} left the bus (its liveliness token ended)")
 
     def _on_planner_alive(self, sample) -> None:
-        """A planning level's heartbeat (on Zenoh's thread: a dict entry under the lock, no more)."""
+        """A planning level's heartbeat: heard now."""
         planner = str(sample.key_expr).split("/")[-2]
         now = time.monotonic()
         with self._lock:

@@ -17,7 +17,7 @@ Key expressions (``KEY`` is the robot's name on the bus, e.g. ``lab/puma260``):
 A connection is a byte stream like a socket: on each side a local socket pair carries
 what the subscriber receives to the reader's ``select()``, so the link's framing, its
 waits and its wake-up work unchanged. The subscriber's callback runs on the Zenoh thread
-that received the frame (``on_zenoh_thread``), and Zenoh's threads run at the reader's
+that received the frame (``_on_zenoh_thread``), and Zenoh's threads run at the reader's
 real-time priority + 1 on the CPUs of the thread that opened the session: pin the
 controller (and all of simula's threads, ``taskset -a``) to one CPU for 1 kHz
 (docs/zenoh.md, "Speed").
@@ -172,7 +172,7 @@ def open_session(connect: tuple[str, ...] = (), listen: tuple[str, ...] = (), le
 class _Pipe:
     """A local socket pair: Zenoh callbacks write into ``inlet``; the reader selects on ``outlet``.
 
-    The callbacks run on Zenoh's own threads (``on_zenoh_thread``), which must never wait
+    The callbacks run on Zenoh's own threads (``_on_zenoh_thread``), which must never wait
     for a reader: ``inlet`` does not block, and a reader that leaves the pair full has
     stopped reading; the pipe then ends (``overflowed``), as simula counts a TCP client
     that does not read as gone. The pair holds ``BUFFER`` bytes of socket buffer, where the
@@ -237,7 +237,7 @@ class _Pipe:
                 pass
 
 
-def on_zenoh_thread(fn):
+def _on_zenoh_thread(fn):
     """``fn`` as a Zenoh callback run by the Zenoh thread that received the sample.
 
     zenoh-python's default (``indirect``) hands every sample to a Python thread of its own:
@@ -284,11 +284,11 @@ class ControllerPort:
         self.pipe = _Pipe()
         try:
             self.sub = self.session.declare_subscriber(
-                a.keyexpr("c", self.id, "up"), on_zenoh_thread(lambda s: self.pipe.push(s.payload.to_bytes())))
+                a.keyexpr("c", self.id, "up"), _on_zenoh_thread(lambda s: self.pipe.push(s.payload.to_bytes())))
             self.pub = _declare_publisher(self.session, a.keyexpr("c", self.id, "down"))
             self.token = self.session.liveliness().declare_token(a.keyexpr("c", self.id))
             self.watch = self.session.liveliness().declare_subscriber(a.keyexpr("robot"),
-                                                                     on_zenoh_thread(self._robot_liveliness))
+                                                                     _on_zenoh_thread(self._robot_liveliness))
             self._hello(timeout)
         except BaseException:
             self.close()
@@ -368,7 +368,7 @@ class RobotEndpoint:
         a = address
         self.token = self.session.liveliness().declare_token(a.keyexpr("robot"))
         self.watch = self.session.liveliness().declare_subscriber(a.keyexpr("c", "*"),
-                                                                 on_zenoh_thread(self._controller_liveliness))
+                                                                 _on_zenoh_thread(self._controller_liveliness))
         self.hello = self.session.declare_queryable(a.keyexpr("hello"), self._on_hello)
 
     def url(self) -> str:
@@ -441,7 +441,7 @@ class Connection:
         self.address = f"zenoh connection {cid}"
         self.pipe = _Pipe()
         self.sub = endpoint.session.declare_subscriber(
-            a.keyexpr("c", cid, "down"), on_zenoh_thread(lambda s: self.pipe.push(s.payload.to_bytes())))
+            a.keyexpr("c", cid, "down"), _on_zenoh_thread(lambda s: self.pipe.push(s.payload.to_bytes())))
         self.pub = _declare_publisher(endpoint.session, a.keyexpr("c", cid, "up"))
 
     def fileno(self) -> int:

@@ -75,7 +75,7 @@ def test_a_frame_reaches_the_reader_on_zenohs_own_thread():
     thread of zenoh-python's (an ordinary thread that waited whole periods under load)."""
     import threading
 
-    from rci.zenoh_bus import _declare_publisher, on_zenoh_thread, _Pipe, open_session
+    from rci.zenoh_bus import _declare_publisher, _on_zenoh_thread, _Pipe, open_session
 
     endpoint = free_endpoint()
     robot, controller = open_session(listen=(endpoint,)), open_session(connect=(endpoint,))
@@ -86,7 +86,7 @@ def test_a_frame_reaches_the_reader_on_zenohs_own_thread():
             threads.append(f.read().strip())
         pipe.push(sample.payload.to_bytes())
 
-    sub = controller.declare_subscriber("rcci/t/up", on_zenoh_thread(got))
+    sub = controller.declare_subscriber("rcci/t/up", _on_zenoh_thread(got))
     try:
         pub = _declare_publisher(robot, "rcci/t/up")
         deadline = time.monotonic() + WAIT
