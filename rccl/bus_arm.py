@@ -298,24 +298,25 @@ class ArmServer:
     def _hold(self, whose, why: str, planner: str | None = None, tell: bool = False) -> None:
         """Stop (ABORTED) every motion not ended that a planning level ``whose(planner)`` queued:
         the arm holds where it is; say why (printed, and published on ``.../held`` with the
-        ``planner`` given up, if one was). ``tell``: say it even if there was nothing to abort."""
+        ``planner`` given up, if one was). ``tell``: say it even if there was nothing to abort.
+        The notice leaves before the motions' ABORTED flags: a planning level given up learns
+        why before it could read the status of a motion it waits for."""
         t = time.monotonic()
         with self._lock:
-            efts = [e for s, e in self.efts.items() if whose(self._owner.get(s)) and e.status >= 0]
+            efts = [e for s, e in self.efts.items() if whose(self._owner.get(s)) and e.status >= 0 and not e.freed]
         if not efts and not tell:
             return
+        notice = {"arm": self.name, "why": why, "aborted": [e.serial for e in efts], "t": t, "planner": planner}
+        self.held.append(notice)
+        self._out.put((arm_key(self.cell, self.name, "held"), encode(notice)))
         if efts:
             try:
                 ev.stop_ev(ABORTED, *efts)
-            except EventError:
-                efts = [e for e in efts if not e.freed]
-                ev.stop_ev(ABORTED, *efts)
-        notice = {"arm": self.name, "why": why, "aborted": [e.serial for e in efts], "t": t, "planner": planner}
-        self.held.append(notice)
+            except EventError:              # one freed meanwhile (its motion had ended): the others
+                ev.stop_ev(ABORTED, *[e for e in efts if not e.freed])
         what = (f"motion(s) {', '.join(f'#{e.serial}' for e in efts)} aborted, the arm holds" if efts
                 else "nothing of it to abort")
         print(f"{self.name}: {why}: {what} (t={t:.6f})", flush=True)
-        self._out.put((arm_key(self.cell, self.name, "held"), encode(notice)))
 
     def _beat(self, n: int, now: float) -> dict:
         """The heartbeat's payload: it names the planning levels given up last."""
