@@ -232,7 +232,7 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
         quiet = float(said.split("no heartbeat for ", 1)[1].split(" s", 1)[0])
         # not before the silence after its last beat, and within one heartbeat of the arm process
         # after it (its last beat left at most one heartbeat before the stop, if it was on time)
-        assert quiet > SILENCE_S, said
+        assert quiet >= SILENCE_S, said                         # (printed to the millisecond)
         assert 0.0 < detected < SILENCE_S + HEARTBEAT_S + 0.1, f"given up {detected:.3f} s after the stop: {said}"
         # the arm holds where it is, under its control (simula's owner is still the arm process)
         time.sleep(0.1)
