@@ -181,8 +181,7 @@ class BusEvents:
 
     def _on_alive(self, sample) -> None:
         """An arm process's heartbeat. One given up for its silence stays lost (a stale process
-        that comes back is ignored: only a new process, a new liveliness token, is heard again).
-        It lists the planning levels it gave up: this one among them, it has no more motions there."""
+        that comes back is ignored: only a new process, a new token, is heard); it names those it gave up."""
         name = str(sample.key_expr).split("/")[-2]
         try:
             gone = decode(sample.payload.to_bytes()).get("gone", [])
@@ -191,11 +190,10 @@ class BusEvents:
         with self._cond:
             if name not in self._lost:
                 self._alive[name] = time.monotonic()
-            if self.id in gone and name not in self._given_up:
-                self._given_up[name] = ("its process gave this planning level up (its heartbeat says so): it did "
-                                        f"not hear it for longer than its silence ({self.silence} s), or its token "
-                                        "ended; it aborted the motions queued there and holds the arm")
-                self._cond.notify_all()
+            if self.id in gone:
+                self._told(name, "its process lists this planning level as given up in its heartbeat (not heard "
+                                 f"for longer than its silence, {self.silence} s, or its token ended): it aborted "
+                                 "the motions queued there and holds the arm")
 
     def _on_held(self, sample) -> None:
         """An arm process aborted a planning level's motions: this one's, it has given it up."""
@@ -207,11 +205,16 @@ class BusEvents:
         if planner != self.id:
             return
         with self._cond:
-            self._given_up.setdefault(arm, f"its process says: {why} (it aborted the motions queued there)")
-            self._cond.notify_all()
+            self._told(arm, f"its process says: {why} (it aborted the motions queued there)")
 
-    def _on_beat(self, now: float, gap: float) -> None:
-        """A beat later than ``silence`` (this process was stopped or starved): given up."""
+    def _told(self, arm: str, why: str) -> None:
+        """``arm``'s process says it gave this planning level up; if this process was stalled longer
+        than its silence, that is the reason (caller holds the condition)."""
+        self._check_own_silence(time.monotonic())
+        self._given_up.setdefault(arm, why)
+        self._cond.notify_all()
+
+    def _on_beat(self, now: float, gap: float) -> None:      # before each heartbeat of this planning level
         with self._cond:
             self._check_own_silence(now, gap)
 
@@ -223,10 +226,9 @@ class BusEvents:
         if gap <= self.silence:
             return
         for arm in self._arms:
-            self._given_up.setdefault(arm, f"this planning level was silent {gap:.3f} s (its process stopped, hung "
-                                           f"or starved), longer than its silence ({self.silence} s): the process "
-                                           f"serving arm {arm!r} has aborted the motions it queued there and holds "
-                                           "the arm")
+            self._given_up.setdefault(arm, f"this planning level was silent {gap:.3f} s (its process stopped, hung or "
+                                           f"starved), longer than its silence ({self.silence} s): the process serving "
+                                           f"arm {arm!r} has aborted the motions it queued there and holds the arm")
         self._cond.notify_all()
 
     def _check_given_up(self, arm: str, where: str) -> None:
@@ -257,7 +259,7 @@ class BusEvents:
             self._absorb(f)
         with self._cond:
             if refused is not None:       # not applied: that arm's process gave this planning level up
-                self._given_up.setdefault(arm, f"its process refused a start_ev / stop_ev: {refused}")
+                self._told(arm, f"its process refused a start_ev / stop_ev: {refused}")
             if seq in self._acks:
                 self._acks[seq].add(arm)
             self._cond.notify_all()
@@ -352,7 +354,7 @@ class BusEvents:
             if "error" in answer:
                 if answer.get("type") == PlannerLost.__name__:
                     with self._cond:
-                        self._given_up.setdefault(arm, f"its process refused a request: {answer['error']}")
+                        self._told(arm, f"its process refused a request: {answer['error']}")
                     raise PlannerLost(f"{where}: arm {arm!r} (its process) says: {answer['error']}")
                 cls = KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
                 raise cls(f"{where}: arm {arm!r} (its process) says: {answer['error']}")

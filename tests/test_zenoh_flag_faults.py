@@ -24,7 +24,7 @@ import pytest
 
 from rccl import bus_arm
 from rccl.bus_events import HEARTBEAT_S, SILENCE_S, ArmLost, BusEvents
-from rccl.bus_wire import arm_key
+from rccl.bus_wire import arm_key, set_key
 from rccl.events import DONE, EventError
 from rccl.position import joint_position
 from rci.bus import Bus, decode, encode
@@ -251,6 +251,16 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
                                        payload=encode({"op": "info", "planner": planner_id, "silence": SILENCE_S})))
         answer = decode(replies[0].ok.payload.to_bytes())
         assert answer["type"] == "PlannerLost" and "went silent" in answer["error"]
+        acks: list[dict] = []
+        ack_sub = bus.session.declare_subscriber(arm_key("flags-mute", "puma", "ack"),
+                                                 lambda s: acks.append(decode(s.payload.to_bytes())))
+        stack.callback(ack_sub.undeclare)
+        bus.session.put(set_key("flags-mute"), encode({"flag": "start", "code": 5, "efts": [["puma", serials[1]]],
+                                                       "planner": planner_id, "seq": 99}))
+        deadline = time.monotonic() + 2.0
+        while not acks and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert acks and acks[0]["seq"] == 99 and "went silent" in acks[0]["refused"] and acks[0]["flags"] == []
 
         # continued, the planning process is told, not resumed: wait_ev raises PlannerLost, a request too
         os.kill(planner.pid, signal.SIGCONT)
