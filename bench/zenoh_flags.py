@@ -23,6 +23,10 @@ Faults (``--fault-runs`` each, fresh processes each time):
 
 - *planning process killed*: ``tests/bus_planner.py`` (the hub) SIGKILLed while its motion
   runs -> the arm process prints that it aborted that planner's motions (its own clock);
+- *planning process stopped*: ``tests/bus_planner.py`` (a client of the bench's hub)
+  SIGSTOPped while its motion runs -> the arm process prints that it gave that planner up
+  and aborted its motions (its own clock; the planner's heartbeat's silence,
+  ``rccl.bus_events.SILENCE_S``);
 - *arm process stopped*: SIGSTOP while the plan waits on its motion -> ``wait_ev`` raises
   ``ArmLost`` (the heartbeat's silence, ``rccl.bus_events.SILENCE_S``).
 """
@@ -159,6 +163,27 @@ def planner_killed(rate_hz: int) -> float:
         return float(said.rsplit("t=", 1)[1].rstrip(")")) - t_kill
 
 
+def planner_stopped(rate_hz: int) -> float:
+    """SIGSTOP the planning process mid-motion; seconds until the arm process held the arm."""
+    with ExitStack() as stack:
+        sim = _simula(stack, "puma260")
+        listen = free_endpoint()
+        stack.enter_context(Bus("bench-mute", tasks=("hub",), listen=(listen,)))
+        proc = bus_arm.spawn("puma", sim.url, "puma260", "bench-mute", (listen,), rate_hz, how_timeout=HOW_TIMEOUT_S)
+        stack.callback(_end, proc)
+        planner = subprocess.Popen([sys.executable, str(PLANNER), "bench-mute", listen, "puma", "0.3", "--connect"],
+                                   stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
+        stack.callback(_end, planner)
+        _line(planner, "moving", 30.0)
+        time.sleep(0.1)
+        t_stop = time.monotonic()                  # before the signal: the figure can only be too long
+        os.kill(planner.pid, signal.SIGSTOP)
+        said = _line(proc, "aborted, the arm holds", 5.0)
+        if "went silent" not in said:
+            raise RuntimeError(f"the arm process held the arm for another reason: {said}")
+        return float(said.rsplit("t=", 1)[1].rstrip(")")) - t_stop
+
+
 def arm_stopped(rate_hz: int) -> float:
     """SIGSTOP the arm process while the plan waits on its motion; seconds until ``ArmLost``."""
     with ExitStack() as stack:
@@ -220,13 +245,14 @@ def render(lat: dict[str, list[float]], faults: dict[str, list[float]], rate_hz:
         "phase: the waits for a next sample (B began, c and d apart) are nearly constant within a run and differ "
         "from run to run of the bench, between 0 and one sample; the bus hop and the round trip do not depend on it.",
     ]
-    if not faults["planner"] and not faults["stopped"]:
+    if not any(faults.values()):
         return "\n".join(lines) + "\n"
     lines += [
         "",
         "## A peer lost",
         "",
-        f"Heartbeat every {HEARTBEAT_S * 1e3:.0f} ms, silence {SILENCE_S * 1e3:.0f} ms (`rccl.bus_events`), a "
+        f"Heartbeats (arm processes and planning levels) every {HEARTBEAT_S * 1e3:.0f} ms, silence "
+        f"{SILENCE_S * 1e3:.0f} ms both ways (`rccl.bus_events`), a "
         f"start_ev / stop_ev re-sent after {RESEND_S * 1e3:.0f} ms without acknowledgement; simula's watchdog "
         f"{WATCHDOG_S * 1e3:.0f} ms. Fresh processes for each run.",
         "",
@@ -236,6 +262,10 @@ def render(lat: dict[str, list[float]], faults: dict[str, list[float]], rate_hz:
     if faults["planner"]:
         lines.append("| planning process (the hub) killed mid-motion | the arm process: the planner's liveliness "
                      f"token ends; it aborts that planner's motions and holds | {_stats(faults['planner'], rate_hz)} |")
+    if faults.get("planner_stopped"):
+        lines.append("| planning process stopped (SIGSTOP) mid-motion | the arm process: no heartbeat of the planner "
+                     "for its silence; it gives that planner up, aborts its motions and holds | "
+                     f"{_stats(faults['planner_stopped'], rate_hz)} |")
     if faults["stopped"]:
         lines.append("| arm process stopped (SIGSTOP) while the plan waits on it | the planning level: no heartbeat "
                      f"for the silence; `wait_ev` raises `ArmLost` | {_stats(faults['stopped'], rate_hz)} |")
@@ -254,6 +284,7 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()[0]
     lat = flag_latencies(a.runs, a.rate)
     faults = {"planner": [planner_killed(a.rate) for _ in progress(range(a.fault_runs), "planner killed")],
+              "planner_stopped": [planner_stopped(a.rate) for _ in progress(range(a.fault_runs), "planner stopped")],
               "stopped": [arm_stopped(a.rate) for _ in progress(range(a.fault_runs), "arm stopped")]}
     command = COMMAND if argv is None and sys.argv[1:] == [] else "python -m bench.zenoh_flags " + " ".join(
         sys.argv[1:] if argv is None else argv)

@@ -15,10 +15,12 @@ to ``rccl.events`` under its name, and then:
 * starts a motion queued with ``start=`` an EFT of another arm the moment it learns,
   from that arm's publication, that the motion ended (or at once if it already had);
 * says it is alive every ``HEARTBEAT_S`` (``rcci/CELL/arm/ARM/alive``);
-* watches the planning levels' liveliness tokens: when one ends, or when this process
-  finds itself stalled longer than that planning level's silence, it aborts the motions
-  that planning level queued (the arm holds) and says why (``rcci/CELL/arm/ARM/held``,
-  and a line on stdout);
+* watches the planning levels' liveliness tokens and heartbeats: when one's token ends, or
+  it has not been heard for its silence (it is stopped, hung or cut off), it gives that
+  planning level up: it aborts the motions that planning level queued (the arm holds),
+  says why (``rcci/CELL/arm/ARM/held``, and a line on stdout) and refuses what that
+  planning level asks afterwards (``PlannerLost``); when this process finds itself stalled
+  longer than a planning level's silence, it aborts that planning level's motions too;
 * publishes ``rcci/CELL/arm/ARM/fault`` and ends (exit status 1) when its arm's control
   ends with a fault.
 
@@ -47,12 +49,13 @@ from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import undeclare
 
 from . import events as ev
-from .bus_events import HEARTBEAT_S
-from .bus_wire import (arm_key, check_name, error_reply, flags_key, flags_of, planner_key, position_from_wire,
-                       set_key)
+from .bus_heartbeat import HEARTBEAT_S, Heartbeat
+from .bus_wire import (PlannerLost, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
+                       position_from_wire, set_key)
 from .events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
+GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
 
@@ -68,12 +71,16 @@ class ArmServer:
     had lost them.
 
     The planning levels are watched: when one's liveliness token ends (its process died or
-    left the bus), every motion it queued here that has not ended is stopped with ABORTED
-    (a running one halts at the next sample, queued ones are deleted): the arm holds where
-    it is, under this process's control, and the reason is printed and published on
-    ``rcci/CELL/arm/ARM/held``. So is it when this process itself was stalled (stopped, or
-    starved) longer than a planning level's silence: that planning level may have given the arm
-    up, and nothing it queued may go on unseen."""
+    left the bus), or its heartbeat (``rcci/CELL/planner/ID/alive``) has not come for longer
+    than its silence (the one it sends with its requests), that planning level is given up:
+    every motion it queued here that has not ended is stopped with ABORTED (a running one
+    halts at the next sample, queued ones are deleted), the arm holds where it is, under
+    this process's control, the reason is printed and published on
+    ``rcci/CELL/arm/ARM/held``, and the planning level's later requests and start_ev /
+    stop_ev are refused (``PlannerLost``). Its motions are also aborted (the planning level
+    not given up) when this process itself was stalled (stopped, or starved) longer than a
+    planning level's silence: that planning level may have given the arm up, and nothing it
+    queued may go on unseen."""
 
     def __init__(self, arm, bus: Bus, name: str, report_to: str | None = "planning", priority: int = 0,
                  lose_sets: int = 0, lose_acks: int = 0) -> None:
@@ -92,12 +99,12 @@ class ArmServer:
         self._out: queue.Queue = queue.Queue()
         self._requests: queue.Queue = queue.Queue()
         self._stop = threading.Event()
-        self._closed = threading.Event()
         self._block = zenoh.CongestionControl.BLOCK
         self._kind_delete = zenoh.SampleKind.DELETE
         self._owner: dict[int, str] = {}                  # EFT serial -> the planning level that queued it
         self._planners: dict[str, float] = {}             # planning level -> its silence (s)
-        self._planners_gone: set[str] = set()
+        self._planner_heard: dict[str, float] = {}        # planning level -> time.monotonic() of its last beat
+        self._planners_gone: dict[str, str] = {}          # planning level given up -> why
         self._applied: dict[tuple[str, int], None] = {}   # start_ev / stop_ev messages applied (planner, seq)
         self.lose_sets, self.lose_acks = int(lose_sets), int(lose_acks)
         self.held: list[dict] = []                        # what was aborted for a lost planning level, and why
@@ -105,7 +112,8 @@ class ArmServer:
         s = bus.session
         self._publisher = threading.Thread(target=self._publish_loop, name=f"flags-{name}", daemon=True)
         self._publisher.start()
-        self._heart = threading.Thread(target=self._heartbeat, name=f"alive-{name}", daemon=True)
+        self._heart = Heartbeat(s, arm_key(self.cell, name, "alive"), self._beat, self._on_beat, priority,
+                                f"alive-{name}")
         ev.add_listener(self._changed)
         self._declared = [
             s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
@@ -113,6 +121,7 @@ class ArmServer:
             s.declare_queryable(flags_key(self.cell, name, "*"), self._on_flags_query),
             s.declare_queryable(arm_key(self.cell, name, "request"), self._requests.put),
             s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
+            s.declare_subscriber(planner_key(self.cell, "*", "alive"), self._on_planner_alive),
         ]
         self._token = s.liveliness().declare_token(arm_key(self.cell, name))
         self._heart.start()
@@ -229,6 +238,12 @@ class ArmServer:
         if not named:
             return
         with self._lock:
+            refused = self._planners_gone.get(msg_id[0])
+        if refused is not None:        # nothing of a planning level given up is applied; it is told why
+            ack = {"planner": msg_id[0], "seq": msg_id[1], "arm": self.name, "flags": [], "refused": refused}
+            self._out.put((arm_key(self.cell, self.name, "ack"), encode(ack)))
+            return
+        with self._lock:
             if self.lose_sets > 0:                # the test hook: as if the bus lost it
                 self.lose_sets -= 1
                 print(f"{self.name}: test hook: {flag}_ev message {msg_id[1]} dropped", file=sys.stderr, flush=True)
@@ -257,45 +272,84 @@ class ArmServer:
         planner = str(sample.key_expr).rsplit("/", 1)[-1]
         if sample.kind != self._kind_delete:
             return
-        with self._lock:
-            self._planners_gone.add(planner)
-        self._hold(lambda p: p == planner, f"the planning process {planner} left the bus (its liveliness token ended)")
+        self._give_up(planner, f"the planning process {planner} left the bus (its liveliness token ended)")
 
-    def _hold(self, whose, why: str) -> None:
+    def _on_planner_alive(self, sample) -> None:
+        """A planning level's heartbeat: heard now."""
+        planner = str(sample.key_expr).split("/")[-2]
+        now = time.monotonic()
+        with self._lock:
+            if planner in self._planners:
+                self._planner_heard[planner] = now
+
+    def _give_up(self, planner: str, why: str, tell: bool = False) -> None:
+        """Give ``planner`` up: abort what it queued here (the arm holds) and refuse it from now
+        on. ``tell``: say so even if nothing of it was left to abort."""
+        with self._lock:
+            if planner in self._planners_gone:
+                return
+            self._planners_gone[planner] = why
+            while len(self._planners_gone) > 1024:
+                self._planners_gone.pop(next(iter(self._planners_gone)))
+            self._planners.pop(planner, None)
+            self._planner_heard.pop(planner, None)
+        self._hold(lambda p: p == planner, why, planner, tell)
+
+    def _hold(self, whose, why: str, planner: str | None = None, tell: bool = False) -> None:
         """Stop (ABORTED) every motion not ended that a planning level ``whose(planner)`` queued:
-        the arm holds where it is; say why (printed, and published on ``.../held``)."""
+        the arm holds where it is; say why (printed, and published on ``.../held`` with the
+        ``planner`` given up, if one was). ``tell``: say it even if there was nothing to abort.
+        The notice leaves before the motions' ABORTED flags: a planning level given up learns
+        why before it could read the status of a motion it waits for."""
         t = time.monotonic()
         with self._lock:
-            efts = [e for s, e in self.efts.items() if whose(self._owner.get(s)) and e.status >= 0]
-        if not efts:
+            efts = [e for s, e in self.efts.items() if whose(self._owner.get(s)) and e.status >= 0 and not e.freed]
+        if not efts and not tell:
             return
-        try:
-            ev.stop_ev(ABORTED, *efts)
-        except EventError:
-            efts = [e for e in efts if not e.freed]
-            ev.stop_ev(ABORTED, *efts)
-        notice = {"arm": self.name, "why": why, "aborted": [e.serial for e in efts], "t": t}
+        notice = {"arm": self.name, "why": why, "aborted": [e.serial for e in efts], "t": t, "planner": planner}
         self.held.append(notice)
-        print(f"{self.name}: {why}: motion(s) {', '.join(f'#{e.serial}' for e in efts)} aborted, the arm holds "
-              f"(t={t:.6f})", flush=True)
         self._out.put((arm_key(self.cell, self.name, "held"), encode(notice)))
+        if efts:
+            try:
+                ev.stop_ev(ABORTED, *efts)
+            except EventError:              # one freed meanwhile (its motion had ended): the others
+                ev.stop_ev(ABORTED, *[e for e in efts if not e.freed])
+        what = (f"motion(s) {', '.join(f'#{e.serial}' for e in efts)} aborted, the arm holds" if efts
+                else "nothing of it to abort")
+        print(f"{self.name}: {why}: {what} (t={t:.6f})", flush=True)
 
-    def _heartbeat(self) -> None:
-        """Say this process is alive every ``HEARTBEAT_S``; a beat that comes late by more than a
-        planning level's silence means this process was stalled and that planning level has
-        given the arm up: hold what it queued."""
-        self._realtime()
-        key, n, last = arm_key(self.cell, self.name, "alive"), 0, time.monotonic()
-        while not self._closed.wait(HEARTBEAT_S):
-            now = time.monotonic()
-            gap, last = now - last, now
-            with self._lock:
-                late = {p for p, silence in self._planners.items() if gap > silence}
-            if late:
-                self._hold(lambda p: p in late, f"this process was stalled {gap:.3f} s, longer than its planning "
-                                                "level's silence: that planning level may have given the arm up")
-            n += 1
-            self._put(key, encode({"n": n, "t": now}))
+    def _beat(self, n: int, now: float) -> dict:
+        """The heartbeat's payload: it names the planning levels given up last."""
+        with self._lock:
+            return {"n": n, "t": now, "gone": list(self._planners_gone)[-GONE_TOLD:]}
+
+    def _on_beat(self, now: float, gap: float) -> None:
+        """Before each heartbeat: a beat that comes late by more than a planning level's silence
+        means this process was stalled and that planning level has given the arm up: hold what
+        it queued. Then give up the planning levels not heard for longer than their silence."""
+        with self._lock:
+            late = {p for p, silence in self._planners.items() if gap > silence}
+        if late:
+            self._hold(lambda p: p in late, f"this process was stalled {gap:.3f} s, longer than its planning "
+                                            "level's silence: that planning level may have given the arm up")
+        self._watch_planners(now, gap)
+
+    def _watch_planners(self, now: float, gap: float) -> None:
+        """Give up every planning level whose heartbeat has not come for longer than its silence.
+        After a beat of this thread's own that came late by more than a heartbeat (this process
+        stalled or starved: the planning levels' beats may be waiting to be read), their
+        silences count from now."""
+        with self._lock:
+            if gap > 2 * HEARTBEAT_S:
+                for p in self._planners:
+                    self._planner_heard[p] = now
+                return
+            silent = {p: now - self._planner_heard.get(p, now) for p, silence in self._planners.items()
+                      if now - self._planner_heard.get(p, now) > silence}
+            silences = dict(self._planners)
+        for p, quiet in silent.items():
+            self._give_up(p, f"the planning process {p} went silent: no heartbeat for {quiet:.3f} s (> its silence "
+                             f"{silences[p]} s: it is stopped, hung or cut off)", tell=True)
 
     # -- requests -------------------------------------------------------------------------------
     def _answer(self, query) -> None:
@@ -310,10 +364,16 @@ class ArmServer:
         op = r.get("op")
         planner = r.get("planner")
         if planner is not None:
+            planner = str(planner)
             with self._lock:
-                if planner in self._planners_gone:
-                    raise EventError(f"arm {self.name!r}: the planning process {planner} has left the bus")
-                self._planners[str(planner)] = float(r.get("silence", 1e9))
+                why = self._planners_gone.get(planner)
+                if why is None:
+                    self._planners[planner] = float(r.get("silence", 1e9))
+                    self._planner_heard.setdefault(planner, time.monotonic())
+            if why is not None:
+                raise PlannerLost(f"arm {self.name!r} gave the planning level {planner} up ({why}): the motions it "
+                                  "queued here were aborted, the arm holds; a new planning level (a new BusEvents) "
+                                  "drives it")
         if op == "info":
             return {"robot": self.arm.robot, "rate_hz": self.arm.rate_hz, "q": self.arm.q}
         if op == "move":
@@ -383,12 +443,11 @@ class ArmServer:
 
     def close(self) -> None:
         self._stop.set()
-        self._closed.set()
         ev.remove_listener(self._changed)
         undeclare(self._token, *self._declared)
         self._out.put(None)
         self._publisher.join(2.0)
-        self._heart.join(2.0)
+        self._heart.stop()
         ev.detach(self.arm)
 
 

@@ -45,15 +45,16 @@ end of the link). An arm whose control ends with a fault publishes it: ``wait_ev
 ``request_timeout`` raises ``ArmLost``; nothing waits without a bound except ``wait_ev``
 with ``timeout=None`` on a motion that is still running.
 
-The arm processes watch the planning level in turn: it declares a liveliness token
-(``rcci/CELL/planner/ID``), and when it ends (the planning process died or left the bus)
-each arm process stops every motion that planning level queued and that has not ended
-(ABORTED: a running one halts at its next sample, held and queued ones are deleted); the
-arm holds where it is under its process's control, which keeps serving (a planning
-process that comes back drives it again). An arm process that finds itself stalled longer
-than a planning level's silence (it was stopped, then continued) does the same for that
-planning level's motions: that planning level may have given it up, so nothing it queued may
-resume unseen.
+The arm processes watch the planning level in turn: its liveliness token
+(``rcci/CELL/planner/ID``) and its heartbeat (``.../alive``, every ``HEARTBEAT_S``). When the
+token ends, or the heartbeat has not come for ``silence`` (the same bound both ways: the
+planning process is stopped, hung or cut off), an arm process gives that planning level up:
+it aborts the motions it queued there (ABORTED; the arm holds, under its process's control),
+says why (stdout, ``rcci/CELL/arm/ARM/held``) and refuses it from then on. Speaking again,
+that planning level gets ``PlannerLost`` (an ``ArmLost``) naming why from every request,
+``start_ev`` / ``stop_ev`` and ``wait_ev`` on that arm's motions; a new ``BusEvents`` drives
+the arm. An arm process that was itself stalled longer than a planning level's silence
+aborts that planning level's motions too (docs/zenoh.md, "Faults").
 
 Key expressions and what crosses the bus: ``rccl.bus_wire``.
 """
@@ -63,122 +64,38 @@ import threading
 import time
 from typing import Any
 
-import numpy as np
-
 from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import undeclare
 
-from .bus_wire import (KNOWN_ERRORS, arm_key, check_name, flags_key, planner_key, position_to_wire,
-                       set_key)
+from .bus_heartbeat import HEARTBEAT_S, Heartbeat
+from .bus_remote import RemoteArm, RemoteEFT
+from .bus_wire import (KNOWN_ERRORS, ArmLost, PlannerLost, RemoteFault, arm_key, check_name, flags_key, planner_key,
+                       position_to_wire, set_key)
 from .bus_wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
-from .events import NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
+from .events import ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
 from .position import Position
 
 REQUEST_TIMEOUT_S = 5.0
 REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
 MUTE_REFRESHES = 3       # ... and gives an arm up as lost after this many unanswered asks in a row
-HEARTBEAT_S = 0.05       # an arm process says it is alive this often (s)
-SILENCE_S = 0.5          # the planning level gives up an arm it has not heard from for this long (s)
+SILENCE_S = 0.5          # the planning level gives up an arm it has not heard from for this long, and the
+                         # arm processes give up a planning level they have not heard from for as long (s)
 RESEND_S = 0.1           # start_ev / stop_ev are sent again after this long without every arm's acknowledgement (s)
-
-
-class ArmLost(EventError):
-    """The process serving an arm left the bus (died, or is unreachable), or does not answer."""
-
-
-class RemoteFault(EventError):
-    """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
-
-
-# --- the planning process's view ---------------------------------------------------------------
-class RemoteArm:
-    """An arm served by another process, as the planning level sees it: ``name``, ``robot``,
-    ``rate_hz``, ``kinematics`` (this process's generated module of the robot, to build
-    positions) and ``q`` (the arm's last commanded joint angles, rad, asked for each time)."""
-
-    def __init__(self, events: "BusEvents", name: str, info: dict) -> None:
-        from .session import load_kinematics
-        self.events = events
-        self.name = name
-        self.robot = str(info["robot"])
-        self.rate_hz = int(info["rate_hz"])
-        self.kinematics = load_kinematics(self.robot)
-
-    @property
-    def q(self) -> np.ndarray:
-        return np.asarray(self.events.request(self.name, {"op": "info"}, "q")["q"], dtype=float)
-
-    def close(self) -> None:
-        """Ask the arm's process to finish its motions, release the arm and end."""
-        self.events.request(self.name, {"op": "close"}, "close")
-
-    def __repr__(self) -> str:
-        return f"RemoteArm({self.name!r}, {self.robot}, {self.rate_hz} Hz, cell {self.events.cell!r})"
-
-
-class RemoteEFT:
-    """An EFT of a motion queued on an arm of another process; its flags are the latest the
-    arm's process published. Reads like ``rccl.events.EFT`` (start, stop, status, state, t_started, ...)."""
-
-    def __init__(self, events: "BusEvents", arm: str, serial: int, where: str) -> None:
-        self._events = events
-        self.arm = arm
-        self.serial = serial
-        self._where = where
-        self.after: RemoteEFT | None = None
-        self.start_sent = NULL           # set here by start_ev before the arm's publication comes back
-        self.stop_sent = NULL
-        self.freed = False
-        self.final: dict | None = None   # its last flags, kept by free_ev
-
-    def _flag(self, name: str) -> Any:
-        flags = self.final if self.final is not None else self._events.flags(self.arm, self.serial)
-        return flags.get(name)
-
-    @property
-    def start(self) -> int:
-        return self._flag("start") or self.start_sent
-
-    @property
-    def stop(self) -> int:
-        return self._flag("stop") or self.stop_sent
-
-    @property
-    def status(self) -> int:
-        return self._flag("status") or NULL
-
-    @property
-    def state(self) -> str:
-        s = self.status
-        return "pending" if s == NULL else ("active" if s > 0 else "completed")
-
-    t_start_set = property(lambda self: self._flag("t_start_set"))
-    t_started = property(lambda self: self._flag("t_started"))
-    t_ended = property(lambda self: self._flag("t_ended"))
-    traj_started = property(lambda self: self._flag("traj_started"))
-    traj_ended = property(lambda self: self._flag("traj_ended"))
-
-    @property
-    def where(self) -> str:
-        return self._where
-
-    def describe(self) -> str:
-        return f"motion #{self.serial} of arm {self.arm!r} to {self.where}"
-
-    def __repr__(self) -> str:
-        return (f"RemoteEFT(#{self.serial} arm {self.arm!r} to {self.where}: start {code_name(self.start)}, "
-                f"stop {code_name(self.stop)}, status {code_name(self.status)})")
 
 
 class BusEvents:
     """The event-flag primitives of ``rccl.events`` for arms served on the bus of ``bus.cell``.
 
     ``silence``: an arm whose process has not been heard (its heartbeat, every ``HEARTBEAT_S``)
-    for this long (s) is lost: stopped, hung or cut off. This planning level declares a
-    liveliness token (``rcci/CELL/planner/ID``): the arm processes abort the motions it
-    queued when it ends. ``sets_sent`` / ``sets_resent`` count start_ev / stop_ev messages."""
+    for this long (s) is lost: stopped, hung or cut off; and the arm processes give this
+    planning level up when they have not heard its heartbeat (``rcci/CELL/planner/ID/alive``)
+    for as long. This planning level declares a liveliness token (``rcci/CELL/planner/ID``):
+    the arm processes abort the motions it queued when it ends. ``priority``: SCHED_FIFO of
+    the heartbeat's thread (default the bus's, 0: none). ``sets_sent`` / ``sets_resent``
+    count start_ev / stop_ev messages."""
 
-    def __init__(self, bus: Bus, request_timeout: float = REQUEST_TIMEOUT_S, silence: float = SILENCE_S) -> None:
+    def __init__(self, bus: Bus, request_timeout: float = REQUEST_TIMEOUT_S, silence: float = SILENCE_S,
+                 priority: int | None = None) -> None:
         import uuid
 
         import zenoh
@@ -206,6 +123,7 @@ class BusEvents:
         self._arms: dict[str, RemoteArm] = {}
         self._heard = 0                                     # counts flag changes heard (a wait's sign of life)
         self._mute: dict[str, int] = {}                     # arm -> refreshes in a row it did not answer
+        self._given_up: dict[str, str] = {}                 # arm -> why its process gave this planning level up
         s = bus.session
         self._kind_delete = zenoh.SampleKind.DELETE
         self._declared = [
@@ -214,8 +132,13 @@ class BusEvents:
             s.liveliness().declare_subscriber(arm_key(self.cell, "*"), self._on_liveliness, history=True),
             s.declare_subscriber(arm_key(self.cell, "*", "alive"), self._on_alive),
             s.declare_subscriber(arm_key(self.cell, "*", "ack"), self._on_ack),
+            s.declare_subscriber(arm_key(self.cell, "*", "held"), self._on_held),
             s.liveliness().declare_token(planner_key(self.cell, self.id)),
         ]
+        beat = lambda n, now: {"n": n, "t": now, "silence": self.silence}    # noqa: E731
+        self._heart = Heartbeat(s, planner_key(self.cell, self.id, "alive"), beat, self._on_beat,
+                                getattr(bus, "priority", 0) if priority is None else priority, f"alive-{self.id}")
+        self._heart.start()
 
     # -- what the bus tells ---------------------------------------------------------------
     def _on_flags(self, sample) -> None:
@@ -258,11 +181,69 @@ class BusEvents:
 
     def _on_alive(self, sample) -> None:
         """An arm process's heartbeat. One given up for its silence stays lost (a stale process
-        that comes back is ignored: only a new process, a new liveliness token, is heard again)."""
+        that comes back is ignored: only a new process, a new token, is heard); it names those it gave up."""
         name = str(sample.key_expr).split("/")[-2]
+        try:
+            gone = decode(sample.payload.to_bytes()).get("gone", [])
+        except (ValueError, TypeError, AttributeError):
+            gone = []
         with self._cond:
             if name not in self._lost:
                 self._alive[name] = time.monotonic()
+            if self.id in gone:
+                self._told(name, "its process lists this planning level as given up in its heartbeat (not heard "
+                                 f"for longer than its silence, {self.silence} s, or its token ended): it aborted "
+                                 "the motions queued there and holds the arm")
+
+    def _on_held(self, sample) -> None:
+        """An arm process aborted a planning level's motions: this one's, it has given it up."""
+        try:
+            m = decode(sample.payload.to_bytes())
+            planner, arm, why = m.get("planner"), str(m["arm"]), str(m["why"])
+        except (ValueError, KeyError, TypeError, AttributeError):
+            return
+        if planner != self.id:
+            return
+        with self._cond:
+            self._told(arm, f"its process says: {why} (it aborted the motions queued there)")
+
+    def _told(self, arm: str, why: str) -> None:
+        """``arm``'s process says it gave this planning level up; if this process was stalled longer
+        than its silence, that is the reason (caller holds the condition)."""
+        self._check_own_silence(time.monotonic())
+        self._given_up.setdefault(arm, why)
+        self._cond.notify_all()
+
+    def _on_beat(self, now: float, gap: float) -> None:      # before each heartbeat of this planning level
+        with self._cond:
+            self._check_own_silence(now, gap)
+
+    def _check_own_silence(self, now: float, gap: float | None = None) -> None:
+        """This planning level's heartbeat has not gone out for longer than ``silence`` (its
+        process was stopped, hung or starved): every arm process it made requests to has not
+        heard it for that long and has given it up (caller holds the condition)."""
+        gap = now - self._heart.last if gap is None else gap
+        if gap <= self.silence:
+            return
+        for arm in self._arms:
+            self._given_up.setdefault(arm, f"this planning level was silent {gap:.3f} s (its process stopped, hung or "
+                                           f"starved), longer than its silence ({self.silence} s): the process serving "
+                                           f"arm {arm!r} has aborted the motions it queued there and holds the arm")
+        self._cond.notify_all()
+
+    def _check_given_up(self, arm: str, where: str) -> None:
+        """Raise ``PlannerLost`` if ``arm``'s process gave this planning level up (caller holds the condition)."""
+        self._check_own_silence(time.monotonic())
+        why = self._given_up.get(arm)
+        if why is not None:
+            raise PlannerLost(f"{where}: arm {arm!r} gave this planning level up: {why}; only a new planning level "
+                              "(a new BusEvents) drives it again")
+
+    def given_up(self, arm: str) -> str | None:
+        """Why ``arm``'s process gave this planning level up (None if it has not, as far as this process knows)."""
+        with self._cond:
+            self._check_own_silence(time.monotonic())
+            return self._given_up.get(arm)
 
     def _on_ack(self, sample) -> None:
         """An arm process applied (or had already applied) start_ev / stop_ev message ``seq``."""
@@ -271,11 +252,14 @@ class BusEvents:
             if m.get("planner") != self.id:
                 return
             seq, arm, flags = int(m["seq"]), str(m["arm"]), list(m["flags"])
+            refused = m.get("refused")
         except (ValueError, KeyError, TypeError, AttributeError):
             return
         for f in flags:
             self._absorb(f)
         with self._cond:
+            if refused is not None:       # not applied: that arm's process gave this planning level up
+                self._told(arm, f"its process refused a start_ev / stop_ev: {refused}")
             if seq in self._acks:
                 self._acks[seq].add(arm)
             self._cond.notify_all()
@@ -356,6 +340,7 @@ class BusEvents:
         """Ask ``arm``'s process; its answer, or the error it names raised here (``ArmLost`` at
         once for an arm whose process left the bus, after ``request_timeout`` s for one that is mute)."""
         with self._cond:
+            self._check_given_up(arm, where)
             lost, why = self._lost.get(arm), self._why_lost.get(arm, "left the bus")
         if lost is not None:
             raise ArmLost(f"{where}: arm {arm!r} is lost: its process {why}, {time.monotonic() - lost:.3f} s ago")
@@ -367,6 +352,10 @@ class BusEvents:
                 continue
             answer = decode(reply.ok.payload.to_bytes())
             if "error" in answer:
+                if answer.get("type") == PlannerLost.__name__:
+                    with self._cond:
+                        self._told(arm, f"its process refused a request: {answer['error']}")
+                    raise PlannerLost(f"{where}: arm {arm!r} (its process) says: {answer['error']}")
                 cls = KNOWN_ERRORS.get(answer.get("type"), RemoteFault)
                 raise cls(f"{where}: arm {arm!r} (its process) says: {answer['error']}")
             return answer
@@ -381,7 +370,7 @@ class BusEvents:
         return arm
 
     def _live(self, eft: Any, where: str) -> RemoteEFT:
-        if not isinstance(eft, RemoteEFT) or eft._events is not self:
+        if not isinstance(eft, RemoteEFT) or eft.events is not self:
             raise UnknownEvent(f"{where}: {eft!r} is not an event flag triple of this bus (use the one move_ev returned)")
         if eft.freed:
             raise UnknownEvent(f"{where}: {eft.describe()} was freed by free_ev; its flags no longer exist")
@@ -441,6 +430,8 @@ class BusEvents:
         if not efts:
             return
         with self._cond:
+            for arm in sorted({e.arm for e in efts}):
+                self._check_given_up(arm, f"{flag}_ev({code})")
             self._seq += 1
             seq = self._seq
             self._acks[seq] = set()
@@ -466,6 +457,9 @@ class BusEvents:
                         if pending <= lost or time.monotonic() >= resend_at:
                             break
                         self._cond.wait(poll)
+                with self._cond:
+                    for arm in sorted(addressed):
+                        self._check_given_up(arm, f"{flag}_ev({code})")
                 if not pending:
                     return
                 if pending <= lost:
@@ -496,6 +490,9 @@ class BusEvents:
         heard, quiet_since = self._heard, time.monotonic()
         while True:
             with self._cond:
+                for e in self._chain(eft):          # a motion aborted because this planning level was given up
+                    if e.status >= 0 or e.status == ABORTED:
+                        self._check_given_up(e.arm, f"wait_ev: {eft.describe()}")
                 if done():
                     return eft.status
                 if self._watching(poll):
@@ -555,7 +552,10 @@ class BusEvents:
             self._absorb(flags)
 
     def close(self) -> None:
+        """Leave the bus: the token ends (the arm processes abort what this planning level
+        queued and has not ended), then the heartbeat stops."""
         undeclare(*self._declared)
+        self._heart.stop()
 
     # -- why a wait cannot end (caller holds the condition) ---------------------------------------
     def _check_blocked(self, eft: RemoteEFT, started: bool) -> None:

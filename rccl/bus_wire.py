@@ -9,8 +9,13 @@ Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is serv
 ``rcci/CELL/flags/set``            publication: start_ev / stop_ev on EFTs of any arms (planner id, sequence number)
 ``rcci/CELL/arm/ARM/ack``          publication: the arm applied (or already had) that start_ev / stop_ev, its EFTs' flags
 ``rcci/CELL/arm/ARM/alive``        publication: the arm process's heartbeat, every ``HEARTBEAT_S``
+                                   (``{"n", "t", "gone"}``: ``gone`` the last planning levels it gave up)
 ``rcci/CELL/arm/ARM/held``         publication: the arm process aborted a planning level's motions, and why
+                                   (``{"arm", "why", "aborted", "t", "planner"}``)
 ``rcci/CELL/planner/ID``           liveliness: a planning level (``BusEvents``) is there
+``rcci/CELL/planner/ID/alive``     publication: the planning level's heartbeat, every ``HEARTBEAT_S``
+                                   (``{"n", "t", "silence"}``): an arm process gives up a planning level it
+                                   has not heard for ``silence`` s
 
 Positions cross as joint angles (``joint_position``: rebuilt with the arm process's own
 kinematics) or as a T6 (any other position, evaluated when ``move_ev`` sends it: a
@@ -45,9 +50,10 @@ def set_key(cell: str) -> str:
     return f"rcci/{cell}/flags/set"
 
 
-def planner_key(cell: str, planner: str) -> str:
-    """The liveliness token of one planning level (a ``BusEvents``): the arm processes watch it."""
-    return f"rcci/{cell}/planner/{planner}"
+def planner_key(cell: str, planner: str, *parts: str) -> str:
+    """The liveliness token of one planning level (a ``BusEvents``), which the arm processes
+    watch; with ``"alive"``, the key of its heartbeat."""
+    return "/".join(("rcci", cell, "planner", planner) + parts)
 
 
 def check_name(name: Any, what: str) -> str:
@@ -87,8 +93,24 @@ def position_from_wire(data: Any, kinematics) -> Position:
     return makeposition(data["name"], T6, EQ, Trsf(data["name"].upper(), t6), TL, T6)
 
 
+# --- the errors (raised in the planning process, ``rccl.bus_events``) ---------------------------
+class ArmLost(EventError):
+    """The process serving an arm left the bus (died, or is unreachable), or does not answer."""
+
+
+class PlannerLost(ArmLost):
+    """An arm's process gave this planning level up: it did not hear it for longer than its
+    silence (this process was stopped, hung or cut off) or its token ended; it aborted the
+    motions this planning level queued there and holds the arm. Only a new planning level
+    (a new ``BusEvents``) drives that arm again."""
+
+
+class RemoteFault(EventError):
+    """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
+
+
 #: error classes an arm process's reply may name (anything else arrives as RemoteFault)
-KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock)}
+KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock, PlannerLost)}
 KNOWN_ERRORS.update({name: cls for name, cls in vars(rccl_exceptions).items()
                       if isinstance(cls, type) and issubclass(cls, Exception)})
 

@@ -292,6 +292,7 @@ class Bus:
             raise MultiError("bus: tasks must name the tasks of this process, e.g. ('puma',) or ('planning',)")
         self.cell = cell.strip("/")
         self.tasks = frozenset(tasks)
+        self.priority = int(priority)    # SCHED_FIFO asked for Zenoh's threads (and the heartbeats of rccl.bus_events)
         self.join_timeout = join_timeout
         try:
             # the process the others connect to (it listens and connects nowhere) routes between

@@ -1,24 +1,29 @@
-"""A planning process for tests/test_zenoh_flag_faults.py, to be killed mid-plan.
+"""A planning process for tests/test_zenoh_flag_faults.py, to be killed or stopped mid-plan.
 
-    python tests/bus_planner.py CELL LISTEN ARM DELTA
+    python tests/bus_planner.py CELL ENDPOINT ARM DELTA [--connect]
 
-It is the bus's hub (listens on LISTEN, as in examples/two_arm_flags.py --bus), prints
-``listening``, waits for the arm process serving ARM, queues a motion of its waist by DELTA
-rad and a held motion behind it, prints ``moving A B`` (their serials) once the first has
-begun, and waits for it: the test kills it there.
+It is the bus's hub (listens on ENDPOINT, as in examples/two_arm_flags.py --bus; with
+``--connect``, a client of the hub there), prints ``listening`` (``connected``), waits for
+the arm process serving ARM, queues a motion of its waist by DELTA rad and a held motion
+behind it, prints ``moving A B ID`` (their serials, its planning level's id) once the first
+has begun, and waits for it: the test kills or stops it there. Stopped (SIGSTOP) and
+continued, it finds itself given up: it prints ``given up: PlannerLost: ...`` (what
+``wait_ev`` raised) and ``refused: ...`` (what a request to the arm raised after it) and
+ends with status 0.
 """
 from __future__ import annotations
 
 import sys
 
-from rccl.bus_events import BusEvents
+from rccl.bus_events import BusEvents, PlannerLost
 from rccl.position import joint_position
 from rci.bus import Bus
 
 
-def main(cell: str, listen: str, arm_name: str, delta: float) -> int:
-    with Bus(cell, tasks=("planning",), listen=(listen,)) as bus:
-        print("listening", flush=True)
+def main(cell: str, endpoint: str, arm_name: str, delta: float, connect: bool = False) -> int:
+    where = {"connect": (endpoint,)} if connect else {"listen": (endpoint,)}
+    with Bus(cell, tasks=("planning",), **where) as bus:
+        print("connected" if connect else "listening", flush=True)
         ev = BusEvents(bus)
         arm = ev.arm(arm_name, timeout=60.0)
         q0 = arm.q
@@ -27,11 +32,21 @@ def main(cell: str, listen: str, arm_name: str, delta: float) -> int:
         a = ev.move_ev(arm, joint_position("long_way", arm.kinematics, q1))
         b = ev.move_ev(arm, joint_position("back", arm.kinematics, q0), start=None)     # held
         ev.wait_ev(a, started=True, timeout=10.0)
-        print(f"moving {a.serial} {b.serial}", flush=True)
-        ev.wait_ev(a, timeout=60.0)
+        print(f"moving {a.serial} {b.serial} {ev.id}", flush=True)
+        try:
+            ev.wait_ev(a, timeout=60.0)
+        except PlannerLost as exc:
+            print(f"given up: {type(exc).__name__}: {exc}", flush=True)
+            try:
+                arm.q
+            except PlannerLost as again:
+                print(f"refused: {type(again).__name__}: {again}", flush=True)
+            ev.close()
+            return 0
         print("not killed", flush=True)
     return 1
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])))
+    args = [x for x in sys.argv[1:] if x != "--connect"]
+    sys.exit(main(args[0], args[1], args[2], float(args[3]), connect="--connect" in sys.argv[1:]))

@@ -23,10 +23,11 @@ import numpy as np
 import pytest
 
 from rccl import bus_arm
-from rccl.bus_events import SILENCE_S, ArmLost, BusEvents
+from rccl.bus_events import HEARTBEAT_S, SILENCE_S, ArmLost, BusEvents
+from rccl.bus_wire import arm_key, set_key
 from rccl.events import DONE, EventError
 from rccl.position import joint_position
-from rci.bus import Bus
+from rci.bus import Bus, decode, encode
 from rci.zenoh_bus import free_endpoint
 from rci.simula.process import SimulaProcess
 
@@ -151,7 +152,7 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
         _line(planner, 30.0, "listening")
         proc = bus_arm.spawn("puma", sim.url, "puma260", "flags-orphan", (listen,), RATE_HZ, how_timeout=HOW_TIMEOUT_S)
         stack.callback(_end, proc)
-        serials = [int(x) for x in _line(planner, 30.0, "moving").split()[1:]]
+        serials = [int(x) for x in _line(planner, 30.0, "moving").split()[1:3]]
         time.sleep(0.2)
         t1, q1 = time.monotonic(), _q(sim)
         time.sleep(0.1)
@@ -190,5 +191,92 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
             assert abs(_q(sim)[0] - (q4[0] - 0.05)) < 2e-3
             puma.close()
             ev.close()
+        assert proc.wait(10) == 0
+        assert proc.stdout.read().decode().strip().endswith("puma: released")
+
+
+def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_continues():
+    """The planning process (a client of this test's hub) is stopped (SIGSTOP) mid-plan: its
+    heartbeat stops, and the arm process gives it up after its silence: it aborts the motion
+    running and the one held behind it and holds the arm under its control, as when a
+    planning process dies. Continued (SIGCONT), the planning process learns it was given up
+    (``PlannerLost``, not a silent resume); a new planning level drives the arm again."""
+    with ExitStack() as stack:
+        sim = _simula(stack)
+        listen = free_endpoint()
+        bus = stack.enter_context(Bus("flags-mute", tasks=("planning",), listen=(listen,)))
+        notices: list[dict] = []
+        held_sub = bus.session.declare_subscriber(arm_key("flags-mute", "puma", "held"),
+                                                  lambda s: notices.append(decode(s.payload.to_bytes())))
+        stack.callback(held_sub.undeclare)
+        proc = bus_arm.spawn("puma", sim.url, "puma260", "flags-mute", (listen,), RATE_HZ, how_timeout=HOW_TIMEOUT_S)
+        stack.callback(_end, proc)
+        planner = subprocess.Popen([sys.executable, str(HERE / "bus_planner.py"), "flags-mute", listen, "puma", "0.5",
+                                    "--connect"], stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
+        stack.callback(_end, planner)
+        moving = _line(planner, 30.0, "moving").split()
+        serials, planner_id = [int(x) for x in moving[1:3]], moving[3]
+        time.sleep(0.2)
+        t1, q1 = time.monotonic(), _q(sim)
+        time.sleep(0.1)
+        t2, q2 = time.monotonic(), _q(sim)
+        speed = abs(q2[0] - q1[0]) / (t2 - t1)                 # rad/s: the waist is on its way (0.5 rad)
+        assert speed > 0.05
+        t_stop = time.monotonic()                  # before the signal: the figure can only be too long
+        os.kill(planner.pid, signal.SIGSTOP)
+        said = _line(proc, 5.0, "aborted, the arm holds")
+        assert f"the planning process {planner_id} went silent: no heartbeat for" in said
+        assert f"motion(s) #{serials[0]}, #{serials[1]} aborted" in said
+        t_held = float(said.rsplit("t=", 1)[1].rstrip(")"))     # one host: one monotonic clock
+        detected = t_held - t_stop
+        quiet = float(said.split("no heartbeat for ", 1)[1].split(" s", 1)[0])
+        # not before the silence after its last beat, and within one heartbeat of the arm process
+        # after it (its last beat left at most one heartbeat before the stop, if it was on time)
+        assert quiet >= SILENCE_S, said                         # (printed to the millisecond)
+        assert 0.0 < detected < SILENCE_S + HEARTBEAT_S + 0.1, f"given up {detected:.3f} s after the stop: {said}"
+        # the arm holds where it is, under its control (simula's owner is still the arm process)
+        time.sleep(0.1)
+        s3 = sim.command("state")
+        time.sleep(0.3)
+        s4 = sim.command("state")
+        q3, q4 = np.array(s3["state"]["q"]), np.array(s4["state"]["q"])
+        assert np.max(np.abs(q4 - q3)) < 1e-5
+        went_on = abs(q3[0] - q2[0])
+        assert went_on <= speed * (t_held - t2 + 5.0 / RATE_HZ) + 1e-3 and went_on < 0.4, \
+            f"the waist went on {went_on:.4f} rad after the planner was stopped ({speed:.3f} rad/s)"
+        assert s4["owner"]["running"] and not s4["owner"]["faulted"]
+        assert [(n["planner"], n["aborted"]) for n in notices] == [(planner_id, serials)]
+        # the arm process refuses that planning level from now on, whatever it asks
+        replies = list(bus.session.get(arm_key("flags-mute", "puma", "request"), timeout=5.0,
+                                       payload=encode({"op": "info", "planner": planner_id, "silence": SILENCE_S})))
+        answer = decode(replies[0].ok.payload.to_bytes())
+        assert answer["type"] == "PlannerLost" and "went silent" in answer["error"]
+        acks: list[dict] = []
+        ack_sub = bus.session.declare_subscriber(arm_key("flags-mute", "puma", "ack"),
+                                                 lambda s: acks.append(decode(s.payload.to_bytes())))
+        stack.callback(ack_sub.undeclare)
+        bus.session.put(set_key("flags-mute"), encode({"flag": "start", "code": 5, "efts": [["puma", serials[1]]],
+                                                       "planner": planner_id, "seq": 99}))
+        deadline = time.monotonic() + 2.0
+        while not acks and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert acks and acks[0]["seq"] == 99 and "went silent" in acks[0]["refused"] and acks[0]["flags"] == []
+
+        # continued, the planning process is told, not resumed: wait_ev raises PlannerLost, a request too
+        os.kill(planner.pid, signal.SIGCONT)
+        told = _line(planner, 5.0, "given up")
+        assert "PlannerLost" in told and "gave this planning level up" in told and "silent" in told
+        assert "PlannerLost" in _line(planner, 5.0, "refused")
+        assert planner.wait(10) == 0
+        assert np.max(np.abs(_q(sim) - q4)) < 1e-5              # nothing of the old plan moved
+
+        # a new planning level (this process) drives the arm again
+        ev = BusEvents(bus)
+        stack.callback(ev.close)
+        puma = ev.arm("puma", timeout=10.0)
+        b = ev.move_ev(puma, _waist(puma, -0.05, "again"))
+        assert ev.wait_ev(b, timeout=5.0) == DONE
+        assert abs(_q(sim)[0] - (q4[0] - 0.05)) < 2e-3
+        puma.close()
         assert proc.wait(10) == 0
         assert proc.stdout.read().decode().strip().endswith("puma: released")
