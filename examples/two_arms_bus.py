@@ -47,7 +47,10 @@ def run_arm(name: str, url: str, bus_endpoints: tuple[str, ...], rate_hz: int = 
     conv = Conversions.for_robot(robot)
     with Bus(CELL, tasks=(name,), connect=bus_endpoints) as bus, \
             Session(url, robot, rate_hz=rate_hz, on_error="raise", signals=False, lock_memory=False,
-                    realtime=False) as s:
+                    # an ordinary (not real-time) process on a shared machine: a HOW may come a few
+                    # periods late over the bus, so 0.25 s without one (not two periods) ends the
+                    # control; simula's watchdog stops the arm if this process itself stalls
+                    realtime=False, timeout=0.25) as s:
         reports = bus.channel("microbo", "planning", capacity=8)
         state = {"q0": None, "k": 0}
 
