@@ -62,14 +62,19 @@ def _namespaces(tag: str) -> tuple[str, str]:
     except RuntimeError as exc:
         pytest.fail(f"cannot make a network namespace (this test needs root, CAP_NET_ADMIN, as the suite has "
                     f"on CI and here): {exc}")
-    _ip("netns", "add", ns_b)
-    _ip("link", "add", veth_a, "type", "veth", "peer", "name", veth_b)
-    _ip("link", "set", veth_a, "netns", ns_a)
-    _ip("link", "set", veth_b, "netns", ns_b)
-    for ns, dev, addr in ((ns_a, veth_a, ADDR_A), (ns_b, veth_b, ADDR_B)):
-        _ip("-n", ns, "addr", "add", f"{addr}/24", "dev", dev)
-        _ip("-n", ns, "link", "set", dev, "up")
-        _ip("-n", ns, "link", "set", "lo", "up")
+    try:
+        _ip("netns", "add", ns_b)
+        _ip("link", "add", veth_a, "type", "veth", "peer", "name", veth_b)
+        _ip("link", "set", veth_a, "netns", ns_a)
+        _ip("link", "set", veth_b, "netns", ns_b)
+        for ns, dev, addr in ((ns_a, veth_a, ADDR_A), (ns_b, veth_b, ADDR_B)):
+            _ip("-n", ns, "addr", "add", f"{addr}/24", "dev", dev)
+            _ip("-n", ns, "link", "set", dev, "up")
+            _ip("-n", ns, "link", "set", "lo", "up")
+    except RuntimeError:             # nothing left behind: the caller only learns of a complete pair
+        subprocess.run(["ip", "link", "del", veth_a], capture_output=True)
+        _remove(ns_a, ns_b)
+        raise
     return ns_a, ns_b
 
 
