@@ -36,8 +36,8 @@ SRC = ROOT / "bench" / "cpp"
 BUILD = ROOT / "build" / "bench"
 KERNEL_DIR = ROOT / "rccl" / "kinematics" / "_c"
 
-#: the kernels' flags are those setup.py builds the extension with (its AVX2+FMA sine and
-#: cosine are chosen at run time by CPU, as in the extension)
+#: the kernels' flags are those setup.py builds the extension with (its AVX2+FMA and
+#: AVX-512F sine and cosine are chosen at run time by CPU, as in the extension)
 C_FLAGS = ["-O3", "-fno-math-errno", "-Wno-unused-variable", "-Wno-unused-function"]
 #: Pinocchio's side: -O3, no -march=native (see CXX_NOTE), its algorithms instantiated from
 #: the headers in this program (not the wheel's precompiled instantiations)
@@ -359,7 +359,8 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
          "(`pinocchio.buildModelFromUrdf`), its joints, link inertias and frames rebuilt in the program with "
          f"`addJoint`/`appendBodyToJoint`/`addFrame` (bench/cpp_pinocchio.py `model_text`). {CXX_NOTE}.",
          f"- Generated C: `{' '.join(['gcc', *C_FLAGS])}` (setup.py's flags); sines and cosines "
-         + ("four at a time with AVX2+FMA (kin_prelude.h), chosen at run time as in the extension."
+         + ("four at a time with AVX2+FMA (kin_prelude.h; eight at a time with AVX-512F over the blocks of a "
+            "batch where the CPU has it), chosen at run time as in the extension."
             if runs[0].vector_trig else "from libm (this CPU lacks AVX2+FMA)."),
          "- `one per call`: the kernel's batched loop called for one configuration at a time (the path of a single "
          "call of the extension, without its argument checks); `batched`: one call over all N configurations (the "

@@ -300,7 +300,7 @@ def machine() -> list[str]:
         f"- machine: {cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}",
         f"- Python {platform.python_version()}, numpy {np.__version__}, Pinocchio {pin.__version__}, "
         f"CasADi {ca.__version__}, compiler: {gcc} (flags -O3 -fno-math-errno, from setup.py; numpy C API for the "
-        f"public fast entry; batched and single-row sin/cos four at a time with AVX2+FMA (kin_prelude.h) when the CPU has them; "
+        f"public fast entry; batched and single-row sin/cos four at a time with AVX2+FMA (kin_prelude.h) when the CPU has them, eight at a time with AVX-512F over the blocks of a batch where it has that too (same bits); "
         f"results that are polynomials in sines and cosines are not rescanned for NaN/inf)",
     ]
 

@@ -26,7 +26,7 @@ import sympy as sp
 from derive import opcount
 from derive.kernel import Kernel
 from derive.lowering import (LoweredKernel, all_configurations_kernels, dag_size, lower, outputs_of,
-                             transform_columns, tree_size)
+                             shared_reciprocal, transform_columns, tree_size)
 
 #: Functions the C printer knows, with their C spelling.
 C_FUNCS = {
@@ -209,7 +209,7 @@ def best_program(kernel: Kernel) -> tuple[LoweredKernel, str]:
             if best is None or key < best[0]:
                 best = (key, prog)
         assert best is not None
-        prog = _flip_signs(best[1])
+        prog = _shared_reciprocal(_flip_signs(best[1]))
         c = opcount.count_ops(kernel_body(prog))
         best_per_cross.append(((c["mul_div"] + c["add_sub"], c["trig"], c["mul_div"]), prog))
     key, prog = min(best_per_cross, key=lambda kp: kp[0])
@@ -240,6 +240,16 @@ def _flip_signs(prog: LoweredKernel) -> LoweredKernel:
         c = cost(trial)
         if c < current:
             prog, current = trial, c
+    return prog
+
+
+def _shared_reciprocal(prog: LoweredKernel) -> LoweredKernel:
+    """``derive.lowering.shared_reciprocal`` where it counts fewer cycles
+    (``opcount.cycles``: a division costs 8 multiplications' throughput, and the divisions
+    of a solve sit on its dependency chain, 13-15 cycles of latency each)."""
+    trial = shared_reciprocal(prog)
+    if trial is not None and opcount.cycles(kernel_body(trial)) < opcount.cycles(kernel_body(prog)):
+        return trial
     return prog
 
 

@@ -7,6 +7,7 @@ Differential vectors are (dx, dy, dz, delta_x, delta_y, delta_z); force vectors
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import sympy as sp
@@ -162,19 +163,62 @@ def triangular_pivots(m: sp.Matrix) -> list[tuple[int, int]] | None:
     return order
 
 
-def substitute(m: sp.Matrix, rhs: list[sp.Expr], unknowns: list[sp.Symbol]) -> list[tuple[sp.Symbol, sp.Expr]]:
-    """Definitions that solve ``m x = rhs`` by substitution (m triangular up to a permutation).
+def block_pivots(m: sp.Matrix) -> list[tuple[tuple[int, ...], tuple[int, ...]]] | None:
+    """(rows, columns) blocks that make square ``m`` block triangular once rows and columns
+    are permuted, in the order a block substitution solves them; None if there is none.
+
+    Each block's rows have their non-zeros, among the columns not yet solved, in exactly as
+    many columns as the block has rows, and the block's determinant is not identically
+    zero; the smallest such block is taken first, so a matrix that is triangular up to a
+    permutation gives the pivots of ``triangular_pivots`` as blocks of one.
+    """
+    rows, cols = list(range(m.shape[0])), set(range(m.shape[1]))
+    order: list[tuple[tuple[int, ...], tuple[int, ...]]] = []
+    while rows:
+        block = None
+        for k in range(1, len(rows) + 1):
+            for rs in itertools.combinations(rows, k):
+                cs = tuple(sorted({c for r in rs for c in cols if m[r, c] != 0}))
+                if len(cs) == k and tidy(m.extract(list(rs), list(cs)).det()) != 0:
+                    block = (rs, cs)
+                    break
+            if block:
+                break
+        if block is None:
+            return None
+        order.append(block)
+        rows = [r for r in rows if r not in block[0]]
+        cols -= set(block[1])
+    return order
+
+
+def substitute(m: sp.Matrix, rhs: list[sp.Expr], unknowns: list[sp.Symbol],
+               names=None) -> list[tuple[sp.Symbol, sp.Expr]]:
+    """Definitions that solve ``m x = rhs`` by (block) substitution (``block_pivots``).
 
     ``unknowns[c]`` names x_c; each definition uses only the rhs and unknowns defined before
     it. This is how 3.73 and 3.74 are written: dtheta1 first, then dtheta2 from it, ...
+    A block of more than one row is solved by its adjugate over its determinant, with one
+    reciprocal of the determinant, named by the next of ``names`` (required then).
     """
-    pivots = triangular_pivots(m)
-    if pivots is None:
-        raise ValueError("matrix is not triangular under any permutation")
+    blocks = block_pivots(m)
+    if blocks is None:
+        raise ValueError("matrix is not block triangular under any permutation")
     defs = []
-    for r, c in pivots:
-        known = sum((m[r, k] * unknowns[k] for k in range(m.shape[1]) if k != c), sp.Integer(0))
-        defs.append((unknowns[c], (rhs[r] - known) / m[r, c]))
+    for rs, cs in blocks:
+        known = [rhs[r] - sum((m[r, k] * unknowns[k] for k in range(m.shape[1]) if k not in cs), sp.Integer(0))
+                 for r in rs]
+        if len(rs) == 1:
+            defs.append((unknowns[cs[0]], known[0] / m[rs[0], cs[0]]))
+            continue
+        if names is None:
+            raise ValueError("substitute: a block of more than one row needs names for its reciprocal")
+        b = m.extract(list(rs), list(cs))
+        w = next(names)
+        defs.append((w, 1 / sp.factor(tidy(b.det()))))
+        adj = b.adjugate().applyfunc(tidy)
+        for i, c in enumerate(cs):
+            defs.append((unknowns[c], w * sum((adj[i, j] * known[j] for j in range(len(rs))), sp.Integer(0))))
     return defs
 
 
@@ -182,8 +226,10 @@ def substitute(m: sp.Matrix, rhs: list[sp.Expr], unknowns: list[sp.Symbol]) -> l
 class TriangularForm:
     """4J' = [[R^T M, 0], [J21, J22]] (3.67, 3.69): R rotates frame 4 to frame 3 (A4's
     rotation), M is the wrist-centre Jacobian observed in frame 3 and, like J22, is
-    triangular up to a permutation; so J' and J'^T are solved by substitution, as 3.73
-    and 3.74 are, instead of multiplying by the expanded inverse 3.68."""
+    block triangular up to a permutation (triangular for the thesis's arms; a 2x2 block
+    where an elbow offset a3 != 0 couples joints 2 and 3, as on the PUMA 560); so J' and
+    J'^T are solved by substitution, as 3.73 and 3.74 are, instead of multiplying by the
+    expanded inverse 3.68."""
 
     r: sp.Matrix
     m: sp.Matrix
@@ -196,9 +242,9 @@ def triangular_form(diff: Differential) -> TriangularForm | None:
     j = diff.j4_reduced
     r = link_to_link(diff.robot, 3, 4)[:3, :3]
     m = tidy_matrix(r * j[:3, :3])
-    if j[:3, 3:] != sp.zeros(3, 3) or triangular_pivots(m) is None or triangular_pivots(m.T) is None:
+    if j[:3, 3:] != sp.zeros(3, 3) or block_pivots(m) is None or block_pivots(m.T) is None:
         return None
     j22 = j[3:, 3:]
-    if triangular_pivots(j22) is None or triangular_pivots(j22.T) is None:
+    if block_pivots(j22) is None or block_pivots(j22.T) is None:
         return None
     return TriangularForm(r, m, j[3:, :3], j22)

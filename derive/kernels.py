@@ -225,19 +225,19 @@ def _structure_hints(tri: TriangularForm, y: sp.Matrix, bb: sp.Matrix, bbt: sp.M
     cv = list(dc) if frame == 4 else define(list(bbt * dc), defs)
     g = define(list(r * sp.Matrix(cv[:3])), defs)
     xa = [next(names) for _ in range(3)]
-    defs.extend(substitute(m, g, xa))
+    defs.extend(substitute(m, g, xa, names))
     rb = list(sp.Matrix(cv[3:]) - j21 * sp.Matrix(xa))
     xb = [next(names) for _ in range(3)]
-    defs.extend(substitute(j22, rb, xb))
+    defs.extend(substitute(j22, rb, xb, names))
     hints["joint"] = (tuple(defs), (y.inv() * sp.Matrix(xa + xb),))
     # force: J22^T f_b = tau'_b, M^T g = tau'_a - J21^T f_b, f_a = R^T g, tau' = Y^-T tau
     defs = []
     tp = list(y.inv().T * tau)
     fb = [next(names) for _ in range(3)]
-    defs.extend(substitute(j22.T, tp[3:], fb))
+    defs.extend(substitute(j22.T, tp[3:], fb, names))
     ra = list(sp.Matrix(tp[:3]) - j21.T * sp.Matrix(fb))
     g = [next(names) for _ in range(3)]
-    defs.extend(substitute(m.T, ra, g))
+    defs.extend(substitute(m.T, ra, g, names))
     out = list(r.T * sp.Matrix(g)) + fb
     if frame == 6:
         out = list(bb * sp.Matrix(define(out, defs)))

@@ -9,6 +9,8 @@ variants by counting the operations of the C text it prints):
    terms, recursively), then common subexpressions are shared (``sympy.cse``);
 4. for a 4x4 homogeneous-transform output one rotation column may be computed as the
    cross product of the other two (thesis 3.3: n = o x a, o = a x n, a = n x o).
+5. in a guarded solve, divisions by several bounded divisors may share one reciprocal
+   (``shared_reciprocal``).
 
 Also ``ik_all`` (every configuration of ``ik`` at once), a composition of the derived
 kernels that the compiled back ends add.
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import sympy as sp
 
@@ -307,7 +309,7 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
                             optimizations="basic" if cse_opt else None)
     stage_defs = [(sym, r) for (sym, _), r in zip(kernel.stages, reduced[:n_stage])] if n_stage else []
     reduced = reduced[n_stage:]
-    temps = _in_dependency_order(list(temps) + stage_defs)
+    temps = in_dependency_order(list(temps) + stage_defs)
     outputs: list[tuple[str, sp.Expr]] = [(flat_names[k], reduced[i]) for i, k in enumerate(keep)]
     for k in sorted(rebuilt):
         outputs.append((flat_names[k], rebuilt[k]))
@@ -319,7 +321,7 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
     return LoweredKernel(kernel, in_names, out_names, trig, list(temps), outputs, sym_names, variant)
 
 
-def _in_dependency_order(defs: list[tuple[sp.Symbol, sp.Expr]]) -> list[tuple[sp.Symbol, sp.Expr]]:
+def in_dependency_order(defs: list[tuple[sp.Symbol, sp.Expr]]) -> list[tuple[sp.Symbol, sp.Expr]]:
     """Order assignments so each comes after the ones it uses (stable otherwise)."""
     defined = {s for s, _ in defs}
     deps = {s: v.free_symbols & defined for s, v in defs}
@@ -347,6 +349,93 @@ def _live(defs: list[tuple[sp.Symbol, sp.Expr]], used: list[sp.Expr]) -> list[tu
             keep.append((s, v))
             need |= v.free_symbols
     return keep[::-1]
+
+
+#: at most this many divisions share one reciprocal (their product stays far from
+#: underflow: each is a guarded singular factor, |d| > SINGULAR_TOL-scale, see below)
+MAX_SHARED_DIVISORS = 4
+
+
+def shared_reciprocal(prog: LoweredKernel) -> LoweredKernel | None:
+    """Divisions by several divisors d1..dk replaced by one reciprocal r = 1/(d1 ... dk) and
+    multiplications (1/d1 = r d2 ... dk, shared as prefix and suffix products: 3(k - 1)
+    multiplications for k - 1 divisions); None where that is not safe or there is nothing
+    to share (derive.emit_c keeps it where it counts fewer cycles).
+
+    Only where it is safe: the kernel has guards (its divisors are the singular factors
+    it checks, so a divisor near zero makes the row invalid whatever its rounding), and
+    every divisor is a polynomial in sines and cosines with constant coefficients, so
+    bounded: the product cannot overflow, and with each factor above the guards'
+    tolerance (1e-9 scale) it cannot underflow either. A divisor that depends on an
+    input other than through a sine or cosine, on a division or on a function call is
+    left as it is (then nothing is shared). The result is the same quotient up to
+    rounding; the single-row and batched C paths print this same program, so they agree
+    bit for bit.
+    """
+    if not prog.kernel.guards:
+        return None
+    n_main = len(prog.kernel.outputs)
+    guard_names = {n for row in prog.out_names[n_main:] for n in row}
+    temps = dict(prog.temps)
+    trig_syms = {s for s, f in prog.trig if isinstance(f, (sp.sin, sp.cos))}
+    bounded_memo: dict[sp.Symbol, bool] = {}
+
+    def bounded(e: sp.Expr) -> bool:
+        """A polynomial in sines and cosines with constant coefficients."""
+        if any(p.is_Pow and not (p.exp.is_Integer and p.exp > 0) for p in sp.preorder_traversal(e)):
+            return False
+        if any(isinstance(a, sp.Function) for a in sp.preorder_traversal(e)):
+            return False
+        for sym in e.free_symbols:
+            if sym in trig_syms:
+                continue
+            if sym not in temps:
+                return False
+            if sym not in bounded_memo:
+                bounded_memo[sym] = bounded(temps[sym])
+            if not bounded_memo[sym]:
+                return False
+        return True
+
+    bodies = [v for _, v in prog.temps] + [v for n, v in prog.outputs if n not in guard_names]
+    divisors: list[sp.Expr] = []
+    for e in bodies:
+        for p in sp.preorder_traversal(e):
+            if p.is_Pow and p.exp == -1 and p.base not in divisors:
+                divisors.append(p.base)
+    if not 2 <= len(divisors) <= MAX_SHARED_DIVISORS or not all(bounded(d) for d in divisors):
+        return None
+    if any(p.is_Pow and p.exp.is_negative and p.exp != -1 for e in bodies for p in sp.preorder_traversal(e)):
+        return None
+    k = len(divisors)
+    new: list[tuple[sp.Symbol, sp.Expr]] = []
+    d = []
+    for i, b in enumerate(divisors):  # each divisor a local of its own
+        if b.is_Symbol:
+            d.append(b)
+        else:
+            d.append(sp.Symbol(f"d_{i}"))
+            new.append((d[-1], b))
+    prefix = [d[0]]
+    for i in range(1, k):
+        prefix.append(sp.Symbol(f"dp_{i}"))
+        new.append((prefix[i], prefix[i - 1] * d[i]))
+    r = sp.Symbol("r_0")
+    new.append((r, 1 / prefix[-1]))
+    inv: dict[sp.Expr, sp.Symbol] = {}
+    rest = r  # 1/(d0 ... di) while walking back
+    for i in range(k - 1, 0, -1):
+        inv[divisors[i]] = sp.Symbol(f"r_{i}_inv")
+        new.append((inv[divisors[i]], rest * prefix[i - 1]))
+        nxt = sp.Symbol(f"r_{i}")
+        new.append((nxt, rest * d[i]))
+        rest = nxt
+    inv[divisors[0]] = rest
+    subs = {sp.Pow(b, -1): inv[b] for b in divisors}
+    temps_new = [(s_, v.xreplace(subs)) for s_, v in prog.temps]
+    outputs = [(n, v if n in guard_names else v.xreplace(subs)) for n, v in prog.outputs]
+    return replace(prog, temps=in_dependency_order(new + temps_new), outputs=outputs,
+                   variant=prog.variant + f", {k} divisions by one shared reciprocal")
 
 
 def _collapse(e: sp.Expr) -> sp.Expr:

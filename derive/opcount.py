@@ -100,6 +100,26 @@ def count_ops(body: str) -> dict[str, int]:
     return c
 
 
+#: throughput cost in cycles of one scalar double operation on current x86-64 cores (Intel
+#: Ice Lake / Sapphire Rapids, AMD Zen 3/4: two adds or multiplies per cycle, one division
+#: every 4-5 cycles, latency 13-15): what ``cycles`` weighs a kernel's operations by
+CYCLES_ADD_MUL = 0.5
+CYCLES_DIV = 4.0
+
+
+def divisions(body: str) -> int:
+    """The binary ``/`` of a kernel body (counted in ``mul_div`` with the products)."""
+    return sum(1 for kind, t in tokens(_COMMENT.sub("", body)) if kind == "op" and t == "/")
+
+
+def cycles(body: str) -> float:
+    """Throughput estimate of a kernel body's arithmetic in cycles (sines, cosines and other
+    calls left out): additions and multiplications at CYCLES_ADD_MUL, divisions at CYCLES_DIV."""
+    c = count_ops(body)
+    d = divisions(body)
+    return CYCLES_ADD_MUL * (c["add_sub"] + c["mul_div"] - d) + CYCLES_DIV * d
+
+
 _ANGLE_SUM = re.compile(r"^\s*const double x_\d+\s*=\s*(?P<rhs>in0\[\d+\](?:\s*[-+]\s*in0\[\d+\])+);\s*$")
 
 

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import importlib.util
+import math
+import re
 import shutil
 import subprocess
 import sys
@@ -17,6 +19,7 @@ import sympy as sp
 
 from derive import emit_c, emit_casadi, opcount
 from derive.kernel import Arg, Guard, Kernel
+from derive.lowering import shared_reciprocal
 
 RUNTIME_DIR = Path(__file__).resolve().parent.parent / "rccl" / "kinematics" / "_c"  # kin_prelude.h, kin_runtime.h
 A2, D3, D4 = 0.2032, 0.12624, 0.2032  # Table 3.1, metres
@@ -218,6 +221,49 @@ def test_fk_op_count_and_cross_product(built):
     assert fk["mul_div"] <= 41  # section 6.1: RCCL's forward kinematics, 41 multiplications
     prog = next(p for p, _ in built[2] if p.kernel.name == "fk")
     assert "cross" in prog.variant  # one rotation column rebuilt from the other two (3.3)
+
+
+def test_guarded_divisions_share_one_reciprocal():
+    """derive.lowering.shared_reciprocal through emit_c.best_program: a guarded solve that
+    divides by three bounded divisors (polynomials in sines and cosines) divides once and
+    gives the same quotients; a divisor that is an input (unbounded) is left alone."""
+    q = sp.Matrix(sp.symbols("q1:4", real=True))
+    b = sp.Matrix(sp.symbols("b1:4", real=True))
+    s1, c2, s3 = sp.sin(q[0]), sp.cos(q[1]), sp.sin(q[2])
+    x1 = b[0] / (0.5 * s1 - 0.25)
+    x2 = (b[1] - s1 * x1) / c2        # a chain of dependent quotients, as 3.73 is
+    x3 = (b[2] + c2 * x2) / s3
+    guards = tuple(Guard(f"guard_{i}", sp.Abs(d) - 1e-9, "Singular", "singular")
+                   for i, d in enumerate((0.5 * s1 - 0.25, c2, s3)))
+    k = Kernel("testarm", "solve3", "a guarded triangular solve", (Arg("q", q), Arg("b", b)),
+               (Arg("x", sp.Matrix([x1, x2, x3])),), guards)
+    prog, body = emit_c.best_program(k)
+    assert opcount.divisions(opcount.without_guards(body)) == 1, body
+    assert "shared reciprocal" in prog.variant
+    assert opcount.cycles(body) < opcount.cycles(emit_c.kernel_body(emit_c.lower(k, factor="")))
+    env = {"sin": math.sin, "cos": math.cos, "fabs": abs}
+    for qv, bv in (((0.3, -1.1, 2.0), (1.0, -2.0, 0.5)), ((-2.5, 0.4, -0.7), (0.1, 3.0, -4.0))):
+        names = {f"in0[{i}]": v for i, v in enumerate(qv)} | {f"in1[{i}]": v for i, v in enumerate(bv)}
+        got = _run_body(body, names, env)
+        subs = dict(zip(list(q) + list(b), qv + bv))
+        want = [float(e.subs(subs)) for e in (x1, x2, x3)]
+        np.testing.assert_allclose([got[f"out0[{i}]"] for i in range(3)], want, rtol=1e-13)
+    unbounded = Kernel("testarm", "solve2", "divides by an input", (Arg("q", q), Arg("b", b)),
+                       (Arg("x", sp.Matrix([b[0] / q[2], b[1] / s3])),), guards[2:])
+    assert shared_reciprocal(emit_c.lower(unbounded, factor="")) is None
+
+
+def _run_body(body: str, names: dict[str, float], env: dict) -> dict[str, float]:
+    """Evaluate the straight-line C statements of a kernel body in Python (assignments of
+    arithmetic expressions; in0[1] is read as in0_1)."""
+    flat = lambda text: re.sub(r"\b(in\d+|out\d+)\[(\d+)\]", r"\1_\2", text)  # noqa: E731
+    values = {flat(k): v for k, v in names.items()}
+    for line in body.splitlines():
+        line = line.strip()
+        if line and not line.startswith("/*"):
+            lhs, rhs = flat(line.removeprefix("const double ").rstrip(";")).split(" = ", 1)
+            values[lhs] = eval(rhs, dict(env), dict(values))
+    return {re.sub(r"^(in\d+|out\d+)_(\d+)$", r"\1[\2]", k): v for k, v in values.items()}
 
 
 def test_opcount_tokeniser():

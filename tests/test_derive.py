@@ -160,6 +160,30 @@ def test_substitution_solves_triangular_systems():
     assert triangular_pivots(sp.Matrix([[1, 1], [1, 1]])) is None
 
 
+def test_block_substitution_solves_a_coupled_pair():
+    """derive.jacobian.substitute with a 2x2 block (the PUMA 560's wrist-centre Jacobian M:
+    its elbow offset a3 couples joints 2 and 3): one reciprocal of the block's determinant,
+    the unknowns from the adjugate, and the system solved."""
+    from derive.jacobian import block_pivots, substitute, triangular_pivots
+
+    h, a2, a3, d4, s3, c3 = sp.symbols("h a2 a3 d4 s3 c3", positive=True)
+    m = sp.Matrix([[c3, a2 * s3, -d4], [h, 0, 0], [-s3, a2 * c3, a3]])  # shape of M (derive/jacobian.py)
+    assert triangular_pivots(m) is None
+    assert block_pivots(m) == [((1,), (0,)), ((0, 2), (1, 2))]
+    assert block_pivots(sp.Matrix([[1, 1], [1, 1]])) is None  # singular: no block to solve
+    rhs = list(sp.symbols("r0:3"))
+    x = list(sp.symbols("x0:3"))
+    defs = substitute(m, rhs, x, sp.numbered_symbols("w"))
+    divides = [sym for sym, v in defs if any(p.is_Pow and p.exp < 0 for p in sp.preorder_traversal(v))]
+    assert divides == [x[0], next(sp.numbered_symbols("w"))]  # x0 = r1 / h, then one reciprocal
+    sol: dict = {}
+    for sym, v in defs:
+        sol[sym] = v.xreplace(sol)
+    assert sp.simplify(m * sp.Matrix([sol[s] for s in x]) - sp.Matrix(rhs)) == sp.zeros(3, 1)
+    with pytest.raises(ValueError, match="needs names"):
+        substitute(m, rhs, x)
+
+
 def test_puma_a_y_has_only_negative_terms():
     """Why forward kinematics spends one sign change (reports/opcounts.md, section 6.1 row):
     in the PUMA 260's frames every term of a_y is negative, while a_x and a_z mix signs."""

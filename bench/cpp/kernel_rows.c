@@ -24,7 +24,7 @@ int rccl_vector_trig(int on)
 {
 #ifdef RCCL_VECTOR_TRIG
     /* as the extension's init does (kin_runtime.h) */
-    have_vector_trig = on && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    vtrig_init(on);
     return have_vector_trig;
 #else
     (void)on;

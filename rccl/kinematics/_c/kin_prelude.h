@@ -107,13 +107,79 @@ VTRIG_TARGET __attribute__((always_inline)) static inline int vtrig_row(const __
     return !_mm256_movemask_pd(far);
 }
 
+/* sincos4's operations on 8 lanes with AVX-512F, where the CPU has it (have_vector_trig512,
+ * checked at import): the same additions, multiplications and fused multiply-adds lane by
+ * lane, each correctly rounded, so the same bits as sincos4 (and a single row's vtrig_row)
+ * at twice the lanes per instruction. The quadrant's swap is a mask blend, its signs an
+ * integer xor. */
+static int have_vector_trig512 = 0;
+__attribute__((target("avx512f"))) static inline void sincos8(__m512d x, __m512d *sn, __m512d *cs)
+{
+    const __m512d shift = _mm512_set1_pd(6755399441055744.0);        /* 1.5 * 2^52 */
+    const __m512d kd = _mm512_fmadd_pd(x, _mm512_set1_pd(0.63661977236758134308), shift);
+    const __m512d k = _mm512_sub_pd(kd, shift);
+    __m512d r = _mm512_fnmadd_pd(k, _mm512_set1_pd(1.5707963267948966), x);
+    r = _mm512_fnmadd_pd(k, _mm512_set1_pd(6.123233995736766e-17), r);
+    r = _mm512_fnmadd_pd(k, _mm512_set1_pd(-1.4973849048591698e-33), r);
+    const __m512d z = _mm512_mul_pd(r, r);
+    __m512d ps = _mm512_set1_pd(1.58969099521155010221e-10);
+    ps = _mm512_fmadd_pd(ps, z, _mm512_set1_pd(-2.50507602534068634195e-08));
+    ps = _mm512_fmadd_pd(ps, z, _mm512_set1_pd(2.75573137070700676789e-06));
+    ps = _mm512_fmadd_pd(ps, z, _mm512_set1_pd(-1.98412698298579493134e-04));
+    ps = _mm512_fmadd_pd(ps, z, _mm512_set1_pd(8.33333333332248946124e-03));
+    ps = _mm512_fmadd_pd(ps, z, _mm512_set1_pd(-1.66666666666666324348e-01));
+    __m512d pc = _mm512_set1_pd(-1.13596475577881948265e-11);
+    pc = _mm512_fmadd_pd(pc, z, _mm512_set1_pd(2.08757232129817482790e-09));
+    pc = _mm512_fmadd_pd(pc, z, _mm512_set1_pd(-2.75573143513906633035e-07));
+    pc = _mm512_fmadd_pd(pc, z, _mm512_set1_pd(2.48015872894767294178e-05));
+    pc = _mm512_fmadd_pd(pc, z, _mm512_set1_pd(-1.38888888888741095749e-03));
+    pc = _mm512_fmadd_pd(pc, z, _mm512_set1_pd(4.16666666666666019037e-02));
+    const __m512d one = _mm512_set1_pd(1.0), hz = _mm512_mul_pd(_mm512_set1_pd(0.5), z);
+    const __m512d w = _mm512_sub_pd(one, hz);
+    const __m512d s = _mm512_fmadd_pd(_mm512_mul_pd(z, r), ps, r);
+    const __m512d c = _mm512_add_pd(w, _mm512_fmadd_pd(_mm512_mul_pd(z, z), pc, _mm512_sub_pd(_mm512_sub_pd(one, w), hz)));
+    const __m512i q = _mm512_castpd_si512(kd);
+    const __mmask8 odd = _mm512_test_epi64_mask(q, _mm512_set1_epi64(1));
+    const __m512i sign_s = _mm512_slli_epi64(_mm512_srli_epi64(q, 1), 63);
+    const __m512i sign_c = _mm512_slli_epi64(_mm512_srli_epi64(_mm512_add_epi64(q, _mm512_set1_epi64(1)), 1), 63);
+    *sn = _mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512(_mm512_mask_blend_pd(odd, s, c)), sign_s));
+    *cs = _mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512(_mm512_mask_blend_pd(odd, c, s)), sign_c));
+}
+
+/* the whole groups of 8 of vtrig_sincos's m values with sincos8; the number done (a group
+ * with a lane beyond VTRIG_BIG stops it: the rest go through vtrig_sincos's own loop) */
+__attribute__((target("avx512f"))) static int vtrig_sincos8(const double *x, double *s, double *c, int m)
+{
+    const __m512d big = _mm512_set1_pd(VTRIG_BIG);
+    int i = 0;
+    for (; i + 8 <= m; i += 8) {
+        const __m512d v = _mm512_loadu_pd(x + i);
+        if (_mm512_cmp_pd_mask(_mm512_abs_pd(v), big, _CMP_GT_OQ)) break;
+        __m512d vs, vc;
+        sincos8(v, &vs, &vc);
+        if (s) _mm512_storeu_pd(s + i, vs);
+        if (c) _mm512_storeu_pd(c + i, vc);
+    }
+    return i;
+}
+
+/* which vector sine/cosine this CPU takes (at import; on = 0: none, libm): AVX2+FMA, and
+ * AVX-512F for the whole groups of 8 of a block unless RCCL_KINEMATICS_AVX512=0 */
+static void vtrig_init(int on)
+{
+    __builtin_cpu_init();
+    have_vector_trig = on && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    const char *env = getenv("RCCL_KINEMATICS_AVX512");
+    have_vector_trig512 = have_vector_trig && __builtin_cpu_supports("avx512f") && !(env && env[0] == '0');
+}
+
 /* m sines and cosines of x (s or c may be NULL: not wanted) */
 __attribute__((target("avx2,fma"))) static void vtrig_sincos(const double *x, double *s, double *c, int m)
 {
     const __m256d big = _mm256_set1_pd(VTRIG_BIG);
     const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
     double st[4], ct[4];
-    for (int i = 0; i < m; i += 4) {
+    for (int i = have_vector_trig512 ? vtrig_sincos8(x, s, c, m) : 0; i < m; i += 4) {
         const int n = m - i < 4 ? m - i : 4;
         double xt[4] = {0, 0, 0, 0};
         for (int j = 0; j < n; ++j) xt[j] = x[i + j];

@@ -935,8 +935,7 @@ static PyObject *module_init(void)
 #endif
     init_threads();
 #ifdef RCCL_VECTOR_TRIG
-    __builtin_cpu_init();
-    have_vector_trig = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    vtrig_init(1);
 #endif
     PyObject *np = PyImport_ImportModule("numpy");
     if (!np) return NULL;

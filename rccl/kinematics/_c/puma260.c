@@ -1188,7 +1188,7 @@ static void batch_torque_from_force4(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma260.joint_from_cartesian4: dq = J^-1 dc with dc observed in frame 4 (thesis 3.73, 3.77; lowering: cse, staged (the kernel's structure hint)) */
+/* puma260.joint_from_cartesian4: dq = J^-1 dc with dc observed in frame 4 (thesis 3.73, 3.77; lowering: cse, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_joint_from_cartesian4(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma260.joint_from_cartesian4 */
@@ -1203,15 +1203,22 @@ static inline void k_joint_from_cartesian4(const double *restrict in0, const dou
     const double s_7 = sin(x_0);
     const double c_8 = cos(x_0);
     const double t0 = c_0 - s_7;
+    const double dp_1 = c_2*t0;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t0;
+    const double r_1 = c_2*r_2;
     const double z6 = c_4*in1[0] + s_3*in1[2];
     const double z7 = s_3*in1[0] - c_4*in1[2];
     const double z8 = in1[1];
-    const double z9 = 4.921259842519685*z7/t0;
+    const double z9 = 4.921259842519685*r_1*z7;
     const double t1 = s_7*z9;
     const double t2 = c_8*z9;
-    const double z10 = 4.921259842519685*(0.12624*t1 + z8)/c_2;
+    const double z10 = 4.921259842519685*r_1_inv*(0.12624*t1 + z8);
     const double z11 = 0.621259842519685*t2 + s_1*z10 - 4.921259842519685*z6;
-    const double z14 = (c_4*t1 - in1[3] - s_3*z11)/s_5;
+    const double z14 = r_2_inv*(c_4*t1 - in1[3] - s_3*z11);
     const double z12 = in1[4] - t2 - c_6*z14;
     const double z13 = in1[5] - c_4*z11 - s_3*t1;
     out0[0] = z9;
@@ -1242,15 +1249,22 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
     const double s_7 = tv[7 * ts];
     const double c_8 = tv[8 * ts];
     const double t0 = c_0 - s_7;
+    const double dp_1 = c_2*t0;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t0;
+    const double r_1 = c_2*r_2;
     const double z6 = c_4*in1[0] + s_3*in1[2];
     const double z7 = s_3*in1[0] - c_4*in1[2];
     const double z8 = in1[1];
-    const double z9 = 4.921259842519685*z7/t0;
+    const double z9 = 4.921259842519685*r_1*z7;
     const double t1 = s_7*z9;
     const double t2 = c_8*z9;
-    const double z10 = 4.921259842519685*(0.12624*t1 + z8)/c_2;
+    const double z10 = 4.921259842519685*r_1_inv*(0.12624*t1 + z8);
     const double z11 = 0.621259842519685*t2 + s_1*z10 - 4.921259842519685*z6;
-    const double z14 = (c_4*t1 - in1[3] - s_3*z11)/s_5;
+    const double z14 = r_2_inv*(c_4*t1 - in1[3] - s_3*z11);
     const double z12 = in1[4] - t2 - c_6*z14;
     const double z13 = in1[5] - c_4*z11 - s_3*t1;
     out0[0] = z9;
@@ -1323,7 +1337,7 @@ static void batch_joint_from_cartesian4(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma260.force_from_torque4: f = J^-T tau, observed in frame 4 (thesis 3.74, 3.78; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
+/* puma260.force_from_torque4: f = J^-T tau, observed in frame 4 (thesis 3.74, 3.78; lowering: expand+horner[count]+cse, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_force_from_torque4(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma260.force_from_torque4 */
@@ -1337,13 +1351,20 @@ static inline void k_force_from_torque4(const double *restrict in0, const double
     const double x_0 = in0[1] + in0[2];
     const double s_7 = sin(x_0);
     const double c_8 = cos(x_0);
+    const double dp_1 = c_2*s_5;
     const double t0 = c_0 - s_7;
+    const double dp_2 = dp_1*t0;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t0;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = c_2*r_2;
     const double z16 = in1[3];
     const double z17 = in1[4];
-    const double z15 = (c_6*z16 - in1[5])/s_5;
+    const double z15 = r_1*(c_6*z16 - in1[5]);
     const double z18 = 4.921259842519685*(c_4*z17 - in1[2] - s_3*z15);
-    const double z20 = 4.921259842519685*(in1[1] - in1[2] - 0.2032*s_1*z18)/c_2;
-    const double z19 = 4.921259842519685*(in1[0] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18))/t0;
+    const double z20 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z18);
+    const double z19 = 4.921259842519685*r_2_inv*(in1[0] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
     out0[0] = c_4*z18 + s_3*z19;
     out0[1] = z20;
     out0[2] = s_3*z18 - c_4*z19;
@@ -1371,13 +1392,20 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     const double x_0 = in0[1] + in0[2];
     const double s_7 = tv[7 * ts];
     const double c_8 = tv[8 * ts];
+    const double dp_1 = c_2*s_5;
     const double t0 = c_0 - s_7;
+    const double dp_2 = dp_1*t0;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t0;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = c_2*r_2;
     const double z16 = in1[3];
     const double z17 = in1[4];
-    const double z15 = (c_6*z16 - in1[5])/s_5;
+    const double z15 = r_1*(c_6*z16 - in1[5]);
     const double z18 = 4.921259842519685*(c_4*z17 - in1[2] - s_3*z15);
-    const double z20 = 4.921259842519685*(in1[1] - in1[2] - 0.2032*s_1*z18)/c_2;
-    const double z19 = 4.921259842519685*(in1[0] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18))/t0;
+    const double z20 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z18);
+    const double z19 = 4.921259842519685*r_2_inv*(in1[0] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
     out0[0] = c_4*z18 + s_3*z19;
     out0[1] = z20;
     out0[2] = s_3*z18 - c_4*z19;
@@ -1722,7 +1750,7 @@ static void batch_torque_from_force6(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma260.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
+/* puma260.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma260.joint_from_cartesian6 */
@@ -1741,6 +1769,13 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
     const double t0 = c_8*in1[0] - s_7*in1[1];
     const double t1 = c_8*in1[3] - s_7*in1[4];
     const double t2 = c_0 - s_9;
+    const double dp_1 = c_2*t2;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t2;
+    const double r_1 = c_2*r_2;
     const double z18 = c_6*t0 - s_5*in1[2];
     const double z19 = c_6*in1[2] + s_5*t0;
     const double z20_n = c_8*in1[1] + s_7*in1[0];
@@ -1750,12 +1785,12 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
     const double z24 = c_4*z18 - s_3*z20_n;
     const double z25 = c_4*z20_n + s_3*z18;
     const double z26 = z19;
-    const double z27 = 4.921259842519685*z25/t2;
+    const double z27 = 4.921259842519685*r_1*z25;
     const double t3 = s_9*z27;
     const double t4 = c_10*z27;
-    const double z28 = 4.921259842519685*(0.12624*t3 + z26)/c_2;
+    const double z28 = 4.921259842519685*r_1_inv*(0.12624*t3 + z26);
     const double z29 = 0.621259842519685*t4 + s_1*z28 - 4.921259842519685*z24;
-    const double z32 = (c_4*t3 - z21 - s_3*z29)/s_5;
+    const double z32 = r_2_inv*(c_4*t3 - z21 - s_3*z29);
     const double z30 = z22 - t4 - c_6*z32;
     const double z31 = z23 - c_4*z29 - s_3*t3;
     out0[0] = z27;
@@ -1790,6 +1825,13 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     const double t0 = c_8*in1[0] - s_7*in1[1];
     const double t1 = c_8*in1[3] - s_7*in1[4];
     const double t2 = c_0 - s_9;
+    const double dp_1 = c_2*t2;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t2;
+    const double r_1 = c_2*r_2;
     const double z18 = c_6*t0 - s_5*in1[2];
     const double z19 = c_6*in1[2] + s_5*t0;
     const double z20_n = c_8*in1[1] + s_7*in1[0];
@@ -1799,12 +1841,12 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
     const double z24 = c_4*z18 - s_3*z20_n;
     const double z25 = c_4*z20_n + s_3*z18;
     const double z26 = z19;
-    const double z27 = 4.921259842519685*z25/t2;
+    const double z27 = 4.921259842519685*r_1*z25;
     const double t3 = s_9*z27;
     const double t4 = c_10*z27;
-    const double z28 = 4.921259842519685*(0.12624*t3 + z26)/c_2;
+    const double z28 = 4.921259842519685*r_1_inv*(0.12624*t3 + z26);
     const double z29 = 0.621259842519685*t4 + s_1*z28 - 4.921259842519685*z24;
-    const double z32 = (c_4*t3 - z21 - s_3*z29)/s_5;
+    const double z32 = r_2_inv*(c_4*t3 - z21 - s_3*z29);
     const double z30 = z22 - t4 - c_6*z32;
     const double z31 = z23 - c_4*z29 - s_3*t3;
     out0[0] = z27;
@@ -1878,7 +1920,7 @@ static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma260.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
+/* puma260.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma260.force_from_torque6 */
@@ -1894,13 +1936,20 @@ static inline void k_force_from_torque6(const double *restrict in0, const double
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
+    const double dp_1 = c_2*s_5;
     const double t0 = c_0 - s_9;
+    const double dp_2 = dp_1*t0;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t0;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = c_2*r_2;
     const double z34 = in1[3];
     const double z35 = in1[4];
-    const double z33 = (c_6*z34 - in1[5])/s_5;
+    const double z33 = r_1*(c_6*z34 - in1[5]);
     const double z36 = 4.921259842519685*(c_4*z35 - in1[2] - s_3*z33);
-    const double z38 = 4.921259842519685*(in1[1] - in1[2] - 0.2032*s_1*z36)/c_2;
-    const double z37 = 4.921259842519685*(in1[0] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36))/t0;
+    const double z38 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z36);
+    const double z37 = 4.921259842519685*r_2_inv*(in1[0] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
     const double z39 = c_4*z36 + s_3*z37;
     const double z40 = z38;
     const double t1 = c_6*z39 + s_5*z40;
@@ -1938,13 +1987,20 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
+    const double dp_1 = c_2*s_5;
     const double t0 = c_0 - s_9;
+    const double dp_2 = dp_1*t0;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t0;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = c_2*r_2;
     const double z34 = in1[3];
     const double z35 = in1[4];
-    const double z33 = (c_6*z34 - in1[5])/s_5;
+    const double z33 = r_1*(c_6*z34 - in1[5]);
     const double z36 = 4.921259842519685*(c_4*z35 - in1[2] - s_3*z33);
-    const double z38 = 4.921259842519685*(in1[1] - in1[2] - 0.2032*s_1*z36)/c_2;
-    const double z37 = 4.921259842519685*(in1[0] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36))/t0;
+    const double z38 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z36);
+    const double z37 = 4.921259842519685*r_2_inv*(in1[0] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
     const double z39 = c_4*z36 + s_3*z37;
     const double z40 = z38;
     const double t1 = c_6*z39 + s_5*z40;

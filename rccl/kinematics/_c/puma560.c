@@ -964,7 +964,7 @@ static void batch_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssiz
         k_jacobian6(in0 + r * is[0], out0 + r * os[0]);
 }
 
-/* puma560.cartesian_from_joint4: dc = J dq observed in frame 4 (thesis 3.71, 3.75; lowering: expand+horner[base]+cse) */
+/* puma560.cartesian_from_joint4: dc = J dq observed in frame 4 (thesis 3.71, 3.75; lowering: cse, staged (the kernel's structure hint)) */
 static inline void k_cartesian_from_joint4(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL puma560.cartesian_from_joint4 */
@@ -978,17 +978,19 @@ static inline void k_cartesian_from_joint4(const double *restrict in0, const dou
     const double x_0 = in0[1] + in0[2];
     const double s_7 = sin(x_0);
     const double c_8 = cos(x_0);
-    const double t0 = in1[0]*(0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7);
+    const double t0 = 0.4318*in1[1];
     const double t1 = c_8*in1[0];
-    const double t2 = 0.15005*t1 + 0.4318*in1[1]*(s_1 - 1.0) - 0.4318*in1[2];
-    const double t3 = s_7*in1[0];
-    const double t4 = in1[1] + in1[2];
-    out0[0] = c_4*t2 + s_3*t0;
-    out0[1] = 0.0203*in1[2] + in1[1]*(0.0203 + 0.4318*c_2) - 0.15005*t3;
-    out0[2] = s_3*t2 - c_4*t0;
-    out0[3] = c_4*s_7*in1[0] - s_5*in1[5] - s_3*t4;
+    const double t2 = s_7*in1[0];
+    const double t3 = in1[1] + in1[2];
+    const double z0 = 0.15005*t1 + s_1*t0 - 0.4318*in1[2] - t0;
+    const double z1 = in1[0]*(0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7);
+    const double z2 = 0.0203*in1[1] + 0.0203*in1[2] + c_2*t0 - 0.15005*t2;
+    out0[0] = c_4*z0 + s_3*z1;
+    out0[1] = z2;
+    out0[2] = s_3*z0 - c_4*z1;
+    out0[3] = c_4*s_7*in1[0] - s_5*in1[5] - s_3*t3;
     out0[4] = in1[3] + t1 + c_6*in1[5];
-    out0[5] = in1[4] + c_4*t4 + s_3*t3;
+    out0[5] = in1[4] + c_4*t3 + s_3*t2;
 /* END KERNEL puma560.cartesian_from_joint4 */
 }
 
@@ -1006,17 +1008,19 @@ static inline void kv_cartesian_from_joint4(const double *restrict tv, Py_ssize_
     const double x_0 = in0[1] + in0[2];
     const double s_7 = tv[7 * ts];
     const double c_8 = tv[8 * ts];
-    const double t0 = in1[0]*(0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7);
+    const double t0 = 0.4318*in1[1];
     const double t1 = c_8*in1[0];
-    const double t2 = 0.15005*t1 + 0.4318*in1[1]*(s_1 - 1.0) - 0.4318*in1[2];
-    const double t3 = s_7*in1[0];
-    const double t4 = in1[1] + in1[2];
-    out0[0] = c_4*t2 + s_3*t0;
-    out0[1] = 0.0203*in1[2] + in1[1]*(0.0203 + 0.4318*c_2) - 0.15005*t3;
-    out0[2] = s_3*t2 - c_4*t0;
-    out0[3] = c_4*s_7*in1[0] - s_5*in1[5] - s_3*t4;
+    const double t2 = s_7*in1[0];
+    const double t3 = in1[1] + in1[2];
+    const double z0 = 0.15005*t1 + s_1*t0 - 0.4318*in1[2] - t0;
+    const double z1 = in1[0]*(0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7);
+    const double z2 = 0.0203*in1[1] + 0.0203*in1[2] + c_2*t0 - 0.15005*t2;
+    out0[0] = c_4*z0 + s_3*z1;
+    out0[1] = z2;
+    out0[2] = s_3*z0 - c_4*z1;
+    out0[3] = c_4*s_7*in1[0] - s_5*in1[5] - s_3*t3;
     out0[4] = in1[3] + t1 + c_6*in1[5];
-    out0[5] = in1[4] + c_4*t4 + s_3*t3;
+    out0[5] = in1[4] + c_4*t3 + s_3*t2;
 }
 
 /* cartesian_from_joint4 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -1077,7 +1081,7 @@ static void batch_cartesian_from_joint4(Py_ssize_t n, const double *const *in, c
         k_cartesian_from_joint4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma560.torque_from_force4: tau = J^T f with f observed in frame 4 (thesis 3.72, 3.76; lowering: expand+horner[count]+cse) */
+/* puma560.torque_from_force4: tau = J^T f with f observed in frame 4 (thesis 3.72, 3.76; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
 static inline void k_torque_from_force4(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL puma560.torque_from_force4 */
@@ -1091,14 +1095,15 @@ static inline void k_torque_from_force4(const double *restrict in0, const double
     const double x_0 = in0[1] + in0[2];
     const double s_7 = sin(x_0);
     const double c_8 = cos(x_0);
-    const double t0 = 0.15005*c_8;
-    const double t1 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
-    const double t2 = s_1 - 1.0;
-    const double t3 = 0.4318*in1[0];
-    const double t4 = 0.4318*in1[2];
-    out0[0] = c_4*(t0*in1[0] + s_7*in1[3] - t1*in1[2]) + c_8*in1[4] + s_3*(t1*in1[0] + t0*in1[2] + s_7*in1[5]) - 0.15005*s_7*in1[1];
-    out0[1] = c_4*(in1[5] + t2*t3) + in1[1]*(0.0203 + 0.4318*c_2) + s_3*(t2*t4 - in1[3]);
-    out0[2] = 0.0203*in1[1] + c_4*(in1[5] - t3) - s_3*(in1[3] + t4);
+    const double t2 = c_4*in1[5] - s_3*in1[3];
+    const double z3 = c_4*in1[0] + s_3*in1[2];
+    const double t1 = 0.4318*z3;
+    const double z4 = s_3*in1[0] - c_4*in1[2];
+    const double t0 = 0.4318*z4;
+    const double z5 = in1[1];
+    out0[0] = c_0*t0 + c_8*(in1[4] + 0.15005*z3 + 0.0203*z4) + s_7*(c_4*in1[3] + s_3*in1[5] - t0 - 0.15005*z5);
+    out0[1] = t2 + t1*(s_1 - 1.0) + z5*(0.0203 + 0.4318*c_2);
+    out0[2] = t2 + 0.0203*z5 - t1;
     out0[3] = in1[4];
     out0[4] = in1[5];
     out0[5] = c_6*in1[4] - s_5*in1[3];
@@ -1119,14 +1124,15 @@ static inline void kv_torque_from_force4(const double *restrict tv, Py_ssize_t t
     const double x_0 = in0[1] + in0[2];
     const double s_7 = tv[7 * ts];
     const double c_8 = tv[8 * ts];
-    const double t0 = 0.15005*c_8;
-    const double t1 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
-    const double t2 = s_1 - 1.0;
-    const double t3 = 0.4318*in1[0];
-    const double t4 = 0.4318*in1[2];
-    out0[0] = c_4*(t0*in1[0] + s_7*in1[3] - t1*in1[2]) + c_8*in1[4] + s_3*(t1*in1[0] + t0*in1[2] + s_7*in1[5]) - 0.15005*s_7*in1[1];
-    out0[1] = c_4*(in1[5] + t2*t3) + in1[1]*(0.0203 + 0.4318*c_2) + s_3*(t2*t4 - in1[3]);
-    out0[2] = 0.0203*in1[1] + c_4*(in1[5] - t3) - s_3*(in1[3] + t4);
+    const double t2 = c_4*in1[5] - s_3*in1[3];
+    const double z3 = c_4*in1[0] + s_3*in1[2];
+    const double t1 = 0.4318*z3;
+    const double z4 = s_3*in1[0] - c_4*in1[2];
+    const double t0 = 0.4318*z4;
+    const double z5 = in1[1];
+    out0[0] = c_0*t0 + c_8*(in1[4] + 0.15005*z3 + 0.0203*z4) + s_7*(c_4*in1[3] + s_3*in1[5] - t0 - 0.15005*z5);
+    out0[1] = t2 + t1*(s_1 - 1.0) + z5*(0.0203 + 0.4318*c_2);
+    out0[2] = t2 + 0.0203*z5 - t1;
     out0[3] = in1[4];
     out0[4] = in1[5];
     out0[5] = c_6*in1[4] - s_5*in1[3];
@@ -1190,74 +1196,54 @@ static void batch_torque_from_force4(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma560.joint_from_cartesian4: dq = J^-1 dc with dc observed in frame 4 (thesis 3.73, 3.77; lowering: expand+horner[count]+cse, trig sums collapsed) */
+/* puma560.joint_from_cartesian4: dq = J^-1 dc with dc observed in frame 4 (thesis 3.73, 3.77; lowering: cse, trig sums collapsed, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_joint_from_cartesian4(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma560.joint_from_cartesian4 */
-    const double s_0 = sin(in0[1]);
-    const double c_1 = cos(in0[1]);
-    const double s_2 = sin(in0[2]);
-    const double c_3 = cos(in0[2]);
-    const double s_4 = sin(in0[3]);
-    const double c_5 = cos(in0[3]);
-    const double s_6 = sin(in0[4]);
-    const double c_7 = cos(in0[4]);
-    const double x_0 = in0[1] - in0[2];
-    const double s_8 = sin(x_0);
-    const double c_9 = cos(x_0);
-    const double x_1 = in0[1] + in0[2];
-    const double s_10 = sin(x_1);
-    const double c_11 = cos(x_1);
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_12 = sin(x_2);
-    const double c_13 = cos(x_2);
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_14 = sin(x_3);
-    const double c_15 = cos(x_3);
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_16 = sin(x_4);
-    const double c_17 = cos(x_4);
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_18 = cos(x_5);
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_19 = cos(x_6);
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_20 = cos(x_7);
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_21 = cos(x_8);
-    const double t0_n = s_4*in1[0] - c_5*in1[2];
-    const double t1 = 0.4318*c_1 + 0.0203*c_11 - 0.4318*s_10;
-    const double t2 = 0.18645124000000002*c_3;
-    const double t3 = 0.00876554*s_2 + t2;
-    const double t4 = 0.4318/t3;
-    const double t5 = 0.08050964543200001*c_3;
-    const double t6 = 1.0/(0.003784960172*c_13 + c_1*(0.003784960172*s_2 + t5) + 0.000177940462*c_11*s_2 - s_10*t5);
-    const double t7 = 0.0030460149999999996*c_11 - 0.06479159*s_10;
-    const double t8 = 0.00041208999999999994*c_11;
-    const double t9 = 0.00876554*c_1 + t8 - 0.00876554*s_10;
-    const double t10 = c_5*(t9*in1[0] + t7*in1[2]) + s_4*(t9*in1[2] - t7*in1[0]);
-    const double t11 = 0.4318*c_3;
-    const double t12 = 0.0203*s_2 + t11;
-    const double t13 = s_2/t12;
-    const double t14 = 1.0/(0.00876554*c_13 + c_1*t3 + s_2*t8 - s_10*t2);
-    const double t15 = t13*in1[1];
-    const double t16 = in1[3] + s_4*t15;
-    const double t17 = 1.0/s_6;
-    const double t18 = c_7*t17;
-    const double t19 = s_10*t12*in1[2];
-    const double t20 = 0.0203 + t11;
-    const double t21 = c_5*(0.15005*in1[2] + t20*in1[0]) + s_4*(t20*in1[2] - 0.15005*in1[0]);
-    const double t22 = c_1*s_4;
-    out0[0] = t0_n/t1;
-    out0[1] = t4*in1[1] + t10*t6;
-    out0[2] = in1[1]*(t13 - t4) + t14*(0.15005*c_1*t0_n - c_3*t1*(c_5*in1[0] + s_4*in1[2])) - t10*t6;
-    out0[3] = in1[4] + t14*(t18*(t19 - t21*t22) - c_11*t0_n*t12) + t16*t18;
-    out0[4] = in1[5] + c_5*(c_1*t14*in1[2]*(0.15005*c_5 + s_4*t20) - t15) + in1[0]*(0.8636*c_11 + 0.0812*c_13 + 0.0406*c_15 + 0.0406*c_17 + 0.4318*c_18 + 0.4318*c_19 + 0.4318*c_20 + 0.4318*c_21 + 0.8636*c_9 + 0.3001*s_14 - 1.7272*s_0 - 1.7272*s_12 - 0.3001*s_16)/(0.7458049600000001*c_11 + 0.07012432*c_13 + 0.7458049600000001*c_9 + 0.03506216*s_10 - 0.7474533200000001*s_0 - 0.7441566000000001*s_12 - 0.03506216*s_8);
-    out0[5] = t17*(t14*(t21*t22 - t19) - t16);
+    const double c_0 = cos(in0[1]);
+    const double s_1 = sin(in0[2]);
+    const double c_2 = cos(in0[2]);
+    const double s_3 = sin(in0[3]);
+    const double c_4 = cos(in0[3]);
+    const double s_5 = sin(in0[4]);
+    const double c_6 = cos(in0[4]);
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = sin(x_0);
+    const double c_8 = cos(x_0);
+    const double t0 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
+    const double t1 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t1;
+    const double dp_1 = d_1*t0;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t0;
+    const double r_1 = d_1*r_2;
+    const double z6 = c_4*in1[0] + s_3*in1[2];
+    const double z7 = s_3*in1[0] - c_4*in1[2];
+    const double z8 = in1[1];
+    const double t2 = 0.4318*z8;
+    const double z9 = r_1*z7;
+    const double t3 = c_8*z9;
+    const double t4 = 0.06479159*z9;
+    const double t5 = s_7*z9;
+    const double z12 = 2.3158869847151458*r_1_inv;
+    const double z10 = z12*(t2 + 0.0203*z6 + s_7*t4 - 0.0030460149999999996*t3);
+    const double z11 = z12*(c_0*t4 + s_1*t2 - t1*z6);
+    const double z15 = r_2_inv*(c_4*t5 - in1[3] - s_3*z11);
+    const double z13 = in1[4] - t3 - c_6*z15;
+    const double z14 = in1[5] - c_4*z11 - s_3*t5;
+    out0[0] = z9;
+    out0[1] = z10;
+    out0[2] = z11 - z10;
+    out0[3] = z13;
+    out0[4] = z14;
+    out0[5] = z15;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t1) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t0) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 /* END KERNEL puma560.joint_from_cartesian4 */
 }
 
@@ -1265,70 +1251,50 @@ static inline void k_joint_from_cartesian4(const double *restrict in0, const dou
 /* joint_from_cartesian4 for batches: the row above with its sines and cosines precomputed */
 static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
-    const double s_0 = tv[0 * ts];
-    const double c_1 = tv[1 * ts];
-    const double s_2 = tv[2 * ts];
-    const double c_3 = tv[3 * ts];
-    const double s_4 = tv[4 * ts];
-    const double c_5 = tv[5 * ts];
-    const double s_6 = tv[6 * ts];
-    const double c_7 = tv[7 * ts];
-    const double x_0 = in0[1] - in0[2];
-    const double s_8 = tv[8 * ts];
-    const double c_9 = tv[9 * ts];
-    const double x_1 = in0[1] + in0[2];
-    const double s_10 = tv[10 * ts];
-    const double c_11 = tv[11 * ts];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_12 = tv[12 * ts];
-    const double c_13 = tv[13 * ts];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_14 = tv[14 * ts];
-    const double c_15 = tv[15 * ts];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_16 = tv[16 * ts];
-    const double c_17 = tv[17 * ts];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_18 = tv[18 * ts];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_19 = tv[19 * ts];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_20 = tv[20 * ts];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_21 = tv[21 * ts];
-    const double t0_n = s_4*in1[0] - c_5*in1[2];
-    const double t1 = 0.4318*c_1 + 0.0203*c_11 - 0.4318*s_10;
-    const double t2 = 0.18645124000000002*c_3;
-    const double t3 = 0.00876554*s_2 + t2;
-    const double t4 = 0.4318/t3;
-    const double t5 = 0.08050964543200001*c_3;
-    const double t6 = 1.0/(0.003784960172*c_13 + c_1*(0.003784960172*s_2 + t5) + 0.000177940462*c_11*s_2 - s_10*t5);
-    const double t7 = 0.0030460149999999996*c_11 - 0.06479159*s_10;
-    const double t8 = 0.00041208999999999994*c_11;
-    const double t9 = 0.00876554*c_1 + t8 - 0.00876554*s_10;
-    const double t10 = c_5*(t9*in1[0] + t7*in1[2]) + s_4*(t9*in1[2] - t7*in1[0]);
-    const double t11 = 0.4318*c_3;
-    const double t12 = 0.0203*s_2 + t11;
-    const double t13 = s_2/t12;
-    const double t14 = 1.0/(0.00876554*c_13 + c_1*t3 + s_2*t8 - s_10*t2);
-    const double t15 = t13*in1[1];
-    const double t16 = in1[3] + s_4*t15;
-    const double t17 = 1.0/s_6;
-    const double t18 = c_7*t17;
-    const double t19 = s_10*t12*in1[2];
-    const double t20 = 0.0203 + t11;
-    const double t21 = c_5*(0.15005*in1[2] + t20*in1[0]) + s_4*(t20*in1[2] - 0.15005*in1[0]);
-    const double t22 = c_1*s_4;
-    out0[0] = t0_n/t1;
-    out0[1] = t4*in1[1] + t10*t6;
-    out0[2] = in1[1]*(t13 - t4) + t14*(0.15005*c_1*t0_n - c_3*t1*(c_5*in1[0] + s_4*in1[2])) - t10*t6;
-    out0[3] = in1[4] + t14*(t18*(t19 - t21*t22) - c_11*t0_n*t12) + t16*t18;
-    out0[4] = in1[5] + c_5*(c_1*t14*in1[2]*(0.15005*c_5 + s_4*t20) - t15) + in1[0]*(0.8636*c_11 + 0.0812*c_13 + 0.0406*c_15 + 0.0406*c_17 + 0.4318*c_18 + 0.4318*c_19 + 0.4318*c_20 + 0.4318*c_21 + 0.8636*c_9 + 0.3001*s_14 - 1.7272*s_0 - 1.7272*s_12 - 0.3001*s_16)/(0.7458049600000001*c_11 + 0.07012432*c_13 + 0.7458049600000001*c_9 + 0.03506216*s_10 - 0.7474533200000001*s_0 - 0.7441566000000001*s_12 - 0.03506216*s_8);
-    out0[5] = t17*(t14*(t21*t22 - t19) - t16);
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double t0 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
+    const double t1 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t1;
+    const double dp_1 = d_1*t0;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t0;
+    const double r_1 = d_1*r_2;
+    const double z6 = c_4*in1[0] + s_3*in1[2];
+    const double z7 = s_3*in1[0] - c_4*in1[2];
+    const double z8 = in1[1];
+    const double t2 = 0.4318*z8;
+    const double z9 = r_1*z7;
+    const double t3 = c_8*z9;
+    const double t4 = 0.06479159*z9;
+    const double t5 = s_7*z9;
+    const double z12 = 2.3158869847151458*r_1_inv;
+    const double z10 = z12*(t2 + 0.0203*z6 + s_7*t4 - 0.0030460149999999996*t3);
+    const double z11 = z12*(c_0*t4 + s_1*t2 - t1*z6);
+    const double z15 = r_2_inv*(c_4*t5 - in1[3] - s_3*z11);
+    const double z13 = in1[4] - t3 - c_6*z15;
+    const double z14 = in1[5] - c_4*z11 - s_3*t5;
+    out0[0] = z9;
+    out0[1] = z10;
+    out0[2] = z11 - z10;
+    out0[3] = z13;
+    out0[4] = z14;
+    out0[5] = z15;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t1) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t0) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 }
 
 /* joint_from_cartesian4 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -1336,19 +1302,11 @@ static inline void kv_joint_from_cartesian4(const double *restrict tv, Py_ssize_
  * it to libm) */
 VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, const double *restrict in1, double *restrict tv)
 {
-    const double x_0 = in0[1] - in0[2];
-    const double x_1 = in0[1] + in0[2];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const __m256d x[4] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, x_1, x_2, x_3), _mm256_setr_pd(x_4, x_5, x_6, x_7), _mm256_setr_pd(x_8, 0.0, 0.0, 0.0)};
-    double sv[16], cv[16];
-    if (!vtrig_row(x, sv, cv, 4)) return 0;
-    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5]; tv[12] = sv[6]; tv[13] = cv[6]; tv[14] = sv[7]; tv[15] = cv[7]; tv[16] = sv[8]; tv[17] = cv[8]; tv[18] = cv[9]; tv[19] = cv[10]; tv[20] = cv[11]; tv[21] = cv[12];
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
     return 1;
 }
 
@@ -1358,7 +1316,7 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
 {
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
-        double t1[22];
+        double t1[9];
         if (kv1_joint_from_cartesian4((const double *)in[0], (const double *)in[1], t1)) {
             kv_joint_from_cartesian4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
             return 1;
@@ -1366,26 +1324,18 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[13][64], tv[22][64];
+    double ta[5][64], tv[9][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = in0[1] - in0[2]; const double x_1 = in0[1] + in0[2]; const double x_2 = in0[1] + 2.0*in0[2]; const double x_3 = in0[1] - 2.0*in0[3]; const double x_4 = in0[1] + 2.0*in0[3]; const double x_5 = in0[2] + 2.0*in0[3] - in0[1]; const double x_6 = in0[1] + 2.0*in0[3] - in0[2]; const double x_7 = in0[1] + in0[2] - 2.0*in0[3]; const double x_8 = in0[1] + in0[2] + 2.0*in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2; ta[7][r] = x_3; ta[8][r] = x_4; ta[9][r] = x_5; ta[10][r] = x_6; ta[11][r] = x_7; ta[12][r] = x_8;
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         }
-        vtrig_sincos(ta[0], tv[0], tv[1], m);
-        vtrig_sincos(ta[1], tv[2], tv[3], m);
-        vtrig_sincos(ta[2], tv[4], tv[5], m);
-        vtrig_sincos(ta[3], tv[6], tv[7], m);
-        vtrig_sincos(ta[4], tv[8], tv[9], m);
-        vtrig_sincos(ta[5], tv[10], tv[11], m);
-        vtrig_sincos(ta[6], tv[12], tv[13], m);
-        vtrig_sincos(ta[7], tv[14], tv[15], m);
-        vtrig_sincos(ta[8], tv[16], tv[17], m);
-        vtrig_sincos(ta[9], NULL, tv[18], m);
-        vtrig_sincos(ta[10], NULL, tv[19], m);
-        vtrig_sincos(ta[11], NULL, tv[20], m);
-        vtrig_sincos(ta[12], NULL, tv[21], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -1405,82 +1355,48 @@ static void batch_joint_from_cartesian4(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma560.force_from_torque4: f = J^-T tau, observed in frame 4 (thesis 3.74, 3.78; lowering: expand+horner[tip]+cse, trig sums collapsed) */
+/* puma560.force_from_torque4: f = J^-T tau, observed in frame 4 (thesis 3.74, 3.78; lowering: expand+horner[count]+cse, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_force_from_torque4(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma560.force_from_torque4 */
-    const double s_0 = sin(in0[1]);
-    const double c_1 = cos(in0[1]);
-    const double s_2 = sin(in0[2]);
-    const double c_3 = cos(in0[2]);
-    const double s_4 = sin(in0[3]);
-    const double c_5 = cos(in0[3]);
-    const double s_6 = sin(in0[4]);
-    const double c_7 = cos(in0[4]);
-    const double x_0 = in0[1] - in0[2];
-    const double s_8 = sin(x_0);
-    const double c_9 = cos(x_0);
-    const double x_1 = in0[1] + in0[2];
-    const double s_10 = sin(x_1);
-    const double c_11 = cos(x_1);
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_12 = sin(x_2);
-    const double c_13 = cos(x_2);
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_14 = sin(x_3);
-    const double c_15 = cos(x_3);
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_16 = sin(x_4);
-    const double c_17 = cos(x_4);
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_18 = cos(x_5);
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_19 = cos(x_6);
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_20 = cos(x_7);
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_21 = cos(x_8);
-    const double t0 = 0.4318*c_3;
-    const double t1 = 0.0203 + t0;
-    const double t2 = c_1 - s_10;
-    const double t3 = 0.18645124000000002*c_3;
-    const double t4 = 1.0/(0.00876554*c_13 + s_2*(0.00876554*c_1 + 0.00041208999999999994*c_11) + t2*t3);
-    const double t5 = c_1*t4;
-    const double t6 = s_4*t5;
-    const double t7 = 1.0/s_6;
-    const double t8 = c_7*in1[3];
-    const double t9 = t7*t8;
-    const double t10 = t6*t9;
-    const double t11_n = 0.4318*s_10 - 0.4318*c_1 - 0.0203*c_11;
-    const double t12 = in1[0]/t11_n;
-    const double t13_n = in1[2];
-    const double t14 = t7*in1[5];
-    const double t15 = 0.15005*t5;
-    const double t16 = in1[4]/(0.7458049600000001*c_11 + 0.07012432*c_13 + 0.7458049600000001*c_9 + 0.03506216*s_10 - 0.7474533200000001*s_0 - 0.7441566000000001*s_12 - 0.03506216*s_8);
-    const double t17 = s_4*t1;
-    const double t18 = 1.0/(0.003784960172*c_13 + 0.08050964543200001*c_3*t2 + s_2*(0.003784960172*c_1 + 0.000177940462*c_11));
-    const double t19 = 0.00876554*t18;
-    const double t20 = t19*in1[1] - in1[2]*(t19 + t0*t4);
-    const double t21 = c_1*(t20 + t14*t17*t4);
-    const double t22 = 0.06479159*t18*(in1[1] - t13_n);
-    const double t23 = 0.0203*s_2 + t0;
-    const double t24 = t23*t4;
-    const double t25 = t18*(0.0030460149999999996*in1[1] - 0.0030460149999999996*in1[2]) + t24*in1[3];
-    const double t26 = 0.00041208999999999994*t18;
-    const double t27 = t26*in1[1] - in1[2]*(t26 + 0.0203*c_3*t4);
-    const double t28 = c_5*in1[4] - t13_n;
-    const double t29 = s_2/t23;
-    const double t30 = t7*(t8 - in1[5]);
-    out0[0] = c_11*(0.8636*t16 + c_5*t27 - s_4*t25) + c_5*t21 + s_10*(s_4*t22 - c_5*t20) + t10*(0.15005*s_4 - c_5*t1) + t16*(0.0812*c_13 + 0.0406*c_15 + 0.0406*c_17 + 0.4318*c_18 + 0.4318*c_19 + 0.4318*c_20 + 0.4318*c_21 + 0.8636*c_9 + 0.3001*s_14 - 1.7272*s_0 - 1.7272*s_12 - 0.3001*s_16) - s_4*(t12 + t15*(s_4*t14 - t13_n));
-    out0[1] = (0.4318*in1[1] - 0.4318*in1[2])/(0.00876554*s_2 + t3) + s_4*t29*t30 - t28*t29;
-    out0[2] = c_11*(c_5*t25 + s_4*t27) + c_5*(t12 + t15*t28 + t6*(0.15005*t14 + t1*in1[4])) + s_10*(t24*t9 - c_5*t22 - s_4*t20 - t14*t24) + s_4*t21 - t10*(0.15005*c_5 + t17);
-    out0[3] = t30;
-    out0[4] = in1[3];
-    out0[5] = in1[4];
+    const double c_0 = cos(in0[1]);
+    const double s_1 = sin(in0[2]);
+    const double c_2 = cos(in0[2]);
+    const double s_3 = sin(in0[3]);
+    const double c_4 = cos(in0[3]);
+    const double s_5 = sin(in0[4]);
+    const double c_6 = cos(in0[4]);
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = sin(x_0);
+    const double c_8 = cos(x_0);
+    const double t0 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t0;
+    const double dp_1 = d_1*s_5;
+    const double t2 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
+    const double dp_2 = dp_1*t2;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t2;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = d_1*r_2;
+    const double z17 = in1[3];
+    const double z18 = in1[4];
+    const double z16 = r_1*(c_6*z17 - in1[5]);
+    const double t1 = in1[2] + s_3*z16 - c_4*z18;
+    const double z22 = 2.3158869847151458*r_1_inv;
+    const double z19 = z22*(0.0203*in1[1] - 0.0203*in1[2] - t0*t1);
+    const double z21 = 0.4318*z22*(in1[1] + s_1*t1 - in1[2]);
+    const double z20 = r_2_inv*(in1[0] + s_7*(0.15005*z21 - c_4*z16 - s_3*z18) - c_8*(z17 + 0.15005*z19));
+    out0[0] = c_4*z19 + s_3*z20;
+    out0[1] = z21;
+    out0[2] = s_3*z19 - c_4*z20;
+    out0[3] = z16;
+    out0[4] = z17;
+    out0[5] = z18;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t11_n) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t2) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 /* END KERNEL puma560.force_from_torque4 */
 }
 
@@ -1488,78 +1404,44 @@ static inline void k_force_from_torque4(const double *restrict in0, const double
 /* force_from_torque4 for batches: the row above with its sines and cosines precomputed */
 static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
-    const double s_0 = tv[0 * ts];
-    const double c_1 = tv[1 * ts];
-    const double s_2 = tv[2 * ts];
-    const double c_3 = tv[3 * ts];
-    const double s_4 = tv[4 * ts];
-    const double c_5 = tv[5 * ts];
-    const double s_6 = tv[6 * ts];
-    const double c_7 = tv[7 * ts];
-    const double x_0 = in0[1] - in0[2];
-    const double s_8 = tv[8 * ts];
-    const double c_9 = tv[9 * ts];
-    const double x_1 = in0[1] + in0[2];
-    const double s_10 = tv[10 * ts];
-    const double c_11 = tv[11 * ts];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_12 = tv[12 * ts];
-    const double c_13 = tv[13 * ts];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_14 = tv[14 * ts];
-    const double c_15 = tv[15 * ts];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_16 = tv[16 * ts];
-    const double c_17 = tv[17 * ts];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_18 = tv[18 * ts];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_19 = tv[19 * ts];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_20 = tv[20 * ts];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_21 = tv[21 * ts];
-    const double t0 = 0.4318*c_3;
-    const double t1 = 0.0203 + t0;
-    const double t2 = c_1 - s_10;
-    const double t3 = 0.18645124000000002*c_3;
-    const double t4 = 1.0/(0.00876554*c_13 + s_2*(0.00876554*c_1 + 0.00041208999999999994*c_11) + t2*t3);
-    const double t5 = c_1*t4;
-    const double t6 = s_4*t5;
-    const double t7 = 1.0/s_6;
-    const double t8 = c_7*in1[3];
-    const double t9 = t7*t8;
-    const double t10 = t6*t9;
-    const double t11_n = 0.4318*s_10 - 0.4318*c_1 - 0.0203*c_11;
-    const double t12 = in1[0]/t11_n;
-    const double t13_n = in1[2];
-    const double t14 = t7*in1[5];
-    const double t15 = 0.15005*t5;
-    const double t16 = in1[4]/(0.7458049600000001*c_11 + 0.07012432*c_13 + 0.7458049600000001*c_9 + 0.03506216*s_10 - 0.7474533200000001*s_0 - 0.7441566000000001*s_12 - 0.03506216*s_8);
-    const double t17 = s_4*t1;
-    const double t18 = 1.0/(0.003784960172*c_13 + 0.08050964543200001*c_3*t2 + s_2*(0.003784960172*c_1 + 0.000177940462*c_11));
-    const double t19 = 0.00876554*t18;
-    const double t20 = t19*in1[1] - in1[2]*(t19 + t0*t4);
-    const double t21 = c_1*(t20 + t14*t17*t4);
-    const double t22 = 0.06479159*t18*(in1[1] - t13_n);
-    const double t23 = 0.0203*s_2 + t0;
-    const double t24 = t23*t4;
-    const double t25 = t18*(0.0030460149999999996*in1[1] - 0.0030460149999999996*in1[2]) + t24*in1[3];
-    const double t26 = 0.00041208999999999994*t18;
-    const double t27 = t26*in1[1] - in1[2]*(t26 + 0.0203*c_3*t4);
-    const double t28 = c_5*in1[4] - t13_n;
-    const double t29 = s_2/t23;
-    const double t30 = t7*(t8 - in1[5]);
-    out0[0] = c_11*(0.8636*t16 + c_5*t27 - s_4*t25) + c_5*t21 + s_10*(s_4*t22 - c_5*t20) + t10*(0.15005*s_4 - c_5*t1) + t16*(0.0812*c_13 + 0.0406*c_15 + 0.0406*c_17 + 0.4318*c_18 + 0.4318*c_19 + 0.4318*c_20 + 0.4318*c_21 + 0.8636*c_9 + 0.3001*s_14 - 1.7272*s_0 - 1.7272*s_12 - 0.3001*s_16) - s_4*(t12 + t15*(s_4*t14 - t13_n));
-    out0[1] = (0.4318*in1[1] - 0.4318*in1[2])/(0.00876554*s_2 + t3) + s_4*t29*t30 - t28*t29;
-    out0[2] = c_11*(c_5*t25 + s_4*t27) + c_5*(t12 + t15*t28 + t6*(0.15005*t14 + t1*in1[4])) + s_10*(t24*t9 - c_5*t22 - s_4*t20 - t14*t24) + s_4*t21 - t10*(0.15005*c_5 + t17);
-    out0[3] = t30;
-    out0[4] = in1[3];
-    out0[5] = in1[4];
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double t0 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t0;
+    const double dp_1 = d_1*s_5;
+    const double t2 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
+    const double dp_2 = dp_1*t2;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t2;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = d_1*r_2;
+    const double z17 = in1[3];
+    const double z18 = in1[4];
+    const double z16 = r_1*(c_6*z17 - in1[5]);
+    const double t1 = in1[2] + s_3*z16 - c_4*z18;
+    const double z22 = 2.3158869847151458*r_1_inv;
+    const double z19 = z22*(0.0203*in1[1] - 0.0203*in1[2] - t0*t1);
+    const double z21 = 0.4318*z22*(in1[1] + s_1*t1 - in1[2]);
+    const double z20 = r_2_inv*(in1[0] + s_7*(0.15005*z21 - c_4*z16 - s_3*z18) - c_8*(z17 + 0.15005*z19));
+    out0[0] = c_4*z19 + s_3*z20;
+    out0[1] = z21;
+    out0[2] = s_3*z19 - c_4*z20;
+    out0[3] = z16;
+    out0[4] = z17;
+    out0[5] = z18;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t11_n) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t2) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 }
 
 /* force_from_torque4 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -1567,19 +1449,11 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
  * it to libm) */
 VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const double *restrict in1, double *restrict tv)
 {
-    const double x_0 = in0[1] - in0[2];
-    const double x_1 = in0[1] + in0[2];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const __m256d x[4] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, x_1, x_2, x_3), _mm256_setr_pd(x_4, x_5, x_6, x_7), _mm256_setr_pd(x_8, 0.0, 0.0, 0.0)};
-    double sv[16], cv[16];
-    if (!vtrig_row(x, sv, cv, 4)) return 0;
-    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5]; tv[12] = sv[6]; tv[13] = cv[6]; tv[14] = sv[7]; tv[15] = cv[7]; tv[16] = sv[8]; tv[17] = cv[8]; tv[18] = cv[9]; tv[19] = cv[10]; tv[20] = cv[11]; tv[21] = cv[12];
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(x_0, 0.0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4];
     return 1;
 }
 
@@ -1589,7 +1463,7 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
 {
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
-        double t1[22];
+        double t1[9];
         if (kv1_force_from_torque4((const double *)in[0], (const double *)in[1], t1)) {
             kv_force_from_torque4(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
             return 1;
@@ -1597,26 +1471,18 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[13][64], tv[22][64];
+    double ta[5][64], tv[9][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = in0[1] - in0[2]; const double x_1 = in0[1] + in0[2]; const double x_2 = in0[1] + 2.0*in0[2]; const double x_3 = in0[1] - 2.0*in0[3]; const double x_4 = in0[1] + 2.0*in0[3]; const double x_5 = in0[2] + 2.0*in0[3] - in0[1]; const double x_6 = in0[1] + 2.0*in0[3] - in0[2]; const double x_7 = in0[1] + in0[2] - 2.0*in0[3]; const double x_8 = in0[1] + in0[2] + 2.0*in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2; ta[7][r] = x_3; ta[8][r] = x_4; ta[9][r] = x_5; ta[10][r] = x_6; ta[11][r] = x_7; ta[12][r] = x_8;
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0;
         }
-        vtrig_sincos(ta[0], tv[0], tv[1], m);
-        vtrig_sincos(ta[1], tv[2], tv[3], m);
-        vtrig_sincos(ta[2], tv[4], tv[5], m);
-        vtrig_sincos(ta[3], tv[6], tv[7], m);
-        vtrig_sincos(ta[4], tv[8], tv[9], m);
-        vtrig_sincos(ta[5], tv[10], tv[11], m);
-        vtrig_sincos(ta[6], tv[12], tv[13], m);
-        vtrig_sincos(ta[7], tv[14], tv[15], m);
-        vtrig_sincos(ta[8], tv[16], tv[17], m);
-        vtrig_sincos(ta[9], NULL, tv[18], m);
-        vtrig_sincos(ta[10], NULL, tv[19], m);
-        vtrig_sincos(ta[11], NULL, tv[20], m);
-        vtrig_sincos(ta[12], NULL, tv[21], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -1636,7 +1502,7 @@ static void batch_force_from_torque4(Py_ssize_t n, const double *const *in, cons
         k_force_from_torque4(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma560.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: horner[base]+cse) */
+/* puma560.cartesian_from_joint6: dc = J dq observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
 static inline void k_cartesian_from_joint6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL puma560.cartesian_from_joint6 */
@@ -1652,24 +1518,26 @@ static inline void k_cartesian_from_joint6(const double *restrict in0, const dou
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
-    const double t0 = in1[0]*(0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9);
-    const double t1 = c_10*in1[0];
-    const double t2 = 0.15005*t1 + 0.4318*in1[1]*(s_1 - 1.0) - 0.4318*in1[2];
-    const double t3 = c_4*t0 - s_3*t2;
-    const double t4 = s_9*in1[0];
-    const double t5 = 0.0203*in1[2] + in1[1]*(0.0203 + 0.4318*c_2) - 0.15005*t4;
-    const double t6 = c_4*t2 + s_3*t0;
-    const double t7 = c_6*t6 + s_5*t5;
-    const double t8 = in1[1] + in1[2];
-    const double t9 = in1[4] + c_4*t8 + s_3*t4;
-    const double t10 = in1[3] + t1 + c_6*in1[5];
-    const double t11 = s_5*in1[5] + s_3*t8 - c_4*t4;
-    out0[0] = c_8*t7 + s_7*t3;
-    out0[1] = c_8*t3 - s_7*t7;
-    out0[2] = c_6*t5 - s_5*t6;
-    out0[3] = c_8*(s_5*t10 - c_6*t11) - s_7*t9;
-    out0[4] = s_7*(c_6*t11 - s_5*t10) - c_8*t9;
-    out0[5] = c_6*t10 + s_5*t11;
+    const double t0 = c_10*in1[0];
+    const double t1 = s_9*in1[0];
+    const double t2 = in1[1] + in1[2];
+    const double z0 = 0.15005*t0 + 0.4318*in1[1]*(s_1 - 1.0) - 0.4318*in1[2];
+    const double z1 = in1[0]*(0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9);
+    const double z2 = 0.0203*in1[2] + in1[1]*(0.0203 + 0.4318*c_2) - 0.15005*t1;
+    const double z3 = c_4*z0 + s_3*z1;
+    const double z4 = z2;
+    const double t3 = c_6*z3 + s_5*z4;
+    const double z5_n = c_4*z1 - s_3*z0;
+    const double z6 = c_4*s_9*in1[0] - s_5*in1[5] - s_3*t2;
+    const double z7 = in1[3] + t0 + c_6*in1[5];
+    const double t4 = c_6*z6 + s_5*z7;
+    const double z8 = in1[4] + c_4*t2 + s_3*t1;
+    out0[0] = c_8*t3 + s_7*z5_n;
+    out0[1] = c_8*z5_n - s_7*t3;
+    out0[2] = c_6*z4 - s_5*z3;
+    out0[3] = c_8*t4 - s_7*z8;
+    out0[4] = -c_8*z8 - s_7*t4;
+    out0[5] = c_6*z7 - s_5*z6;
 /* END KERNEL puma560.cartesian_from_joint6 */
 }
 
@@ -1689,24 +1557,26 @@ static inline void kv_cartesian_from_joint6(const double *restrict tv, Py_ssize_
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
-    const double t0 = in1[0]*(0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9);
-    const double t1 = c_10*in1[0];
-    const double t2 = 0.15005*t1 + 0.4318*in1[1]*(s_1 - 1.0) - 0.4318*in1[2];
-    const double t3 = c_4*t0 - s_3*t2;
-    const double t4 = s_9*in1[0];
-    const double t5 = 0.0203*in1[2] + in1[1]*(0.0203 + 0.4318*c_2) - 0.15005*t4;
-    const double t6 = c_4*t2 + s_3*t0;
-    const double t7 = c_6*t6 + s_5*t5;
-    const double t8 = in1[1] + in1[2];
-    const double t9 = in1[4] + c_4*t8 + s_3*t4;
-    const double t10 = in1[3] + t1 + c_6*in1[5];
-    const double t11 = s_5*in1[5] + s_3*t8 - c_4*t4;
-    out0[0] = c_8*t7 + s_7*t3;
-    out0[1] = c_8*t3 - s_7*t7;
-    out0[2] = c_6*t5 - s_5*t6;
-    out0[3] = c_8*(s_5*t10 - c_6*t11) - s_7*t9;
-    out0[4] = s_7*(c_6*t11 - s_5*t10) - c_8*t9;
-    out0[5] = c_6*t10 + s_5*t11;
+    const double t0 = c_10*in1[0];
+    const double t1 = s_9*in1[0];
+    const double t2 = in1[1] + in1[2];
+    const double z0 = 0.15005*t0 + 0.4318*in1[1]*(s_1 - 1.0) - 0.4318*in1[2];
+    const double z1 = in1[0]*(0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9);
+    const double z2 = 0.0203*in1[2] + in1[1]*(0.0203 + 0.4318*c_2) - 0.15005*t1;
+    const double z3 = c_4*z0 + s_3*z1;
+    const double z4 = z2;
+    const double t3 = c_6*z3 + s_5*z4;
+    const double z5_n = c_4*z1 - s_3*z0;
+    const double z6 = c_4*s_9*in1[0] - s_5*in1[5] - s_3*t2;
+    const double z7 = in1[3] + t0 + c_6*in1[5];
+    const double t4 = c_6*z6 + s_5*z7;
+    const double z8 = in1[4] + c_4*t2 + s_3*t1;
+    out0[0] = c_8*t3 + s_7*z5_n;
+    out0[1] = c_8*z5_n - s_7*t3;
+    out0[2] = c_6*z4 - s_5*z3;
+    out0[3] = c_8*t4 - s_7*z8;
+    out0[4] = -c_8*z8 - s_7*t4;
+    out0[5] = c_6*z7 - s_5*z6;
 }
 
 /* cartesian_from_joint6 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -1768,7 +1638,7 @@ static void batch_cartesian_from_joint6(Py_ssize_t n, const double *const *in, c
         k_cartesian_from_joint6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma560.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse) */
+/* puma560.torque_from_force6: tau = J^T f with f observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
 static inline void k_torque_from_force6(const double *restrict in0, const double *restrict in1, double *restrict out0)
 {
 /* BEGIN KERNEL puma560.torque_from_force6 */
@@ -1784,30 +1654,26 @@ static inline void k_torque_from_force6(const double *restrict in0, const double
     const double x_0 = in0[1] + in0[2];
     const double s_9 = sin(x_0);
     const double c_10 = cos(x_0);
-    const double t0 = 0.15005*s_9;
-    const double t1 = c_8*in1[1];
-    const double t2 = s_7*in1[0];
-    const double t3 = t1 + t2;
-    const double t4 = s_5*in1[2];
-    const double t5 = c_8*in1[0] - s_7*in1[1];
-    const double t6 = c_6*t5;
-    const double t7 = t6 - t4;
-    const double t8 = 0.0203*c_10 - 0.4318*s_9;
-    const double t9 = 0.15005*c_10;
-    const double t10 = t9*in1[1] + s_9*in1[4];
-    const double t11 = t9*in1[0] + s_9*in1[3];
-    const double t12 = c_6*in1[2];
-    const double t13 = s_5*t5;
-    const double t14 = c_8*in1[3] - s_7*in1[4];
-    const double t15 = c_8*in1[4];
-    const double t16 = s_7*in1[3];
-    const double t17 = 0.0203*t12 + 0.0203*t13 + c_4*(0.4318*t4 - t15 - t16 - 0.4318*c_6*t5) + s_3*(0.4318*t1 + 0.4318*t2 + s_5*in1[5] - c_6*t14);
-    out0[0] = 0.4318*c_0*(c_4*t3 + s_3*t7) + c_4*(c_6*(c_8*t11 - s_7*t10) + t1*t8 + t2*t8 - s_5*(t9*in1[2] + s_9*in1[5])) + c_6*(c_10*in1[5] - t0*in1[2]) + s_3*(t6*t8 - c_8*t10 - s_7*t11 - t4*t8) + s_5*(c_8*(c_10*in1[3] - t0*in1[0]) + s_7*(t0*in1[1] - c_10*in1[4]));
-    out0[1] = t17 + 0.4318*c_2*(t12 + t13) + 0.4318*s_1*(c_4*t7 - s_3*t3);
-    out0[2] = t17;
-    out0[3] = c_6*in1[5] + s_5*t14;
-    out0[4] = -t15 - t16;
-    out0[5] = in1[5]*(c_6*c_6 + s_5*s_5);
+    const double t0 = c_8*in1[0] - s_7*in1[1];
+    const double t1 = c_8*in1[3] - s_7*in1[4];
+    const double z9 = c_6*t0 - s_5*in1[2];
+    const double z10 = c_6*in1[2] + s_5*t0;
+    const double z11_n = c_8*in1[1] + s_7*in1[0];
+    const double z12 = c_6*t1 - s_5*in1[5];
+    const double z13 = c_6*in1[5] + s_5*t1;
+    const double z14 = -c_8*in1[4] - s_7*in1[3];
+    const double t4 = c_4*z14 - s_3*z12;
+    const double z15 = c_4*z9 - s_3*z11_n;
+    const double t3 = 0.4318*z15;
+    const double z16 = c_4*z11_n + s_3*z9;
+    const double t2 = 0.4318*z16;
+    const double z17 = z10;
+    out0[0] = c_0*t2 + c_10*(z13 + 0.15005*z15 + 0.0203*z16) + s_9*(c_4*z12 + s_3*z14 - t2 - 0.15005*z17);
+    out0[1] = t4 + t3*(s_1 - 1.0) + z17*(0.0203 + 0.4318*c_2);
+    out0[2] = t4 + 0.0203*z17 - t3;
+    out0[3] = z13;
+    out0[4] = z14;
+    out0[5] = c_6*z13 - s_5*z12;
 /* END KERNEL puma560.torque_from_force6 */
 }
 
@@ -1827,30 +1693,26 @@ static inline void kv_torque_from_force6(const double *restrict tv, Py_ssize_t t
     const double x_0 = in0[1] + in0[2];
     const double s_9 = tv[9 * ts];
     const double c_10 = tv[10 * ts];
-    const double t0 = 0.15005*s_9;
-    const double t1 = c_8*in1[1];
-    const double t2 = s_7*in1[0];
-    const double t3 = t1 + t2;
-    const double t4 = s_5*in1[2];
-    const double t5 = c_8*in1[0] - s_7*in1[1];
-    const double t6 = c_6*t5;
-    const double t7 = t6 - t4;
-    const double t8 = 0.0203*c_10 - 0.4318*s_9;
-    const double t9 = 0.15005*c_10;
-    const double t10 = t9*in1[1] + s_9*in1[4];
-    const double t11 = t9*in1[0] + s_9*in1[3];
-    const double t12 = c_6*in1[2];
-    const double t13 = s_5*t5;
-    const double t14 = c_8*in1[3] - s_7*in1[4];
-    const double t15 = c_8*in1[4];
-    const double t16 = s_7*in1[3];
-    const double t17 = 0.0203*t12 + 0.0203*t13 + c_4*(0.4318*t4 - t15 - t16 - 0.4318*c_6*t5) + s_3*(0.4318*t1 + 0.4318*t2 + s_5*in1[5] - c_6*t14);
-    out0[0] = 0.4318*c_0*(c_4*t3 + s_3*t7) + c_4*(c_6*(c_8*t11 - s_7*t10) + t1*t8 + t2*t8 - s_5*(t9*in1[2] + s_9*in1[5])) + c_6*(c_10*in1[5] - t0*in1[2]) + s_3*(t6*t8 - c_8*t10 - s_7*t11 - t4*t8) + s_5*(c_8*(c_10*in1[3] - t0*in1[0]) + s_7*(t0*in1[1] - c_10*in1[4]));
-    out0[1] = t17 + 0.4318*c_2*(t12 + t13) + 0.4318*s_1*(c_4*t7 - s_3*t3);
-    out0[2] = t17;
-    out0[3] = c_6*in1[5] + s_5*t14;
-    out0[4] = -t15 - t16;
-    out0[5] = in1[5]*(c_6*c_6 + s_5*s_5);
+    const double t0 = c_8*in1[0] - s_7*in1[1];
+    const double t1 = c_8*in1[3] - s_7*in1[4];
+    const double z9 = c_6*t0 - s_5*in1[2];
+    const double z10 = c_6*in1[2] + s_5*t0;
+    const double z11_n = c_8*in1[1] + s_7*in1[0];
+    const double z12 = c_6*t1 - s_5*in1[5];
+    const double z13 = c_6*in1[5] + s_5*t1;
+    const double z14 = -c_8*in1[4] - s_7*in1[3];
+    const double t4 = c_4*z14 - s_3*z12;
+    const double z15 = c_4*z9 - s_3*z11_n;
+    const double t3 = 0.4318*z15;
+    const double z16 = c_4*z11_n + s_3*z9;
+    const double t2 = 0.4318*z16;
+    const double z17 = z10;
+    out0[0] = c_0*t2 + c_10*(z13 + 0.15005*z15 + 0.0203*z16) + s_9*(c_4*z12 + s_3*z14 - t2 - 0.15005*z17);
+    out0[1] = t4 + t3*(s_1 - 1.0) + z17*(0.0203 + 0.4318*c_2);
+    out0[2] = t4 + 0.0203*z17 - t3;
+    out0[3] = z13;
+    out0[4] = z14;
+    out0[5] = c_6*z13 - s_5*z12;
 }
 
 /* torque_from_force6 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -1912,113 +1774,62 @@ static void batch_torque_from_force6(Py_ssize_t n, const double *const *in, cons
         k_torque_from_force6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
-/* puma560.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[base]+cse, trig sums collapsed) */
+/* puma560.joint_from_cartesian6: dq = J^-1 dc with dc observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, trig sums collapsed, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma560.joint_from_cartesian6 */
-    const double s_0 = sin(in0[1]);
-    const double c_1 = cos(in0[1]);
-    const double s_2 = sin(in0[2]);
-    const double c_3 = cos(in0[2]);
-    const double s_4 = sin(in0[3]);
-    const double c_5 = cos(in0[3]);
-    const double s_6 = sin(in0[4]);
-    const double c_7 = cos(in0[4]);
-    const double s_8 = sin(in0[5]);
-    const double c_9 = cos(in0[5]);
-    const double x_0 = in0[1] - in0[2];
-    const double s_10 = sin(x_0);
-    const double c_11 = cos(x_0);
-    const double x_1 = in0[1] + in0[2];
-    const double s_12 = sin(x_1);
-    const double c_13 = cos(x_1);
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_14 = sin(x_2);
-    const double c_15 = cos(x_2);
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_16 = sin(x_3);
-    const double c_17 = cos(x_3);
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_18 = sin(x_4);
-    const double c_19 = cos(x_4);
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_20 = cos(x_5);
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_21 = cos(x_6);
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_22 = cos(x_7);
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_23 = cos(x_8);
-    const double t0 = 0.0203*c_13;
-    const double t1 = 0.4318*s_12;
-    const double t2 = t0 - t1;
-    const double t3 = 0.4318*c_1 + t2;
-    const double t4 = c_9*in1[1];
-    const double t5 = s_8*in1[0];
-    const double t6 = t4 + t5;
-    const double t7 = c_5*t6;
-    const double t8 = s_6*in1[2];
-    const double t9 = c_9*in1[0];
-    const double t10 = s_8*in1[1];
-    const double t11 = t9 - t10;
-    const double t12 = c_7*t11;
-    const double t13 = t12 - t8;
-    const double t14 = c_7*in1[2];
-    const double t15 = 0.18645124000000002*c_3;
-    const double t16 = 0.00876554*s_2 + t15;
-    const double t17 = 0.4318/t16;
-    const double t18 = t14*t17;
-    const double t19 = s_6*t11;
-    const double t20 = t17*t19;
-    const double t21 = s_4*t6;
-    const double t22 = c_5*t13 - t21;
-    const double t23 = 0.08050964543200001*c_3;
-    const double t24 = 1.0/(0.003784960172*c_15 + c_1*(0.003784960172*s_2 + t23) + 0.000177940462*c_13*s_2 - s_12*t23);
-    const double t25 = 0.00876554*t24;
-    const double t26 = 0.0030460149999999996*c_13 - 0.06479159*s_12;
-    const double t27 = 0.00041208999999999994*c_13;
-    const double t28 = t27 - 0.00876554*s_12;
-    const double t29 = c_5*t24*(t26*t4 + t26*t5 + t28*t8 - t12*t28);
-    const double t30 = t12*t26 + t28*t4 + t28*t5 - s_6*t26*in1[2];
-    const double t31 = s_4*t24;
-    const double t32 = 0.4318*c_3;
-    const double t33 = 1.0/(0.0203*s_2 + t32);
-    const double t34 = s_2*t33;
-    const double t35 = 1.0/(0.00876554*c_15 + c_1*t16 + s_2*t27 - s_12*t15);
-    const double t36 = c_3*t35;
-    const double t37 = t32*t35;
-    const double t38 = 0.15005*t4 + 0.15005*t5;
-    const double t39 = 0.15005*t8;
-    const double t40 = 0.15005*t12;
-    const double t41 = c_9*in1[3] - s_8*in1[4];
-    const double t42 = 1.0/s_6;
-    const double t43 = t41*t42;
-    const double t44 = t42*t6;
-    const double t45 = s_12*t44;
-    const double t46 = c_7*t45;
-    const double t47 = t12*t42 - in1[2];
-    const double t48_n = s_6*t47;
-    const double t49_n = s_4*t42*t6 - c_5*t47;
-    const double t50 = c_5*(0.0203*c_7*t11 - t38 - 0.0203*t8) + s_4*(t39 - 0.0203*t4 - t40 - 0.0203*t5);
-    const double t51 = c_1*t35;
-    const double t52 = s_4*t51;
-    const double t53 = t0*t35;
-    const double t54 = 0.0203*t35;
-    const double t55 = t33*(t11 + t14*t42);
-    const double t56 = -t11;
-    const double t57 = 1.0/(0.7458049600000001*c_11 + 0.7458049600000001*c_13 + 0.07012432*c_15 + 0.03506216*s_12 - 0.7474533200000001*s_0 - 0.03506216*s_10 - 0.7441566000000001*s_14);
-    const double t58_n = 1.7272*s_14 + 0.3001*s_18 - 0.8636*c_11 - 0.8636*c_13 - 0.0812*c_15 - 0.0406*c_17 - 0.0406*c_19 - 0.4318*c_20 - 0.4318*c_21 - 0.4318*c_22 - 0.4318*c_23 - 0.3001*s_16;
-    const double t59 = t58_n;
-    out0[0] = (t7 + s_4*t13)/t3;
-    out0[1] = t18 + t20 + c_1*t22*t25 - t29 - t30*t31;
-    out0[2] = t29 + c_1*(c_5*(t25*t8 + t35*t38 - t12*t25) + s_4*(t24*(0.00876554*t4 + 0.00876554*t5) + t35*t40 - t35*t39) - t22*t37) + t30*t31 + t34*(t14 + t19) + t2*t36*(t21 - c_5*t13) - t18 - t20;
-    out0[3] = t43*c_7*c_7 + s_2*(s_4*(c_7*t55 - t48_n*t53) - t46*t54 - t53*t7) + s_6*t41 + c_7*t52*(t32*t49_n - t42*t50) - t37*(t46 + c_13*t7 + c_13*s_4*t48_n);
-    out0[4] = c_5*t34*(s_6*t56 - t14) + c_7*t57*(t10*t59 - t58_n*t9) + 1.7272*s_0*t57*(t8 + c_7*t56) + t57*t59*t8 - c_9*in1[4] - s_8*in1[3] - t51*t7*(0.15005*c_5 + 0.0203*s_4 + s_4*t32);
-    out0[5] = in1[5] + s_2*(t45*t54 - s_4*t55) + t52*(t42*t50 - t32*t49_n) + t1*t36*t44 - c_7*t43;
+    const double c_0 = cos(in0[1]);
+    const double s_1 = sin(in0[2]);
+    const double c_2 = cos(in0[2]);
+    const double s_3 = sin(in0[3]);
+    const double c_4 = cos(in0[3]);
+    const double s_5 = sin(in0[4]);
+    const double c_6 = cos(in0[4]);
+    const double s_7 = sin(in0[5]);
+    const double c_8 = cos(in0[5]);
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = sin(x_0);
+    const double c_10 = cos(x_0);
+    const double t0 = c_8*in1[0] - s_7*in1[1];
+    const double t1 = c_8*in1[3] - s_7*in1[4];
+    const double t2 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
+    const double t3 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t3;
+    const double dp_1 = d_1*t2;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t2;
+    const double r_1 = d_1*r_2;
+    const double z18 = c_6*t0 - s_5*in1[2];
+    const double z19 = c_6*in1[2] + s_5*t0;
+    const double z20_n = c_8*in1[1] + s_7*in1[0];
+    const double z21 = c_6*t1 - s_5*in1[5];
+    const double z22 = c_6*in1[5] + s_5*t1;
+    const double z23 = -c_8*in1[4] - s_7*in1[3];
+    const double z24 = c_4*z18 - s_3*z20_n;
+    const double z25 = c_4*z20_n + s_3*z18;
+    const double z26 = z19;
+    const double t4 = 0.4318*z26;
+    const double z27 = r_1*z25;
+    const double t5 = s_9*z27;
+    const double z30 = 2.3158869847151458*r_1_inv;
+    const double z28 = z30*(t4 + 0.0203*z24 + z27*(0.06479159*s_9 - 0.0030460149999999996*c_10));
+    const double z29 = z30*(0.06479159*c_0*z27 + s_1*t4 - t3*z24);
+    const double z33 = r_2_inv*(c_4*t5 - z21 - s_3*z29);
+    const double z31 = z22 - c_10*z27 - c_6*z33;
+    const double z32 = z23 - c_4*z29 - s_3*t5;
+    out0[0] = z27;
+    out0[1] = z28;
+    out0[2] = z29 - z28;
+    out0[3] = z31;
+    out0[4] = z32;
+    out0[5] = z33;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t3) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t2) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 /* END KERNEL puma560.joint_from_cartesian6 */
 }
 
@@ -2026,109 +1837,58 @@ static inline void k_joint_from_cartesian6(const double *restrict in0, const dou
 /* joint_from_cartesian6 for batches: the row above with its sines and cosines precomputed */
 static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
-    const double s_0 = tv[0 * ts];
-    const double c_1 = tv[1 * ts];
-    const double s_2 = tv[2 * ts];
-    const double c_3 = tv[3 * ts];
-    const double s_4 = tv[4 * ts];
-    const double c_5 = tv[5 * ts];
-    const double s_6 = tv[6 * ts];
-    const double c_7 = tv[7 * ts];
-    const double s_8 = tv[8 * ts];
-    const double c_9 = tv[9 * ts];
-    const double x_0 = in0[1] - in0[2];
-    const double s_10 = tv[10 * ts];
-    const double c_11 = tv[11 * ts];
-    const double x_1 = in0[1] + in0[2];
-    const double s_12 = tv[12 * ts];
-    const double c_13 = tv[13 * ts];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_14 = tv[14 * ts];
-    const double c_15 = tv[15 * ts];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_16 = tv[16 * ts];
-    const double c_17 = tv[17 * ts];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_18 = tv[18 * ts];
-    const double c_19 = tv[19 * ts];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_20 = tv[20 * ts];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_21 = tv[21 * ts];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_22 = tv[22 * ts];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_23 = tv[23 * ts];
-    const double t0 = 0.0203*c_13;
-    const double t1 = 0.4318*s_12;
-    const double t2 = t0 - t1;
-    const double t3 = 0.4318*c_1 + t2;
-    const double t4 = c_9*in1[1];
-    const double t5 = s_8*in1[0];
-    const double t6 = t4 + t5;
-    const double t7 = c_5*t6;
-    const double t8 = s_6*in1[2];
-    const double t9 = c_9*in1[0];
-    const double t10 = s_8*in1[1];
-    const double t11 = t9 - t10;
-    const double t12 = c_7*t11;
-    const double t13 = t12 - t8;
-    const double t14 = c_7*in1[2];
-    const double t15 = 0.18645124000000002*c_3;
-    const double t16 = 0.00876554*s_2 + t15;
-    const double t17 = 0.4318/t16;
-    const double t18 = t14*t17;
-    const double t19 = s_6*t11;
-    const double t20 = t17*t19;
-    const double t21 = s_4*t6;
-    const double t22 = c_5*t13 - t21;
-    const double t23 = 0.08050964543200001*c_3;
-    const double t24 = 1.0/(0.003784960172*c_15 + c_1*(0.003784960172*s_2 + t23) + 0.000177940462*c_13*s_2 - s_12*t23);
-    const double t25 = 0.00876554*t24;
-    const double t26 = 0.0030460149999999996*c_13 - 0.06479159*s_12;
-    const double t27 = 0.00041208999999999994*c_13;
-    const double t28 = t27 - 0.00876554*s_12;
-    const double t29 = c_5*t24*(t26*t4 + t26*t5 + t28*t8 - t12*t28);
-    const double t30 = t12*t26 + t28*t4 + t28*t5 - s_6*t26*in1[2];
-    const double t31 = s_4*t24;
-    const double t32 = 0.4318*c_3;
-    const double t33 = 1.0/(0.0203*s_2 + t32);
-    const double t34 = s_2*t33;
-    const double t35 = 1.0/(0.00876554*c_15 + c_1*t16 + s_2*t27 - s_12*t15);
-    const double t36 = c_3*t35;
-    const double t37 = t32*t35;
-    const double t38 = 0.15005*t4 + 0.15005*t5;
-    const double t39 = 0.15005*t8;
-    const double t40 = 0.15005*t12;
-    const double t41 = c_9*in1[3] - s_8*in1[4];
-    const double t42 = 1.0/s_6;
-    const double t43 = t41*t42;
-    const double t44 = t42*t6;
-    const double t45 = s_12*t44;
-    const double t46 = c_7*t45;
-    const double t47 = t12*t42 - in1[2];
-    const double t48_n = s_6*t47;
-    const double t49_n = s_4*t42*t6 - c_5*t47;
-    const double t50 = c_5*(0.0203*c_7*t11 - t38 - 0.0203*t8) + s_4*(t39 - 0.0203*t4 - t40 - 0.0203*t5);
-    const double t51 = c_1*t35;
-    const double t52 = s_4*t51;
-    const double t53 = t0*t35;
-    const double t54 = 0.0203*t35;
-    const double t55 = t33*(t11 + t14*t42);
-    const double t56 = -t11;
-    const double t57 = 1.0/(0.7458049600000001*c_11 + 0.7458049600000001*c_13 + 0.07012432*c_15 + 0.03506216*s_12 - 0.7474533200000001*s_0 - 0.03506216*s_10 - 0.7441566000000001*s_14);
-    const double t58_n = 1.7272*s_14 + 0.3001*s_18 - 0.8636*c_11 - 0.8636*c_13 - 0.0812*c_15 - 0.0406*c_17 - 0.0406*c_19 - 0.4318*c_20 - 0.4318*c_21 - 0.4318*c_22 - 0.4318*c_23 - 0.3001*s_16;
-    const double t59 = t58_n;
-    out0[0] = (t7 + s_4*t13)/t3;
-    out0[1] = t18 + t20 + c_1*t22*t25 - t29 - t30*t31;
-    out0[2] = t29 + c_1*(c_5*(t25*t8 + t35*t38 - t12*t25) + s_4*(t24*(0.00876554*t4 + 0.00876554*t5) + t35*t40 - t35*t39) - t22*t37) + t30*t31 + t34*(t14 + t19) + t2*t36*(t21 - c_5*t13) - t18 - t20;
-    out0[3] = t43*c_7*c_7 + s_2*(s_4*(c_7*t55 - t48_n*t53) - t46*t54 - t53*t7) + s_6*t41 + c_7*t52*(t32*t49_n - t42*t50) - t37*(t46 + c_13*t7 + c_13*s_4*t48_n);
-    out0[4] = c_5*t34*(s_6*t56 - t14) + c_7*t57*(t10*t59 - t58_n*t9) + 1.7272*s_0*t57*(t8 + c_7*t56) + t57*t59*t8 - c_9*in1[4] - s_8*in1[3] - t51*t7*(0.15005*c_5 + 0.0203*s_4 + s_4*t32);
-    out0[5] = in1[5] + s_2*(t45*t54 - s_4*t55) + t52*(t42*t50 - t32*t49_n) + t1*t36*t44 - c_7*t43;
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = c_8*in1[0] - s_7*in1[1];
+    const double t1 = c_8*in1[3] - s_7*in1[4];
+    const double t2 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
+    const double t3 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t3;
+    const double dp_1 = d_1*t2;
+    const double dp_2 = dp_1*s_5;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*s_5;
+    const double r_1_inv = r_2*t2;
+    const double r_1 = d_1*r_2;
+    const double z18 = c_6*t0 - s_5*in1[2];
+    const double z19 = c_6*in1[2] + s_5*t0;
+    const double z20_n = c_8*in1[1] + s_7*in1[0];
+    const double z21 = c_6*t1 - s_5*in1[5];
+    const double z22 = c_6*in1[5] + s_5*t1;
+    const double z23 = -c_8*in1[4] - s_7*in1[3];
+    const double z24 = c_4*z18 - s_3*z20_n;
+    const double z25 = c_4*z20_n + s_3*z18;
+    const double z26 = z19;
+    const double t4 = 0.4318*z26;
+    const double z27 = r_1*z25;
+    const double t5 = s_9*z27;
+    const double z30 = 2.3158869847151458*r_1_inv;
+    const double z28 = z30*(t4 + 0.0203*z24 + z27*(0.06479159*s_9 - 0.0030460149999999996*c_10));
+    const double z29 = z30*(0.06479159*c_0*z27 + s_1*t4 - t3*z24);
+    const double z33 = r_2_inv*(c_4*t5 - z21 - s_3*z29);
+    const double z31 = z22 - c_10*z27 - c_6*z33;
+    const double z32 = z23 - c_4*z29 - s_3*t5;
+    out0[0] = z27;
+    out0[1] = z28;
+    out0[2] = z29 - z28;
+    out0[3] = z31;
+    out0[4] = z32;
+    out0[5] = z33;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t3) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t2) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 }
 
 /* joint_from_cartesian6 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -2136,19 +1896,11 @@ static inline void kv_joint_from_cartesian6(const double *restrict tv, Py_ssize_
  * it to libm) */
 VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, const double *restrict in1, double *restrict tv)
 {
-    const double x_0 = in0[1] - in0[2];
-    const double x_1 = in0[1] + in0[2];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const __m256d x[4] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, x_1, x_2), _mm256_setr_pd(x_3, x_4, x_5, x_6), _mm256_setr_pd(x_7, x_8, 0.0, 0.0)};
-    double sv[16], cv[16];
-    if (!vtrig_row(x, sv, cv, 4)) return 0;
-    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5]; tv[12] = sv[6]; tv[13] = cv[6]; tv[14] = sv[7]; tv[15] = cv[7]; tv[16] = sv[8]; tv[17] = cv[8]; tv[18] = sv[9]; tv[19] = cv[9]; tv[20] = cv[10]; tv[21] = cv[11]; tv[22] = cv[12]; tv[23] = cv[13];
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
     return 1;
 }
 
@@ -2158,7 +1910,7 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
 {
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
-        double t1[24];
+        double t1[11];
         if (kv1_joint_from_cartesian6((const double *)in[0], (const double *)in[1], t1)) {
             kv_joint_from_cartesian6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
             return 1;
@@ -2166,27 +1918,19 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[14][64], tv[24][64];
+    double ta[6][64], tv[11][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = in0[1] - in0[2]; const double x_1 = in0[1] + in0[2]; const double x_2 = in0[1] + 2.0*in0[2]; const double x_3 = in0[1] - 2.0*in0[3]; const double x_4 = in0[1] + 2.0*in0[3]; const double x_5 = in0[2] + 2.0*in0[3] - in0[1]; const double x_6 = in0[1] + 2.0*in0[3] - in0[2]; const double x_7 = in0[1] + in0[2] - 2.0*in0[3]; const double x_8 = in0[1] + in0[2] + 2.0*in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; ta[6][r] = x_1; ta[7][r] = x_2; ta[8][r] = x_3; ta[9][r] = x_4; ta[10][r] = x_5; ta[11][r] = x_6; ta[12][r] = x_7; ta[13][r] = x_8;
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-        vtrig_sincos(ta[0], tv[0], tv[1], m);
-        vtrig_sincos(ta[1], tv[2], tv[3], m);
-        vtrig_sincos(ta[2], tv[4], tv[5], m);
-        vtrig_sincos(ta[3], tv[6], tv[7], m);
-        vtrig_sincos(ta[4], tv[8], tv[9], m);
-        vtrig_sincos(ta[5], tv[10], tv[11], m);
-        vtrig_sincos(ta[6], tv[12], tv[13], m);
-        vtrig_sincos(ta[7], tv[14], tv[15], m);
-        vtrig_sincos(ta[8], tv[16], tv[17], m);
-        vtrig_sincos(ta[9], tv[18], tv[19], m);
-        vtrig_sincos(ta[10], NULL, tv[20], m);
-        vtrig_sincos(ta[11], NULL, tv[21], m);
-        vtrig_sincos(ta[12], NULL, tv[22], m);
-        vtrig_sincos(ta[13], NULL, tv[23], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
@@ -2206,98 +1950,58 @@ static void batch_joint_from_cartesian6(Py_ssize_t n, const double *const *in, c
         k_joint_from_cartesian6(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1], out2 + r * os[2], out3 + r * os[3]);
 }
 
-/* puma560.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[tip]+cse, trig sums collapsed) */
+/* puma560.force_from_torque6: f = J^-T tau, observed in frame 6 (thesis 3.79; lowering: expand+horner[count]+cse, staged (the kernel's structure hint), 3 divisions by one shared reciprocal) */
 static inline void k_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
 /* BEGIN KERNEL puma560.force_from_torque6 */
-    const double s_0 = sin(in0[1]);
-    const double c_1 = cos(in0[1]);
-    const double s_2 = sin(in0[2]);
-    const double c_3 = cos(in0[2]);
-    const double s_4 = sin(in0[3]);
-    const double c_5 = cos(in0[3]);
-    const double s_6 = sin(in0[4]);
-    const double c_7 = cos(in0[4]);
-    const double s_8 = sin(in0[5]);
-    const double c_9 = cos(in0[5]);
-    const double x_0 = in0[1] - in0[2];
-    const double s_10 = sin(x_0);
-    const double c_11 = cos(x_0);
-    const double x_1 = in0[1] + in0[2];
-    const double s_12 = sin(x_1);
-    const double c_13 = cos(x_1);
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_14 = sin(x_2);
-    const double c_15 = cos(x_2);
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_16 = sin(x_3);
-    const double c_17 = cos(x_3);
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_18 = sin(x_4);
-    const double c_19 = cos(x_4);
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_20 = cos(x_5);
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_21 = cos(x_6);
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_22 = cos(x_7);
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_23 = cos(x_8);
-    const double t0 = c_1 - s_12;
-    const double t1 = 1.0/(0.003784960172*c_15 + 0.08050964543200001*c_3*t0 + s_2*(0.003784960172*c_1 + 0.000177940462*c_13));
-    const double t2_n = in1[2];
-    const double t3 = 0.06479159*t1*(in1[1] - t2_n);
-    const double t4 = 0.18645124000000002*c_3;
-    const double t5 = 1.0/(0.00876554*c_15 + s_2*(0.00876554*c_1 + 0.00041208999999999994*c_13) + t0*t4);
-    const double t6 = 0.4318*c_3;
-    const double t7 = 0.0203*s_2 + t6;
-    const double t8 = t5*t7;
-    const double t9 = 1.0/s_6;
-    const double t10 = t9*in1[5];
-    const double t11 = c_7*in1[3];
-    const double t12 = t11*t9;
-    const double t13 = 0.00876554*t1;
-    const double t14 = t13*in1[1] - in1[2]*(t13 + t5*t6);
-    const double t15 = c_5*t3 + s_4*t14 + t10*t8 - t12*t8;
-    const double t16_n = 0.0030460149999999996*in1[2] - 0.0030460149999999996*in1[1];
-    const double t17 = t8*in1[3];
-    const double t18 = t17 - t1*t16_n;
-    const double t19 = 0.00041208999999999994*t1;
-    const double t20 = t19*in1[1] - in1[2]*(t19 + 0.0203*c_3*t5);
-    const double t21 = 0.4318*c_1 + 0.0203*c_13 - 0.4318*s_12;
-    const double t22 = in1[0]/t21;
-    const double t23_n = t22;
-    const double t24 = c_5*in1[4] - t2_n;
-    const double t25 = c_1*t5;
-    const double t26 = 0.15005*t25;
-    const double t27 = 0.0203 + t6;
-    const double t28 = s_4*t25;
-    const double t29 = s_4*t27;
-    const double t30 = c_1*(t14 + t10*t29*t5);
-    const double t31 = t12*t28;
-    const double t32 = c_13*(c_5*t18 + s_4*t20) + c_5*(t24*t26 + t28*(0.15005*t10 + t27*in1[4]) - t23_n) + s_4*t30 - t31*(0.15005*c_5 + t29);
-    const double t33 = s_2/t7;
-    const double t34 = t9*(t11 - in1[5]);
-    const double t35 = (0.4318*in1[1] - 0.4318*in1[2])/(0.00876554*s_2 + t4) + s_4*t33*t34;
-    const double t36 = t35 - t24*t33;
-    const double t37 = in1[4]/(0.7458049600000001*c_11 + 0.7458049600000001*c_13 + 0.07012432*c_15 + 0.03506216*s_12 - 0.7474533200000001*s_0 - 0.03506216*s_10 - 0.7441566000000001*s_14);
-    const double t38 = 0.8636*t37 + c_5*t20;
-    const double t39 = s_4*t3;
-    const double t40 = s_4*t10 - t2_n;
-    const double t41 = c_5*t27 - 0.15005*s_4;
-    const double t42 = c_5*t30 + t37*(0.8636*c_11 + 0.0812*c_15 + 0.0406*c_17 + 0.0406*c_19 + 0.4318*c_20 + 0.4318*c_21 + 0.4318*c_22 + 0.4318*c_23 + 0.3001*s_16 - 1.7272*s_0 - 1.7272*s_14 - 0.3001*s_18);
-    const double t43 = t42 + c_13*(t38 - s_4*t18) + s_12*(t39 - c_5*t14) + s_4*(t23_n - t26*t40) - t31*t41;
-    const double t44 = c_7*t34 + s_6*in1[3];
-    out0[0] = c_9*(c_7*t43 + s_6*t36) + s_8*(s_12*t15 - t32);
-    out0[1] = c_9*(s_12*t15 - t32) - s_8*(c_7*(t42 + c_13*(t38 + s_4*(t1*t16_n - t17)) + s_12*(t39 - c_5*t14) + s_4*(t22 - t26*t40) - t31*t41) + s_6*(t35 - t24*t33));
-    out0[2] = c_7*t36 - s_6*t43;
-    out0[3] = c_9*t44 - s_8*in1[4];
-    out0[4] = -c_9*in1[4] - s_8*t44;
-    out0[5] = in1[5];
+    const double c_0 = cos(in0[1]);
+    const double s_1 = sin(in0[2]);
+    const double c_2 = cos(in0[2]);
+    const double s_3 = sin(in0[3]);
+    const double c_4 = cos(in0[3]);
+    const double s_5 = sin(in0[4]);
+    const double c_6 = cos(in0[4]);
+    const double s_7 = sin(in0[5]);
+    const double c_8 = cos(in0[5]);
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = sin(x_0);
+    const double c_10 = cos(x_0);
+    const double t0 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t0;
+    const double dp_1 = d_1*s_5;
+    const double t2 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
+    const double dp_2 = dp_1*t2;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t2;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = d_1*r_2;
+    const double z35 = in1[3];
+    const double z36 = in1[4];
+    const double z34 = r_1*(c_6*z35 - in1[5]);
+    const double t1 = in1[2] + s_3*z34 - c_4*z36;
+    const double z40 = 2.3158869847151458*r_1_inv;
+    const double z37 = z40*(0.0203*in1[1] - 0.0203*in1[2] - t0*t1);
+    const double z39 = 0.4318*z40*(in1[1] + s_1*t1 - in1[2]);
+    const double z38 = r_2_inv*(in1[0] + s_9*(0.15005*z39 - c_4*z34 - s_3*z36) - c_10*(z35 + 0.15005*z37));
+    const double z41 = c_4*z37 + s_3*z38;
+    const double z42 = z39;
+    const double t3 = c_6*z41 + s_5*z42;
+    const double z43_n = c_4*z38 - s_3*z37;
+    const double z44 = z34;
+    const double z45 = z35;
+    const double t4 = c_6*z44 + s_5*z45;
+    const double z46 = z36;
+    out0[0] = c_8*t3 + s_7*z43_n;
+    out0[1] = c_8*z43_n - s_7*t3;
+    out0[2] = c_6*z42 - s_5*z41;
+    out0[3] = c_8*t4 - s_7*z46;
+    out0[4] = -c_8*z46 - s_7*t4;
+    out0[5] = c_6*z45 - s_5*z44;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t21) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t2) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 /* END KERNEL puma560.force_from_torque6 */
 }
 
@@ -2305,94 +2009,54 @@ static inline void k_force_from_torque6(const double *restrict in0, const double
 /* force_from_torque6 for batches: the row above with its sines and cosines precomputed */
 static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1, double *restrict out2, double *restrict out3)
 {
-    const double s_0 = tv[0 * ts];
-    const double c_1 = tv[1 * ts];
-    const double s_2 = tv[2 * ts];
-    const double c_3 = tv[3 * ts];
-    const double s_4 = tv[4 * ts];
-    const double c_5 = tv[5 * ts];
-    const double s_6 = tv[6 * ts];
-    const double c_7 = tv[7 * ts];
-    const double s_8 = tv[8 * ts];
-    const double c_9 = tv[9 * ts];
-    const double x_0 = in0[1] - in0[2];
-    const double s_10 = tv[10 * ts];
-    const double c_11 = tv[11 * ts];
-    const double x_1 = in0[1] + in0[2];
-    const double s_12 = tv[12 * ts];
-    const double c_13 = tv[13 * ts];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double s_14 = tv[14 * ts];
-    const double c_15 = tv[15 * ts];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double s_16 = tv[16 * ts];
-    const double c_17 = tv[17 * ts];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double s_18 = tv[18 * ts];
-    const double c_19 = tv[19 * ts];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double c_20 = tv[20 * ts];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double c_21 = tv[21 * ts];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double c_22 = tv[22 * ts];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const double c_23 = tv[23 * ts];
-    const double t0 = c_1 - s_12;
-    const double t1 = 1.0/(0.003784960172*c_15 + 0.08050964543200001*c_3*t0 + s_2*(0.003784960172*c_1 + 0.000177940462*c_13));
-    const double t2_n = in1[2];
-    const double t3 = 0.06479159*t1*(in1[1] - t2_n);
-    const double t4 = 0.18645124000000002*c_3;
-    const double t5 = 1.0/(0.00876554*c_15 + s_2*(0.00876554*c_1 + 0.00041208999999999994*c_13) + t0*t4);
-    const double t6 = 0.4318*c_3;
-    const double t7 = 0.0203*s_2 + t6;
-    const double t8 = t5*t7;
-    const double t9 = 1.0/s_6;
-    const double t10 = t9*in1[5];
-    const double t11 = c_7*in1[3];
-    const double t12 = t11*t9;
-    const double t13 = 0.00876554*t1;
-    const double t14 = t13*in1[1] - in1[2]*(t13 + t5*t6);
-    const double t15 = c_5*t3 + s_4*t14 + t10*t8 - t12*t8;
-    const double t16_n = 0.0030460149999999996*in1[2] - 0.0030460149999999996*in1[1];
-    const double t17 = t8*in1[3];
-    const double t18 = t17 - t1*t16_n;
-    const double t19 = 0.00041208999999999994*t1;
-    const double t20 = t19*in1[1] - in1[2]*(t19 + 0.0203*c_3*t5);
-    const double t21 = 0.4318*c_1 + 0.0203*c_13 - 0.4318*s_12;
-    const double t22 = in1[0]/t21;
-    const double t23_n = t22;
-    const double t24 = c_5*in1[4] - t2_n;
-    const double t25 = c_1*t5;
-    const double t26 = 0.15005*t25;
-    const double t27 = 0.0203 + t6;
-    const double t28 = s_4*t25;
-    const double t29 = s_4*t27;
-    const double t30 = c_1*(t14 + t10*t29*t5);
-    const double t31 = t12*t28;
-    const double t32 = c_13*(c_5*t18 + s_4*t20) + c_5*(t24*t26 + t28*(0.15005*t10 + t27*in1[4]) - t23_n) + s_4*t30 - t31*(0.15005*c_5 + t29);
-    const double t33 = s_2/t7;
-    const double t34 = t9*(t11 - in1[5]);
-    const double t35 = (0.4318*in1[1] - 0.4318*in1[2])/(0.00876554*s_2 + t4) + s_4*t33*t34;
-    const double t36 = t35 - t24*t33;
-    const double t37 = in1[4]/(0.7458049600000001*c_11 + 0.7458049600000001*c_13 + 0.07012432*c_15 + 0.03506216*s_12 - 0.7474533200000001*s_0 - 0.03506216*s_10 - 0.7441566000000001*s_14);
-    const double t38 = 0.8636*t37 + c_5*t20;
-    const double t39 = s_4*t3;
-    const double t40 = s_4*t10 - t2_n;
-    const double t41 = c_5*t27 - 0.15005*s_4;
-    const double t42 = c_5*t30 + t37*(0.8636*c_11 + 0.0812*c_15 + 0.0406*c_17 + 0.0406*c_19 + 0.4318*c_20 + 0.4318*c_21 + 0.4318*c_22 + 0.4318*c_23 + 0.3001*s_16 - 1.7272*s_0 - 1.7272*s_14 - 0.3001*s_18);
-    const double t43 = t42 + c_13*(t38 - s_4*t18) + s_12*(t39 - c_5*t14) + s_4*(t23_n - t26*t40) - t31*t41;
-    const double t44 = c_7*t34 + s_6*in1[3];
-    out0[0] = c_9*(c_7*t43 + s_6*t36) + s_8*(s_12*t15 - t32);
-    out0[1] = c_9*(s_12*t15 - t32) - s_8*(c_7*(t42 + c_13*(t38 + s_4*(t1*t16_n - t17)) + s_12*(t39 - c_5*t14) + s_4*(t22 - t26*t40) - t31*t41) + s_6*(t35 - t24*t33));
-    out0[2] = c_7*t36 - s_6*t43;
-    out0[3] = c_9*t44 - s_8*in1[4];
-    out0[4] = -c_9*in1[4] - s_8*t44;
-    out0[5] = in1[5];
+    const double c_0 = tv[0 * ts];
+    const double s_1 = tv[1 * ts];
+    const double c_2 = tv[2 * ts];
+    const double s_3 = tv[3 * ts];
+    const double c_4 = tv[4 * ts];
+    const double s_5 = tv[5 * ts];
+    const double c_6 = tv[6 * ts];
+    const double s_7 = tv[7 * ts];
+    const double c_8 = tv[8 * ts];
+    const double x_0 = in0[1] + in0[2];
+    const double s_9 = tv[9 * ts];
+    const double c_10 = tv[10 * ts];
+    const double t0 = 0.4318*c_2;
+    const double d_1 = 0.0203*s_1 + t0;
+    const double dp_1 = d_1*s_5;
+    const double t2 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
+    const double dp_2 = dp_1*t2;
+    const double r_0 = 1.0/dp_2;
+    const double r_2_inv = dp_1*r_0;
+    const double r_2 = r_0*t2;
+    const double r_1_inv = r_2*s_5;
+    const double r_1 = d_1*r_2;
+    const double z35 = in1[3];
+    const double z36 = in1[4];
+    const double z34 = r_1*(c_6*z35 - in1[5]);
+    const double t1 = in1[2] + s_3*z34 - c_4*z36;
+    const double z40 = 2.3158869847151458*r_1_inv;
+    const double z37 = z40*(0.0203*in1[1] - 0.0203*in1[2] - t0*t1);
+    const double z39 = 0.4318*z40*(in1[1] + s_1*t1 - in1[2]);
+    const double z38 = r_2_inv*(in1[0] + s_9*(0.15005*z39 - c_4*z34 - s_3*z36) - c_10*(z35 + 0.15005*z37));
+    const double z41 = c_4*z37 + s_3*z38;
+    const double z42 = z39;
+    const double t3 = c_6*z41 + s_5*z42;
+    const double z43_n = c_4*z38 - s_3*z37;
+    const double z44 = z34;
+    const double z45 = z35;
+    const double t4 = c_6*z44 + s_5*z45;
+    const double z46 = z36;
+    out0[0] = c_8*t3 + s_7*z43_n;
+    out0[1] = c_8*z43_n - s_7*t3;
+    out0[2] = c_6*z42 - s_5*z41;
+    out0[3] = c_8*t4 - s_7*z46;
+    out0[4] = -c_8*z46 - s_7*t4;
+    out0[5] = c_6*z45 - s_5*z44;
     /* guards: >= 0 where the outputs are valid */
-    out1[0] = fabs(t21) - 8.640769135635167e-10;
-    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_3 + 0.01753108*s_2) - 1e-09;
-    out3[0] = fabs(s_6) - 1e-09;
+    out1[0] = fabs(t2) - 8.640769135635167e-10;
+    out2[0] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
+    out3[0] = fabs(s_5) - 1e-09;
 }
 
 /* force_from_torque6 for one row: its sine/cosine arguments side by side in vector lanes, their
@@ -2400,19 +2064,11 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
  * it to libm) */
 VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const double *restrict in1, double *restrict tv)
 {
-    const double x_0 = in0[1] - in0[2];
-    const double x_1 = in0[1] + in0[2];
-    const double x_2 = in0[1] + 2.0*in0[2];
-    const double x_3 = in0[1] - 2.0*in0[3];
-    const double x_4 = in0[1] + 2.0*in0[3];
-    const double x_5 = in0[2] + 2.0*in0[3] - in0[1];
-    const double x_6 = in0[1] + 2.0*in0[3] - in0[2];
-    const double x_7 = in0[1] + in0[2] - 2.0*in0[3];
-    const double x_8 = in0[1] + in0[2] + 2.0*in0[3];
-    const __m256d x[4] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, x_1, x_2), _mm256_setr_pd(x_3, x_4, x_5, x_6), _mm256_setr_pd(x_7, x_8, 0.0, 0.0)};
-    double sv[16], cv[16];
-    if (!vtrig_row(x, sv, cv, 4)) return 0;
-    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3]; tv[8] = sv[4]; tv[9] = cv[4]; tv[10] = sv[5]; tv[11] = cv[5]; tv[12] = sv[6]; tv[13] = cv[6]; tv[14] = sv[7]; tv[15] = cv[7]; tv[16] = sv[8]; tv[17] = cv[8]; tv[18] = sv[9]; tv[19] = cv[9]; tv[20] = cv[10]; tv[21] = cv[11]; tv[22] = cv[12]; tv[23] = cv[13];
+    const double x_0 = in0[1] + in0[2];
+    const __m256d x[2] = {_mm256_setr_pd(in0[1], in0[2], in0[3], in0[4]), _mm256_setr_pd(in0[5], x_0, 0.0, 0.0)};
+    double sv[8], cv[8];
+    if (!vtrig_row(x, sv, cv, 2)) return 0;
+    tv[0] = cv[0]; tv[1] = sv[1]; tv[2] = cv[1]; tv[3] = sv[2]; tv[4] = cv[2]; tv[5] = sv[3]; tv[6] = cv[3]; tv[7] = sv[4]; tv[8] = cv[4]; tv[9] = sv[5]; tv[10] = cv[5];
     return 1;
 }
 
@@ -2422,7 +2078,7 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
 {
     if (!have_vector_trig) return 0;
     if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
-        double t1[24];
+        double t1[11];
         if (kv1_force_from_torque6((const double *)in[0], (const double *)in[1], t1)) {
             kv_force_from_torque6(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0], (double *)out[1], (double *)out[2], (double *)out[3]);
             return 1;
@@ -2430,27 +2086,19 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[14][64], tv[24][64];
+    double ta[6][64], tv[11][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            const double x_0 = in0[1] - in0[2]; const double x_1 = in0[1] + in0[2]; const double x_2 = in0[1] + 2.0*in0[2]; const double x_3 = in0[1] - 2.0*in0[3]; const double x_4 = in0[1] + 2.0*in0[3]; const double x_5 = in0[2] + 2.0*in0[3] - in0[1]; const double x_6 = in0[1] + 2.0*in0[3] - in0[2]; const double x_7 = in0[1] + in0[2] - 2.0*in0[3]; const double x_8 = in0[1] + in0[2] + 2.0*in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; ta[6][r] = x_1; ta[7][r] = x_2; ta[8][r] = x_3; ta[9][r] = x_4; ta[10][r] = x_5; ta[11][r] = x_6; ta[12][r] = x_7; ta[13][r] = x_8;
+            const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0;
         }
-        vtrig_sincos(ta[0], tv[0], tv[1], m);
-        vtrig_sincos(ta[1], tv[2], tv[3], m);
-        vtrig_sincos(ta[2], tv[4], tv[5], m);
-        vtrig_sincos(ta[3], tv[6], tv[7], m);
-        vtrig_sincos(ta[4], tv[8], tv[9], m);
-        vtrig_sincos(ta[5], tv[10], tv[11], m);
-        vtrig_sincos(ta[6], tv[12], tv[13], m);
-        vtrig_sincos(ta[7], tv[14], tv[15], m);
-        vtrig_sincos(ta[8], tv[16], tv[17], m);
-        vtrig_sincos(ta[9], tv[18], tv[19], m);
-        vtrig_sincos(ta[10], NULL, tv[20], m);
-        vtrig_sincos(ta[11], NULL, tv[21], m);
-        vtrig_sincos(ta[12], NULL, tv[22], m);
-        vtrig_sincos(ta[13], NULL, tv[23], m);
+        vtrig_sincos(ta[0], NULL, tv[0], m);
+        vtrig_sincos(ta[1], tv[1], tv[2], m);
+        vtrig_sincos(ta[2], tv[3], tv[4], m);
+        vtrig_sincos(ta[3], tv[5], tv[6], m);
+        vtrig_sincos(ta[4], tv[7], tv[8], m);
+        vtrig_sincos(ta[5], tv[9], tv[10], m);
         for (int r = 0; r < m; ++r)
             kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
