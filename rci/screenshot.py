@@ -20,6 +20,7 @@ import itertools
 import json
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -107,8 +108,10 @@ class Browser:
                 f"--window-size={w},{h}", "about:blank"]
         if hasattr(os, "geteuid") and os.geteuid() == 0:
             argv.insert(1, "--no-sandbox")
+        # a session of its own: close() ends Chromium's helper processes too, which otherwise may
+        # still write into the profile while it is removed
         self.proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.DEVNULL)
+                                     stderr=subprocess.DEVNULL, start_new_session=True)
         self._dt: _DevTools | None = None
         self.url = ""
         try:
@@ -177,7 +180,17 @@ class Browser:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(5)
-        self._profile.cleanup()
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)     # its helpers (renderer, GPU, crash handler)
+        except (ProcessLookupError, PermissionError):
+            pass
+        for attempt in range(20):                         # a helper's last write may still land
+            try:
+                self._profile.cleanup()
+                return
+            except OSError:
+                time.sleep(0.05)
+        shutil.rmtree(self._profile.name, ignore_errors=True)
 
     def __enter__(self) -> "Browser":
         return self
