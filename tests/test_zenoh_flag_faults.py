@@ -46,6 +46,25 @@ def _q(sim: SimulaProcess) -> np.ndarray:
     return np.array(sim.command("state")["state"]["q"])
 
 
+def held_where_it_is(state, q2: np.ndarray, speed: float, t_held: float, t2: float, bound: float,
+                     what: str) -> np.ndarray:
+    """The arm holds where it is under the arm process's control: simula's joints still over
+    0.3 s (``state()`` is simula's state), the waist gone on from ``q2`` (read at ``t2``) at
+    most until the arm process's next samples after it gave up (``t_held``) at ``speed`` rad/s
+    and less than ``bound`` rad, simula's owner still running and not faulted. Returns where it holds."""
+    time.sleep(0.1)
+    s3 = state()
+    time.sleep(0.3)
+    s4 = state()
+    q3, q4 = np.array(s3["state"]["q"]), np.array(s4["state"]["q"])
+    assert np.max(np.abs(q4 - q3)) < 1e-5
+    went_on = abs(q3[0] - q2[0])
+    assert went_on <= speed * (t_held - t2 + 5.0 / RATE_HZ) + 1e-3 and went_on < bound, \
+        f"the waist went on {went_on:.4f} rad after {what} ({speed:.3f} rad/s)"
+    assert s4["owner"]["running"] and not s4["owner"]["faulted"]
+    return q4
+
+
 def _line(proc: subprocess.Popen, timeout: float, want: str) -> str:
     """The next line of ``proc``'s stdout that contains ``want`` (EventError after ``timeout`` s)."""
     deadline = time.monotonic() + timeout
@@ -169,16 +188,7 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
         assert 0.0 < detected < 0.5, f"the arm process learned of the lost planner after {detected:.3f} s"
         # the arm holds where it is, under its control (simula's owner is still the arm process):
         # the waist went on at most until the arm process's next samples, far short of its target
-        time.sleep(0.1)
-        s3 = sim.command("state")
-        time.sleep(0.4)
-        s4 = sim.command("state")
-        q3, q4 = np.array(s3["state"]["q"]), np.array(s4["state"]["q"])
-        assert np.max(np.abs(q4 - q3)) < 1e-5
-        went_on = abs(q3[0] - q2[0])
-        assert went_on <= speed * (t_held - t2 + 5.0 / RATE_HZ) + 1e-3 and went_on < 0.25, \
-            f"the waist went on {went_on:.4f} rad after the planner was killed ({speed:.3f} rad/s)"
-        assert s4["owner"]["running"] and not s4["owner"]["faulted"]
+        q4 = held_where_it_is(lambda: sim.command("state"), q2, speed, t_held, t2, 0.25, "the planner was killed")
 
         # a planning process comes back on the same endpoint: the arm process (a Zenoh client)
         # reconnects and serves it; the old plan's motions stay aborted, nothing of it resumes
@@ -235,16 +245,7 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
         assert quiet >= SILENCE_S, said                         # (printed to the millisecond)
         assert 0.0 < detected < SILENCE_S + HEARTBEAT_S + 0.1, f"given up {detected:.3f} s after the stop: {said}"
         # the arm holds where it is, under its control (simula's owner is still the arm process)
-        time.sleep(0.1)
-        s3 = sim.command("state")
-        time.sleep(0.3)
-        s4 = sim.command("state")
-        q3, q4 = np.array(s3["state"]["q"]), np.array(s4["state"]["q"])
-        assert np.max(np.abs(q4 - q3)) < 1e-5
-        went_on = abs(q3[0] - q2[0])
-        assert went_on <= speed * (t_held - t2 + 5.0 / RATE_HZ) + 1e-3 and went_on < 0.4, \
-            f"the waist went on {went_on:.4f} rad after the planner was stopped ({speed:.3f} rad/s)"
-        assert s4["owner"]["running"] and not s4["owner"]["faulted"]
+        q4 = held_where_it_is(lambda: sim.command("state"), q2, speed, t_held, t2, 0.4, "the planner was stopped")
         assert [(n["planner"], n["aborted"]) for n in notices] == [(planner_id, serials)]
         # the arm process refuses that planning level from now on, whatever it asks
         replies = list(bus.session.get(arm_key("flags-mute", "puma", "request"), timeout=5.0,
