@@ -15,6 +15,10 @@ is on A's loopback), then brings the network back and reads what the planning pr
 learnt: ``ArmLost`` during the cut, ``PlannerLost`` once the network is back, and a new
 planning level that drives the arm again. Every wait is bounded; everything is removed
 in a ``finally``.
+
+The robot link cut the same way (simula over Zenoh in A, a controller in B): the control
+ends on the controller's timeout, simula's watchdog stops the arm, nothing moves when the
+network is back.
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ import numpy as np
 import pytest
 
 from rccl.bus_events import HEARTBEAT_S, SILENCE_S
+from rci import codes
 from rci.simula.process import ToolProcess
 from tests.test_zenoh_flag_faults import _line, held_where_it_is
 from tests.test_zenoh_netns import ADDR_A, ADDR_B, _ip, _namespaces, _remove
@@ -237,6 +242,94 @@ def test_a_planning_process_cut_off_by_the_network_is_given_up_and_told_when_it_
     finally:
         _end(planner)
         _end(arm)
+        if ctl is not None:
+            ctl.sock.close()
+        if sim is not None:
+            sim.stop()
+        _remove(*made)
+        left = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+        assert tag not in left, f"namespaces left behind: {left}"
+
+
+CONTROLLER = textwrap.dedent("""
+    import sys, time
+    from rci.chg import POS
+    from rci.exceptions import ControlTerminated
+    from rci.session import Session
+    # an ordinary process: 0.2 s without a HOW ends its control (the link is under test, not
+    # the timing of a loaded machine)
+    s = Session(sys.argv[1], "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False,
+                realtime=False, timeout=0.2, late_limit=25)
+    with s:
+        def f1():
+            s.chg.motion[0].issue(POS, int(s.how.pos[0]) + 40)   # the waist on its way, every sample
+        s.control(f1)
+        s.wait(seconds=1.0)
+        print("running", flush=True)
+        try:
+            s.wait(seconds=10.0)
+            print("survived", flush=True)
+        except ControlTerminated as exc:
+            print(f"ended t={time.monotonic():.6f} {exc.termination.number} {exc}", flush=True)
+""")
+
+
+def test_the_robot_link_cut_ends_the_control_on_both_sides_and_the_arm_holds():
+    """The robot link over Zenoh cut between namespaces (simula in A, the controller in B, B's
+    end of the veth down, the TCP connection left open): the controller's control ends on its
+    timeout, simula's watchdog stops the arm, and nothing moves when the network is back."""
+    tag = uuid.uuid4().hex[:6]
+    made: list[str] = []
+    sim = controller = ctl = None
+    try:
+        made += _namespaces(tag)
+        ns_a, ns_b = made
+        sim = ToolProcess(["ip", "netns", "exec", ns_a, sys.executable, "-m", "rci.simula", "--robot", "puma260",
+                           "-p", "--power-on", "--watchdog-time", "0.25", "--zenoh", "lab/puma",
+                           "--zenoh-listen", f"tcp/{ADDR_A}:{PORT}", "--port", "0"]).start()
+        ctl = _Control(ns_a, sim.control_url)
+        controller = subprocess.Popen(["ip", "netns", "exec", ns_b, sys.executable, "-c", CONTROLLER, sim.url],
+                                      stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, cwd=os.getcwd())
+        _line(controller, 30.0, "running")
+        t1, q1 = time.monotonic(), ctl.q()
+        time.sleep(0.1)
+        t2, q2 = time.monotonic(), ctl.q()
+        speed = abs(q2[0] - q1[0]) / (t2 - t1)                 # rad/s
+        assert speed > 0.05 and ctl.command("state")["running"]
+
+        t_cut = time.monotonic()
+        _cut("veth", ns_a, ns_b, f"vr{tag}b", cut=True)
+        ended = _line(controller, 5.0, "ended")
+        t_end = float(ended.split("t=", 1)[1].split()[0])
+        assert int(ended.split()[2]) == codes.R_TIMEOUT, ended
+        assert 0.0 < t_end - t_cut < 0.2 + 0.3, ended        # its timeout, and the wait's poll
+        # simula: its watchdog ended the control and holds the arm (about --watchdog-time after
+        # the last CHG); the waist went on at most until then
+        deadline = time.monotonic() + 3.0
+        while ctl.command("state")["running"] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        state = ctl.command("state")
+        assert not state["running"], state
+        events = ctl.command("events")["events"]
+        stops = [e for e in events if "watchdog" in e["cause"]]
+        assert stops, events
+        held_after = stops[-1]["wall"] - t_cut                   # simula's time.monotonic(): one kernel
+        assert 0.0 < held_after < 0.25 + 2 * 0.02 + 0.1, stops[-1]   # --watchdog-time, a period or two
+        q3 = ctl.q()
+        time.sleep(0.3)
+        q4 = ctl.q()
+        assert np.max(np.abs(q4 - q3)) < 1e-5
+        assert abs(q3[0] - q2[0]) <= speed * (time.monotonic() - t2) + 1e-3
+        assert abs(q3[0] - q2[0]) <= speed * (t_cut - t2 + 0.25 + 0.1) + 1e-3, (q2, q3, speed)
+        print(f"robot link cut: the controller's control ended {t_end - t_cut:.3f} s after the cut, "
+              f"simula's watchdog stopped the arm {held_after:.3f} s after it")
+        # the network back: nothing of the ended control moves the arm
+        _cut("veth", ns_a, ns_b, f"vr{tag}b", cut=False)
+        time.sleep(0.5)
+        assert np.max(np.abs(ctl.q() - q4)) < 1e-5 and not ctl.command("state")["running"]
+        assert controller.wait(10) == 0
+    finally:
+        _end(controller)
         if ctl is not None:
             ctl.sock.close()
         if sim is not None:
