@@ -46,6 +46,17 @@ def _q(sim: SimulaProcess) -> np.ndarray:
     return np.array(sim.command("state")["state"]["q"])
 
 
+def waist_on_its_way(q) -> tuple[float, np.ndarray, float]:
+    """The waist moving: ``q()`` (simula's joints, rad) read 0.1 s apart; returns the time and
+    joints of the second reading and the waist's speed (rad/s), asserted above 0.05 rad/s."""
+    t1, q1 = time.monotonic(), q()
+    time.sleep(0.1)
+    t2, q2 = time.monotonic(), q()
+    speed = abs(q2[0] - q1[0]) / (t2 - t1)
+    assert speed > 0.05, f"the waist is not on its way: {speed:.4f} rad/s"
+    return t2, q2, speed
+
+
 def held_where_it_is(state, q2: np.ndarray, speed: float, t_held: float, t2: float, bound: float,
                      what: str) -> np.ndarray:
     """The arm holds where it is under the arm process's control: simula's joints still over
@@ -173,11 +184,7 @@ def test_a_killed_planning_process_leaves_its_arm_held_and_a_new_one_takes_over(
         stack.callback(_end, proc)
         serials = [int(x) for x in _line(planner, 30.0, "moving").split()[1:3]]
         time.sleep(0.2)
-        t1, q1 = time.monotonic(), _q(sim)
-        time.sleep(0.1)
-        t2, q2 = time.monotonic(), _q(sim)
-        speed = abs(q2[0] - q1[0]) / (t2 - t1)                 # rad/s: the waist is on its way (0.5 rad)
-        assert speed > 0.05
+        t2, q2, speed = waist_on_its_way(lambda: _q(sim))      # on its way to 0.5 rad
         t_kill = time.monotonic()                  # before the signal: the figure can only be too long
         os.kill(planner.pid, signal.SIGKILL)
         said = _line(proc, 5.0, "aborted, the arm holds")
@@ -227,11 +234,7 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
         moving = _line(planner, 30.0, "moving").split()
         serials, planner_id = [int(x) for x in moving[1:3]], moving[3]
         time.sleep(0.2)
-        t1, q1 = time.monotonic(), _q(sim)
-        time.sleep(0.1)
-        t2, q2 = time.monotonic(), _q(sim)
-        speed = abs(q2[0] - q1[0]) / (t2 - t1)                 # rad/s: the waist is on its way (0.5 rad)
-        assert speed > 0.05
+        t2, q2, speed = waist_on_its_way(lambda: _q(sim))      # on its way to 0.5 rad
         t_stop = time.monotonic()                  # before the signal: the figure can only be too long
         os.kill(planner.pid, signal.SIGSTOP)
         said = _line(proc, 5.0, "aborted, the arm holds")

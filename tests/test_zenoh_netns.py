@@ -83,6 +83,13 @@ def _remove(*namespaces: str) -> None:
         subprocess.run(["ip", "netns", "del", ns], capture_output=True)
 
 
+def _remove_all(tag: str, made: list[str]) -> None:
+    """Remove the namespaces ``made`` and check that none tagged ``tag`` is left."""
+    _remove(*made)
+    left = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+    assert tag not in left, f"namespaces left behind: {left}"
+
+
 def test_an_rccl_program_in_one_namespace_drives_simula_in_another_over_the_veth():
     tag = uuid.uuid4().hex[:6]
     made: list[str] = []
@@ -117,6 +124,4 @@ def test_an_rccl_program_in_one_namespace_drives_simula_in_another_over_the_veth
     finally:
         if sim is not None:
             sim.stop()
-        _remove(*made)
-        left = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
-        assert tag not in left, f"namespaces left behind: {left}"
+        _remove_all(tag, made)
