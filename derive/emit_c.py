@@ -24,6 +24,7 @@ from pathlib import Path
 import sympy as sp
 
 from derive import opcount
+from derive.emit_c_lanes import lane_loop, lane_row
 from derive.kernel import Kernel
 from derive.lowering import (LoweredKernel, all_configurations_kernels, dag_size, lower, outputs_of,
                              shared_reciprocal, transform_columns, tree_size)
@@ -373,6 +374,21 @@ def _batch_vector(prog: LoweredKernel, split: TrigSplit) -> str:
         for a in range(nargs))
     one_ins = [f"(const double *)in[{i}]" for i in range(nin)]
     one_call = ", ".join(["t1", "1"] + one_ins + [f"(double *)out[{i}]" for i in range(nout)])
+    lanes = lane_row(split.row)
+    rows = f"""        for (int r = 0; r < m; ++r)
+            kv_{k.name}({call});"""
+    tables, gather, lane_c = "", [], ""
+    if lanes is not None:  # the rows side by side in vector lanes (derive/emit_c_lanes.py)
+        lane_c = lane_loop(k.name, lanes, TRIG_BLOCK, len(table))
+        tables = f", ti[{max(1, len(lanes.inputs))}][{TRIG_BLOCK}], to[{len(lanes.outputs)}][{TRIG_BLOCK}]"
+        gather = lanes.gather() + lanes.prefetch()
+        outs = " ".join(f"double *restrict o{o} = outb{o} + (r0 + r) * os[{o}];" for o in range(nout))
+        rows = f"""        if (have_vector_trig512) kl_512_{k.name}(m, tv, ti, to);
+        else kl_{k.name}(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {{
+            {outs}
+            {" ".join(lanes.scatter())}
+        }}"""
     return f"""
 #ifdef RCCL_VECTOR_TRIG
 /* {k.name} for batches: the row above with its sines and cosines precomputed */
@@ -380,9 +396,9 @@ static inline void kv_{k.name}({", ".join(params)})
 {{
 {split.row}
 }}
-{_one_row_trig(prog, split)}
+{_one_row_trig(prog, split)}{lane_c}
 /* blocks of {TRIG_BLOCK} rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows{" (side by side in vector lanes)" if lanes else ""} */
 static int batch_vector_{k.name}(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {{
     if (!have_vector_trig) return 0;
@@ -395,16 +411,15 @@ static int batch_vector_{k.name}(Py_ssize_t n, const double *const *in, const Py
     }}
     {'; '.join(f'const double *inb{i} = (const double *)in[{i}]' for i in range(nin))};
     {'; '.join(f'double *outb{i} = out[{i}]' for i in range(nout))};
-    double ta[{nargs}][{TRIG_BLOCK}], tv[{len(table)}][{TRIG_BLOCK}];
+    double ta[{nargs}][{TRIG_BLOCK}], tv[{len(table)}][{TRIG_BLOCK}]{tables};
     for (Py_ssize_t r0 = 0; r0 < n; r0 += {TRIG_BLOCK}) {{
         const int m = n - r0 < {TRIG_BLOCK} ? (int)(n - r0) : {TRIG_BLOCK};
         for (int r = 0; r < m; ++r) {{
             {ins};
-            {" ".join(split.stmts)}
+            {" ".join(split.stmts + gather)}
         }}
 {trig}
-        for (int r = 0; r < m; ++r)
-            kv_{k.name}({call});
+{rows}
     }}
     return 1;
 }}

@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import importlib
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import casadi as ca
@@ -86,14 +89,43 @@ def test_single_and_batched_c_calls_agree(robot):
     mod = _mod(robot)
     cm = _c(robot)
     rng = np.random.default_rng(12)
-    qs = _qs(mod, 8, 6)
+    qs = _qs(mod, 75, 6)  # a block of 64 rows, then 11 (kin_runtime.h, emit_c.TRIG_BLOCK)
     for name in mod._KERNELS:
         args = _inputs(mod, name, qs, rng)
         batch = getattr(cm, name)(*args)
-        for i in (0, 5):
+        for i in (0, 5, 63, 64, 74):
             single = getattr(cm, name)(*[a[i] for a in args])
             for s, b in zip(single, batch):
                 np.testing.assert_array_equal(s, b[i], err_msg=f"{robot}.{name}")
+
+
+_FOUR_LANES = """
+import sys, numpy as np
+sys.path.insert(0, sys.argv[1])
+import tests.test_backends_kinematics as t
+for robot in t.ROBOTS:
+    mod, cm = t._mod(robot), t._c(robot)
+    rng = np.random.default_rng(13)
+    qs = t._qs(mod, 75, 7)
+    for name in mod._KERNELS:
+        for j, a in enumerate(getattr(cm, name)(*t._inputs(mod, name, qs, rng))):
+            np.save(f"{sys.argv[2]}/{robot}.{name}.{j}.npy", a)
+"""
+
+
+def test_batches_give_the_same_bits_four_and_eight_rows_at_a_time(tmp_path):
+    """RCCL_KINEMATICS_AVX512=0 computes a batch's rows four at a time (AVX2), the default
+    eight at a time where the CPU has AVX-512F: every kernel's results are the same bits."""
+    env = dict(os.environ, RCCL_KINEMATICS_AVX512="0")
+    subprocess.run([sys.executable, "-c", _FOUR_LANES, str(ROOT), str(tmp_path)], env=env, check=True)
+    for robot in ROBOTS:
+        mod, cm = _mod(robot), _c(robot)
+        rng = np.random.default_rng(13)
+        qs = _qs(mod, 75, 7)
+        for name in mod._KERNELS:
+            for j, a in enumerate(getattr(cm, name)(*_inputs(mod, name, qs, rng))):
+                np.testing.assert_array_equal(a, np.load(tmp_path / f"{robot}.{name}.{j}.npy"),
+                                              err_msg=f"{robot}.{name} output {j}")
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

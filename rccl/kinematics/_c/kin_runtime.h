@@ -127,6 +127,15 @@ static void run_job(row_job *j)
             if (j->op[o]) { oc[o] = j->op[o] + r * j->os[o]; osc[o] = j->os[o]; }
             else { oc[o] = scratch[o]; osc[o] = 1; }
         }
+        /* the next chunk's inputs fetched while this one is computed: at 1e6 rows the input
+         * scan above otherwise waits on memory (puma260 force_from_torque6: 11.7 -> 9.0 ns a
+         * row, two threads) */
+        if (r + CHUNK < j->r1)
+            for (int i = 0; i < k->nin; ++i) {
+                const char *a = (const char *)(ic[i] + CHUNK * j->is[i]);
+                const Py_ssize_t len = (j->r1 - r - CHUNK < CHUNK ? j->r1 - r - CHUNK : CHUNK) * j->is[i] * 8;
+                for (Py_ssize_t b = 0; b < len; b += 64) __builtin_prefetch(a + b, 0);
+            }
         k->fn(m, ic, j->is, oc, osc);
         if (j->check) {
             for (int g = k->nout - k->nguard; g < k->nout; ++g)

@@ -100,8 +100,87 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
     return 1;
 }
 
+/* fk's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
+ * 2 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t0 = s_2*s_6;
+        const double t1 = c_3*c_7;
+        const double t2 = c_3*s_6;
+        const double k0 = t0 + c_5*t1;
+        const double k2 = c_3*s_4;
+        const double k3 = c_5*c_7*s_2 - t2;
+        const double k5 = s_2*s_4;
+        const double k6 = c_7*s_4;
+        const double k8 = -c_5;
+        to[0][r] = c_1*k6 - s_0*k0;
+        to[1][r] = c_1*k8 - s_0*k2;
+        to[2][r] = c_1*ti[1][r];
+        to[3][r] = c_1*k0 + s_0*k6;
+        to[4][r] = c_1*k2 + s_0*k8;
+        to[5][r] = s_0*ti[1][r];
+        to[6][r] = k3;
+        to[7][r] = k5;
+        to[8][r] = ti[0][r];
+        to[9][r] = 0.0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+        to[12][r] = 1.0;
+        to[13][r] = to[4][r]*to[6][r] - to[7][r]*to[3][r];
+        to[14][r] = to[0][r]*to[7][r] - to[1][r]*to[6][r];
+        to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t0 = s_2*s_6;
+        const double t1 = c_3*c_7;
+        const double t2 = c_3*s_6;
+        const double k0 = t0 + c_5*t1;
+        const double k2 = c_3*s_4;
+        const double k3 = c_5*c_7*s_2 - t2;
+        const double k5 = s_2*s_4;
+        const double k6 = c_7*s_4;
+        const double k8 = -c_5;
+        to[0][r] = c_1*k6 - s_0*k0;
+        to[1][r] = c_1*k8 - s_0*k2;
+        to[2][r] = c_1*ti[1][r];
+        to[3][r] = c_1*k0 + s_0*k6;
+        to[4][r] = c_1*k2 + s_0*k8;
+        to[5][r] = s_0*ti[1][r];
+        to[6][r] = k3;
+        to[7][r] = k5;
+        to[8][r] = ti[0][r];
+        to[9][r] = 0.0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+        to[12][r] = 1.0;
+        to[13][r] = to[4][r]*to[6][r] - to[7][r]*to[3][r];
+        to[14][r] = to[0][r]*to[7][r] - to[1][r]*to[6][r];
+        to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -114,19 +193,23 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64];
+    double ta[4][64], tv[8][64], ti[2][64], to[16][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
-            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[1]; ti[1][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 15, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
         vtrig_sincos(ta[3], tv[6], tv[7], m);
-        for (int r = 0; r < m; ++r)
-            kv_fk(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_fk(m, tv, ti, to);
+        else kl_fk(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[2] = to[1][r]; o0[3] = to[2][r]; o0[4] = to[3][r]; o0[6] = to[4][r]; o0[7] = to[5][r]; o0[8] = to[6][r]; o0[10] = to[7][r]; o0[11] = to[8][r]; o0[12] = to[9][r]; o0[13] = to[10][r]; o0[14] = to[11][r]; o0[15] = to[12][r]; o0[1] = to[13][r]; o0[5] = to[14][r]; o0[9] = to[15][r];
+        }
     }
     return 1;
 }
@@ -296,8 +379,25 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
     return 1;
 }
 
+/* config_indicators's rows side by side in vector lanes: the block's 1 sines/cosines in tv, its
+ * 0 input elements in ti, its 1 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        to[0][r] = s_0;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        to[0][r] = s_0;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -310,16 +410,20 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[1][64], tv[1][64];
+    double ta[1][64], tv[1][64], ti[1][64], to[1][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
-            ta[0][r] = in0[4];
+            ta[0][r] = in0[4]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1);
         }
         vtrig_sincos(ta[0], tv[0], NULL, m);
-        for (int r = 0; r < m; ++r)
-            kv_config_indicators(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_config_indicators(m, tv, ti, to);
+        else kl_config_indicators(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r];
+        }
     }
     return 1;
 }
@@ -444,8 +548,103 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
     return 1;
 }
 
+/* jacobian4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double t0 = -c_1;
+        to[0][r] = c_1*ti[0][r];
+        to[1][r] = s_0;
+        to[2][r] = 0.0;
+        to[3][r] = 0.0;
+        to[4][r] = 0.0;
+        to[5][r] = 0.0;
+        to[6][r] = 0.0;
+        to[7][r] = 0.0;
+        to[8][r] = 1.0;
+        to[9][r] = 0.0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+        to[12][r] = s_0*ti[0][r];
+        to[13][r] = t0;
+        to[14][r] = 0.0;
+        to[15][r] = 0.0;
+        to[16][r] = 0.0;
+        to[17][r] = 0.0;
+        to[18][r] = s_0;
+        to[19][r] = 0.0;
+        to[20][r] = 0.0;
+        to[21][r] = 0.0;
+        to[22][r] = 0.0;
+        to[23][r] = s_2;
+        to[24][r] = 0.0;
+        to[25][r] = 0.0;
+        to[26][r] = 0.0;
+        to[27][r] = 1.0;
+        to[28][r] = 0.0;
+        to[29][r] = -c_3;
+        to[30][r] = t0;
+        to[31][r] = 0.0;
+        to[32][r] = 0.0;
+        to[33][r] = 0.0;
+        to[34][r] = 1.0;
+        to[35][r] = 0.0;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double t0 = -c_1;
+        to[0][r] = c_1*ti[0][r];
+        to[1][r] = s_0;
+        to[2][r] = 0.0;
+        to[3][r] = 0.0;
+        to[4][r] = 0.0;
+        to[5][r] = 0.0;
+        to[6][r] = 0.0;
+        to[7][r] = 0.0;
+        to[8][r] = 1.0;
+        to[9][r] = 0.0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+        to[12][r] = s_0*ti[0][r];
+        to[13][r] = t0;
+        to[14][r] = 0.0;
+        to[15][r] = 0.0;
+        to[16][r] = 0.0;
+        to[17][r] = 0.0;
+        to[18][r] = s_0;
+        to[19][r] = 0.0;
+        to[20][r] = 0.0;
+        to[21][r] = 0.0;
+        to[22][r] = 0.0;
+        to[23][r] = s_2;
+        to[24][r] = 0.0;
+        to[25][r] = 0.0;
+        to[26][r] = 0.0;
+        to[27][r] = 1.0;
+        to[28][r] = 0.0;
+        to[29][r] = -c_3;
+        to[30][r] = t0;
+        to[31][r] = 0.0;
+        to[32][r] = 0.0;
+        to[33][r] = 0.0;
+        to[34][r] = 1.0;
+        to[35][r] = 0.0;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -458,17 +657,21 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[1][64], to[36][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_jacobian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_jacobian4(m, tv, ti, to);
+        else kl_jacobian4(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o0[6] = to[6][r]; o0[7] = to[7][r]; o0[8] = to[8][r]; o0[9] = to[9][r]; o0[10] = to[10][r]; o0[11] = to[11][r]; o0[12] = to[12][r]; o0[13] = to[13][r]; o0[14] = to[14][r]; o0[15] = to[15][r]; o0[16] = to[16][r]; o0[17] = to[17][r]; o0[18] = to[18][r]; o0[19] = to[19][r]; o0[20] = to[20][r]; o0[21] = to[21][r]; o0[22] = to[22][r]; o0[23] = to[23][r]; o0[24] = to[24][r]; o0[25] = to[25][r]; o0[26] = to[26][r]; o0[27] = to[27][r]; o0[28] = to[28][r]; o0[29] = to[29][r]; o0[30] = to[30][r]; o0[31] = to[31][r]; o0[32] = to[32][r]; o0[33] = to[33][r]; o0[34] = to[34][r]; o0[35] = to[35][r];
+        }
     }
     return 1;
 }
@@ -613,8 +816,123 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
     return 1;
 }
 
+/* jacobian6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
+ * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = s_0*s_4;
+        const double t1 = c_1*c_5;
+        const double t2 = c_1*s_4;
+        const double t3 = c_3*c_5*s_0 - t2;
+        const double t4 = c_5*s_2;
+        const double t5 = -t1 - c_3*t0;
+        const double t6 = -s_2*s_4;
+        const double t7 = s_0*s_2;
+        const double t8 = -c_3;
+        to[0][r] = ti[0][r]*(t0 + c_3*t1);
+        to[1][r] = t3;
+        to[2][r] = t4;
+        to[3][r] = 0.0;
+        to[4][r] = 0.0;
+        to[5][r] = 0.0;
+        to[6][r] = ti[0][r]*(c_5*s_0 - c_3*t2);
+        to[7][r] = t5;
+        to[8][r] = t6;
+        to[9][r] = 0.0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+        to[12][r] = c_1*s_2*ti[0][r];
+        to[13][r] = t7;
+        to[14][r] = t8;
+        to[15][r] = 0.0;
+        to[16][r] = 0.0;
+        to[17][r] = 0.0;
+        to[18][r] = t3;
+        to[19][r] = 0.0;
+        to[20][r] = 0.0;
+        to[21][r] = t4;
+        to[22][r] = s_4;
+        to[23][r] = 0.0;
+        to[24][r] = t5;
+        to[25][r] = 0.0;
+        to[26][r] = 0.0;
+        to[27][r] = t6;
+        to[28][r] = c_5;
+        to[29][r] = 0.0;
+        to[30][r] = t7;
+        to[31][r] = 0.0;
+        to[32][r] = 0.0;
+        to[33][r] = t8;
+        to[34][r] = 0.0;
+        to[35][r] = 1.0;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = s_0*s_4;
+        const double t1 = c_1*c_5;
+        const double t2 = c_1*s_4;
+        const double t3 = c_3*c_5*s_0 - t2;
+        const double t4 = c_5*s_2;
+        const double t5 = -t1 - c_3*t0;
+        const double t6 = -s_2*s_4;
+        const double t7 = s_0*s_2;
+        const double t8 = -c_3;
+        to[0][r] = ti[0][r]*(t0 + c_3*t1);
+        to[1][r] = t3;
+        to[2][r] = t4;
+        to[3][r] = 0.0;
+        to[4][r] = 0.0;
+        to[5][r] = 0.0;
+        to[6][r] = ti[0][r]*(c_5*s_0 - c_3*t2);
+        to[7][r] = t5;
+        to[8][r] = t6;
+        to[9][r] = 0.0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+        to[12][r] = c_1*s_2*ti[0][r];
+        to[13][r] = t7;
+        to[14][r] = t8;
+        to[15][r] = 0.0;
+        to[16][r] = 0.0;
+        to[17][r] = 0.0;
+        to[18][r] = t3;
+        to[19][r] = 0.0;
+        to[20][r] = 0.0;
+        to[21][r] = t4;
+        to[22][r] = s_4;
+        to[23][r] = 0.0;
+        to[24][r] = t5;
+        to[25][r] = 0.0;
+        to[26][r] = 0.0;
+        to[27][r] = t6;
+        to[28][r] = c_5;
+        to[29][r] = 0.0;
+        to[30][r] = t7;
+        to[31][r] = 0.0;
+        to[32][r] = 0.0;
+        to[33][r] = t8;
+        to[34][r] = 0.0;
+        to[35][r] = 1.0;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -627,18 +945,22 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64];
+    double ta[3][64], tv[6][64], ti[1][64], to[36][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
-        for (int r = 0; r < m; ++r)
-            kv_jacobian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_jacobian6(m, tv, ti, to);
+        else kl_jacobian6(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o0[6] = to[6][r]; o0[7] = to[7][r]; o0[8] = to[8][r]; o0[9] = to[9][r]; o0[10] = to[10][r]; o0[11] = to[11][r]; o0[12] = to[12][r]; o0[13] = to[13][r]; o0[14] = to[14][r]; o0[15] = to[15][r]; o0[16] = to[16][r]; o0[17] = to[17][r]; o0[18] = to[18][r]; o0[19] = to[19][r]; o0[20] = to[20][r]; o0[21] = to[21][r]; o0[22] = to[22][r]; o0[23] = to[23][r]; o0[24] = to[24][r]; o0[25] = to[25][r]; o0[26] = to[26][r]; o0[27] = to[27][r]; o0[28] = to[28][r]; o0[29] = to[29][r]; o0[30] = to[30][r]; o0[31] = to[31][r]; o0[32] = to[32][r]; o0[33] = to[33][r]; o0[34] = to[34][r]; o0[35] = to[35][r];
+        }
     }
     return 1;
 }
@@ -703,8 +1025,43 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
     return 1;
 }
 
+/* cartesian_from_joint4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double t0 = c_1*ti[1][r];
+        to[0][r] = s_0*ti[2][r] + t0*ti[0][r];
+        to[1][r] = ti[3][r];
+        to[2][r] = s_0*ti[1][r]*ti[0][r] - c_1*ti[2][r];
+        to[3][r] = s_0*ti[1][r] + s_2*ti[6][r];
+        to[4][r] = ti[4][r] - c_3*ti[6][r];
+        to[5][r] = ti[5][r] - t0;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double t0 = c_1*ti[1][r];
+        to[0][r] = s_0*ti[2][r] + t0*ti[0][r];
+        to[1][r] = ti[3][r];
+        to[2][r] = s_0*ti[1][r]*ti[0][r] - c_1*ti[2][r];
+        to[3][r] = s_0*ti[1][r] + s_2*ti[6][r];
+        to[4][r] = ti[4][r] - c_3*ti[6][r];
+        to[5][r] = ti[5][r] - t0;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -717,17 +1074,21 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[7][64], to[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_cartesian_from_joint4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_cartesian_from_joint4(m, tv, ti, to);
+        else kl_cartesian_from_joint4(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
     }
     return 1;
 }
@@ -790,8 +1151,41 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
     return 1;
 }
 
+/* torque_from_force4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        to[0][r] = c_1*(ti[1][r]*ti[0][r] - ti[6][r]) + s_0*(ti[4][r] + ti[3][r]*ti[0][r]);
+        to[1][r] = s_0*ti[1][r] - c_1*ti[3][r];
+        to[2][r] = ti[2][r];
+        to[3][r] = ti[5][r];
+        to[4][r] = ti[6][r];
+        to[5][r] = s_2*ti[4][r] - c_3*ti[5][r];
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        to[0][r] = c_1*(ti[1][r]*ti[0][r] - ti[6][r]) + s_0*(ti[4][r] + ti[3][r]*ti[0][r]);
+        to[1][r] = s_0*ti[1][r] - c_1*ti[3][r];
+        to[2][r] = ti[2][r];
+        to[3][r] = ti[5][r];
+        to[4][r] = ti[6][r];
+        to[5][r] = s_2*ti[4][r] - c_3*ti[5][r];
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -804,17 +1198,21 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[7][64], to[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_torque_from_force4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_torque_from_force4(m, tv, ti, to);
+        else kl_torque_from_force4(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
     }
     return 1;
 }
@@ -901,8 +1299,65 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
     return 1;
 }
 
+/* joint_from_cartesian4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double z6 = c_1*ti[1][r] + s_0*ti[3][r];
+        const double z7 = s_0*ti[1][r] - c_1*ti[3][r];
+        const double z8 = ti[2][r];
+        const double z9 = z6/ti[0][r];
+        const double z10 = z7;
+        const double z11 = z8;
+        const double z14 = (ti[4][r] - s_0*z9)/s_2;
+        const double z12 = ti[5][r] + c_3*z14;
+        const double z13 = ti[6][r] + c_1*z9;
+        to[0][r] = z9;
+        to[1][r] = z10;
+        to[2][r] = z11;
+        to[3][r] = z12;
+        to[4][r] = z13;
+        to[5][r] = z14;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double z6 = c_1*ti[1][r] + s_0*ti[3][r];
+        const double z7 = s_0*ti[1][r] - c_1*ti[3][r];
+        const double z8 = ti[2][r];
+        const double z9 = z6/ti[0][r];
+        const double z10 = z7;
+        const double z11 = z8;
+        const double z14 = (ti[4][r] - s_0*z9)/s_2;
+        const double z12 = ti[5][r] + c_3*z14;
+        const double z13 = ti[6][r] + c_1*z9;
+        to[0][r] = z9;
+        to[1][r] = z10;
+        to[2][r] = z11;
+        to[3][r] = z12;
+        to[4][r] = z13;
+        to[5][r] = z14;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -915,17 +1370,21 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[7][64], to[8][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_joint_from_cartesian4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+        if (have_vector_trig512) kl_512_joint_from_cartesian4(m, tv, ti, to);
+        else kl_joint_from_cartesian4(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0]; double *restrict o1 = outb1 + (r0 + r) * os[1]; double *restrict o2 = outb2 + (r0 + r) * os[2];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o1[0] = to[6][r]; o2[0] = to[7][r];
+        }
     }
     return 1;
 }
@@ -1006,8 +1465,59 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
     return 1;
 }
 
+/* force_from_torque4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double z16 = ti[4][r];
+        const double z17 = ti[5][r];
+        const double z15 = (ti[6][r] + c_3*z16)/s_2;
+        const double z18 = (ti[1][r] + c_1*z17 - s_0*z15)/ti[0][r];
+        const double z19 = ti[2][r];
+        const double z20 = ti[3][r];
+        to[0][r] = c_1*z18 + s_0*z19;
+        to[1][r] = z20;
+        to[2][r] = s_0*z18 - c_1*z19;
+        to[3][r] = z15;
+        to[4][r] = z16;
+        to[5][r] = z17;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double z16 = ti[4][r];
+        const double z17 = ti[5][r];
+        const double z15 = (ti[6][r] + c_3*z16)/s_2;
+        const double z18 = (ti[1][r] + c_1*z17 - s_0*z15)/ti[0][r];
+        const double z19 = ti[2][r];
+        const double z20 = ti[3][r];
+        to[0][r] = c_1*z18 + s_0*z19;
+        to[1][r] = z20;
+        to[2][r] = s_0*z18 - c_1*z19;
+        to[3][r] = z15;
+        to[4][r] = z16;
+        to[5][r] = z17;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1020,17 +1530,21 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[7][64], to[8][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_force_from_torque4(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+        if (have_vector_trig512) kl_512_force_from_torque4(m, tv, ti, to);
+        else kl_force_from_torque4(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0]; double *restrict o1 = outb1 + (r0 + r) * os[1]; double *restrict o2 = outb2 + (r0 + r) * os[2];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o1[0] = to[6][r]; o2[0] = to[7][r];
+        }
     }
     return 1;
 }
@@ -1119,8 +1633,67 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
     return 1;
 }
 
+/* cartesian_from_joint6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
+ * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double z0 = ti[1][r]*ti[0][r];
+        const double z1 = ti[2][r];
+        const double z2 = ti[3][r];
+        const double z3 = c_1*z0 + s_0*z1;
+        const double z4 = z2;
+        const double t0 = c_3*z3 + s_2*z4;
+        const double z5 = s_0*z0 - c_1*z1;
+        const double z6 = s_0*ti[1][r] + s_2*ti[6][r];
+        const double z7 = ti[4][r] - c_3*ti[6][r];
+        const double t1 = c_3*z6 + s_2*z7;
+        const double z8 = ti[5][r] - c_1*ti[1][r];
+        to[0][r] = c_5*t0 + s_4*z5;
+        to[1][r] = c_5*z5 - s_4*t0;
+        to[2][r] = s_2*z3 - c_3*z4;
+        to[3][r] = c_5*t1 + s_4*z8;
+        to[4][r] = c_5*z8 - s_4*t1;
+        to[5][r] = s_2*z6 - c_3*z7;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double z0 = ti[1][r]*ti[0][r];
+        const double z1 = ti[2][r];
+        const double z2 = ti[3][r];
+        const double z3 = c_1*z0 + s_0*z1;
+        const double z4 = z2;
+        const double t0 = c_3*z3 + s_2*z4;
+        const double z5 = s_0*z0 - c_1*z1;
+        const double z6 = s_0*ti[1][r] + s_2*ti[6][r];
+        const double z7 = ti[4][r] - c_3*ti[6][r];
+        const double t1 = c_3*z6 + s_2*z7;
+        const double z8 = ti[5][r] - c_1*ti[1][r];
+        to[0][r] = c_5*t0 + s_4*z5;
+        to[1][r] = c_5*z5 - s_4*t0;
+        to[2][r] = s_2*z3 - c_3*z4;
+        to[3][r] = c_5*t1 + s_4*z8;
+        to[4][r] = c_5*z8 - s_4*t1;
+        to[5][r] = s_2*z6 - c_3*z7;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1133,18 +1706,22 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64];
+    double ta[3][64], tv[6][64], ti[7][64], to[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
-        for (int r = 0; r < m; ++r)
-            kv_cartesian_from_joint6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_cartesian_from_joint6(m, tv, ti, to);
+        else kl_cartesian_from_joint6(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
     }
     return 1;
 }
@@ -1221,8 +1798,55 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
     return 1;
 }
 
+/* torque_from_force6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
+ * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = c_5*ti[1][r] - s_4*ti[2][r];
+        const double t1 = c_3*t0 + s_2*ti[3][r];
+        const double t2 = c_5*ti[5][r] + s_4*ti[4][r];
+        const double t3 = c_5*ti[2][r] + s_4*ti[1][r];
+        const double t4 = c_5*ti[4][r] - s_4*ti[5][r];
+        to[0][r] = c_1*(t1*ti[0][r] - t2) + s_0*(c_3*t4 + s_2*ti[6][r] + t3*ti[0][r]);
+        to[1][r] = s_0*t1 - c_1*t3;
+        to[2][r] = s_2*t0 - c_3*ti[3][r];
+        to[3][r] = s_2*t4 - c_3*ti[6][r];
+        to[4][r] = t2;
+        to[5][r] = ti[6][r]*(c_3*c_3 + s_2*s_2);
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = c_5*ti[1][r] - s_4*ti[2][r];
+        const double t1 = c_3*t0 + s_2*ti[3][r];
+        const double t2 = c_5*ti[5][r] + s_4*ti[4][r];
+        const double t3 = c_5*ti[2][r] + s_4*ti[1][r];
+        const double t4 = c_5*ti[4][r] - s_4*ti[5][r];
+        to[0][r] = c_1*(t1*ti[0][r] - t2) + s_0*(c_3*t4 + s_2*ti[6][r] + t3*ti[0][r]);
+        to[1][r] = s_0*t1 - c_1*t3;
+        to[2][r] = s_2*t0 - c_3*ti[3][r];
+        to[3][r] = s_2*t4 - c_3*ti[6][r];
+        to[4][r] = t2;
+        to[5][r] = ti[6][r]*(c_3*c_3 + s_2*s_2);
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1235,18 +1859,22 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64];
+    double ta[3][64], tv[6][64], ti[7][64], to[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
-        for (int r = 0; r < m; ++r)
-            kv_torque_from_force6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_torque_from_force6(m, tv, ti, to);
+        else kl_torque_from_force6(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
     }
     return 1;
 }
@@ -1353,8 +1981,85 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
     return 1;
 }
 
+/* joint_from_cartesian6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
+ * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = c_5*ti[1][r] - s_4*ti[2][r];
+        const double t1 = c_5*ti[4][r] - s_4*ti[5][r];
+        const double z18 = c_3*t0 + s_2*ti[3][r];
+        const double z19 = s_2*t0 - c_3*ti[3][r];
+        const double z20 = c_5*ti[2][r] + s_4*ti[1][r];
+        const double z21 = c_3*t1 + s_2*ti[6][r];
+        const double z22 = s_2*t1 - c_3*ti[6][r];
+        const double z23 = c_5*ti[5][r] + s_4*ti[4][r];
+        const double z24 = c_1*z18 + s_0*z20;
+        const double z25 = s_0*z18 - c_1*z20;
+        const double z26 = z19;
+        const double z27 = z24/ti[0][r];
+        const double z28 = z25;
+        const double z29 = z26;
+        const double z32 = (z21 - s_0*z27)/s_2;
+        const double z30 = z22 + c_3*z32;
+        const double z31 = z23 + c_1*z27;
+        to[0][r] = z27;
+        to[1][r] = z28;
+        to[2][r] = z29;
+        to[3][r] = z30;
+        to[4][r] = z31;
+        to[5][r] = z32;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = c_5*ti[1][r] - s_4*ti[2][r];
+        const double t1 = c_5*ti[4][r] - s_4*ti[5][r];
+        const double z18 = c_3*t0 + s_2*ti[3][r];
+        const double z19 = s_2*t0 - c_3*ti[3][r];
+        const double z20 = c_5*ti[2][r] + s_4*ti[1][r];
+        const double z21 = c_3*t1 + s_2*ti[6][r];
+        const double z22 = s_2*t1 - c_3*ti[6][r];
+        const double z23 = c_5*ti[5][r] + s_4*ti[4][r];
+        const double z24 = c_1*z18 + s_0*z20;
+        const double z25 = s_0*z18 - c_1*z20;
+        const double z26 = z19;
+        const double z27 = z24/ti[0][r];
+        const double z28 = z25;
+        const double z29 = z26;
+        const double z32 = (z21 - s_0*z27)/s_2;
+        const double z30 = z22 + c_3*z32;
+        const double z31 = z23 + c_1*z27;
+        to[0][r] = z27;
+        to[1][r] = z28;
+        to[2][r] = z29;
+        to[3][r] = z30;
+        to[4][r] = z31;
+        to[5][r] = z32;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1367,18 +2072,22 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[3][64], tv[6][64];
+    double ta[3][64], tv[6][64], ti[7][64], to[8][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
-        for (int r = 0; r < m; ++r)
-            kv_joint_from_cartesian6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+        if (have_vector_trig512) kl_512_joint_from_cartesian6(m, tv, ti, to);
+        else kl_joint_from_cartesian6(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0]; double *restrict o1 = outb1 + (r0 + r) * os[1]; double *restrict o2 = outb2 + (r0 + r) * os[2];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o1[0] = to[6][r]; o2[0] = to[7][r];
+        }
     }
     return 1;
 }
@@ -1479,8 +2188,79 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
     return 1;
 }
 
+/* force_from_torque6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
+ * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double z34 = ti[4][r];
+        const double z35 = ti[5][r];
+        const double z33 = (ti[6][r] + c_3*z34)/s_2;
+        const double z36 = (ti[1][r] + c_1*z35 - s_0*z33)/ti[0][r];
+        const double z37 = ti[2][r];
+        const double z38 = ti[3][r];
+        const double z39 = c_1*z36 + s_0*z37;
+        const double z40 = z38;
+        const double t0 = c_3*z39 + s_2*z40;
+        const double z41 = s_0*z36 - c_1*z37;
+        const double z42 = z33;
+        const double z43 = z34;
+        const double t1 = c_3*z42 + s_2*z43;
+        const double z44 = z35;
+        to[0][r] = c_5*t0 + s_4*z41;
+        to[1][r] = c_5*z41 - s_4*t0;
+        to[2][r] = s_2*z39 - c_3*z40;
+        to[3][r] = c_5*t1 + s_4*z44;
+        to[4][r] = c_5*z44 - s_4*t1;
+        to[5][r] = s_2*z42 - c_3*z43;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double z34 = ti[4][r];
+        const double z35 = ti[5][r];
+        const double z33 = (ti[6][r] + c_3*z34)/s_2;
+        const double z36 = (ti[1][r] + c_1*z35 - s_0*z33)/ti[0][r];
+        const double z37 = ti[2][r];
+        const double z38 = ti[3][r];
+        const double z39 = c_1*z36 + s_0*z37;
+        const double z40 = z38;
+        const double t0 = c_3*z39 + s_2*z40;
+        const double z41 = s_0*z36 - c_1*z37;
+        const double z42 = z33;
+        const double z43 = z34;
+        const double t1 = c_3*z42 + s_2*z43;
+        const double z44 = z35;
+        to[0][r] = c_5*t0 + s_4*z41;
+        to[1][r] = c_5*z41 - s_4*t0;
+        to[2][r] = s_2*z39 - c_3*z40;
+        to[3][r] = c_5*t1 + s_4*z44;
+        to[4][r] = c_5*z44 - s_4*t1;
+        to[5][r] = s_2*z42 - c_3*z43;
+        /* guards: >= 0 where the outputs are valid */
+        to[6][r] = fabs(ti[0][r]) - 1e-09;
+        to[7][r] = fabs(s_2) - 1e-09;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1493,18 +2273,22 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[3][64], tv[6][64];
+    double ta[3][64], tv[6][64], ti[7][64], to[8][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
-        for (int r = 0; r < m; ++r)
-            kv_force_from_torque6(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2]);
+        if (have_vector_trig512) kl_512_force_from_torque6(m, tv, ti, to);
+        else kl_force_from_torque6(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0]; double *restrict o1 = outb1 + (r0 + r) * os[1]; double *restrict o2 = outb2 + (r0 + r) * os[2];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o1[0] = to[6][r]; o2[0] = to[7][r];
+        }
     }
     return 1;
 }
@@ -1567,8 +2351,41 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
     return 1;
 }
 
+/* gravity's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 2 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        to[0][r] = 0.0;
+        to[1][r] = ti[0][r];
+        to[2][r] = 0.0;
+        to[3][r] = -c_1*s_2*ti[1][r];
+        to[4][r] = -c_3*s_0*ti[1][r];
+        to[5][r] = 0.0;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        to[0][r] = 0.0;
+        to[1][r] = ti[0][r];
+        to[2][r] = 0.0;
+        to[3][r] = -c_1*s_2*ti[1][r];
+        to[4][r] = -c_3*s_0*ti[1][r];
+        to[5][r] = 0.0;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1581,17 +2398,21 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[2][64], to[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in1[0]; ti[1][r] = in1[1]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_gravity(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_gravity(m, tv, ti, to);
+        else kl_gravity(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
     }
     return 1;
 }
@@ -1666,8 +2487,53 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
     return 1;
 }
 
+/* gravity_regressor's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
+ * 0 input elements in ti, its 12 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        to[0][r] = 0.0;
+        to[1][r] = 0.0;
+        to[2][r] = 1.0;
+        to[3][r] = 0.0;
+        to[4][r] = 0.0;
+        to[5][r] = 0.0;
+        to[6][r] = 0.0;
+        to[7][r] = -c_1*s_2;
+        to[8][r] = 0.0;
+        to[9][r] = -c_3*s_0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        to[0][r] = 0.0;
+        to[1][r] = 0.0;
+        to[2][r] = 1.0;
+        to[3][r] = 0.0;
+        to[4][r] = 0.0;
+        to[5][r] = 0.0;
+        to[6][r] = 0.0;
+        to[7][r] = -c_1*s_2;
+        to[8][r] = 0.0;
+        to[9][r] = -c_3*s_0;
+        to[10][r] = 0.0;
+        to[11][r] = 0.0;
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1680,17 +2546,21 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64];
+    double ta[2][64], tv[4][64], ti[1][64], to[12][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 11, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
-        for (int r = 0; r < m; ++r)
-            kv_gravity_regressor(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_gravity_regressor(m, tv, ti, to);
+        else kl_gravity_regressor(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o0[6] = to[6][r]; o0[7] = to[7][r]; o0[8] = to[8][r]; o0[9] = to[9][r]; o0[10] = to[10][r]; o0[11] = to[11][r];
+        }
     }
     return 1;
 }
@@ -1765,8 +2635,53 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
     return 1;
 }
 
+/* gravity_links's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
+ * 13 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = c_5*ti[11][r] + s_4*ti[10][r];
+        const double t1 = ti[9][r]*ti[3][r] + ti[12][r]*ti[4][r];
+        const double t2_n = s_4*ti[11][r] - c_5*ti[10][r];
+        const double t3 = ti[7][r]*ti[3][r] - t2_n*ti[4][r];
+        to[0][r] = 0.0;
+        to[1][r] = 9.81*(ti[0][r] + ti[1][r] + ti[2][r] + ti[3][r] + ti[4][r]);
+        to[2][r] = 0.0;
+        to[3][r] = 9.81*c_1*(c_3*t3 + ti[5][r]*ti[2][r] + s_2*t1) + 9.81*s_0*(ti[6][r]*ti[2][r] + ti[8][r]*ti[3][r] + t0*ti[4][r]);
+        to[4][r] = 9.81*s_0*(c_3*t1 - s_2*t3);
+        to[5][r] = 9.81*ti[4][r]*(c_1*t2_n - c_3*s_0*t0);
+    }
+}
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_0 = tv[0][r];
+        const double c_1 = tv[1][r];
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double t0 = c_5*ti[11][r] + s_4*ti[10][r];
+        const double t1 = ti[9][r]*ti[3][r] + ti[12][r]*ti[4][r];
+        const double t2_n = s_4*ti[11][r] - c_5*ti[10][r];
+        const double t3 = ti[7][r]*ti[3][r] - t2_n*ti[4][r];
+        to[0][r] = 0.0;
+        to[1][r] = 9.81*(ti[0][r] + ti[1][r] + ti[2][r] + ti[3][r] + ti[4][r]);
+        to[2][r] = 0.0;
+        to[3][r] = 9.81*c_1*(c_3*t3 + ti[5][r]*ti[2][r] + s_2*t1) + 9.81*s_0*(ti[6][r]*ti[2][r] + ti[8][r]*ti[3][r] + t0*ti[4][r]);
+        to[4][r] = 9.81*s_0*(c_3*t1 - s_2*t3);
+        to[5][r] = 9.81*ti[4][r]*(c_1*t2_n - c_3*s_0*t0);
+    }
+}
+
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
- * lanes, kin_prelude.h), then the straight-line rows */
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
     if (!have_vector_trig) return 0;
@@ -1779,18 +2694,22 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64];
+    double ta[3][64], tv[6][64], ti[13][64], to[6][64];
     for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
         const int m = n - r0 < 64 ? (int)(n - r0) : 64;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
-            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5];
+            ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in1[1]; ti[1][r] = in1[2]; ti[2][r] = in1[3]; ti[3][r] = in1[4]; ti[4][r] = in1[5]; ti[5][r] = in2[9]; ti[6][r] = in2[11]; ti[7][r] = in2[12]; ti[8][r] = in2[13]; ti[9][r] = in2[14]; ti[10][r] = in2[15]; ti[11][r] = in2[16]; ti[12][r] = in2[17]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
-        for (int r = 0; r < m; ++r)
-            kv_gravity_links(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], inb2 + (r0 + r) * is[2], outb0 + (r0 + r) * os[0]);
+        if (have_vector_trig512) kl_512_gravity_links(m, tv, ti, to);
+        else kl_gravity_links(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
     }
     return 1;
 }
