@@ -107,20 +107,22 @@ def lane_row(row: str) -> LaneRow | None:
 
 
 def lane_loop(name: str, lr: LaneRow, block: int, n_trig: int) -> str:
-    """The C of the lane loops of kernel ``name``: one compiled for AVX2 (four rows at a
-    time) and one for AVX-512F (eight), the same source; no fused multiply-adds in either
-    (the prelude's fp-contract=off, and AVX2 without the FMA target)."""
+    """The C of the lane loops of kernel ``name``: the loop once, inlined into one function
+    compiled for AVX2 (four rows at a time) and one for AVX-512F (eight); no fused
+    multiply-adds in either (the prelude's fp-contract=off, and AVX2 without the FMA target)."""
     params = (f"int m, const double (*restrict tv)[{block}], const double (*restrict ti)[{block}], "
               f"double (*restrict to)[{block}]")
-    loops = []
-    for suffix, target in (("", "avx2"), ("_512", "avx512f")):
-        loops.append(f"""__attribute__((target("{target}"))) static void kl{suffix}_{name}({params})
+    wrappers = "\n".join(
+        f'__attribute__((target("{target}"))) static void kl{suffix}_{name}({params}) {{ kl_rows_{name}(m, tv, ti, to); }}'
+        for suffix, target in (("", "avx2"), ("_512", "avx512f")))
+    return f"""
+/* {name}'s rows side by side in vector lanes: the block's {n_trig} sines/cosines in tv, its
+ * {len(lr.inputs)} input elements in ti, its {len(lr.outputs)} results to (derive/emit_c_lanes.py) */
+__attribute__((always_inline)) static inline void kl_rows_{name}({params})
 {{
     for (int r = 0; r < m; ++r) {{
 {lr.body}
     }}
-}}""")
-    return f"""
-/* {name}'s rows side by side in vector lanes: the block's {n_trig} sines/cosines in tv, its
- * {len(lr.inputs)} input elements in ti, its {len(lr.outputs)} results to (derive/emit_c_lanes.py) */
-""" + "\n".join(loops) + "\n"
+}}
+{wrappers}
+"""

@@ -102,7 +102,7 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
 
 /* fk's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 2 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -140,44 +140,8 @@ __attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict
         to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double t0 = s_2*s_6;
-        const double t1 = c_3*c_7;
-        const double t2 = c_3*s_6;
-        const double k0 = t0 + c_5*t1;
-        const double k2 = c_3*s_4;
-        const double k3 = c_5*c_7*s_2 - t2;
-        const double k5 = s_2*s_4;
-        const double k6 = c_7*s_4;
-        const double k8 = -c_5;
-        to[0][r] = c_1*k6 - s_0*k0;
-        to[1][r] = c_1*k8 - s_0*k2;
-        to[2][r] = c_1*ti[1][r];
-        to[3][r] = c_1*k0 + s_0*k6;
-        to[4][r] = c_1*k2 + s_0*k8;
-        to[5][r] = s_0*ti[1][r];
-        to[6][r] = k3;
-        to[7][r] = k5;
-        to[8][r] = ti[0][r];
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = 1.0;
-        to[13][r] = to[4][r]*to[6][r] - to[7][r]*to[3][r];
-        to[14][r] = to[0][r]*to[7][r] - to[1][r]*to[6][r];
-        to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
-    }
-}
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -381,20 +345,15 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
 
 /* config_indicators's rows side by side in vector lanes: the block's 1 sines/cosines in tv, its
  * 0 input elements in ti, its 1 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
         to[0][r] = s_0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        to[0][r] = s_0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -550,7 +509,7 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
 
 /* jacobian4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -596,52 +555,8 @@ __attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*r
         to[35][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double t0 = -c_1;
-        to[0][r] = c_1*ti[0][r];
-        to[1][r] = s_0;
-        to[2][r] = 0.0;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = 0.0;
-        to[7][r] = 0.0;
-        to[8][r] = 1.0;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = s_0*ti[0][r];
-        to[13][r] = t0;
-        to[14][r] = 0.0;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-        to[18][r] = s_0;
-        to[19][r] = 0.0;
-        to[20][r] = 0.0;
-        to[21][r] = 0.0;
-        to[22][r] = 0.0;
-        to[23][r] = s_2;
-        to[24][r] = 0.0;
-        to[25][r] = 0.0;
-        to[26][r] = 0.0;
-        to[27][r] = 1.0;
-        to[28][r] = 0.0;
-        to[29][r] = -c_3;
-        to[30][r] = t0;
-        to[31][r] = 0.0;
-        to[32][r] = 0.0;
-        to[33][r] = 0.0;
-        to[34][r] = 1.0;
-        to[35][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -818,7 +733,7 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
 
 /* jacobian6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -874,62 +789,8 @@ __attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*r
         to[35][r] = 1.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double t0 = s_0*s_4;
-        const double t1 = c_1*c_5;
-        const double t2 = c_1*s_4;
-        const double t3 = c_3*c_5*s_0 - t2;
-        const double t4 = c_5*s_2;
-        const double t5 = -t1 - c_3*t0;
-        const double t6 = -s_2*s_4;
-        const double t7 = s_0*s_2;
-        const double t8 = -c_3;
-        to[0][r] = ti[0][r]*(t0 + c_3*t1);
-        to[1][r] = t3;
-        to[2][r] = t4;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = ti[0][r]*(c_5*s_0 - c_3*t2);
-        to[7][r] = t5;
-        to[8][r] = t6;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = c_1*s_2*ti[0][r];
-        to[13][r] = t7;
-        to[14][r] = t8;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-        to[18][r] = t3;
-        to[19][r] = 0.0;
-        to[20][r] = 0.0;
-        to[21][r] = t4;
-        to[22][r] = s_4;
-        to[23][r] = 0.0;
-        to[24][r] = t5;
-        to[25][r] = 0.0;
-        to[26][r] = 0.0;
-        to[27][r] = t6;
-        to[28][r] = c_5;
-        to[29][r] = 0.0;
-        to[30][r] = t7;
-        to[31][r] = 0.0;
-        to[32][r] = 0.0;
-        to[33][r] = t8;
-        to[34][r] = 0.0;
-        to[35][r] = 1.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1027,7 +888,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
 
 /* cartesian_from_joint4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1043,22 +904,8 @@ __attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, cons
         to[5][r] = ti[5][r] - t0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double t0 = c_1*ti[1][r];
-        to[0][r] = s_0*ti[2][r] + t0*ti[0][r];
-        to[1][r] = ti[3][r];
-        to[2][r] = s_0*ti[1][r]*ti[0][r] - c_1*ti[2][r];
-        to[3][r] = s_0*ti[1][r] + s_2*ti[6][r];
-        to[4][r] = ti[4][r] - c_3*ti[6][r];
-        to[5][r] = ti[5][r] - t0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1153,7 +1000,7 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
 
 /* torque_from_force4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1168,21 +1015,8 @@ __attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const d
         to[5][r] = s_2*ti[4][r] - c_3*ti[5][r];
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        to[0][r] = c_1*(ti[1][r]*ti[0][r] - ti[6][r]) + s_0*(ti[4][r] + ti[3][r]*ti[0][r]);
-        to[1][r] = s_0*ti[1][r] - c_1*ti[3][r];
-        to[2][r] = ti[2][r];
-        to[3][r] = ti[5][r];
-        to[4][r] = ti[6][r];
-        to[5][r] = s_2*ti[4][r] - c_3*ti[5][r];
-    }
-}
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1301,7 +1135,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
 
 /* joint_from_cartesian4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1328,33 +1162,8 @@ __attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, cons
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double z6 = c_1*ti[1][r] + s_0*ti[3][r];
-        const double z7 = s_0*ti[1][r] - c_1*ti[3][r];
-        const double z8 = ti[2][r];
-        const double z9 = z6/ti[0][r];
-        const double z10 = z7;
-        const double z11 = z8;
-        const double z14 = (ti[4][r] - s_0*z9)/s_2;
-        const double z12 = ti[5][r] + c_3*z14;
-        const double z13 = ti[6][r] + c_1*z9;
-        to[0][r] = z9;
-        to[1][r] = z10;
-        to[2][r] = z11;
-        to[3][r] = z12;
-        to[4][r] = z13;
-        to[5][r] = z14;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(ti[0][r]) - 1e-09;
-        to[7][r] = fabs(s_2) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1467,7 +1276,7 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
 
 /* force_from_torque4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1491,30 +1300,8 @@ __attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const d
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double z16 = ti[4][r];
-        const double z17 = ti[5][r];
-        const double z15 = (ti[6][r] + c_3*z16)/s_2;
-        const double z18 = (ti[1][r] + c_1*z17 - s_0*z15)/ti[0][r];
-        const double z19 = ti[2][r];
-        const double z20 = ti[3][r];
-        to[0][r] = c_1*z18 + s_0*z19;
-        to[1][r] = z20;
-        to[2][r] = s_0*z18 - c_1*z19;
-        to[3][r] = z15;
-        to[4][r] = z16;
-        to[5][r] = z17;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(ti[0][r]) - 1e-09;
-        to[7][r] = fabs(s_2) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1635,7 +1422,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
 
 /* cartesian_from_joint6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1663,34 +1450,8 @@ __attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, cons
         to[5][r] = s_2*z6 - c_3*z7;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double z0 = ti[1][r]*ti[0][r];
-        const double z1 = ti[2][r];
-        const double z2 = ti[3][r];
-        const double z3 = c_1*z0 + s_0*z1;
-        const double z4 = z2;
-        const double t0 = c_3*z3 + s_2*z4;
-        const double z5 = s_0*z0 - c_1*z1;
-        const double z6 = s_0*ti[1][r] + s_2*ti[6][r];
-        const double z7 = ti[4][r] - c_3*ti[6][r];
-        const double t1 = c_3*z6 + s_2*z7;
-        const double z8 = ti[5][r] - c_1*ti[1][r];
-        to[0][r] = c_5*t0 + s_4*z5;
-        to[1][r] = c_5*z5 - s_4*t0;
-        to[2][r] = s_2*z3 - c_3*z4;
-        to[3][r] = c_5*t1 + s_4*z8;
-        to[4][r] = c_5*z8 - s_4*t1;
-        to[5][r] = s_2*z6 - c_3*z7;
-    }
-}
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1800,7 +1561,7 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
 
 /* torque_from_force6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1822,28 +1583,8 @@ __attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const d
         to[5][r] = ti[6][r]*(c_3*c_3 + s_2*s_2);
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double t0 = c_5*ti[1][r] - s_4*ti[2][r];
-        const double t1 = c_3*t0 + s_2*ti[3][r];
-        const double t2 = c_5*ti[5][r] + s_4*ti[4][r];
-        const double t3 = c_5*ti[2][r] + s_4*ti[1][r];
-        const double t4 = c_5*ti[4][r] - s_4*ti[5][r];
-        to[0][r] = c_1*(t1*ti[0][r] - t2) + s_0*(c_3*t4 + s_2*ti[6][r] + t3*ti[0][r]);
-        to[1][r] = s_0*t1 - c_1*t3;
-        to[2][r] = s_2*t0 - c_3*ti[3][r];
-        to[3][r] = s_2*t4 - c_3*ti[6][r];
-        to[4][r] = t2;
-        to[5][r] = ti[6][r]*(c_3*c_3 + s_2*s_2);
-    }
-}
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1983,7 +1724,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
 
 /* joint_from_cartesian6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2020,43 +1761,8 @@ __attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, cons
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double t0 = c_5*ti[1][r] - s_4*ti[2][r];
-        const double t1 = c_5*ti[4][r] - s_4*ti[5][r];
-        const double z18 = c_3*t0 + s_2*ti[3][r];
-        const double z19 = s_2*t0 - c_3*ti[3][r];
-        const double z20 = c_5*ti[2][r] + s_4*ti[1][r];
-        const double z21 = c_3*t1 + s_2*ti[6][r];
-        const double z22 = s_2*t1 - c_3*ti[6][r];
-        const double z23 = c_5*ti[5][r] + s_4*ti[4][r];
-        const double z24 = c_1*z18 + s_0*z20;
-        const double z25 = s_0*z18 - c_1*z20;
-        const double z26 = z19;
-        const double z27 = z24/ti[0][r];
-        const double z28 = z25;
-        const double z29 = z26;
-        const double z32 = (z21 - s_0*z27)/s_2;
-        const double z30 = z22 + c_3*z32;
-        const double z31 = z23 + c_1*z27;
-        to[0][r] = z27;
-        to[1][r] = z28;
-        to[2][r] = z29;
-        to[3][r] = z30;
-        to[4][r] = z31;
-        to[5][r] = z32;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(ti[0][r]) - 1e-09;
-        to[7][r] = fabs(s_2) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2190,7 +1896,7 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
 
 /* force_from_torque6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2224,40 +1930,8 @@ __attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const d
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double z34 = ti[4][r];
-        const double z35 = ti[5][r];
-        const double z33 = (ti[6][r] + c_3*z34)/s_2;
-        const double z36 = (ti[1][r] + c_1*z35 - s_0*z33)/ti[0][r];
-        const double z37 = ti[2][r];
-        const double z38 = ti[3][r];
-        const double z39 = c_1*z36 + s_0*z37;
-        const double z40 = z38;
-        const double t0 = c_3*z39 + s_2*z40;
-        const double z41 = s_0*z36 - c_1*z37;
-        const double z42 = z33;
-        const double z43 = z34;
-        const double t1 = c_3*z42 + s_2*z43;
-        const double z44 = z35;
-        to[0][r] = c_5*t0 + s_4*z41;
-        to[1][r] = c_5*z41 - s_4*t0;
-        to[2][r] = s_2*z39 - c_3*z40;
-        to[3][r] = c_5*t1 + s_4*z44;
-        to[4][r] = c_5*z44 - s_4*t1;
-        to[5][r] = s_2*z42 - c_3*z43;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(ti[0][r]) - 1e-09;
-        to[7][r] = fabs(s_2) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2353,7 +2027,7 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
 
 /* gravity's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 2 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2368,21 +2042,8 @@ __attribute__((target("avx2"))) static void kl_gravity(int m, const double (*res
         to[5][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        to[0][r] = 0.0;
-        to[1][r] = ti[0][r];
-        to[2][r] = 0.0;
-        to[3][r] = -c_1*s_2*ti[1][r];
-        to[4][r] = -c_3*s_0*ti[1][r];
-        to[5][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2489,7 +2150,7 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
 
 /* gravity_regressor's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 0 input elements in ti, its 12 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2510,27 +2171,8 @@ __attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const do
         to[11][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        to[0][r] = 0.0;
-        to[1][r] = 0.0;
-        to[2][r] = 1.0;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = 0.0;
-        to[7][r] = -c_1*s_2;
-        to[8][r] = 0.0;
-        to[9][r] = -c_3*s_0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2616,7 +2258,7 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     const double t2_n = s_4*in2[16] - c_5*in2[15];
     const double t3 = in2[12]*in1[4] - t2_n*in1[5];
     out0[0] = 0.0;
-    out0[1] = 9.81*(in1[1] + in1[2] + in1[3] + in1[4] + in1[5]);
+    out0[1] = 9.81*in1[1] + 9.81*in1[2] + 9.81*in1[3] + 9.81*in1[4] + 9.81*in1[5];
     out0[2] = 0.0;
     out0[3] = 9.81*c_1*(c_3*t3 + in2[9]*in1[3] + s_2*t1) + 9.81*s_0*(in2[11]*in1[3] + in2[13]*in1[4] + t0*in1[5]);
     out0[4] = 9.81*s_0*(c_3*t1 - s_2*t3);
@@ -2637,7 +2279,7 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
 
 /* gravity_links's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 13 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2651,34 +2293,15 @@ __attribute__((target("avx2"))) static void kl_gravity_links(int m, const double
         const double t2_n = s_4*ti[11][r] - c_5*ti[10][r];
         const double t3 = ti[7][r]*ti[3][r] - t2_n*ti[4][r];
         to[0][r] = 0.0;
-        to[1][r] = 9.81*(ti[0][r] + ti[1][r] + ti[2][r] + ti[3][r] + ti[4][r]);
+        to[1][r] = 9.81*ti[0][r] + 9.81*ti[1][r] + 9.81*ti[2][r] + 9.81*ti[3][r] + 9.81*ti[4][r];
         to[2][r] = 0.0;
         to[3][r] = 9.81*c_1*(c_3*t3 + ti[5][r]*ti[2][r] + s_2*t1) + 9.81*s_0*(ti[6][r]*ti[2][r] + ti[8][r]*ti[3][r] + t0*ti[4][r]);
         to[4][r] = 9.81*s_0*(c_3*t1 - s_2*t3);
         to[5][r] = 9.81*ti[4][r]*(c_1*t2_n - c_3*s_0*t0);
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double t0 = c_5*ti[11][r] + s_4*ti[10][r];
-        const double t1 = ti[9][r]*ti[3][r] + ti[12][r]*ti[4][r];
-        const double t2_n = s_4*ti[11][r] - c_5*ti[10][r];
-        const double t3 = ti[7][r]*ti[3][r] - t2_n*ti[4][r];
-        to[0][r] = 0.0;
-        to[1][r] = 9.81*(ti[0][r] + ti[1][r] + ti[2][r] + ti[3][r] + ti[4][r]);
-        to[2][r] = 0.0;
-        to[3][r] = 9.81*c_1*(c_3*t3 + ti[5][r]*ti[2][r] + s_2*t1) + 9.81*s_0*(ti[6][r]*ti[2][r] + ti[8][r]*ti[3][r] + t0*ti[4][r]);
-        to[4][r] = 9.81*s_0*(c_3*t1 - s_2*t3);
-        to[5][r] = 9.81*ti[4][r]*(c_1*t2_n - c_3*s_0*t0);
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */

@@ -92,10 +92,10 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     const double k8 = c_7;
     const double k9 = c_11*k0 - s_10*k6;
     const double k11 = c_11*k2 - s_10*k8;
-    const double k12 = 0.2032*(c_3 - s_10);
+    const double k12 = 0.2032*c_3 - 0.2032*s_10;
     const double k13 = c_11*k6 + s_10*k0;
     const double k15 = c_11*k8 + s_10*k2;
-    const double k16 = 0.2032*(c_11 + s_2);
+    const double k16 = 0.2032*c_11 + 0.2032*s_2;
     const double k17_n = k3;
     const double k19 = k5_n;
     out0[0] = c_1*k9 - k17_n*s_0;
@@ -131,7 +131,7 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
 
 /* fk's rows side by side in vector lanes: the block's 12 sines/cosines in tv, its
  * 0 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -158,10 +158,10 @@ __attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict
         const double k8 = c_7;
         const double k9 = c_11*k0 - s_10*k6;
         const double k11 = c_11*k2 - s_10*k8;
-        const double k12 = 0.2032*(c_3 - s_10);
+        const double k12 = 0.2032*c_3 - 0.2032*s_10;
         const double k13 = c_11*k6 + s_10*k0;
         const double k15 = c_11*k8 + s_10*k2;
-        const double k16 = 0.2032*(c_11 + s_2);
+        const double k16 = 0.2032*c_11 + 0.2032*s_2;
         const double k17_n = k3;
         const double k19 = k5_n;
         to[0][r] = c_1*k9 - k17_n*s_0;
@@ -182,57 +182,8 @@ __attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict
         to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double s_10 = tv[10][r];
-        const double c_11 = tv[11][r];
-        const double t0 = s_4*s_8;
-        const double t1 = c_5*c_9;
-        const double t2 = c_9*s_4;
-        const double t3 = c_5*s_8;
-        const double k0 = c_7*t1 - t0;
-        const double k2 = -c_5*s_6;
-        const double k3 = t3 + c_7*t2;
-        const double k5_n = s_4*s_6;
-        const double k6 = c_9*s_6;
-        const double k8 = c_7;
-        const double k9 = c_11*k0 - s_10*k6;
-        const double k11 = c_11*k2 - s_10*k8;
-        const double k12 = 0.2032*(c_3 - s_10);
-        const double k13 = c_11*k6 + s_10*k0;
-        const double k15 = c_11*k8 + s_10*k2;
-        const double k16 = 0.2032*(c_11 + s_2);
-        const double k17_n = k3;
-        const double k19 = k5_n;
-        to[0][r] = c_1*k9 - k17_n*s_0;
-        to[1][r] = c_1*k11 + s_0*k19;
-        to[2][r] = 0.12624*s_0 + c_1*k12;
-        to[3][r] = c_1*k17_n + s_0*k9;
-        to[4][r] = s_0*k11 - c_1*k19;
-        to[5][r] = s_0*k12 - 0.12624*c_1;
-        to[6][r] = k13;
-        to[7][r] = k15;
-        to[8][r] = k16;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = 1.0;
-        to[13][r] = to[4][r]*to[6][r] - to[7][r]*to[3][r];
-        to[14][r] = to[0][r]*to[7][r] - to[1][r]*to[6][r];
-        to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
-    }
-}
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -628,7 +579,7 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
 
 /* config_indicators's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 0 input elements in ti, its 3 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -641,19 +592,8 @@ __attribute__((target("avx2"))) static void kl_config_indicators(int m, const do
         to[2][r] = s_2;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double t0 = c_0 - s_3;
-        to[0][r] = 0.2032*t0;
-        to[1][r] = -0.2032*c_1*t0;
-        to[2][r] = s_2;
-    }
-}
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -845,7 +785,7 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
 
 /* jacobian4's rows side by side in vector lanes: the block's 12 sines/cosines in tv, its
  * 0 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -903,64 +843,8 @@ __attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*r
         to[35][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double s_10 = tv[10][r];
-        const double c_11 = tv[11][r];
-        const double t0 = c_0 - s_6;
-        const double t1 = 0.2032*s_2;
-        const double t2 = 0.2032*c_3;
-        const double t3 = -t2;
-        const double t4 = -s_2;
-        to[0][r] = 0.12624*c_3*c_7 + t0*t1;
-        to[1][r] = 0.1016*s_10 + 0.1016*s_8 + t3;
-        to[2][r] = t3;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = -0.12624*s_6;
-        to[7][r] = 0.2032*c_1;
-        to[8][r] = 0.0;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = 0.12624*c_7*s_2 - t0*t2;
-        to[13][r] = 0.1016*c_9 - 0.1016*c_11 - t1;
-        to[14][r] = -t1;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-        to[18][r] = c_3*s_6;
-        to[19][r] = t4;
-        to[20][r] = t4;
-        to[21][r] = 0.0;
-        to[22][r] = 0.0;
-        to[23][r] = -s_4;
-        to[24][r] = c_7;
-        to[25][r] = 0.0;
-        to[26][r] = 0.0;
-        to[27][r] = 1.0;
-        to[28][r] = 0.0;
-        to[29][r] = c_5;
-        to[30][r] = s_2*s_6;
-        to[31][r] = c_3;
-        to[32][r] = c_3;
-        to[33][r] = 0.0;
-        to[34][r] = 1.0;
-        to[35][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1177,7 +1061,7 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
 
 /* jacobian6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 0 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1249,78 +1133,8 @@ __attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*r
         to[35][r] = 1.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_4*s_7;
-        const double t1 = c_8*s_3;
-        const double t2 = t0 + c_6*t1;
-        const double t3 = s_3*s_7;
-        const double t4 = c_4*c_8;
-        const double t5_n = t3 - c_6*t4;
-        const double t6 = 0.12624*c_10;
-        const double t7 = 0.2032*s_3;
-        const double t8 = 0.12624*s_5 + c_6*t7;
-        const double t9_n = 1.0 - s_1;
-        const double t10 = c_2*s_5;
-        const double t11 = c_4*c_6;
-        const double t12 = t1 + c_6*t0;
-        const double t13_n = c_6*t3 - t4;
-        const double t14 = s_3*s_5;
-        const double t15 = c_4*s_5;
-        const double t16 = c_8*s_5;
-        const double t17 = -t2;
-        const double t18_n = -s_5*s_7;
-        const double t19 = t13_n;
-        to[0][r] = 0.2032*c_0*t2 - s_9*(0.2032*t0 + c_8*t8) - t5_n*t6;
-        to[1][r] = 0.2032*c_8*(t10 - t11*t9_n) + 0.2032*t3*t9_n;
-        to[2][r] = 0.2032*t5_n;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = s_9*(s_7*t8 - 0.2032*t4) - 0.2032*c_0*t13_n - t12*t6;
-        to[7][r] = 0.2032*s_7*(t11*t9_n - t10) + 0.2032*t1*t9_n;
-        to[8][r] = 0.2032*t12;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = s_9*(0.2032*t14 - 0.12624*c_6) - s_5*(c_0*t7 + c_4*t6);
-        to[13][r] = 0.2032*c_2*c_6 + 0.2032*t15*t9_n;
-        to[14][r] = 0.2032*t15;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-        to[18][r] = c_10*t16 - s_9*t5_n;
-        to[19][r] = t17;
-        to[20][r] = t17;
-        to[21][r] = t16;
-        to[22][r] = -s_7;
-        to[23][r] = 0.0;
-        to[24][r] = c_10*t18_n - s_9*t12;
-        to[25][r] = t19;
-        to[26][r] = t19;
-        to[27][r] = t18_n;
-        to[28][r] = -c_8;
-        to[29][r] = 0.0;
-        to[30][r] = c_10*c_6 - s_9*t15;
-        to[31][r] = t14;
-        to[32][r] = t14;
-        to[33][r] = c_6;
-        to[34][r] = 0.0;
-        to[35][r] = 1.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1446,7 +1260,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
 
 /* cartesian_from_joint4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1473,33 +1287,8 @@ __attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, cons
         to[5][r] = ti[4][r] + c_4*t3 + s_3*t2;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t0 = 0.2032*ti[1][r];
-        const double t1 = c_8*ti[0][r];
-        const double t2 = s_7*ti[0][r];
-        const double t3 = ti[1][r] + ti[2][r];
-        const double z0 = 0.12624*t1 + s_1*t0 - 0.2032*ti[2][r] - t0;
-        const double z1 = 0.2032*ti[0][r]*(c_0 - s_7);
-        const double z2 = c_2*t0 - 0.12624*t2;
-        to[0][r] = c_4*z0 + s_3*z1;
-        to[1][r] = z2;
-        to[2][r] = s_3*z0 - c_4*z1;
-        to[3][r] = c_4*s_7*ti[0][r] - s_5*ti[5][r] - s_3*t3;
-        to[4][r] = ti[3][r] + t1 + c_6*ti[5][r];
-        to[5][r] = ti[4][r] + c_4*t3 + s_3*t2;
-    }
-}
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1622,7 +1411,7 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
 
 /* torque_from_force4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1648,32 +1437,8 @@ __attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const d
         to[5][r] = c_6*ti[4][r] - s_5*ti[3][r];
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t1 = s_3*ti[3][r];
-        const double z3 = c_4*ti[0][r] + s_3*ti[2][r];
-        const double t2 = 0.2032*z3;
-        const double z4 = s_3*ti[0][r] - c_4*ti[2][r];
-        const double t0 = 0.2032*z4;
-        const double z5 = ti[1][r];
-        to[0][r] = c_0*t0 + c_8*(ti[4][r] + 0.12624*z3) + s_7*(c_4*ti[3][r] + s_3*ti[5][r] - t0 - 0.12624*z5);
-        to[1][r] = 0.2032*c_2*z5 + c_4*ti[5][r] + t2*(s_1 - 1.0) - t1;
-        to[2][r] = c_4*ti[5][r] - t1 - t2;
-        to[3][r] = ti[4][r];
-        to[4][r] = ti[5][r];
-        to[5][r] = c_6*ti[4][r] - s_5*ti[3][r];
-    }
-}
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1830,7 +1595,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
 
 /* joint_from_cartesian4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1873,49 +1638,8 @@ __attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, cons
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t0 = c_0 - s_7;
-        const double dp_1 = c_2*t0;
-        const double dp_2 = dp_1*s_5;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*s_5;
-        const double r_1_inv = r_2*t0;
-        const double r_1 = c_2*r_2;
-        const double z6 = c_4*ti[0][r] + s_3*ti[2][r];
-        const double z7 = s_3*ti[0][r] - c_4*ti[2][r];
-        const double z8 = ti[1][r];
-        const double z9 = 4.921259842519685*r_1*z7;
-        const double t1 = s_7*z9;
-        const double t2 = c_8*z9;
-        const double z10 = 4.921259842519685*r_1_inv*(0.12624*t1 + z8);
-        const double z11 = 0.621259842519685*t2 + s_1*z10 - 4.921259842519685*z6;
-        const double z14 = r_2_inv*(c_4*t1 - ti[3][r] - s_3*z11);
-        const double z12 = ti[4][r] - t2 - c_6*z14;
-        const double z13 = ti[5][r] - c_4*z11 - s_3*t1;
-        to[0][r] = z9;
-        to[1][r] = z10;
-        to[2][r] = z11 - z10;
-        to[3][r] = z12;
-        to[4][r] = z13;
-        to[5][r] = z14;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = 0.2032*fabs(t0) - 4.064e-10;
-        to[7][r] = fabs(c_2) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2032,7 +1756,7 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     const double z16 = in1[3];
     const double z17 = in1[4];
     const double z15 = r_1*(c_6*z16 - in1[5]);
-    const double z18 = 4.921259842519685*(c_4*z17 - in1[2] - s_3*z15);
+    const double z18 = 4.921259842519685*c_4*z17 - 4.921259842519685*in1[2] - 4.921259842519685*s_3*z15;
     const double z20 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z18);
     const double z19 = 4.921259842519685*r_2_inv*(in1[0] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
     out0[0] = c_4*z18 + s_3*z19;
@@ -2062,7 +1786,7 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
 
 /* force_from_torque4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2085,7 +1809,7 @@ __attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const d
         const double z16 = ti[3][r];
         const double z17 = ti[4][r];
         const double z15 = r_1*(c_6*z16 - ti[5][r]);
-        const double z18 = 4.921259842519685*(c_4*z17 - ti[2][r] - s_3*z15);
+        const double z18 = 4.921259842519685*c_4*z17 - 4.921259842519685*ti[2][r] - 4.921259842519685*s_3*z15;
         const double z20 = 4.921259842519685*r_1_inv*(ti[1][r] - ti[2][r] - 0.2032*s_1*z18);
         const double z19 = 4.921259842519685*r_2_inv*(ti[0][r] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
         to[0][r] = c_4*z18 + s_3*z19;
@@ -2100,44 +1824,8 @@ __attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const d
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double dp_1 = c_2*s_5;
-        const double t0 = c_0 - s_7;
-        const double dp_2 = dp_1*t0;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*t0;
-        const double r_1_inv = r_2*s_5;
-        const double r_1 = c_2*r_2;
-        const double z16 = ti[3][r];
-        const double z17 = ti[4][r];
-        const double z15 = r_1*(c_6*z16 - ti[5][r]);
-        const double z18 = 4.921259842519685*(c_4*z17 - ti[2][r] - s_3*z15);
-        const double z20 = 4.921259842519685*r_1_inv*(ti[1][r] - ti[2][r] - 0.2032*s_1*z18);
-        const double z19 = 4.921259842519685*r_2_inv*(ti[0][r] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
-        to[0][r] = c_4*z18 + s_3*z19;
-        to[1][r] = z20;
-        to[2][r] = s_3*z18 - c_4*z19;
-        to[3][r] = z15;
-        to[4][r] = z16;
-        to[5][r] = z17;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = 0.2032*fabs(t0) - 4.064e-10;
-        to[7][r] = fabs(c_2) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2282,7 +1970,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
 
 /* cartesian_from_joint6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2319,43 +2007,8 @@ __attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, cons
         to[5][r] = c_6*z7 - s_5*z6;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_10*ti[0][r];
-        const double t1 = 0.2032*ti[1][r];
-        const double t2 = s_9*ti[0][r];
-        const double t3 = ti[1][r] + ti[2][r];
-        const double z0 = 0.12624*t0 + t1*(s_1 - 1.0) - 0.2032*ti[2][r];
-        const double z1 = 0.2032*ti[0][r]*(c_0 - s_9);
-        const double z2 = c_2*t1 - 0.12624*t2;
-        const double z3 = c_4*z0 + s_3*z1;
-        const double z4 = z2;
-        const double t4 = c_6*z3 + s_5*z4;
-        const double z5_n = c_4*z1 - s_3*z0;
-        const double z6 = c_4*s_9*ti[0][r] - s_5*ti[5][r] - s_3*t3;
-        const double z7 = ti[3][r] + t0 + c_6*ti[5][r];
-        const double t5 = c_6*z6 + s_5*z7;
-        const double z8 = ti[4][r] + c_4*t3 + s_3*t2;
-        to[0][r] = c_8*t4 + s_7*z5_n;
-        to[1][r] = c_8*z5_n - s_7*t4;
-        to[2][r] = c_6*z4 - s_5*z3;
-        to[3][r] = c_8*t5 - s_7*z8;
-        to[4][r] = -c_8*z8 - s_7*t5;
-        to[5][r] = c_6*z7 - s_5*z6;
-    }
-}
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2499,7 +2152,7 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
 
 /* torque_from_force6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2535,42 +2188,8 @@ __attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const d
         to[5][r] = c_6*z13 - s_5*z12;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_8*ti[0][r] - s_7*ti[1][r];
-        const double t1 = c_8*ti[3][r] - s_7*ti[4][r];
-        const double z9 = c_6*t0 - s_5*ti[2][r];
-        const double z10 = c_6*ti[2][r] + s_5*t0;
-        const double z11_n = c_8*ti[1][r] + s_7*ti[0][r];
-        const double z12 = c_6*t1 - s_5*ti[5][r];
-        const double t3 = s_3*z12;
-        const double z13 = c_6*ti[5][r] + s_5*t1;
-        const double z14 = -c_8*ti[4][r] - s_7*ti[3][r];
-        const double z15 = c_4*z9 - s_3*z11_n;
-        const double t4 = 0.2032*z15;
-        const double z16 = c_4*z11_n + s_3*z9;
-        const double t2 = 0.2032*z16;
-        const double z17 = z10;
-        to[0][r] = c_0*t2 + c_10*(z13 + 0.12624*z15) + s_9*(c_4*z12 + s_3*z14 - t2 - 0.12624*z17);
-        to[1][r] = 0.2032*c_2*z17 + c_4*z14 + t4*(s_1 - 1.0) - t3;
-        to[2][r] = c_4*z14 - t3 - t4;
-        to[3][r] = z13;
-        to[4][r] = z14;
-        to[5][r] = c_6*z13 - s_5*z12;
-    }
-}
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2748,7 +2367,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
 
 /* joint_from_cartesian6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2801,59 +2420,8 @@ __attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, cons
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_8*ti[0][r] - s_7*ti[1][r];
-        const double t1 = c_8*ti[3][r] - s_7*ti[4][r];
-        const double t2 = c_0 - s_9;
-        const double dp_1 = c_2*t2;
-        const double dp_2 = dp_1*s_5;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*s_5;
-        const double r_1_inv = r_2*t2;
-        const double r_1 = c_2*r_2;
-        const double z18 = c_6*t0 - s_5*ti[2][r];
-        const double z19 = c_6*ti[2][r] + s_5*t0;
-        const double z20_n = c_8*ti[1][r] + s_7*ti[0][r];
-        const double z21 = c_6*t1 - s_5*ti[5][r];
-        const double z22 = c_6*ti[5][r] + s_5*t1;
-        const double z23 = -c_8*ti[4][r] - s_7*ti[3][r];
-        const double z24 = c_4*z18 - s_3*z20_n;
-        const double z25 = c_4*z20_n + s_3*z18;
-        const double z26 = z19;
-        const double z27 = 4.921259842519685*r_1*z25;
-        const double t3 = s_9*z27;
-        const double t4 = c_10*z27;
-        const double z28 = 4.921259842519685*r_1_inv*(0.12624*t3 + z26);
-        const double z29 = 0.621259842519685*t4 + s_1*z28 - 4.921259842519685*z24;
-        const double z32 = r_2_inv*(c_4*t3 - z21 - s_3*z29);
-        const double z30 = z22 - t4 - c_6*z32;
-        const double z31 = z23 - c_4*z29 - s_3*t3;
-        to[0][r] = z27;
-        to[1][r] = z28;
-        to[2][r] = z29 - z28;
-        to[3][r] = z30;
-        to[4][r] = z31;
-        to[5][r] = z32;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = 0.2032*fabs(t2) - 4.064e-10;
-        to[7][r] = fabs(c_2) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2983,7 +2551,7 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     const double z34 = in1[3];
     const double z35 = in1[4];
     const double z33 = r_1*(c_6*z34 - in1[5]);
-    const double z36 = 4.921259842519685*(c_4*z35 - in1[2] - s_3*z33);
+    const double z36 = 4.921259842519685*c_4*z35 - 4.921259842519685*in1[2] - 4.921259842519685*s_3*z33;
     const double z38 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z36);
     const double z37 = 4.921259842519685*r_2_inv*(in1[0] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
     const double z39 = c_4*z36 + s_3*z37;
@@ -3021,7 +2589,7 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
 
 /* force_from_torque6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -3046,7 +2614,7 @@ __attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const d
         const double z34 = ti[3][r];
         const double z35 = ti[4][r];
         const double z33 = r_1*(c_6*z34 - ti[5][r]);
-        const double z36 = 4.921259842519685*(c_4*z35 - ti[2][r] - s_3*z33);
+        const double z36 = 4.921259842519685*c_4*z35 - 4.921259842519685*ti[2][r] - 4.921259842519685*s_3*z33;
         const double z38 = 4.921259842519685*r_1_inv*(ti[1][r] - ti[2][r] - 0.2032*s_1*z36);
         const double z37 = 4.921259842519685*r_2_inv*(ti[0][r] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
         const double z39 = c_4*z36 + s_3*z37;
@@ -3069,54 +2637,8 @@ __attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const d
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double dp_1 = c_2*s_5;
-        const double t0 = c_0 - s_9;
-        const double dp_2 = dp_1*t0;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*t0;
-        const double r_1_inv = r_2*s_5;
-        const double r_1 = c_2*r_2;
-        const double z34 = ti[3][r];
-        const double z35 = ti[4][r];
-        const double z33 = r_1*(c_6*z34 - ti[5][r]);
-        const double z36 = 4.921259842519685*(c_4*z35 - ti[2][r] - s_3*z33);
-        const double z38 = 4.921259842519685*r_1_inv*(ti[1][r] - ti[2][r] - 0.2032*s_1*z36);
-        const double z37 = 4.921259842519685*r_2_inv*(ti[0][r] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
-        const double z39 = c_4*z36 + s_3*z37;
-        const double z40 = z38;
-        const double t1 = c_6*z39 + s_5*z40;
-        const double z41_n = c_4*z37 - s_3*z36;
-        const double z42 = z33;
-        const double z43 = z34;
-        const double t2 = c_6*z42 + s_5*z43;
-        const double z44 = z35;
-        to[0][r] = c_8*t1 + s_7*z41_n;
-        to[1][r] = c_8*z41_n - s_7*t1;
-        to[2][r] = c_6*z40 - s_5*z39;
-        to[3][r] = c_8*t2 - s_7*z44;
-        to[4][r] = -c_8*z44 - s_7*t2;
-        to[5][r] = c_6*z43 - s_5*z42;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = 0.2032*fabs(t0) - 4.064e-10;
-        to[7][r] = fabs(c_2) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3230,7 +2752,7 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
 
 /* gravity's rows side by side in vector lanes: the block's 7 sines/cosines in tv, its
  * 3 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -3251,27 +2773,8 @@ __attribute__((target("avx2"))) static void kl_gravity(int m, const double (*res
         to[5][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double t0 = c_4*s_5;
-        const double t1 = c_6*s_3;
-        const double t2 = s_5*ti[1][r] + ti[2][r]*(t0 + c_2*t1);
-        to[0][r] = 0.0;
-        to[1][r] = t2 + c_0*ti[0][r];
-        to[2][r] = t2;
-        to[3][r] = -s_1*s_3*s_5*ti[2][r];
-        to[4][r] = ti[2][r]*(t1 + c_2*t0);
-        to[5][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3407,7 +2910,7 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
 
 /* gravity_regressor's rows side by side in vector lanes: the block's 7 sines/cosines in tv, its
  * 0 input elements in ti, its 18 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -3440,39 +2943,8 @@ __attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const do
         to[17][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double t0 = c_4*s_5;
-        const double t1 = c_6*s_3;
-        const double t2 = t0 + c_2*t1;
-        to[0][r] = 0.0;
-        to[1][r] = 0.0;
-        to[2][r] = 0.0;
-        to[3][r] = c_0;
-        to[4][r] = s_5;
-        to[5][r] = t2;
-        to[6][r] = 0.0;
-        to[7][r] = s_5;
-        to[8][r] = t2;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = -s_1*s_3*s_5;
-        to[12][r] = 0.0;
-        to[13][r] = 0.0;
-        to[14][r] = t1 + c_2*t0;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3612,7 +3084,7 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
 
 /* gravity_links's rows side by side in vector lanes: the block's 10 sines/cosines in tv, its
  * 18 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -3647,41 +3119,8 @@ __attribute__((target("avx2"))) static void kl_gravity_links(int m, const double
         to[5][r] = 9.81*ti[4][r]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double t0 = 1.993392*ti[3][r] + 1.993392*ti[4][r];
-        const double t1 = ti[14][r]*ti[3][r] + ti[17][r]*ti[4][r];
-        const double t2 = c_5*t1;
-        const double t3 = 9.81*s_8;
-        const double t4 = ti[12][r]*ti[3][r];
-        const double t5_n = s_6*ti[16][r] - c_7*ti[15][r];
-        const double t6 = t4 - t5_n*ti[4][r];
-        const double t7 = c_7*ti[16][r] + s_6*ti[15][r];
-        const double t8_n = ti[11][r]*ti[2][r] - ti[13][r]*ti[3][r] - t7*ti[4][r];
-        const double t9 = s_4*t1;
-        const double t10 = ti[9][r]*ti[2][r] - t9;
-        const double t11_n = 9.81*c_3*c_9*(t10 + c_5*t6) + 9.81*c_9*ti[7][r]*ti[1][r] + 9.81*c_9*s_2*t8_n - s_8*(t0 + 9.81*ti[8][r]*ti[1][r] + ti[2][r]*(1.993392 + 9.81*ti[10][r])) - t2*t3 - s_4*t3*t6;
-        const double t12 = t4 - t5_n*ti[4][r];
-        const double t13 = c_3*s_8;
-        to[0][r] = 0.0;
-        to[1][r] = t11_n + c_1*(1.993392*ti[1][r] + 1.993392*ti[2][r] + t0 + ti[0][r]*(1.993392 + 9.81*ti[5][r])) - 9.81*s_0*ti[6][r]*ti[0][r];
-        to[2][r] = t11_n;
-        to[3][r] = t3*(c_3*t8_n - s_2*(t10 + c_5*t12));
-        to[4][r] = 9.81*c_5*c_9*t6 - 9.81*c_9*t9 - 9.81*t13*(t2 + s_4*t12);
-        to[5][r] = 9.81*ti[4][r]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */

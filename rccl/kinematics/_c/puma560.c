@@ -131,7 +131,7 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
 
 /* fk's rows side by side in vector lanes: the block's 12 sines/cosines in tv, its
  * 0 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -182,57 +182,8 @@ __attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict
         to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double s_10 = tv[10][r];
-        const double c_11 = tv[11][r];
-        const double t0 = s_4*s_8;
-        const double t1 = c_5*c_9;
-        const double t2 = c_9*s_4;
-        const double t3 = c_5*s_8;
-        const double k0 = c_7*t1 - t0;
-        const double k2 = -c_5*s_6;
-        const double k3 = t3 + c_7*t2;
-        const double k5_n = s_4*s_6;
-        const double k6 = c_9*s_6;
-        const double k8 = c_7;
-        const double k9 = c_11*k0 - s_10*k6;
-        const double k11 = c_11*k2 - s_10*k8;
-        const double k12 = 0.0203*c_11 + 0.4318*c_3 - 0.4318*s_10;
-        const double k13 = c_11*k6 + s_10*k0;
-        const double k15 = c_11*k8 + s_10*k2;
-        const double k16 = 0.4318*c_11 + 0.0203*s_10 + 0.4318*s_2;
-        const double k17_n = k3;
-        const double k19 = k5_n;
-        to[0][r] = c_1*k9 - k17_n*s_0;
-        to[1][r] = c_1*k11 + s_0*k19;
-        to[2][r] = 0.15005*s_0 + c_1*k12;
-        to[3][r] = c_1*k17_n + s_0*k9;
-        to[4][r] = s_0*k11 - c_1*k19;
-        to[5][r] = s_0*k12 - 0.15005*c_1;
-        to[6][r] = k13;
-        to[7][r] = k15;
-        to[8][r] = 0.672 + k16;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = 1.0;
-        to[13][r] = to[4][r]*to[6][r] - to[7][r]*to[3][r];
-        to[14][r] = to[0][r]*to[7][r] - to[1][r]*to[6][r];
-        to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
-    }
-}
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -632,7 +583,7 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
 
 /* config_indicators's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 0 input elements in ti, its 3 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -647,21 +598,8 @@ __attribute__((target("avx2"))) static void kl_config_indicators(int m, const do
         to[2][r] = s_3;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double t0 = 0.4318*c_0 + 0.0203*c_5 - 0.4318*s_4;
-        to[0][r] = t0;
-        to[1][r] = -t0*(0.9988967406110469*c_2 + 0.04696063880130674*s_1);
-        to[2][r] = s_3;
-    }
-}
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -853,7 +791,7 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
 
 /* jacobian4's rows side by side in vector lanes: the block's 12 sines/cosines in tv, its
  * 0 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -911,64 +849,8 @@ __attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*r
         to[35][r] = 0.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double s_10 = tv[10][r];
-        const double c_11 = tv[11][r];
-        const double t0 = c_0 - s_6;
-        const double t1 = 0.4318*s_2;
-        const double t2 = 0.4318*c_3;
-        const double t3 = -t2;
-        const double t4 = -s_2;
-        to[0][r] = c_7*(0.15005*c_3 + 0.0203*s_2) + t0*t1;
-        to[1][r] = 0.2159*s_10 + 0.2159*s_8 + t3;
-        to[2][r] = t3;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = -0.15005*s_6;
-        to[7][r] = 0.0203 + 0.4318*c_1;
-        to[8][r] = 0.0203;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = c_7*(0.15005*s_2 - 0.0203*c_3) - t0*t2;
-        to[13][r] = 0.2159*c_9 - 0.2159*c_11 - t1;
-        to[14][r] = -t1;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-        to[18][r] = c_3*s_6;
-        to[19][r] = t4;
-        to[20][r] = t4;
-        to[21][r] = 0.0;
-        to[22][r] = 0.0;
-        to[23][r] = -s_4;
-        to[24][r] = c_7;
-        to[25][r] = 0.0;
-        to[26][r] = 0.0;
-        to[27][r] = 1.0;
-        to[28][r] = 0.0;
-        to[29][r] = c_5;
-        to[30][r] = s_2*s_6;
-        to[31][r] = c_3;
-        to[32][r] = c_3;
-        to[33][r] = 0.0;
-        to[34][r] = 1.0;
-        to[35][r] = 0.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1189,7 +1071,7 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
 
 /* jacobian6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 0 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1263,80 +1145,8 @@ __attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*r
         to[35][r] = 1.0;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = 0.15005*c_10;
-        const double t1 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
-        const double t2 = s_3*t0 - c_4*t1;
-        const double t3_n = -0.15005*s_9;
-        const double t4 = s_5*t3_n;
-        const double t5 = c_4*t0;
-        const double t6_n = 1.0 - s_1;
-        const double t7 = 0.4318*s_3;
-        const double t8 = 0.0203 + 0.4318*c_2;
-        const double t9 = 0.4318*c_4;
-        const double t10 = c_6*t9;
-        const double t11 = s_5*t8 - t10*t6_n;
-        const double t12 = t10 - 0.0203*s_5;
-        const double t13 = t5 + s_3*t1;
-        const double t14 = c_8*t7;
-        const double t15 = s_5*t9;
-        const double t16 = s_3*s_9;
-        const double t17 = c_4*s_9;
-        const double t18 = c_10*s_5 + c_6*t17;
-        const double t19 = -c_4*s_7 - c_6*c_8*s_3;
-        const double t20 = c_6*s_3*s_7 - c_4*c_8;
-        const double t21 = s_3*s_5;
-        to[0][r] = c_8*(t4 + c_6*(t5 + s_3*t1)) - s_7*t2;
-        to[1][r] = c_8*t11 + s_7*t6_n*t7;
-        to[2][r] = 0.4318*s_3*s_7 - c_8*t12;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = s_7*(-t4 - c_6*t13) - c_8*t2;
-        to[7][r] = t14*t6_n - s_7*t11;
-        to[8][r] = t14 + s_7*t12;
-        to[9][r] = 0.0;
-        to[10][r] = 0.0;
-        to[11][r] = 0.0;
-        to[12][r] = c_6*t3_n - s_5*t13;
-        to[13][r] = c_6*t8 + t15*t6_n;
-        to[14][r] = 0.0203*c_6 + t15;
-        to[15][r] = 0.0;
-        to[16][r] = 0.0;
-        to[17][r] = 0.0;
-        to[18][r] = c_8*t18 - s_7*t16;
-        to[19][r] = t19;
-        to[20][r] = t19;
-        to[21][r] = c_8*s_5;
-        to[22][r] = -s_7;
-        to[23][r] = 0.0;
-        to[24][r] = -c_8*t16 - s_7*t18;
-        to[25][r] = t20;
-        to[26][r] = t20;
-        to[27][r] = -s_5*s_7;
-        to[28][r] = -c_8;
-        to[29][r] = 0.0;
-        to[30][r] = c_10*c_6 - s_5*t17;
-        to[31][r] = t21;
-        to[32][r] = t21;
-        to[33][r] = c_6;
-        to[34][r] = 0.0;
-        to[35][r] = 1.0;
-    }
-}
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1462,7 +1272,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
 
 /* cartesian_from_joint4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1489,33 +1299,8 @@ __attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, cons
         to[5][r] = ti[4][r] + c_4*t3 + s_3*t2;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t0 = 0.4318*ti[1][r];
-        const double t1 = c_8*ti[0][r];
-        const double t2 = s_7*ti[0][r];
-        const double t3 = ti[1][r] + ti[2][r];
-        const double z0 = 0.15005*t1 + s_1*t0 - 0.4318*ti[2][r] - t0;
-        const double z1 = ti[0][r]*(0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7);
-        const double z2 = 0.0203*ti[1][r] + 0.0203*ti[2][r] + c_2*t0 - 0.15005*t2;
-        to[0][r] = c_4*z0 + s_3*z1;
-        to[1][r] = z2;
-        to[2][r] = s_3*z0 - c_4*z1;
-        to[3][r] = c_4*s_7*ti[0][r] - s_5*ti[5][r] - s_3*t3;
-        to[4][r] = ti[3][r] + t1 + c_6*ti[5][r];
-        to[5][r] = ti[4][r] + c_4*t3 + s_3*t2;
-    }
-}
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1638,7 +1423,7 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
 
 /* torque_from_force4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1664,32 +1449,8 @@ __attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const d
         to[5][r] = c_6*ti[4][r] - s_5*ti[3][r];
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t2 = c_4*ti[5][r] - s_3*ti[3][r];
-        const double z3 = c_4*ti[0][r] + s_3*ti[2][r];
-        const double t1 = 0.4318*z3;
-        const double z4 = s_3*ti[0][r] - c_4*ti[2][r];
-        const double t0 = 0.4318*z4;
-        const double z5 = ti[1][r];
-        to[0][r] = c_0*t0 + c_8*(ti[4][r] + 0.15005*z3 + 0.0203*z4) + s_7*(c_4*ti[3][r] + s_3*ti[5][r] - t0 - 0.15005*z5);
-        to[1][r] = t2 + t1*(s_1 - 1.0) + z5*(0.0203 + 0.4318*c_2);
-        to[2][r] = t2 + 0.0203*z5 - t1;
-        to[3][r] = ti[4][r];
-        to[4][r] = ti[5][r];
-        to[5][r] = c_6*ti[4][r] - s_5*ti[3][r];
-    }
-}
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -1856,7 +1617,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
 
 /* joint_from_cartesian4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1904,54 +1665,8 @@ __attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, cons
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t0 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
-        const double t1 = 0.4318*c_2;
-        const double d_1 = 0.0203*s_1 + t1;
-        const double dp_1 = d_1*t0;
-        const double dp_2 = dp_1*s_5;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*s_5;
-        const double r_1_inv = r_2*t0;
-        const double r_1 = d_1*r_2;
-        const double z6 = c_4*ti[0][r] + s_3*ti[2][r];
-        const double z7 = s_3*ti[0][r] - c_4*ti[2][r];
-        const double z8 = ti[1][r];
-        const double t2 = 0.4318*z8;
-        const double z9 = r_1*z7;
-        const double t3 = c_8*z9;
-        const double t4 = 0.06479159*z9;
-        const double t5 = s_7*z9;
-        const double z12 = 2.3158869847151458*r_1_inv;
-        const double z10 = z12*(t2 + 0.0203*z6 + s_7*t4 - 0.0030460149999999996*t3);
-        const double z11 = z12*(c_0*t4 + s_1*t2 - t1*z6);
-        const double z15 = r_2_inv*(c_4*t5 - ti[3][r] - s_3*z11);
-        const double z13 = ti[4][r] - t3 - c_6*z15;
-        const double z14 = ti[5][r] - c_4*z11 - s_3*t5;
-        to[0][r] = z9;
-        to[1][r] = z10;
-        to[2][r] = z11 - z10;
-        to[3][r] = z13;
-        to[4][r] = z14;
-        to[5][r] = z15;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(t0) - 8.640769135635167e-10;
-        to[7][r] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2106,7 +1821,7 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
 
 /* force_from_torque4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2148,48 +1863,8 @@ __attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const d
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double t0 = 0.4318*c_2;
-        const double d_1 = 0.0203*s_1 + t0;
-        const double dp_1 = d_1*s_5;
-        const double t2 = 0.4318*c_0 + 0.0203*c_8 - 0.4318*s_7;
-        const double dp_2 = dp_1*t2;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*t2;
-        const double r_1_inv = r_2*s_5;
-        const double r_1 = d_1*r_2;
-        const double z17 = ti[3][r];
-        const double z18 = ti[4][r];
-        const double z16 = r_1*(c_6*z17 - ti[5][r]);
-        const double t1 = ti[2][r] + s_3*z16 - c_4*z18;
-        const double z22 = 2.3158869847151458*r_1_inv;
-        const double z19 = z22*(0.0203*ti[1][r] - 0.0203*ti[2][r] - t0*t1);
-        const double z21 = 0.4318*z22*(ti[1][r] + s_1*t1 - ti[2][r]);
-        const double z20 = r_2_inv*(ti[0][r] + s_7*(0.15005*z21 - c_4*z16 - s_3*z18) - c_8*(z17 + 0.15005*z19));
-        to[0][r] = c_4*z19 + s_3*z20;
-        to[1][r] = z21;
-        to[2][r] = s_3*z19 - c_4*z20;
-        to[3][r] = z16;
-        to[4][r] = z17;
-        to[5][r] = z18;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(t2) - 8.640769135635167e-10;
-        to[7][r] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2332,7 +2007,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
 
 /* cartesian_from_joint6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2368,42 +2043,8 @@ __attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, cons
         to[5][r] = c_6*z7 - s_5*z6;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_10*ti[0][r];
-        const double t1 = s_9*ti[0][r];
-        const double t2 = ti[1][r] + ti[2][r];
-        const double z0 = 0.15005*t0 + 0.4318*ti[1][r]*(s_1 - 1.0) - 0.4318*ti[2][r];
-        const double z1 = ti[0][r]*(0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9);
-        const double z2 = 0.0203*ti[2][r] + ti[1][r]*(0.0203 + 0.4318*c_2) - 0.15005*t1;
-        const double z3 = c_4*z0 + s_3*z1;
-        const double z4 = z2;
-        const double t3 = c_6*z3 + s_5*z4;
-        const double z5_n = c_4*z1 - s_3*z0;
-        const double z6 = c_4*s_9*ti[0][r] - s_5*ti[5][r] - s_3*t2;
-        const double z7 = ti[3][r] + t0 + c_6*ti[5][r];
-        const double t4 = c_6*z6 + s_5*z7;
-        const double z8 = ti[4][r] + c_4*t2 + s_3*t1;
-        to[0][r] = c_8*t3 + s_7*z5_n;
-        to[1][r] = c_8*z5_n - s_7*t3;
-        to[2][r] = c_6*z4 - s_5*z3;
-        to[3][r] = c_8*t4 - s_7*z8;
-        to[4][r] = -c_8*z8 - s_7*t4;
-        to[5][r] = c_6*z7 - s_5*z6;
-    }
-}
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2547,7 +2188,7 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
 
 /* torque_from_force6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2583,42 +2224,8 @@ __attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const d
         to[5][r] = c_6*z13 - s_5*z12;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_8*ti[0][r] - s_7*ti[1][r];
-        const double t1 = c_8*ti[3][r] - s_7*ti[4][r];
-        const double z9 = c_6*t0 - s_5*ti[2][r];
-        const double z10 = c_6*ti[2][r] + s_5*t0;
-        const double z11_n = c_8*ti[1][r] + s_7*ti[0][r];
-        const double z12 = c_6*t1 - s_5*ti[5][r];
-        const double z13 = c_6*ti[5][r] + s_5*t1;
-        const double z14 = -c_8*ti[4][r] - s_7*ti[3][r];
-        const double t4 = c_4*z14 - s_3*z12;
-        const double z15 = c_4*z9 - s_3*z11_n;
-        const double t3 = 0.4318*z15;
-        const double z16 = c_4*z11_n + s_3*z9;
-        const double t2 = 0.4318*z16;
-        const double z17 = z10;
-        to[0][r] = c_0*t2 + c_10*(z13 + 0.15005*z15 + 0.0203*z16) + s_9*(c_4*z12 + s_3*z14 - t2 - 0.15005*z17);
-        to[1][r] = t4 + t3*(s_1 - 1.0) + z17*(0.0203 + 0.4318*c_2);
-        to[2][r] = t4 + 0.0203*z17 - t3;
-        to[3][r] = z13;
-        to[4][r] = z14;
-        to[5][r] = c_6*z13 - s_5*z12;
-    }
-}
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -2802,7 +2409,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
 
 /* joint_from_cartesian6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2858,62 +2465,8 @@ __attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, cons
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = c_8*ti[0][r] - s_7*ti[1][r];
-        const double t1 = c_8*ti[3][r] - s_7*ti[4][r];
-        const double t2 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
-        const double t3 = 0.4318*c_2;
-        const double d_1 = 0.0203*s_1 + t3;
-        const double dp_1 = d_1*t2;
-        const double dp_2 = dp_1*s_5;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*s_5;
-        const double r_1_inv = r_2*t2;
-        const double r_1 = d_1*r_2;
-        const double z18 = c_6*t0 - s_5*ti[2][r];
-        const double z19 = c_6*ti[2][r] + s_5*t0;
-        const double z20_n = c_8*ti[1][r] + s_7*ti[0][r];
-        const double z21 = c_6*t1 - s_5*ti[5][r];
-        const double z22 = c_6*ti[5][r] + s_5*t1;
-        const double z23 = -c_8*ti[4][r] - s_7*ti[3][r];
-        const double z24 = c_4*z18 - s_3*z20_n;
-        const double z25 = c_4*z20_n + s_3*z18;
-        const double z26 = z19;
-        const double t4 = 0.4318*z26;
-        const double z27 = r_1*z25;
-        const double t5 = s_9*z27;
-        const double z30 = 2.3158869847151458*r_1_inv;
-        const double z28 = z30*(t4 + 0.0203*z24 + z27*(0.06479159*s_9 - 0.0030460149999999996*c_10));
-        const double z29 = z30*(0.06479159*c_0*z27 + s_1*t4 - t3*z24);
-        const double z33 = r_2_inv*(c_4*t5 - z21 - s_3*z29);
-        const double z31 = z22 - c_10*z27 - c_6*z33;
-        const double z32 = z23 - c_4*z29 - s_3*t5;
-        to[0][r] = z27;
-        to[1][r] = z28;
-        to[2][r] = z29 - z28;
-        to[3][r] = z31;
-        to[4][r] = z32;
-        to[5][r] = z33;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(t2) - 8.640769135635167e-10;
-        to[7][r] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3089,7 +2642,7 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
 
 /* force_from_torque6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -3141,58 +2694,8 @@ __attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const d
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double c_0 = tv[0][r];
-        const double s_1 = tv[1][r];
-        const double c_2 = tv[2][r];
-        const double s_3 = tv[3][r];
-        const double c_4 = tv[4][r];
-        const double s_5 = tv[5][r];
-        const double c_6 = tv[6][r];
-        const double s_7 = tv[7][r];
-        const double c_8 = tv[8][r];
-        const double s_9 = tv[9][r];
-        const double c_10 = tv[10][r];
-        const double t0 = 0.4318*c_2;
-        const double d_1 = 0.0203*s_1 + t0;
-        const double dp_1 = d_1*s_5;
-        const double t2 = 0.4318*c_0 + 0.0203*c_10 - 0.4318*s_9;
-        const double dp_2 = dp_1*t2;
-        const double r_0 = 1.0/dp_2;
-        const double r_2_inv = dp_1*r_0;
-        const double r_2 = r_0*t2;
-        const double r_1_inv = r_2*s_5;
-        const double r_1 = d_1*r_2;
-        const double z35 = ti[3][r];
-        const double z36 = ti[4][r];
-        const double z34 = r_1*(c_6*z35 - ti[5][r]);
-        const double t1 = ti[2][r] + s_3*z34 - c_4*z36;
-        const double z40 = 2.3158869847151458*r_1_inv;
-        const double z37 = z40*(0.0203*ti[1][r] - 0.0203*ti[2][r] - t0*t1);
-        const double z39 = 0.4318*z40*(ti[1][r] + s_1*t1 - ti[2][r]);
-        const double z38 = r_2_inv*(ti[0][r] + s_9*(0.15005*z39 - c_4*z34 - s_3*z36) - c_10*(z35 + 0.15005*z37));
-        const double z41 = c_4*z37 + s_3*z38;
-        const double z42 = z39;
-        const double t3 = c_6*z41 + s_5*z42;
-        const double z43_n = c_4*z38 - s_3*z37;
-        const double z44 = z34;
-        const double z45 = z35;
-        const double t4 = c_6*z44 + s_5*z45;
-        const double z46 = z36;
-        to[0][r] = c_8*t3 + s_7*z43_n;
-        to[1][r] = c_8*z43_n - s_7*t3;
-        to[2][r] = c_6*z42 - s_5*z41;
-        to[3][r] = c_8*t4 - s_7*z46;
-        to[4][r] = -c_8*z46 - s_7*t4;
-        to[5][r] = c_6*z45 - s_5*z44;
-        /* guards: >= 0 where the outputs are valid */
-        to[6][r] = fabs(t2) - 8.640769135635167e-10;
-        to[7][r] = 2.6787076895038266*fabs(0.37290248000000004*c_2 + 0.01753108*s_1) - 1e-09;
-        to[8][r] = fabs(s_5) - 1e-09;
-    }
-}
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3324,7 +2827,7 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
 
 /* gravity's rows side by side in vector lanes: the block's 10 sines/cosines in tv, its
  * 10 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -3354,36 +2857,8 @@ __attribute__((target("avx2"))) static void kl_gravity(int m, const double (*res
         to[5][r] = s_8*(s_2*t1_n - c_3*c_5*t3) - c_9*s_4*t3;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double t0 = c_5*ti[7][r];
-        const double t1_n = s_6*ti[9][r] - c_7*ti[8][r];
-        const double t2 = ti[6][r] - t1_n;
-        const double t3 = c_7*ti[9][r] + s_6*ti[8][r];
-        const double t4_n = ti[5][r] - t3;
-        const double t5 = s_4*ti[7][r];
-        const double t6 = c_5*t2 - t5;
-        const double t7 = c_9*(ti[2][r] + c_3*(ti[4][r] + t6) + s_2*t4_n) - s_8*(ti[3][r] + t0 + s_4*t2);
-        const double t8_n = t2;
-        to[0][r] = 0.0;
-        to[1][r] = t7 + c_1*ti[0][r] - s_0*ti[1][r];
-        to[2][r] = t7;
-        to[3][r] = s_8*(c_3*t4_n + s_2*(t5 - ti[4][r] - c_5*t8_n));
-        to[4][r] = c_9*t6 - c_3*s_8*(t0 + s_4*t8_n);
-        to[5][r] = s_8*(s_2*t1_n - c_3*c_5*t3) - c_9*s_4*t3;
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3630,7 +3105,7 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
 
 /* gravity_regressor's rows side by side in vector lanes: the block's 10 sines/cosines in tv, its
  * 0 input elements in ti, its 60 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -3718,94 +3193,8 @@ __attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const do
         to[59][r] = c_7*t12_n + s_2*s_6*s_8;
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double t0 = -s_8;
-        const double t1 = c_3*c_9;
-        const double t2 = c_9*s_2;
-        const double t3 = s_4*s_8;
-        const double t4 = c_5*t1 - t3;
-        const double t5_n = -c_5*s_8;
-        const double t6 = t5_n - s_4*t1;
-        const double t7 = c_7*t4 - s_6*t2;
-        const double t8 = -c_7*t2 - s_6*t4;
-        const double t9_n = -s_2*s_8;
-        const double t10 = c_5*s_2;
-        const double t11_n = c_5*c_9 - c_3*t3;
-        const double t12_n = c_3*t5_n - c_9*s_4;
-        to[0][r] = 0.0;
-        to[1][r] = 0.0;
-        to[2][r] = 0.0;
-        to[3][r] = 0.0;
-        to[4][r] = 0.0;
-        to[5][r] = 0.0;
-        to[6][r] = 0.0;
-        to[7][r] = 0.0;
-        to[8][r] = 0.0;
-        to[9][r] = 0.0;
-        to[10][r] = c_1;
-        to[11][r] = -s_0;
-        to[12][r] = c_9;
-        to[13][r] = t0;
-        to[14][r] = t1;
-        to[15][r] = t2;
-        to[16][r] = t4;
-        to[17][r] = t6;
-        to[18][r] = t7;
-        to[19][r] = t8;
-        to[20][r] = 0.0;
-        to[21][r] = 0.0;
-        to[22][r] = c_9;
-        to[23][r] = t0;
-        to[24][r] = t1;
-        to[25][r] = t2;
-        to[26][r] = t4;
-        to[27][r] = t6;
-        to[28][r] = t7;
-        to[29][r] = t8;
-        to[30][r] = 0.0;
-        to[31][r] = 0.0;
-        to[32][r] = 0.0;
-        to[33][r] = 0.0;
-        to[34][r] = t9_n;
-        to[35][r] = c_3*s_8;
-        to[36][r] = s_2*t5_n;
-        to[37][r] = s_2*t3;
-        to[38][r] = -s_8*(c_3*s_6 + c_7*t10);
-        to[39][r] = s_8*(s_6*t10 - c_3*c_7);
-        to[40][r] = 0.0;
-        to[41][r] = 0.0;
-        to[42][r] = 0.0;
-        to[43][r] = 0.0;
-        to[44][r] = 0.0;
-        to[45][r] = 0.0;
-        to[46][r] = t11_n;
-        to[47][r] = t12_n;
-        to[48][r] = c_7*t11_n;
-        to[49][r] = -s_6*t11_n;
-        to[50][r] = 0.0;
-        to[51][r] = 0.0;
-        to[52][r] = 0.0;
-        to[53][r] = 0.0;
-        to[54][r] = 0.0;
-        to[55][r] = 0.0;
-        to[56][r] = 0.0;
-        to[57][r] = 0.0;
-        to[58][r] = c_7*t9_n + s_6*t12_n;
-        to[59][r] = c_7*t12_n + s_2*s_6*s_8;
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
@@ -3946,7 +3335,7 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
 
 /* gravity_links's rows side by side in vector lanes: the block's 10 sines/cosines in tv, its
  * 18 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -3981,41 +3370,8 @@ __attribute__((target("avx2"))) static void kl_gravity_links(int m, const double
         to[5][r] = 9.81*ti[4][r]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
     }
 }
-__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
-{
-    for (int r = 0; r < m; ++r) {
-        const double s_0 = tv[0][r];
-        const double c_1 = tv[1][r];
-        const double s_2 = tv[2][r];
-        const double c_3 = tv[3][r];
-        const double s_4 = tv[4][r];
-        const double c_5 = tv[5][r];
-        const double s_6 = tv[6][r];
-        const double c_7 = tv[7][r];
-        const double s_8 = tv[8][r];
-        const double c_9 = tv[9][r];
-        const double t0 = 4.235958*ti[3][r] + 4.235958*ti[4][r];
-        const double t1 = ti[14][r]*ti[3][r] + ti[17][r]*ti[4][r];
-        const double t2 = c_5*t1;
-        const double t3 = 9.81*s_8;
-        const double t4 = ti[12][r]*ti[3][r];
-        const double t5_n = s_6*ti[16][r] - c_7*ti[15][r];
-        const double t6 = t4 - t5_n*ti[4][r];
-        const double t7 = c_7*ti[16][r] + s_6*ti[15][r];
-        const double t8_n = ti[11][r]*ti[2][r] - ti[13][r]*ti[3][r] - t7*ti[4][r];
-        const double t9 = s_4*t1;
-        const double t10 = ti[9][r]*ti[2][r] - t9;
-        const double t11_n = c_9*(0.199143*ti[2][r] + 0.199143*ti[3][r] + 0.199143*ti[4][r] + ti[1][r]*(0.199143 + 9.81*ti[7][r])) + 9.81*c_3*c_9*(t10 + c_5*t6) + 9.81*c_9*s_2*t8_n - s_8*(t0 + 9.81*ti[8][r]*ti[1][r] + ti[2][r]*(4.235958 + 9.81*ti[10][r])) - t2*t3 - s_4*t3*t6;
-        const double t12 = t4 - t5_n*ti[4][r];
-        const double t13 = c_3*s_8;
-        to[0][r] = 0.0;
-        to[1][r] = t11_n + c_1*(4.235958*ti[1][r] + 4.235958*ti[2][r] + t0 + ti[0][r]*(4.235958 + 9.81*ti[5][r])) - 9.81*s_0*ti[6][r]*ti[0][r];
-        to[2][r] = t11_n;
-        to[3][r] = t3*(c_3*t8_n - s_2*(t10 + c_5*t12));
-        to[4][r] = 9.81*c_5*c_9*t6 - 9.81*c_9*t9 - 9.81*t13*(t2 + s_4*t12);
-        to[5][r] = 9.81*ti[4][r]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
-    }
-}
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
 
 /* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
