@@ -78,6 +78,36 @@ class WristConfig:
 
 
 @dataclass(frozen=True)
+class BoomConfig:
+    """Stanford-class configuration: arm +1 right / -1 left (the shoulder offset d2 on the
+    right / left of the wrist centre's reach, as the PUMA's arm), boom +1 out (the boom
+    extended through the wrist centre, q3 + d4 > 0) / -1 reversed (through the shoulder,
+    q3 + d4 < 0: a solution only where joint 3's range allows it), wrist +1 noflip
+    (sin theta5 >= 0) / -1 flip."""
+
+    arm: int = 1
+    boom: int = 1
+    wrist: int = 1
+
+    def __post_init__(self) -> None:
+        for name in ("arm", "boom", "wrist"):
+            if getattr(self, name) not in (1, -1):
+                raise exceptions.InvalidInput(f"BoomConfig.{name} must be +1 or -1, got {getattr(self, name)!r}")
+
+    @property
+    def signs(self) -> tuple[int, ...]:
+        return (self.arm, self.boom, self.wrist)
+
+    @classmethod
+    def all(cls) -> tuple["BoomConfig", ...]:
+        return tuple(cls(a, b, w) for a, b, w in itertools.product((1, -1), repeat=3))
+
+    def __str__(self) -> str:
+        return "/".join((("right", "left")[self.arm < 0], ("out", "reversed")[self.boom < 0],
+                         ("noflip", "flip")[self.wrist < 0]))
+
+
+@dataclass(frozen=True)
 class GuardInfo:
     name: str
     error: str

@@ -1,0 +1,189 @@
+"""The Stanford arm: the spherical (Stanford) class of the closed-form inverse kinematics
+(derive.inverse.spherical_ik), derived from a DH table built here (no model file: a fourth
+shipped arm would cost every `make derive` and suite run). FK is cross-checked against a
+Pinocchio model built from the same table, IK by fk(ik(T)) = T in every configuration.
+
+The table is the Stanford (Scheinman) arm's of Paul 1972, Stanford AI Memo AIM-177,
+Figure 2.3, as transcribed in P. Corke's Robotics Toolbox for MATLAB (mdl_stanford.m; not
+checked against the memo itself): d1 = 0.412 m, d2 = 0.154 m (shoulder offset), joint 3
+prismatic with theta3 = -90 deg, alpha = -90, 90, 0, -90, 90, 0 deg. The toolbox's tool
+length d6 = 0.263 m is left out (frame 6 at the wrist centre, as for the PUMA tables) and
+joint 3's range is the toolbox's 12-50 in (0.3048-1.27 m).
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import sympy as sp
+
+from derive.dh import DHLink, DHRobot, Q
+from derive.forward import t6
+from derive.inverse import POSE, OutsideClass, class_reasons, solve_ik
+from derive.robots import CONFIG_FIELDS
+
+d1, d2 = sp.symbols("d1 d2", positive=True)  # named and signed as dh_from_model names them
+NUMBERS = {d1: 0.412, d2: 0.154}
+DEG = sp.pi / 180
+STANFORD = DHRobot("stanford", (
+    DHLink(d1, Q[0], -90 * DEG, 0),
+    DHLink(d2, Q[1], 90 * DEG, 0),
+    DHLink(Q[2], -90 * DEG, 0, 0, prismatic=True),
+    DHLink(0, Q[3], -90 * DEG, 0),
+    DHLink(0, Q[4], 90 * DEG, 0),
+    DHLink(0, Q[5], 0, 0)), (d1, d2))
+LOWER = np.array([-np.pi, -np.pi, 0.3048, -np.pi, -np.pi / 2, -np.pi])
+UPPER = np.array([np.pi, np.pi, 1.27, np.pi, np.pi / 2, np.pi])
+CONFIGS = list(itertools.product((1, -1), repeat=3))  # (arm, boom, wrist)
+REVOLUTE = [0, 1, 3, 4, 5]
+
+
+def _wrap(x):
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+@pytest.fixture(scope="module")
+def solved():
+    """The symbolic inverse and forward kinematics, lambdified with the table's numbers."""
+    ik = solve_ik(STANFORD)
+    pose, par = list(POSE[:3, :]), list(NUMBERS)
+    joints = sp.lambdify([pose, ik.config, par], list(ik.joints), "math", cse=True)
+    guards = sp.lambdify([pose, ik.config, par], [g[1] for g in ik.guards], "math", cse=True)
+    ind = sp.lambdify([Q, par], list(ik.indicators), "math", cse=True)
+    fk = sp.lambdify([Q, par], t6(STANFORD), "numpy", cse=True)
+    vals = list(NUMBERS.values())
+
+    def run(f):
+        return lambda *args: np.array(f(*args, vals), dtype=float)
+
+    return ik, run(joints), run(guards), run(ind), run(fk)
+
+
+def _random_q(rng, n):
+    """Joint vectors in range, away from the singularities (sin theta2, sin theta5 = 0)."""
+    out = []
+    while len(out) < n:
+        q = rng.uniform(LOWER, UPPER)
+        if abs(np.sin(q[1])) > 0.05 and abs(np.sin(q[4])) > 0.05:
+            out.append(q)
+    return out
+
+
+def test_the_stanford_arm_is_in_the_spherical_class(solved):
+    ik = solved[0]
+    reasons = class_reasons(STANFORD)
+    assert reasons["spherical (Stanford class)"] == []
+    assert reasons["articulated (PUMA class)"] and reasons["cylindrical (Microbo class)"]
+    assert ik.kind == "spherical"
+    assert tuple(map(str, ik.config)) == CONFIG_FIELDS["spherical (Stanford class)"] == ("arm", "boom", "wrist")
+    assert [g[0] for g in ik.guards] == ["guard_arm_reach", "guard_boom", "guard_wrist"]
+
+
+def test_every_configuration_round_trips_and_q_is_among_them(solved):
+    _, joints, guards, ind, fk = solved
+    worst = 0.0
+    for q in _random_q(np.random.default_rng(7), 40):
+        t = fk(q)
+        flat = list(t[:3, :].ravel())
+        own = tuple(int(s) for s in np.sign(ind(q)))
+        in_range = 0
+        for cfg in CONFIGS:
+            assert (guards(flat, cfg) >= 0).all(), cfg
+            qs = joints(flat, cfg)
+            worst = max(worst, np.abs(fk(qs) - t).max())
+            # each solution is in the configuration it is named by
+            assert tuple(int(s) for s in np.sign(ind(qs))) == cfg
+            # boom = -1 is the boom reversed through the shoulder: negative extension
+            assert (qs[2] > 0) == (cfg[1] == 1)
+            in_range += bool(LOWER[2] <= qs[2] <= UPPER[2])
+            if cfg == own:
+                d = qs - q
+                d[REVOLUTE] = _wrap(d[REVOLUTE])
+                assert np.abs(d).max() < 1e-9, (q, qs)
+        assert in_range == 4  # arm right/left x wrist noflip/flip with the boom out
+    assert worst < 1e-12
+
+
+def test_arm_sign_means_what_it_means_on_the_puma(solved):
+    """arm = +1 (right): seen from above, the shoulder offset d2 lies to the right of the
+    wrist centre's horizontal reach, as the PUMA's right arm has its offset d3."""
+    _, joints, _, _, fk = solved
+    for q in _random_q(np.random.default_rng(3), 10):
+        t = fk(q)
+        for cfg in CONFIGS:
+            qs = joints(list(t[:3, :].ravel()), cfg)
+            offset = NUMBERS[d2] * np.array([-np.sin(qs[0]), np.cos(qs[0])])  # d2 along z1
+            reach = t[:2, 3] - offset
+            assert np.sign(reach[0] * offset[1] - reach[1] * offset[0]) == -cfg[0]
+
+
+def _pinocchio_model() -> tuple[pin.Model, int]:
+    """Pinocchio model of the table: joint i (RZ or PZ) about / along z_{i-1}, then the
+    fixed rest of A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha) as the next joint's placement."""
+    model = pin.Model()
+    parent, placement = 0, pin.SE3.Identity()
+    for i, link in enumerate(STANFORD.links):
+        joint = pin.JointModelPZ() if link.prismatic else pin.JointModelRZ()
+        parent = model.addJoint(parent, joint, placement, f"j{i + 1}")
+        theta = 0.0 if not link.prismatic else float(link.theta)
+        d = 0.0 if link.prismatic else float(sp.sympify(link.d).subs(NUMBERS))
+        placement = (pin.SE3(pin.utils.rotate("z", theta), np.array([0.0, 0.0, d]))
+                     * pin.SE3(pin.utils.rotate("x", float(link.alpha)), np.array([float(link.a), 0.0, 0.0])))
+    frame = model.addFrame(pin.Frame("link6", parent, 0, placement, pin.FrameType.OP_FRAME))
+    return model, frame
+
+
+def test_fk_matches_pinocchio(solved):
+    fk = solved[4]
+    model, frame = _pinocchio_model()
+    data = model.createData()
+    worst = 0.0
+    for q in np.random.default_rng(11).uniform(LOWER, UPPER, (100, 6)):
+        pin.framesForwardKinematics(model, data, q)
+        worst = max(worst, np.abs(fk(q) - data.oMf[frame].homogeneous).max())
+    assert worst < 1e-12
+
+
+def _failing(solved, q) -> list[tuple[str, str, str]]:
+    """(name, error, message) of the guards that reject pose fk(q) (or q itself when a pose)
+    in the configuration of q (+1 where its indicator is 0)."""
+    ik, _, guards, ind, fk = solved
+    t = q if np.shape(q) == (4, 4) else fk(q)
+    cfg = (1, 1, 1) if np.shape(q) == (4, 4) else tuple(np.where(ind(q) >= 0, 1, -1))
+    values = guards(list(np.asarray(t)[:3, :].ravel()), cfg)
+    return [(g[0], g[2], g[3]) for g, v in zip(ik.guards, values) if v < 0]
+
+
+def test_guards_name_the_problem(solved):
+    fk = solved[4]
+    q = np.array([0.4, 0.9, 0.7, 0.3, 0.8, -0.2])
+    assert _failing(solved, q) == []
+    # the wrist centre on the joint-1 axis: inside the d2 = 0.154 m cylinder, unreachable
+    on_axis = fk(q)
+    on_axis[:3, 3] = [0.0, 0.0, 1.0]
+    [(name, error, message)] = _failing(solved, on_axis)
+    assert (name, error) == ("guard_arm_reach", "Unreachable") and "cylinder of radius d2" in message
+    # no extension: the wrist centre at the shoulder, theta2 undetermined
+    folded = q.copy()
+    folded[2] = 0.0
+    failing = _failing(solved, folded)
+    assert [(n, e) for n, e, _ in failing] == [("guard_boom", "Singular")], failing
+    # sin(theta5) = 0: only theta4 + theta6 determined
+    flat = q.copy()
+    flat[4] = 0.0
+    failing = _failing(solved, flat)
+    assert [(n, e) for n, e, _ in failing] == [("guard_wrist", "Singular")]
+    assert "sin(theta5) = 0" in failing[0][2]
+
+
+def test_outside_the_class_is_refused_naming_why():
+    # the Stanford arm with an offset a3 on the boom: its wrist leaves the boom's axis
+    a3 = sp.Symbol("a3", positive=True)
+    links = list(STANFORD.links)
+    links[2] = DHLink(Q[2], -90 * DEG, 0, a3, prismatic=True)
+    r = DHRobot("offset_boom", tuple(links), (d1, d2, a3))
+    assert class_reasons(r)["spherical (Stanford class)"] == ["a3 = 0 and alpha3 = 0 (joint 4 on the boom's axis)"]
+    with pytest.raises(OutsideClass, match="not spherical .Stanford class.: needs a3 = 0 and alpha3 = 0"):
+        solve_ik(r)
