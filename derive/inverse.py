@@ -4,7 +4,10 @@ Premultiply T6 = A1..A6 by A1^-1, A2^-1 A1^-1, ... (3.19), read off the matrix e
 that contain a single new unknown, and solve them with the atan2 forms (3.20, 3.21).
 The result is one closed-form expression per joint variable in terms of the entries of
 T6 (n, o, a, p) and the configuration signs, plus guards that say when no (or no unique)
-solution exists.
+solution exists. Three classes of arm with a spherical wrist (Pieper's) are solved:
+articulated (PUMA, thesis 3.22-3.41), cylindrical (Microbo, 3.42-3.53) and spherical
+(Stanford: revolute, revolute, prismatic, as Paul 1981 solves the Stanford arm);
+``class_reasons`` says which conditions of each a table fails.
 """
 from __future__ import annotations
 

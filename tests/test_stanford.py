@@ -187,3 +187,60 @@ def test_outside_the_class_is_refused_naming_why():
     assert class_reasons(r)["spherical (Stanford class)"] == ["a3 = 0 and alpha3 = 0 (joint 4 on the boom's axis)"]
     with pytest.raises(OutsideClass, match="not spherical .Stanford class.: needs a3 = 0 and alpha3 = 0"):
         solve_ik(r)
+
+
+@pytest.mark.slow  # derives the whole arm (Jacobians, gravity, kernels: ~25 s)
+def test_kernel_pipeline_emits_a_working_module(tmp_path, solved):
+    """build_kernels and the Python back end on the Stanford arm: the emitted module's ik,
+    ik_all and config_of agree with the symbolic inverse; the runtime's range check is what
+    leaves the reversed boom out."""
+    import importlib.util
+    import warnings
+
+    from derive import emit_python
+    from derive.derivation import parallel_23
+    from derive.gravity import g0, gravity_model
+    from derive.jacobian import differential
+    from derive.kernels import Derivation, build_kernels
+    from derive.robots import RobotSpec
+    from rccl.kinematics import exceptions as errors
+    from rccl.kinematics import runtime
+
+    _, joints, _, _, fk = solved
+    spec = RobotSpec(name="stanford", dh=STANFORD, params={g0: 9.81, **NUMBERS},
+                     kinds=("revolute", "revolute", "prismatic", "revolute", "revolute", "revolute"),
+                     lower=tuple(map(float, LOWER)), upper=tuple(map(float, UPPER)),
+                     config_fields=("arm", "boom", "wrist"),
+                     gravity_coeffs=(), model_path="models/stanford.toml")
+    d = Derivation(spec, t6(STANFORD), solve_ik(STANFORD),
+                   differential(STANFORD, reduce_23=parallel_23(STANFORD)), gravity_model(spec))
+    path = tmp_path / "stanford.py"
+    path.write_text(emit_python.module_source(build_kernels(d), spec))
+    module_spec = importlib.util.spec_from_file_location("stanford_emitted", path)
+    mod = importlib.util.module_from_spec(module_spec)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # no compiled kernels: the Python code
+        module_spec.loader.exec_module(mod)
+    assert mod.Config is runtime.BoomConfig and len(mod.CONFIGS) == 8
+    for q in _random_q(np.random.default_rng(5), 20):
+        t = mod.fk(q)
+        assert np.abs(t - fk(q)).max() < 1e-13
+        sols = mod.ik_all(t)
+        assert len(sols) == 4 and all(c.boom == 1 for c, _ in sols)
+        for cfg, qs in sols:
+            assert np.abs(qs - joints(list(t[:3, :].ravel()), cfg.signs)).max() < 1e-12
+            assert mod.config_of(qs) == cfg
+            assert np.abs(mod.fk(qs) - t).max() < 1e-13
+        with pytest.raises(errors.Unreachable, match="prismatic joint 3 would need"):
+            mod.ik(t, runtime.BoomConfig(1, -1, 1))
+    # a boom that may run back through the shoulder: the reversed solutions count too
+    lower = LOWER.copy()
+    lower[2] = -UPPER[2]
+    robot = runtime.Robot("stanford", mod._KERNELS, mod.JOINT_KINDS, lower, mod.UPPER, mod.Config,
+                          mod.GRAVITY_COEFFS)
+    q = np.array([0.4, 0.9, 0.7, 0.3, 0.8, -0.2])
+    assert len(robot.ik_all(mod.fk(q))) == 8
+    with pytest.raises(errors.Singular, match="sin.theta5. = 0"):
+        mod.ik(mod.fk(np.array([0.4, 0.9, 0.7, 0.3, 0.0, -0.2])), mod.Config(-1, 1, 1))
+    with pytest.raises(errors.Singular, match="sin.theta2. = 0"):
+        mod.joint_from_cartesian(np.array([0.4, 0.0, 0.7, 0.3, 0.8, -0.2]), np.ones(6))
