@@ -119,10 +119,12 @@ def test_arm_sign_means_what_it_means_on_the_puma(solved):
             assert np.sign(reach[0] * offset[1] - reach[1] * offset[0]) == -cfg[0]
 
 
-def _pinocchio_model() -> tuple[pin.Model, int]:
+def _pinocchio_model(masses=None, coms=None) -> tuple[pin.Model, int]:
     """Pinocchio model of the table: joint i (RZ or PZ) about / along z_{i-1}, then the
-    fixed rest of A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha) as the next joint's placement."""
+    fixed rest of A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha) as the next joint's placement; link
+    i (frame i) sits at that placement, with mass masses[i] at coms[i] (frame i) if given."""
     model = pin.Model()
+    model.gravity.linear = np.array([0.0, 0.0, -9.81])
     parent, placement = 0, pin.SE3.Identity()
     for i, link in enumerate(STANFORD.links):
         joint = pin.JointModelPZ() if link.prismatic else pin.JointModelRZ()
@@ -131,6 +133,9 @@ def _pinocchio_model() -> tuple[pin.Model, int]:
         d = 0.0 if link.prismatic else float(sp.sympify(link.d).subs(NUMBERS))
         placement = (pin.SE3(pin.utils.rotate("z", theta), np.array([0.0, 0.0, d]))
                      * pin.SE3(pin.utils.rotate("x", float(link.alpha)), np.array([float(link.a), 0.0, 0.0])))
+        if masses is not None:
+            inertia = pin.Inertia(masses[i], coms[i], 0.01 * np.eye(3))
+            model.appendBodyToJoint(parent, inertia, placement)
     frame = model.addFrame(pin.Frame("link6", parent, 0, placement, pin.FrameType.OP_FRAME))
     return model, frame
 
@@ -244,3 +249,47 @@ def test_kernel_pipeline_emits_a_working_module(tmp_path, solved):
         mod.ik(mod.fk(np.array([0.4, 0.9, 0.7, 0.3, 0.0, -0.2])), mod.Config(-1, 1, 1))
     with pytest.raises(errors.Singular, match="sin.theta2. = 0"):
         mod.joint_from_cartesian(np.array([0.4, 0.0, 0.7, 0.3, 0.8, -0.2]), np.ones(6))
+    # gravity with a prismatic joint (the minimal identifiable set, 4.20) against Pinocchio;
+    # masses and centres of mass illustrative
+    rng = np.random.default_rng(9)
+    masses, coms = rng.uniform(0.5, 9.0, 6), rng.uniform(-0.2, 0.2, (6, 3))
+    model, _ = _pinocchio_model(masses, coms)
+    data = model.createData()
+    coeffs = mod.coefficients_from_links(masses, coms)
+    assert mod.GRAVITY_COEFFS == ("cx2", "cz2", "cx4", "cz4", "cx5", "cz5", "cx6", "cy6", "cm3")
+    for q in rng.uniform(LOWER, UPPER, (20, 6)):
+        g = pin.computeGeneralizedGravity(model, data, q)
+        assert np.abs(mod.gravity_links(q, masses, coms) - g).max() < 1e-12
+        assert np.abs(mod.gravity(q, coeffs) - g).max() < 1e-12
+        assert np.abs(mod.jacobian6(q) - _pinocchio_jacobian6(q)).max() < 1e-12
+
+
+def _pinocchio_jacobian6(q) -> np.ndarray:
+    """6J: link 6's motion observed in frame 6 (Pinocchio's LOCAL frame Jacobian)."""
+    model, frame = _pinocchio_model()
+    data = model.createData()
+    return pin.computeFrameJacobian(model, data, q, frame, pin.ReferenceFrame.LOCAL)
+
+
+@pytest.mark.slow  # a second derivation of the class (~6 s)
+def test_without_shoulder_offset_the_joint1_axis_is_singular():
+    """d2 = 0: every wrist centre off the joint-1 axis is reachable and the axis itself is a
+    singularity (theta1 undetermined), not a cylinder the arm cannot enter."""
+    links = list(STANFORD.links)
+    links[1] = DHLink(0, Q[1], 90 * DEG, 0)
+    r = DHRobot("stanford_no_offset", tuple(links), (d1,))
+    ik = solve_ik(r)
+    assert [(g[0], g[2]) for g in ik.guards] == [("guard_axis", "Singular"), ("guard_boom", "Singular"),
+                                                  ("guard_wrist", "Singular")]
+    pose, par = list(POSE[:3, :]), [d1]
+    joints = sp.lambdify([pose, ik.config, par], list(ik.joints), "math", cse=True)
+    guards = sp.lambdify([pose, ik.config, par], [g[1] for g in ik.guards], "math", cse=True)
+    fk = sp.lambdify([Q, par], t6(r), "numpy", cse=True)
+    for q in _random_q(np.random.default_rng(2), 10):
+        t = np.array(fk(q, [0.412]))
+        for cfg in CONFIGS:
+            qs = np.array(joints(list(t[:3, :].ravel()), cfg, [0.412]))
+            assert np.abs(np.array(fk(qs, [0.412])) - t).max() < 1e-12
+    t[:3, 3] = [0.0, 0.0, 1.0]  # above the shoulder, on the joint-1 axis
+    values = guards(list(t[:3, :].ravel()), (1, 1, 1), [0.412])
+    assert values[0] < 0 and min(values[1:]) >= 0
