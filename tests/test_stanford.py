@@ -272,24 +272,49 @@ def _pinocchio_jacobian6(q) -> np.ndarray:
 
 
 @pytest.mark.slow  # a second derivation of the class (~6 s)
-def test_without_shoulder_offset_the_joint1_axis_is_singular():
+def test_variant_without_shoulder_offset_and_with_d4():
     """d2 = 0: every wrist centre off the joint-1 axis is reachable and the axis itself is a
-    singularity (theta1 undetermined), not a cylinder the arm cannot enter."""
+    singularity (theta1 undetermined), not a cylinder the arm cannot enter; d4 = 0.1 m: the
+    wrist centre 0.1 m beyond the boom's zero, the boom's length q3 + d4."""
+    d4 = sp.Symbol("d4", positive=True)
     links = list(STANFORD.links)
     links[1] = DHLink(0, Q[1], 90 * DEG, 0)
-    r = DHRobot("stanford_no_offset", tuple(links), (d1,))
+    links[3] = DHLink(d4, Q[3], -90 * DEG, 0)
+    r = DHRobot("stanford_variant", tuple(links), (d1, d4))
     ik = solve_ik(r)
     assert [(g[0], g[2]) for g in ik.guards] == [("guard_axis", "Singular"), ("guard_boom", "Singular"),
                                                   ("guard_wrist", "Singular")]
-    pose, par = list(POSE[:3, :]), [d1]
+    pose, par, vals = list(POSE[:3, :]), [d1, d4], [0.412, 0.1]
     joints = sp.lambdify([pose, ik.config, par], list(ik.joints), "math", cse=True)
-    guards = sp.lambdify([pose, ik.config, par], [g[1] for g in ik.guards], "math", cse=True)
+    guards = sp.lambdify([pose, ik.config, par], [g[1] for g in ik.guards], "numpy", cse=True)
+    ind = sp.lambdify([Q, par], list(ik.indicators), "math", cse=True)
     fk = sp.lambdify([Q, par], t6(r), "numpy", cse=True)
     for q in _random_q(np.random.default_rng(2), 10):
-        t = np.array(fk(q, [0.412]))
+        t = np.array(fk(q, vals))
+        own = tuple(int(s) for s in np.sign(ind(q, vals)))
+        assert own[1] == 1  # q3 + d4 > 0
         for cfg in CONFIGS:
-            qs = np.array(joints(list(t[:3, :].ravel()), cfg, [0.412]))
-            assert np.abs(np.array(fk(qs, [0.412])) - t).max() < 1e-12
+            qs = np.array(joints(list(t[:3, :].ravel()), cfg, vals))
+            assert np.abs(np.array(fk(qs, vals)) - t).max() < 1e-12
+            assert tuple(int(s) for s in np.sign(ind(qs, vals))) == cfg
+            if cfg == own:
+                d = qs - q
+                d[REVOLUTE] = _wrap(d[REVOLUTE])
+                assert np.abs(d).max() < 1e-9
+    # the first guard that fails names the problem (the later ones may be NaN there)
     t[:3, 3] = [0.0, 0.0, 1.0]  # above the shoulder, on the joint-1 axis
-    values = guards(list(t[:3, :].ravel()), (1, 1, 1), [0.412])
-    assert values[0] < 0 and min(values[1:]) >= 0
+    with np.errstate(all="ignore"):
+        values = guards(list(t[:3, :].ravel()), (1, 1, 1), vals)
+    assert values[0] < 0
+    # q3 = -d4: the wrist centre at the shoulder, 0.412 m above the base on the joint-1 axis;
+    # off the axis by 1 mm the boom's length is 1 mm
+    t[:3, 3] = [0.0, 0.0, 0.412]
+    with np.errstate(all="ignore"):
+        values = guards(list(t[:3, :].ravel()), (1, 1, 1), vals)
+    assert values[0] < 0
+    t[:3, 3] = [1e-3, 0.0, 0.412]
+    with np.errstate(all="ignore"):
+        values = guards(list(t[:3, :].ravel()), (1, 1, 1), vals)
+    assert values[0] >= 0 and values[1] >= 0
+    q = np.array([0.4, 0.9, -0.1, 0.3, 0.8, -0.2])
+    assert np.abs(np.array(fk(q, vals))[:3, 3] - [0.0, 0.0, 0.412]).max() < 1e-15
