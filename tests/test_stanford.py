@@ -249,6 +249,10 @@ def test_kernel_pipeline_emits_a_working_module(tmp_path, solved):
         mod.ik(mod.fk(np.array([0.4, 0.9, 0.7, 0.3, 0.0, -0.2])), mod.Config(-1, 1, 1))
     with pytest.raises(errors.Singular, match="sin.theta2. = 0"):
         mod.joint_from_cartesian(np.array([0.4, 0.0, 0.7, 0.3, 0.8, -0.2]), np.ones(6))
+    from derive.crosscheck import conditioning  # the sweep's distance from the singularities
+
+    assert conditioning(mod, np.array([0.4, 0.0, 0.7, 0.3, 0.8, -0.2]))[0] == 0.0
+    assert conditioning(mod, np.array([0.4, 0.9, 0.7, 0.3, 0.8, -0.2]))[0] == pytest.approx(0.7)
     # gravity with a prismatic joint (the minimal identifiable set, 4.20) against Pinocchio;
     # masses and centres of mass illustrative
     rng = np.random.default_rng(9)
