@@ -9,6 +9,7 @@ hand).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import sys
 import time
@@ -136,10 +137,14 @@ def samples(mod: ModuleType, n: int, seed: int = 0) -> np.ndarray:
 def conditioning(mod: ModuleType, q: np.ndarray) -> float:
     """Smallest of the normalised singularity distances at q: |S5| and, for the PUMA class,
     |cos(theta3 - phi)| (elbow) and |h|/(a2 + L) (shoulder), with L = sqrt(a3^2 + d4^2) the
-    forearm and phi = atan2(a3, d4); for the Microbo class the radial extension d3."""
+    forearm and phi = atan2(a3, d4); for the Stanford class |S2| (the boom along the joint-1
+    axis) and the boom's length q3 + d4; for the Microbo class the radial extension d3."""
     q = np.atleast_2d(q)
     vals = [np.abs(np.sin(q[:, 4]))]
-    if len(mod.Config.all()) == 8:  # arm, elbow, wrist: the PUMA class
+    signs = tuple(f.name for f in dataclasses.fields(mod.Config))
+    if signs == ("arm", "boom", "wrist"):  # the Stanford class
+        vals += [np.abs(np.sin(q[:, 1])), np.abs(q[:, 2] + getattr(mod, "D4", 0.0))]
+    elif len(mod.Config.all()) == 8:  # arm, elbow, wrist: the PUMA class
         a2, a3, d4 = mod.A2, getattr(mod, "A3", 0.0), mod.D4
         forearm = np.hypot(a3, d4)
         h = a2 * np.cos(q[:, 1]) + a3 * np.cos(q[:, 1] + q[:, 2]) - d4 * np.sin(q[:, 1] + q[:, 2])

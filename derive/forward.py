@@ -32,6 +32,8 @@ def link_to_link(robot: DHRobot, i: int, k: int) -> sp.Matrix:
         return sp.eye(4)
     if i > k:
         return tidy_matrix(inverse_transform(link_to_link(robot, k, i)))
+    if i == 0:
+        return base_to_link(robot, k)  # the same products, computed once
     a = a_matrices(robot)
     out = sp.eye(4)
     for j in range(i, k):

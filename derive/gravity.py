@@ -150,7 +150,9 @@ def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityMo
     phi = moments + list(MASSES)
     com = [tuple(moments[3 * k + j] / MASSES[k] for j in range(3)) for k in range(6)]
     tau = sp.Matrix([sp.expand(e) for e in gravity_general(robot, com)])
-    gens = [f(q) for q in Q for f in (sp.sin, sp.cos)]
+    # sines and cosines of the revolute joints' angles, a prismatic joint's extension itself
+    gens = [g for q, link in zip(Q, robot.links)
+            for g in ((q,) if link.prismatic else (sp.sin(q), sp.cos(q)))]
 
     def coefficients(expr: sp.Expr) -> dict:
         poly = sp.Poly(sp.expand(sp.expand_trig(expr)), *gens)

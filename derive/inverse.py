@@ -4,7 +4,10 @@ Premultiply T6 = A1..A6 by A1^-1, A2^-1 A1^-1, ... (3.19), read off the matrix e
 that contain a single new unknown, and solve them with the atan2 forms (3.20, 3.21).
 The result is one closed-form expression per joint variable in terms of the entries of
 T6 (n, o, a, p) and the configuration signs, plus guards that say when no (or no unique)
-solution exists.
+solution exists. Three classes of arm with a spherical wrist (Pieper's) are solved:
+articulated (PUMA, thesis 3.22-3.41), cylindrical (Microbo, 3.42-3.53) and spherical
+(Stanford: revolute, revolute, prismatic, as Paul 1981 solves the Stanford arm);
+``class_reasons`` says which conditions of each a table fails.
 """
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.dh import Q, DHRobot
-from derive.forward import link_to_link, tidy
+from derive.forward import link_to_link, t6, tidy
 
 nx, ny, nz, ox, oy, oz, ax, ay, az, px, py, pz = sp.symbols(
     "nx ny nz ox oy oz ax ay az px py pz", real=True
@@ -22,7 +25,7 @@ nx, ny, nz, ox, oy, oz, ax, ay, az, px, py, pz = sp.symbols(
 POSE = sp.Matrix([[nx, ox, ax, px], [ny, oy, ay, py], [nz, oz, az, pz], [0, 0, 0, 1]])
 #: the same as a kernel input: the bottom row is read but not used by the solutions
 POSE_INPUT = sp.Matrix(POSE[:3, :].tolist() + [list(sp.symbols("b0:4", real=True))])
-arm, elbow, wrist = sp.symbols("arm elbow wrist", real=True)
+arm, elbow, wrist, boom = sp.symbols("arm elbow wrist boom", real=True)
 
 #: relative tolerance with which a boundary pose (stretched elbow, arm on the d3
 #: cylinder) still counts as reachable: a few hundred ulps of the squared reach
@@ -59,7 +62,7 @@ class IKSolution:
     guards: tuple[tuple[str, sp.Expr, str, str], ...]  # (name, expr, error, message)
     wrist_given_q4: tuple[sp.Expr, sp.Expr]  # q5, q6 with q1..q4 as inputs
     named: dict[str, sp.Expr]  # intermediate quantities, for the report
-    kind: str  # "articulated" (PUMA class) or "cylindrical" (Microbo class)
+    kind: str  # "articulated" (PUMA class), "cylindrical" (Microbo), "spherical" (Stanford)
     indicators: tuple[sp.Expr, ...]  # functions of q whose signs are the config signs
 
 
@@ -71,8 +74,10 @@ def premultiplied(robot: DHRobot, i: int, pose: sp.Matrix = POSE) -> tuple[sp.Ma
 
 
 def pick(robot: DHRobot, thesis: str, i: int, row: int, col: int) -> PickedEquation:
-    left, right = premultiplied(robot, i)
-    return PickedEquation(thesis, i, row, col, left[row - 1, col - 1], right[row - 1, col - 1])
+    """Element (row, col) of L_i = U_i; the same as ``premultiplied``'s, tidying that
+    element of L_i alone."""
+    left = tidy((link_to_link(robot, i, 0)[row - 1, :] * POSE[:, col - 1])[0, 0])
+    return PickedEquation(thesis, i, row, col, left, link_to_link(robot, i, 6)[row - 1, col - 1])
 
 
 def solve_sin_cos(a: sp.Expr, b: sp.Expr, c: sp.Expr, sign: sp.Expr,
@@ -308,6 +313,122 @@ def cylindrical_ik(r: DHRobot) -> IKSolution:
                       (sp.sin(q5),))
 
 
+def spherical_ik(r: DHRobot) -> IKSolution:
+    """The Stanford class (Paul 1981's solution of the Stanford arm, written in the thesis's
+    steps 3.19-3.21): joint 1 revolute with a1 = 0 and alpha1 = +-90 deg, joint 2 a revolute
+    shoulder through which the boom passes (a2 = 0, alpha2 = +-90 deg, a shoulder offset d2
+    allowed), joint 3 the prismatic boom (a3 = 0, alpha3 = 0), a spherical wrist at the
+    origin of frame 6 (a fixed d4 along the boom allowed). Config signs arm, boom, wrist.
+
+    boom = +1 is the boom extended through the wrist centre (q3 + d4 > 0); boom = -1 the
+    boom reversed through the shoulder (theta2 + pi, q3 + d4 < 0): a solution of the table,
+    which the runtime reports Unreachable (prismatic joint out of its range) unless the
+    model's range of joint 3 allows it; the Stanford arm's (0.30-1.27 m) does not.
+    """
+    q1, q2, q3, q4, q5, q6 = Q
+    s1, c1 = sp.sin(q1), sp.cos(q1)
+    eqs: list[PickedEquation] = []
+
+    # theta1: row 3 of the 4th column of A1^-1 T6 = U2, as the PUMA's 3.23: the wrist
+    # centre's offset from the boom's plane is the shoulder offset d2
+    e_p1 = pick(r, "3.23", 1, 1, 4)
+    e_p2 = pick(r, "3.23", 1, 2, 4)
+    e_p3 = pick(r, "3.23", 1, 3, 4)
+    eqs += [e_p1, e_p2, e_p3]
+    a_, b_, rest = _unknown_coefficients(e_p3.lhs - e_p3.rhs, s1, c1)
+    d_off = -rest
+    _require(r, not (d_off.free_symbols & (set(Q) | set(POSE))),
+             "row 3 of A1^-1 T6 = U2 must fix theta1 alone (px S1 - py C1 = const)")
+    theta1 = solve_sin_cos(a_, b_, d_off, arm)
+    radicand1 = a_**2 + b_**2 - d_off**2
+
+    # theta2 and the boom: rows 1, 2 of the same column (Paul's Stanford solution, the
+    # Microbo's cylindrical coordinates 3.42 in the boom's plane): +-S2 (q3 + d4), +-C2 (q3 + d4)
+    reach_s = sp.expand(sp.simplify(e_p1.rhs / sp.sin(q2)))
+    reach_c = sp.expand(sp.simplify(e_p2.rhs / sp.cos(q2)))
+    ks2, kc2 = reach_s.coeff(q3), reach_c.coeff(q3)
+    _require(r, ks2 in (1, -1) and kc2 in (1, -1)
+             and sp.expand(ks2 * reach_s - kc2 * reach_c) == 0
+             and not ((ks2 * reach_s - q3).free_symbols & set(Q)),
+             "rows 1, 2 of the 4th column of U2 must be +-S2 (q3 + d4), +-C2 (q3 + d4): the boom "
+             "through the shoulder")
+    boom_off = sp.expand(ks2 * reach_s - q3)  # d4: the wrist centre beyond the boom's zero
+    fs, fc = ks2 * e_p1.lhs, kc2 * e_p2.lhs  # (q3 + d4) S2 and (q3 + d4) C2 from the pose
+    theta2_of_q1 = sp.atan2(boom * fs, boom * fc)
+    length2_of_q1 = fs**2 + fc**2  # (q3 + d4)^2: the wrist centre's distance from the shoulder
+    ext_of_q1 = boom * sp.sqrt(length2_of_q1) - boom_off
+    theta2 = theta2_of_q1.subs(q1, theta1)
+    ext3 = ext_of_q1.subs(q1, theta1)
+    length2 = length2_of_q1.subs(q1, theta1)
+
+    # theta4: rows 1, 2 of the 3rd column of A3^-1 A2^-1 A1^-1 T6 = U4 (as 3.31)
+    e_4a = pick(r, "3.31", 3, 1, 3)
+    e_4b = pick(r, "3.31", 3, 2, 3)
+    eqs += [e_4a, e_4b]
+    k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
+    k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
+    _require(r, k_c in (1, -1) and k_s in (1, -1), "the wrist must be spherical (3.31: +-C4 S5, +-S4 S5)")
+    theta4_of_q123 = sp.atan2(wrist * k_s * e_4b.lhs, wrist * k_c * e_4a.lhs)
+    wrist_norm = sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2)  # = |S5|
+
+    # theta5: rows 1, 2 of the 3rd column of A4^-1..A1^-1 T6 = U5 (as 3.33)
+    e_5a = pick(r, "3.33", 4, 1, 3)
+    e_5b = pick(r, "3.33", 4, 2, 3)
+    eqs += [e_5a, e_5b]
+    ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
+    kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
+    _require(r, ks5 in (1, -1) and kc5 in (1, -1), "the wrist must be spherical (3.33: +-S5, +-C5)")
+    theta5_of_q1234 = sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs)
+
+    # theta6: rows 1, 2 of the 2nd column of A5^-1..A1^-1 T6 = U6 (as 3.35)
+    e_6a = pick(r, "3.35", 5, 1, 2)
+    e_6b = pick(r, "3.35", 5, 2, 2)
+    eqs += [e_6a, e_6b]
+    ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
+    kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
+    _require(r, ks6 in (1, -1) and kc6 in (1, -1), "3.35 must read +-S6, +-C6")
+    theta6_of_q12345 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
+
+    sub123 = {q1: theta1, q2: theta2, q3: ext3}
+    theta4 = theta4_of_q123.subs(sub123, simultaneous=True)
+    wrist_norm = wrist_norm.subs(sub123, simultaneous=True)
+    theta5 = theta5_of_q1234.subs({**sub123, q4: theta4}, simultaneous=True)
+    theta6 = theta6_of_q12345.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
+    theta6_given_q4 = theta6_of_q12345.subs({q5: theta5_of_q1234})
+
+    planar2 = a_**2 + b_**2  # the wrist centre's squared distance from the joint-1 axis
+    if d_off == 0:
+        arm_guard = ("guard_axis", sp.sqrt(planar2) - SINGULAR_TOL, "Singular",
+                     "the wrist centre is on the joint-1 axis: theta1 is undetermined")
+    else:
+        arm_guard = ("guard_arm_reach", radicand1 + REACH_RTOL * (planar2 + d_off**2), "Unreachable",
+                     "the wrist centre lies inside the cylinder of radius d2 (the shoulder offset) "
+                     "about the joint-1 axis")
+    # at the shoulder theta1 comes from a square root of a rounding-level radicand (the
+    # pose is on the d2 cylinder), so the squared length carries ~ d2^2 eps of noise:
+    # FOLD_RTOL of the pose's scale stays clear of it, SINGULAR_TOL^2 keeps it negative at 0
+    scale = d_off**2 + planar2 + fc.subs(q1, theta1) ** 2
+    guards = (
+        arm_guard,
+        ("guard_boom", length2 - FOLD_RTOL * scale - SINGULAR_TOL**2, "Singular",
+         "the wrist centre is at the shoulder (boom length q3 + d4 = 0): theta2 is undetermined"),
+        ("guard_wrist", wrist_norm - SINGULAR_TOL, "Singular",
+         "sin(theta5) = 0: joints 4 and 6 are aligned and only theta4 + theta6 is determined"),
+    )
+    # configuration indicators: the second solution of 3.21's a S1 + b C1 = d2 is told by
+    # the sign of a C1 - b S1, the wrist centre's reach in the boom's plane across the
+    # joint-1 axis (the PUMA's h, 3.24); the boom's signed length; S5 (3.39)
+    fk = t6(r)
+    h = tidy((a_ * c1 - b_ * s1).subs({px: fk[0, 3], py: fk[1, 3]}, simultaneous=True))
+    named = {"d_off": d_off, "r2": planar2, "theta1": theta1, "f_s": fs, "f_c": fc,
+             "theta2": theta2_of_q1, "q3": ext_of_q1, "theta4": theta4_of_q123,
+             "theta5": theta5_of_q1234, "theta6": theta6_of_q12345, "h": h, "boom_off": boom_off}
+    indicators = (h, q3 + boom_off, sp.sin(q5))
+    return IKSolution(r, tuple(eqs), (theta1, theta2, ext3, theta4, theta5, theta6),
+                      (arm, boom, wrist), guards, (theta5_of_q1234, theta6_given_q4), named,
+                      "spherical", indicators)
+
+
 class OutsideClass(ValueError):
     """The arm is outside the classes with a closed-form inverse the derivation knows."""
 
@@ -359,17 +480,31 @@ def class_reasons(r: DHRobot) -> dict[str, list[str]]:
     elif not (all(_zero(x) for x in (l1.a, l1.alpha, l1.d, l2.a, l3.a, l3.alpha, l3.theta))
               and _quarter(l2.alpha) and _quarter(l2.theta) and _zero(r.links[3].d)):
         cyl.append("vertical joint 2 and radial joint 3 meeting the joint-1 axis (Table 3.2 form)")
-    return {"articulated (PUMA class)": art + wrist, "cylindrical (Microbo class)": cyl + wrist}
+    sph = []
+    if [link.prismatic for link in r.links[:3]] != [False, False, True]:
+        sph.append("joint kinds revolute, revolute, prismatic")
+    else:
+        if not (_zero(l1.a) and _quarter(l1.alpha)):
+            sph.append("a1 = 0 and alpha1 = +-90 deg (joint 1 axis meets joint 2 axis at right angles)")
+        if not (_zero(l2.a) and _quarter(l2.alpha)):
+            sph.append("a2 = 0 and alpha2 = +-90 deg (the boom through the shoulder axis, "
+                       "perpendicular to it)")
+        if not (_zero(l3.a) and _zero(l3.alpha)):
+            sph.append("a3 = 0 and alpha3 = 0 (joint 4 on the boom's axis)")
+    return {"articulated (PUMA class)": art + wrist, "cylindrical (Microbo class)": cyl + wrist,
+            "spherical (Stanford class)": sph + wrist}
 
 
 def solve_ik(r: DHRobot) -> IKSolution:
     """The closed-form inverse of ``r``, chosen by the shape of its DH table; an arm outside
-    both classes is refused with the conditions it fails."""
+    every class is refused with the conditions it fails."""
     reasons = class_reasons(r)
     if not reasons["articulated (PUMA class)"]:
         return articulated_ik(r)
     if not reasons["cylindrical (Microbo class)"]:
         return cylindrical_ik(r)
+    if not reasons["spherical (Stanford class)"]:
+        return spherical_ik(r)
     why = "; ".join(f"not {k}: needs {', '.join(v)}" for k, v in reasons.items())
     raise OutsideClass(f"{r.name}: no closed-form inverse kinematics for this DH table ({why}). "
                        "Pieper's closed forms need a spherical wrist and an arm of one of these shapes.")

@@ -179,6 +179,15 @@ def _jacobian_guards(ik: IKSolution) -> list[Guard]:
                    "cos(theta3) = 0: the elbow is stretched or fully folded"),
             wrist,
         ]
+    if ik.kind == "spherical":
+        return [
+            _guard("guard_boom", sp.Abs(Q[2] + ik.named["boom_off"]) - SINGULAR_TOL, "Singular",
+                   "q3 + d4 = 0: the boom's length is zero, the wrist centre at the shoulder"),
+            _guard("guard_shoulder", sp.Abs(sp.sin(Q[1])) - SINGULAR_TOL, "Singular",
+                   "sin(theta2) = 0: the boom is parallel to the joint-1 axis (the wrist "
+                   "centre on the d2-cylinder about it, shoulder singularity)"),
+            wrist,
+        ]
     return [
         _guard("guard_axis", sp.Abs(Q[2]) - SINGULAR_TOL, "Singular",
                "d3 = 0: the wrist centre is on the joint-1 axis"),

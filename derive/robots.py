@@ -18,7 +18,8 @@ from derive.inverse import class_reasons
 
 #: the configuration signs of each inverse-kinematics class
 CONFIG_FIELDS = {"articulated (PUMA class)": ("arm", "elbow", "wrist"),
-                 "cylindrical (Microbo class)": ("wrist",)}
+                 "cylindrical (Microbo class)": ("wrist",),
+                 "spherical (Stanford class)": ("arm", "boom", "wrist")}
 
 
 @dataclass(frozen=True)

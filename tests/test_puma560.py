@@ -89,7 +89,7 @@ def test_gravity_minimal_set_and_model_coefficients():
     assert np.linalg.matrix_rank(y) == 10
 
 
-def test_outside_both_classes_is_refused_naming_why():
+def test_outside_every_class_is_refused_naming_why():
     a2, d4 = sp.symbols("a2 d4", positive=True)
     offset = sp.Symbol("a4", positive=True)
     r = DHRobot("offset_wrist", (
@@ -97,6 +97,7 @@ def test_outside_both_classes_is_refused_naming_why():
         DHLink(d4, Q[3], sp.pi / 2, offset), DHLink(0, Q[4], -sp.pi / 2, 0), DHLink(0, Q[5], 0, 0)), (a2, d4, offset))
     reasons = class_reasons(r)
     assert any("a4 = a5 = a6 = 0" in why for why in reasons["articulated (PUMA class)"])
+    assert set(reasons) == {"articulated (PUMA class)", "cylindrical (Microbo class)", "spherical (Stanford class)"}
     with pytest.raises(OutsideClass, match="no closed-form inverse kinematics.*a4 = a5 = a6 = 0"):
         solve_ik(r)
 

@@ -12,8 +12,8 @@ robot, which the generated module binds to its names: the compiled fast entries
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
-from typing import Any, Callable, Mapping, NamedTuple, Sequence
+from dataclasses import dataclass, fields
+from typing import Any, Callable, ClassVar, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -28,53 +28,62 @@ SAME_SOLUTION_TOL = 1e-6
 RIGID_TOL = 1e-6
 
 
+class SignedConfig:
+    """What the configuration records share: fields that are each +1 or -1, in the order of
+    the ``ik`` kernel's config input; ``LABELS`` names each field's +1 and -1 for printing."""
+
+    LABELS: ClassVar[tuple[tuple[str, str], ...]] = ()
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if getattr(self, f.name) not in (1, -1):
+                raise exceptions.InvalidInput(f"{type(self).__name__}.{f.name} must be +1 or -1, "
+                                              f"got {getattr(self, f.name)!r}")
+
+    @property
+    def signs(self) -> tuple[int, ...]:
+        return tuple(getattr(self, f.name) for f in fields(self))
+
+    @classmethod
+    def all(cls) -> tuple[Any, ...]:
+        """Every configuration, in ``itertools.product((1, -1), repeat=n)`` order."""
+        return tuple(cls(*s) for s in itertools.product((1, -1), repeat=len(fields(cls))))
+
+    def __str__(self) -> str:
+        return "/".join(label[s < 0] for label, s in zip(self.LABELS, self.signs))
+
+
 @dataclass(frozen=True)
-class ArmConfig:
+class ArmConfig(SignedConfig):
     """PUMA configuration: arm +1 right / -1 left, elbow +1 up / -1 down,
     wrist +1 noflip (sin theta5 >= 0) / -1 flip (thesis Figure 3.4)."""
 
+    LABELS = (("right", "left"), ("up", "down"), ("noflip", "flip"))
     arm: int = 1
     elbow: int = 1
     wrist: int = 1
 
-    def __post_init__(self) -> None:
-        for name in ("arm", "elbow", "wrist"):
-            if getattr(self, name) not in (1, -1):
-                raise exceptions.InvalidInput(f"ArmConfig.{name} must be +1 or -1, got {getattr(self, name)!r}")
 
-    @property
-    def signs(self) -> tuple[int, ...]:
-        return (self.arm, self.elbow, self.wrist)
+@dataclass(frozen=True)
+class WristConfig(SignedConfig):
+    """Microbo configuration: wrist +1 noflip (sin theta5 >= 0) / -1 flip (thesis 3.51)."""
 
-    @classmethod
-    def all(cls) -> tuple["ArmConfig", ...]:
-        return tuple(cls(a, e, w) for a, e, w in itertools.product((1, -1), repeat=3))
-
-    def __str__(self) -> str:
-        return "/".join((("right", "left")[self.arm < 0], ("up", "down")[self.elbow < 0],
-                         ("noflip", "flip")[self.wrist < 0]))
+    LABELS = (("noflip", "flip"),)
+    wrist: int = 1
 
 
 @dataclass(frozen=True)
-class WristConfig:
-    """Microbo configuration: wrist +1 noflip (sin theta5 >= 0) / -1 flip (thesis 3.51)."""
+class BoomConfig(SignedConfig):
+    """Stanford-class configuration: arm +1 right / -1 left (the shoulder offset d2 on the
+    right / left of the wrist centre's reach seen from above, as the PUMA's arm), boom +1 out
+    (extended through the wrist centre, q3 + d4 > 0) / -1 reversed (back through the
+    shoulder, q3 + d4 < 0: a solution only where joint 3's range allows it), wrist +1 noflip
+    (sin theta5 >= 0) / -1 flip."""
 
+    LABELS = (("right", "left"), ("out", "reversed"), ("noflip", "flip"))
+    arm: int = 1
+    boom: int = 1
     wrist: int = 1
-
-    def __post_init__(self) -> None:
-        if self.wrist not in (1, -1):
-            raise exceptions.InvalidInput(f"WristConfig.wrist must be +1 or -1, got {self.wrist!r}")
-
-    @property
-    def signs(self) -> tuple[int, ...]:
-        return (self.wrist,)
-
-    @classmethod
-    def all(cls) -> tuple["WristConfig", ...]:
-        return (cls(1), cls(-1))
-
-    def __str__(self) -> str:
-        return ("noflip", "flip")[self.wrist < 0]
 
 
 @dataclass(frozen=True)
