@@ -42,6 +42,8 @@ from .link import Link, open_link
 from .realtime import RealtimeStatus, lock_memory, unlock_memory
 from .timing import CycleTiming
 
+#: how long control() waits for an ended control's thread that is past its user functions (s)
+FINISH_WAIT = 10.0
 TERM_SIGNAL = signal.SIGUSR1   # the thesis used SIGHUP; SIGUSR1 does not collide with terminal hangups
 
 
@@ -291,9 +293,15 @@ class Session:
                 raise ControlInProgress("control(): a control is already in progress")
             old = self._task
             if old is not None and old.is_alive():
-                old.finished.wait(timeout=1.0)
+                # a thread still in a user function may never return: 1 s; one past them has
+                # released the arm and only restores the process's settings (the collector's,
+                # whose next collection can take a second in a large process): wait it out
+                old.finished.wait(timeout=1.0 if old.in_user else FINISH_WAIT)
                 if old.is_alive():
-                    raise ControlInProgress("control(): the previous control function has not returned yet")
+                    raise ControlInProgress("control(): the previous control function has not returned yet"
+                                            if old.in_user else
+                                            f"control(): the previous control's thread has not finished "
+                                            f"after {FINISH_WAIT:.0f} s")
             for name, f in (("f1", f1), ("f2", f2)):
                 if f is not None and not callable(f):
                     raise BadFunction(f"control(): {name} = {f!r} is not callable")

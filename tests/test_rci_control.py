@@ -262,7 +262,13 @@ def test_hung_user_function_is_released_by_the_watchdog(robot):
         t0 = time.monotonic()
         t = run_until_terminated(s)
         detected = time.monotonic() - t0
+        # a new control is refused while f1 is still hung, after 1 s (not session.FINISH_WAIT)
+        t1 = time.monotonic()
+        with pytest.raises(ControlInProgress, match="has not returned yet"):
+            s.control(None, None)
+        refused = time.monotonic() - t1
         go.set()
+    assert 0.9 < refused < 2.0
     assert t.number == codes.R_OVERRUN
     assert detected < 0.2                 # 2 periods (40 ms) + watchdog interval + slack
     assert robot.released()
