@@ -2258,7 +2258,7 @@ static inline void kv_gravity_links(const double *restrict tv, Py_ssize_t ts, co
     const double t2_n = s_4*in2[16] - c_5*in2[15];
     const double t3 = in2[12]*in1[4] - t2_n*in1[5];
     out0[0] = 0.0;
-    out0[1] = 9.81*in1[1] + 9.81*in1[2] + 9.81*in1[3] + 9.81*in1[4] + 9.81*in1[5];
+    out0[1] = 9.81*(in1[1] + in1[2] + in1[3] + in1[4] + in1[5]);
     out0[2] = 0.0;
     out0[3] = 9.81*c_1*(c_3*t3 + in2[9]*in1[3] + s_2*t1) + 9.81*s_0*(in2[11]*in1[3] + in2[13]*in1[4] + t0*in1[5]);
     out0[4] = 9.81*s_0*(c_3*t1 - s_2*t3);
@@ -2293,7 +2293,7 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, c
         const double t2_n = s_4*ti[11][r] - c_5*ti[10][r];
         const double t3 = ti[7][r]*ti[3][r] - t2_n*ti[4][r];
         to[0][r] = 0.0;
-        to[1][r] = 9.81*ti[0][r] + 9.81*ti[1][r] + 9.81*ti[2][r] + 9.81*ti[3][r] + 9.81*ti[4][r];
+        to[1][r] = 9.81*(ti[0][r] + ti[1][r] + ti[2][r] + ti[3][r] + ti[4][r]);
         to[2][r] = 0.0;
         to[3][r] = 9.81*c_1*(c_3*t3 + ti[5][r]*ti[2][r] + s_2*t1) + 9.81*s_0*(ti[6][r]*ti[2][r] + ti[8][r]*ti[3][r] + t0*ti[4][r]);
         to[4][r] = 9.81*s_0*(c_3*t1 - s_2*t3);

@@ -92,10 +92,10 @@ static inline void kv_fk(const double *restrict tv, Py_ssize_t ts, const double 
     const double k8 = c_7;
     const double k9 = c_11*k0 - s_10*k6;
     const double k11 = c_11*k2 - s_10*k8;
-    const double k12 = 0.2032*c_3 - 0.2032*s_10;
+    const double k12 = 0.2032*(c_3 - s_10);
     const double k13 = c_11*k6 + s_10*k0;
     const double k15 = c_11*k8 + s_10*k2;
-    const double k16 = 0.2032*c_11 + 0.2032*s_2;
+    const double k16 = 0.2032*(c_11 + s_2);
     const double k17_n = k3;
     const double k19 = k5_n;
     out0[0] = c_1*k9 - k17_n*s_0;
@@ -158,10 +158,10 @@ __attribute__((always_inline)) static inline void kl_rows_fk(int m, const double
         const double k8 = c_7;
         const double k9 = c_11*k0 - s_10*k6;
         const double k11 = c_11*k2 - s_10*k8;
-        const double k12 = 0.2032*c_3 - 0.2032*s_10;
+        const double k12 = 0.2032*(c_3 - s_10);
         const double k13 = c_11*k6 + s_10*k0;
         const double k15 = c_11*k8 + s_10*k2;
-        const double k16 = 0.2032*c_11 + 0.2032*s_2;
+        const double k16 = 0.2032*(c_11 + s_2);
         const double k17_n = k3;
         const double k19 = k5_n;
         to[0][r] = c_1*k9 - k17_n*s_0;
@@ -1756,7 +1756,7 @@ static inline void kv_force_from_torque4(const double *restrict tv, Py_ssize_t t
     const double z16 = in1[3];
     const double z17 = in1[4];
     const double z15 = r_1*(c_6*z16 - in1[5]);
-    const double z18 = 4.921259842519685*c_4*z17 - 4.921259842519685*in1[2] - 4.921259842519685*s_3*z15;
+    const double z18 = 4.921259842519685*(c_4*z17 - in1[2] - s_3*z15);
     const double z20 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z18);
     const double z19 = 4.921259842519685*r_2_inv*(in1[0] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
     out0[0] = c_4*z18 + s_3*z19;
@@ -1809,7 +1809,7 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int
         const double z16 = ti[3][r];
         const double z17 = ti[4][r];
         const double z15 = r_1*(c_6*z16 - ti[5][r]);
-        const double z18 = 4.921259842519685*c_4*z17 - 4.921259842519685*ti[2][r] - 4.921259842519685*s_3*z15;
+        const double z18 = 4.921259842519685*(c_4*z17 - ti[2][r] - s_3*z15);
         const double z20 = 4.921259842519685*r_1_inv*(ti[1][r] - ti[2][r] - 0.2032*s_1*z18);
         const double z19 = 4.921259842519685*r_2_inv*(ti[0][r] + s_7*(0.12624*z20 - c_4*z15 - s_3*z17) - c_8*(z16 + 0.12624*z18));
         to[0][r] = c_4*z18 + s_3*z19;
@@ -2551,7 +2551,7 @@ static inline void kv_force_from_torque6(const double *restrict tv, Py_ssize_t t
     const double z34 = in1[3];
     const double z35 = in1[4];
     const double z33 = r_1*(c_6*z34 - in1[5]);
-    const double z36 = 4.921259842519685*c_4*z35 - 4.921259842519685*in1[2] - 4.921259842519685*s_3*z33;
+    const double z36 = 4.921259842519685*(c_4*z35 - in1[2] - s_3*z33);
     const double z38 = 4.921259842519685*r_1_inv*(in1[1] - in1[2] - 0.2032*s_1*z36);
     const double z37 = 4.921259842519685*r_2_inv*(in1[0] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
     const double z39 = c_4*z36 + s_3*z37;
@@ -2614,7 +2614,7 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int
         const double z34 = ti[3][r];
         const double z35 = ti[4][r];
         const double z33 = r_1*(c_6*z34 - ti[5][r]);
-        const double z36 = 4.921259842519685*c_4*z35 - 4.921259842519685*ti[2][r] - 4.921259842519685*s_3*z33;
+        const double z36 = 4.921259842519685*(c_4*z35 - ti[2][r] - s_3*z33);
         const double z38 = 4.921259842519685*r_1_inv*(ti[1][r] - ti[2][r] - 0.2032*s_1*z36);
         const double z37 = 4.921259842519685*r_2_inv*(ti[0][r] + s_9*(0.12624*z38 - c_4*z33 - s_3*z35) - c_10*(z34 + 0.12624*z36));
         const double z39 = c_4*z36 + s_3*z37;
