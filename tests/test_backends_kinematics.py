@@ -15,7 +15,7 @@ import pytest
 from rccl.kinematics import backend
 
 ROOT = Path(__file__).resolve().parent.parent
-ROBOTS = ("puma260", "microbo", "puma560")
+ROBOTS = ("puma260", "microbo", "puma560", "stanford")
 TOL = 1e-9  # the derivation's cross-check tolerance for kinematic quantities
 
 

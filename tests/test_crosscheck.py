@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from derive import crosscheck as cc
 from rccl.kinematics import exceptions as errors
 
-ROBOTS = list(cc.MODULES)  # every arm under models/: the thesis arms and the PUMA 560
+ROBOTS = list(cc.MODULES)  # every arm under models/: the thesis arms, the PUMA 560 and the Stanford arm
 ARMS = {name: cc.PinArm.load(name) for name in ROBOTS}
 TOL = 1e-13  # entries are O(1) (m, rad, N m): a few hundred ulps
 

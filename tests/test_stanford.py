@@ -1,6 +1,7 @@
 """The Stanford arm: the spherical (Stanford) class of the closed-form inverse kinematics
-(derive.inverse.spherical_ik), derived from a DH table built here (no model file: a fourth
-shipped arm would cost every `make derive` and suite run). FK is cross-checked against a
+(derive.inverse.spherical_ik), derived from a DH table built here, independently of the
+shipped models/stanford.toml, so that variants of the table (d2 = 0, a d4 along the boom,
+an offset boom) can be derived too. FK is cross-checked against a
 Pinocchio model built from the same table, IK by fk(ik(T)) = T in every configuration.
 
 The table is the Stanford (Scheinman) arm's of Paul 1972, Stanford AI Memo AIM-177,
@@ -104,6 +105,18 @@ def test_every_configuration_round_trips_and_q_is_among_them(solved):
                 assert np.abs(d).max() < 1e-9, (q, qs)
         assert in_range == 4  # arm right/left x wrist noflip/flip with the boom out
     assert worst < 1e-12
+
+
+def test_the_shipped_model_file_has_this_table():
+    """models/stanford.toml (what `make derive` reads) is the table derived here, numbers and
+    joint-3 stroke included."""
+    from derive.dh import dh_from_model
+    from models import load_robot
+
+    model = load_robot("stanford")
+    robot, params = dh_from_model(model)
+    assert robot.links == STANFORD.links and params == NUMBERS
+    assert model.lower[2] == LOWER[2] and model.upper[2] == UPPER[2]
 
 
 def test_arm_sign_means_what_it_means_on_the_puma(solved):

@@ -10,7 +10,7 @@ import yourdfpy
 
 from models import RobotModel, load_robot
 
-ROBOTS = ("puma260", "microbo")
+ROBOTS = ("puma260", "microbo", "stanford")  # every URDF is also cross-checked in tests/test_crosscheck.py
 N_SAMPLES = 300
 
 
