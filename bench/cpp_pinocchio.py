@@ -364,7 +364,7 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
             if runs[0].vector_trig else "from libm (this CPU lacks AVX2+FMA)."),
          "- `one per call`: the kernel's batched loop called for one configuration at a time (the path of a single "
          "call of the extension, without its argument checks); `batched`: one call over all N configurations (the "
-         "extension's loop over rows, one thread; blocks of 64 rows share their sine/cosine vector code).",
+         "extension's loop over rows, one thread; blocks of 32 rows share their sine/cosine and row vector code).",
          "- Pinocchio's computations: fk = forwardKinematics + updateFramePlacement(link6) (T6); jacobian6 = "
          "computeFrameJacobian(link6, LOCAL), which is Paul's 6J; jacobian4 = the thesis's link-4 Jacobian 4J, "
          "which Pinocchio has no call for: 6J from computeFrameJacobian(link6, LOCAL), then updateFramePlacement of "

@@ -261,7 +261,7 @@ def _c_string(s: str) -> str:
 
 
 #: rows per block of the batched loops whose sines and cosines are computed a block at a time
-TRIG_BLOCK = 64
+TRIG_BLOCK = 32
 
 
 @dataclass(frozen=True)

@@ -89,7 +89,7 @@ def test_single_and_batched_c_calls_agree(robot):
     mod = _mod(robot)
     cm = _c(robot)
     rng = np.random.default_rng(12)
-    qs = _qs(mod, 75, 6)  # a block of 64 rows, then 11 (kin_runtime.h, emit_c.TRIG_BLOCK)
+    qs = _qs(mod, 75, 6)  # whole blocks of rows, then a part (kin_runtime.h CHUNK, emit_c.TRIG_BLOCK: 32)
     for name in mod._KERNELS:
         args = _inputs(mod, name, qs, rng)
         batch = getattr(cm, name)(*args)

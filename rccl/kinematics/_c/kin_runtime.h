@@ -41,7 +41,7 @@ static PyObject *np_array_kw = NULL;      /* {"dtype": "float64", "order": "C"} 
  * checked while they are still in cache (the output only when it is not finite by
  * construction: kernel_entry.finite_out). Large batches are split over threads (pthreads;
  * RCCL_KINEMATICS_THREADS, default the online CPUs, at most MAX_THREADS). */
-#define CHUNK 64
+#define CHUNK 32
 #define MAX_THREADS 8
 #define ROWS_PER_THREAD 16384
 #if defined(__unix__) || defined(__APPLE__)

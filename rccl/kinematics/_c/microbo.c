@@ -102,7 +102,7 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
 
 /* fk's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 2 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -140,10 +140,10 @@ __attribute__((always_inline)) static inline void kl_rows_fk(int m, const double
         to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
     }
 }
-__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_fk(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -157,9 +157,9 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[2][64], to[16][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[2][32], to[16][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[1]; ti[1][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 15, 1);
@@ -272,7 +272,7 @@ VTRIG_TARGET static int kv1_ik_wrist(const double *restrict in0, const double *r
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -286,9 +286,9 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in1[0]; ta[1][r] = in1[3];
@@ -296,7 +296,7 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
-            kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+            kv_ik_wrist(&tv[0][r], 32, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
     return 1;
 }
@@ -345,17 +345,17 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
 
 /* config_indicators's rows side by side in vector lanes: the block's 1 sines/cosines in tv, its
  * 0 input elements in ti, its 1 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
         to[0][r] = s_0;
     }
 }
-__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_config_indicators(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -369,9 +369,9 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[1][64], tv[1][64], ti[1][64], to[1][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[1][32], tv[1][32], ti[1][32], to[1][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[4]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1);
@@ -509,7 +509,7 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
 
 /* jacobian4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -555,10 +555,10 @@ __attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const
         to[35][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -572,9 +572,9 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64], ti[1][64], to[36][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
@@ -733,7 +733,7 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
 
 /* jacobian6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -789,10 +789,10 @@ __attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const
         to[35][r] = 1.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -806,9 +806,9 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[1][64], to[36][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
@@ -888,7 +888,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
 
 /* cartesian_from_joint4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -904,10 +904,10 @@ __attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(
         to[5][r] = ti[5][r] - t0;
     }
 }
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -921,9 +921,9 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1000,7 +1000,7 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
 
 /* torque_from_force4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1015,10 +1015,10 @@ __attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int
         to[5][r] = s_2*ti[4][r] - c_3*ti[5][r];
     }
 }
-__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1032,9 +1032,9 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1135,7 +1135,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
 
 /* joint_from_cartesian4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1162,10 +1162,10 @@ __attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1179,9 +1179,9 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[2][64], tv[4][64], ti[7][64], to[8][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[7][32], to[8][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
@@ -1276,7 +1276,7 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
 
 /* force_from_torque4's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1300,10 +1300,10 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1317,9 +1317,9 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[2][64], tv[4][64], ti[7][64], to[8][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[7][32], to[8][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
@@ -1422,7 +1422,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
 
 /* cartesian_from_joint6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1450,10 +1450,10 @@ __attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(
         to[5][r] = s_2*z6 - c_3*z7;
     }
 }
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1467,9 +1467,9 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1561,7 +1561,7 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
 
 /* torque_from_force6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1583,10 +1583,10 @@ __attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int
         to[5][r] = ti[6][r]*(c_3*c_3 + s_2*s_2);
     }
 }
-__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1600,9 +1600,9 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1724,7 +1724,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
 
 /* joint_from_cartesian6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1761,10 +1761,10 @@ __attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1778,9 +1778,9 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[3][64], tv[6][64], ti[7][64], to[8][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[8][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
@@ -1896,7 +1896,7 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
 
 /* force_from_torque6's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 8 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1930,10 +1930,10 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int
         to[7][r] = fabs(s_2) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1947,9 +1947,9 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2];
-    double ta[3][64], tv[6][64], ti[7][64], to[8][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[8][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1);
@@ -2027,7 +2027,7 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
 
 /* gravity's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 2 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2042,10 +2042,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity(int m, const d
         to[5][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2059,9 +2059,9 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64], ti[2][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[2][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ti[0][r] = in1[0]; ti[1][r] = in1[1]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -2150,7 +2150,7 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
 
 /* gravity_regressor's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 0 input elements in ti, its 12 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2171,10 +2171,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int 
         to[11][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_regressor(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2188,9 +2188,9 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[2][64], tv[4][64], ti[1][64], to[12][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32], ti[1][32], to[12][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 11, 1);
@@ -2279,7 +2279,7 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
 
 /* gravity_links's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 13 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2300,10 +2300,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, c
         to[5][r] = 9.81*ti[4][r]*(c_1*t2_n - c_3*s_0*t0);
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_links(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2317,9 +2317,9 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[13][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[13][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
             ta[0][r] = in0[3]; ta[1][r] = in0[4]; ta[2][r] = in0[5]; ti[0][r] = in1[1]; ti[1][r] = in1[2]; ti[2][r] = in1[3]; ti[3][r] = in1[4]; ti[4][r] = in1[5]; ti[5][r] = in2[9]; ti[6][r] = in2[11]; ti[7][r] = in2[12]; ti[8][r] = in2[13]; ti[9][r] = in2[14]; ti[10][r] = in2[15]; ti[11][r] = in2[16]; ti[12][r] = in2[17]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);

@@ -131,7 +131,7 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
 
 /* fk's rows side by side in vector lanes: the block's 12 sines/cosines in tv, its
  * 0 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -182,10 +182,10 @@ __attribute__((always_inline)) static inline void kl_rows_fk(int m, const double
         to[15][r] = to[1][r]*to[3][r] - to[0][r]*to[4][r];
     }
 }
-__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_fk(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -199,9 +199,9 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[6][64], tv[12][64], ti[1][64], to[16][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[6][32], tv[12][32], ti[1][32], to[16][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 15, 1);
@@ -393,7 +393,7 @@ VTRIG_TARGET static int kv1_ik(const double *restrict in0, const double *restric
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -407,16 +407,16 @@ static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3]; double *outb4 = out[4];
-    double ta[1][64], tv[2][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[1][32], tv[2][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = atan2(0.12624, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0;
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         for (int r = 0; r < m; ++r)
-            kv_ik(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3], outb4 + (r0 + r) * os[4]);
+            kv_ik(&tv[0][r], 32, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3], outb4 + (r0 + r) * os[4]);
     }
     return 1;
 }
@@ -490,7 +490,7 @@ VTRIG_TARGET static int kv1_ik_wrist(const double *restrict in0, const double *r
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -504,9 +504,9 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in1[1] + in1[2]; ta[0][r] = in1[0]; ta[1][r] = in1[3]; ta[2][r] = x_0;
@@ -515,7 +515,7 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
-            kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+            kv_ik_wrist(&tv[0][r], 32, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
     return 1;
 }
@@ -579,7 +579,7 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
 
 /* config_indicators's rows side by side in vector lanes: the block's 4 sines/cosines in tv, its
  * 0 input elements in ti, its 3 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -592,10 +592,10 @@ __attribute__((always_inline)) static inline void kl_rows_config_indicators(int 
         to[2][r] = s_2;
     }
 }
-__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_config_indicators(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -609,9 +609,9 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[4][64], tv[4][64], ti[1][64], to[3][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[4][32], ti[1][32], to[3][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[4]; ta[3][r] = x_0; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 2, 1);
@@ -785,7 +785,7 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
 
 /* jacobian4's rows side by side in vector lanes: the block's 12 sines/cosines in tv, its
  * 0 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -843,10 +843,10 @@ __attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const
         to[35][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -860,9 +860,9 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[7][64], tv[12][64], ti[1][64], to[36][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[7][32], tv[12][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; const double x_1 = in0[2] - in0[3]; const double x_2 = in0[2] + in0[3]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ta[5][r] = x_1; ta[6][r] = x_2; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
@@ -1061,7 +1061,7 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
 
 /* jacobian6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 0 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1133,10 +1133,10 @@ __attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const
         to[35][r] = 1.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1150,9 +1150,9 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[6][64], tv[11][64], ti[1][64], to[36][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[6][32], tv[11][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
@@ -1260,7 +1260,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
 
 /* cartesian_from_joint4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1287,10 +1287,10 @@ __attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(
         to[5][r] = ti[4][r] + c_4*t3 + s_3*t2;
     }
 }
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1304,9 +1304,9 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[5][64], tv[9][64], ti[6][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[5][32], tv[9][32], ti[6][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1411,7 +1411,7 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
 
 /* torque_from_force4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1437,10 +1437,10 @@ __attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int
         to[5][r] = c_6*ti[4][r] - s_5*ti[3][r];
     }
 }
-__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1454,9 +1454,9 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[5][64], tv[9][64], ti[6][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[5][32], tv[9][32], ti[6][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1595,7 +1595,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
 
 /* joint_from_cartesian4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1638,10 +1638,10 @@ __attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1655,9 +1655,9 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[5][64], tv[9][64], ti[6][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[5][32], tv[9][32], ti[6][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -1786,7 +1786,7 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
 
 /* force_from_torque4's rows side by side in vector lanes: the block's 9 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -1824,10 +1824,10 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1841,9 +1841,9 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[5][64], tv[9][64], ti[6][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[5][32], tv[9][32], ti[6][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -1970,7 +1970,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
 
 /* cartesian_from_joint6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2007,10 +2007,10 @@ __attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(
         to[5][r] = c_6*z7 - s_5*z6;
     }
 }
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2024,9 +2024,9 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[6][64], tv[11][64], ti[6][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[6][32], tv[11][32], ti[6][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -2152,7 +2152,7 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
 
 /* torque_from_force6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2188,10 +2188,10 @@ __attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int
         to[5][r] = c_6*z13 - s_5*z12;
     }
 }
-__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2205,9 +2205,9 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[6][64], tv[11][64], ti[6][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[6][32], tv[11][32], ti[6][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -2367,7 +2367,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
 
 /* joint_from_cartesian6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2420,10 +2420,10 @@ __attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2437,9 +2437,9 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[6][64], tv[11][64], ti[6][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[6][32], tv[11][32], ti[6][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -2589,7 +2589,7 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
 
 /* force_from_torque6's rows side by side in vector lanes: the block's 11 sines/cosines in tv, its
  * 6 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2637,10 +2637,10 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int
         to[8][r] = fabs(s_5) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2654,9 +2654,9 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[6][64], tv[11][64], ti[6][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[6][32], tv[11][32], ti[6][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[2]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ta[5][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -2752,7 +2752,7 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
 
 /* gravity's rows side by side in vector lanes: the block's 7 sines/cosines in tv, its
  * 3 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2773,10 +2773,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity(int m, const d
         to[5][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2790,9 +2790,9 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[4][64], tv[7][64], ti[3][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[7][32], ti[3][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0; ti[0][r] = in1[0]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -2910,7 +2910,7 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
 
 /* gravity_regressor's rows side by side in vector lanes: the block's 7 sines/cosines in tv, its
  * 0 input elements in ti, its 18 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double c_0 = tv[0][r];
@@ -2943,10 +2943,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int 
         to[17][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_regressor(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2960,9 +2960,9 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[4][64], tv[7][64], ti[1][64], to[18][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[7][32], ti[1][32], to[18][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = x_0; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 17, 1);
@@ -3084,7 +3084,7 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
 
 /* gravity_links's rows side by side in vector lanes: the block's 10 sines/cosines in tv, its
  * 18 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -3119,10 +3119,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, c
         to[5][r] = 9.81*ti[4][r]*(s_2*s_8*t5_n - c_5*t13*t7 - c_9*s_4*t7);
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_links(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -3136,9 +3136,9 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
     double *outb0 = out[0];
-    double ta[5][64], tv[10][64], ti[18][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[5][32], tv[10][32], ti[18][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
             const double x_0 = in0[1] + in0[2]; ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ta[4][r] = x_0; ti[0][r] = in1[1]; ti[1][r] = in1[2]; ti[2][r] = in1[3]; ti[3][r] = in1[4]; ti[4][r] = in1[5]; ti[5][r] = in2[3]; ti[6][r] = in2[4]; ti[7][r] = in2[6]; ti[8][r] = in2[8]; ti[9][r] = in2[9]; ti[10][r] = in2[10]; ti[11][r] = in2[11]; ti[12][r] = in2[12]; ti[13][r] = in2[13]; ti[14][r] = in2[14]; ti[15][r] = in2[15]; ti[16][r] = in2[16]; ti[17][r] = in2[17]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -3830,7 +3830,7 @@ VTRIG_TARGET static int kv1_ik_all(const double *restrict in0, double *restrict 
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -3844,9 +3844,9 @@ static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_s
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0]; double *outb1 = out[1];
-    double ta[2][64], tv[4][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = atan2(0.12624, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); const double x_1 = atan2(0.12624, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.015936537599999998) - 0.007968268799999999)) - atan2(-in0[7], in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
@@ -3854,7 +3854,7 @@ static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_s
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
-            kv_ik_all(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1]);
+            kv_ik_all(&tv[0][r], 32, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1]);
     }
     return 1;
 }

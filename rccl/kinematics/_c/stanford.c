@@ -106,7 +106,7 @@ VTRIG_TARGET static int kv1_fk(const double *restrict in0, double *restrict tv)
 
 /* fk's rows side by side in vector lanes: the block's 10 sines/cosines in tv, its
  * 1 input elements in ti, its 16 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -146,10 +146,10 @@ __attribute__((always_inline)) static inline void kl_rows_fk(int m, const double
         to[15][r] = to[0][r]*to[4][r] - to[1][r]*to[3][r];
     }
 }
-__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_fk(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_fk(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_fk(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -163,9 +163,9 @@ static int batch_vector_fk(Py_ssize_t n, const double *const *in, const Py_ssize
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[5][64], tv[10][64], ti[1][64], to[16][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[5][32], tv[10][32], ti[1][32], to[16][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[0]; ta[1][r] = in0[1]; ta[2][r] = in0[3]; ta[3][r] = in0[4]; ta[4][r] = in0[5]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 15, 1);
@@ -340,7 +340,7 @@ VTRIG_TARGET static int kv1_ik(const double *restrict in0, const double *restric
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -354,16 +354,16 @@ static int batch_vector_ik(Py_ssize_t n, const double *const *in, const Py_ssize
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[1][64], tv[2][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[1][32], tv[2][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             const double x_0 = atan2(0.154, in1[0]*sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.023716) - 0.011858)) - atan2(in0[7], -in0[3]); ta[0][r] = x_0;
         }
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         for (int r = 0; r < m; ++r)
-            kv_ik(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
+            kv_ik(&tv[0][r], 32, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1], outb2 + (r0 + r) * os[2], outb3 + (r0 + r) * os[3]);
     }
     return 1;
 }
@@ -434,7 +434,7 @@ VTRIG_TARGET static int kv1_ik_wrist(const double *restrict in0, const double *r
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -448,9 +448,9 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in1[0]; ta[1][r] = in1[1]; ta[2][r] = in1[3];
@@ -459,7 +459,7 @@ static int batch_vector_ik_wrist(Py_ssize_t n, const double *const *in, const Py
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         vtrig_sincos(ta[2], tv[4], tv[5], m);
         for (int r = 0; r < m; ++r)
-            kv_ik_wrist(&tv[0][r], 64, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
+            kv_ik_wrist(&tv[0][r], 32, inb0 + (r0 + r) * is[0], inb1 + (r0 + r) * is[1], outb0 + (r0 + r) * os[0]);
     }
     return 1;
 }
@@ -514,7 +514,7 @@ VTRIG_TARGET static int kv1_config_indicators(const double *restrict in0, double
 
 /* config_indicators's rows side by side in vector lanes: the block's 2 sines/cosines in tv, its
  * 1 input elements in ti, its 3 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -524,10 +524,10 @@ __attribute__((always_inline)) static inline void kl_rows_config_indicators(int 
         to[2][r] = s_1;
     }
 }
-__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_config_indicators(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_config_indicators(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_config_indicators(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -541,9 +541,9 @@ static int batch_vector_config_indicators(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[2][64], tv[2][64], ti[1][64], to[3][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[2][32], ti[1][32], to[3][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[1]; ta[1][r] = in0[4]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 2, 1);
@@ -688,7 +688,7 @@ VTRIG_TARGET static int kv1_jacobian4(const double *restrict in0, double *restri
 
 /* jacobian4's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -737,10 +737,10 @@ __attribute__((always_inline)) static inline void kl_rows_jacobian4(int m, const
         to[35][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -754,9 +754,9 @@ static int batch_vector_jacobian4(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[1][64], to[36][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
@@ -928,7 +928,7 @@ VTRIG_TARGET static int kv1_jacobian6(const double *restrict in0, double *restri
 
 /* jacobian6's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -990,10 +990,10 @@ __attribute__((always_inline)) static inline void kl_rows_jacobian6(int m, const
         to[35][r] = 1.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_jacobian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_jacobian6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1007,9 +1007,9 @@ static int batch_vector_jacobian6(Py_ssize_t n, const double *const *in, const P
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[1][64], to[36][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
@@ -1102,7 +1102,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint4(const double *restrict in0, co
 
 /* cartesian_from_joint4's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1124,10 +1124,10 @@ __attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint4(
         to[5][r] = ti[5][r] + s_2*ti[2][r] - c_3*t0;
     }
 }
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1141,9 +1141,9 @@ static int batch_vector_cartesian_from_joint4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1229,7 +1229,7 @@ VTRIG_TARGET static int kv1_torque_from_force4(const double *restrict in0, const
 
 /* torque_from_force4's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1248,10 +1248,10 @@ __attribute__((always_inline)) static inline void kl_rows_torque_from_force4(int
         to[5][r] = s_4*ti[4][r] - c_5*ti[5][r];
     }
 }
-__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1265,9 +1265,9 @@ static int batch_vector_torque_from_force4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[3][64], tv[6][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1381,7 +1381,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian4(const double *restrict in0, co
 
 /* joint_from_cartesian4's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1414,10 +1414,10 @@ __attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian4(
         to[8][r] = fabs(s_4) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1431,9 +1431,9 @@ static int batch_vector_joint_from_cartesian4(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[3][64], tv[6][64], ti[7][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -1537,7 +1537,7 @@ VTRIG_TARGET static int kv1_force_from_torque4(const double *restrict in0, const
 
 /* force_from_torque4's rows side by side in vector lanes: the block's 6 sines/cosines in tv, its
  * 7 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1565,10 +1565,10 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque4(int
         to[8][r] = fabs(s_4) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque4(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque4(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque4(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1582,9 +1582,9 @@ static int batch_vector_force_from_torque4(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[3][64], tv[6][64], ti[7][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[3][32], tv[6][32], ti[7][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -1696,7 +1696,7 @@ VTRIG_TARGET static int kv1_cartesian_from_joint6(const double *restrict in0, co
 
 /* cartesian_from_joint6's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1728,10 +1728,10 @@ __attribute__((always_inline)) static inline void kl_rows_cartesian_from_joint6(
         to[5][r] = c_5*t10 - s_4*t11;
     }
 }
-__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_cartesian_from_joint6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_cartesian_from_joint6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1745,9 +1745,9 @@ static int batch_vector_cartesian_from_joint6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -1856,7 +1856,7 @@ VTRIG_TARGET static int kv1_torque_from_force6(const double *restrict in0, const
 
 /* torque_from_force6's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 7 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -1886,10 +1886,10 @@ __attribute__((always_inline)) static inline void kl_rows_torque_from_force6(int
         to[5][r] = c_5*z13_n + s_4*z12;
     }
 }
-__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_torque_from_force6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_torque_from_force6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -1903,9 +1903,9 @@ static int batch_vector_torque_from_force6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[7][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[7][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -2040,7 +2040,7 @@ VTRIG_TARGET static int kv1_joint_from_cartesian6(const double *restrict in0, co
 
 /* joint_from_cartesian6's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 7 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2083,10 +2083,10 @@ __attribute__((always_inline)) static inline void kl_rows_joint_from_cartesian6(
         to[8][r] = fabs(s_4) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_joint_from_cartesian6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_joint_from_cartesian6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2100,9 +2100,9 @@ static int batch_vector_joint_from_cartesian6(Py_ssize_t n, const double *const 
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[4][64], tv[8][64], ti[7][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[7][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -2227,7 +2227,7 @@ VTRIG_TARGET static int kv1_force_from_torque6(const double *restrict in0, const
 
 /* force_from_torque6's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 7 input elements in ti, its 9 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2265,10 +2265,10 @@ __attribute__((always_inline)) static inline void kl_rows_force_from_torque6(int
         to[8][r] = fabs(s_4) - 1e-09;
     }
 }
-__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque6(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_force_from_torque6(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_force_from_torque6(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2282,9 +2282,9 @@ static int batch_vector_force_from_torque6(Py_ssize_t n, const double *const *in
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0]; double *outb1 = out[1]; double *outb2 = out[2]; double *outb3 = out[3];
-    double ta[4][64], tv[8][64], ti[7][64], to[9][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[7][32], to[9][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1); double *p1 = outb1 + (r0 + r) * os[1]; __builtin_prefetch(p1 + 0, 1); double *p2 = outb2 + (r0 + r) * os[2]; __builtin_prefetch(p2 + 0, 1); double *p3 = outb3 + (r0 + r) * os[3]; __builtin_prefetch(p3 + 0, 1);
@@ -2385,7 +2385,7 @@ VTRIG_TARGET static int kv1_gravity(const double *restrict in0, const double *re
 
 /* gravity's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 10 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2411,10 +2411,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity(int m, const d
         to[5][r] = s_0*(c_5*s_2*t3 - c_3*t0) + c_1*s_4*t3;
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2428,9 +2428,9 @@ static int batch_vector_gravity(Py_ssize_t n, const double *const *in, const Py_
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[10][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[10][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; ti[7][r] = in1[6]; ti[8][r] = in1[7]; ti[9][r] = in1[8]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -2629,7 +2629,7 @@ VTRIG_TARGET static int kv1_gravity_regressor(const double *restrict in0, double
 
 /* gravity_regressor's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 1 input elements in ti, its 54 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2704,10 +2704,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_regressor(int 
         to[53][r] = 0.0;
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_regressor(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2721,9 +2721,9 @@ static int batch_vector_gravity_regressor(Py_ssize_t n, const double *const *in,
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[1][64], to[54][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[1][32], to[54][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 40, 1); __builtin_prefetch(p0 + 48, 1); __builtin_prefetch(p0 + 53, 1);
@@ -2832,7 +2832,7 @@ VTRIG_TARGET static int kv1_gravity_links(const double *restrict in0, const doub
 
 /* gravity_links's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
  * 19 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
-__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64])
+__attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
 {
     for (int r = 0; r < m; ++r) {
         const double s_0 = tv[0][r];
@@ -2862,10 +2862,10 @@ __attribute__((always_inline)) static inline void kl_rows_gravity_links(int m, c
         to[5][r] = 9.81*ti[5][r]*(s_0*(c_5*s_2*t5 - c_3*t3) + c_1*s_4*t5);
     }
 }
-__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
-__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[64], const double (*restrict ti)[64], double (*restrict to)[64]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx2"))) static void kl_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_links(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_gravity_links(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_gravity_links(m, tv, ti, to); }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
 static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -2879,9 +2879,9 @@ static int batch_vector_gravity_links(Py_ssize_t n, const double *const *in, con
     }
     const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
     double *outb0 = out[0];
-    double ta[4][64], tv[8][64], ti[19][64], to[6][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[4][32], tv[8][32], ti[19][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
             ta[0][r] = in0[1]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[1]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; ti[6][r] = in2[3]; ti[7][r] = in2[5]; ti[8][r] = in2[7]; ti[9][r] = in2[8]; ti[10][r] = in2[9]; ti[11][r] = in2[10]; ti[12][r] = in2[11]; ti[13][r] = in2[12]; ti[14][r] = in2[13]; ti[15][r] = in2[14]; ti[16][r] = in2[15]; ti[17][r] = in2[16]; ti[18][r] = in2[17]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
@@ -3466,7 +3466,7 @@ VTRIG_TARGET static int kv1_ik_all(const double *restrict in0, double *restrict 
     return 1;
 }
 
-/* blocks of 64 rows: arguments, then every sine/cosine over the block (vector
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
  * lanes, kin_prelude.h), then the straight-line rows */
 static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
 {
@@ -3480,9 +3480,9 @@ static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_s
     }
     const double *inb0 = (const double *)in[0];
     double *outb0 = out[0]; double *outb1 = out[1];
-    double ta[2][64], tv[4][64];
-    for (Py_ssize_t r0 = 0; r0 < n; r0 += 64) {
-        const int m = n - r0 < 64 ? (int)(n - r0) : 64;
+    double ta[2][32], tv[4][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
         for (int r = 0; r < m; ++r) {
             const double *restrict in0 = inb0 + (r0 + r) * is[0];
             const double x_0 = atan2(0.154, -sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.023716) - 0.011858)) - atan2(in0[7], -in0[3]); const double x_1 = atan2(0.154, sqrt(0.5*in0[3]*in0[3] + 0.5*in0[7]*in0[7] + 0.5*fabs(in0[3]*in0[3] + in0[7]*in0[7] - 0.023716) - 0.011858)) - atan2(in0[7], -in0[3]); ta[0][r] = x_0; ta[1][r] = x_1;
@@ -3490,7 +3490,7 @@ static int batch_vector_ik_all(Py_ssize_t n, const double *const *in, const Py_s
         vtrig_sincos(ta[0], tv[0], tv[1], m);
         vtrig_sincos(ta[1], tv[2], tv[3], m);
         for (int r = 0; r < m; ++r)
-            kv_ik_all(&tv[0][r], 64, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1]);
+            kv_ik_all(&tv[0][r], 32, inb0 + (r0 + r) * is[0], outb0 + (r0 + r) * os[0], outb1 + (r0 + r) * os[1]);
     }
     return 1;
 }
