@@ -105,6 +105,51 @@ def _unknown_coefficients(expr: sp.Expr, s: sp.Expr, c: sp.Expr) -> tuple[sp.Exp
     return a_, b_, rest
 
 
+@dataclass(frozen=True)
+class SphericalWrist:
+    """theta4, theta5, theta6 of a spherical wrist (3.31-3.35), each in terms of the joints
+    before it: the steps the PUMA and Stanford classes share."""
+
+    equations: tuple[PickedEquation, ...]
+    theta4: sp.Expr   # of q1..q3 and the wrist sign (3.31)
+    theta5: sp.Expr   # of q1..q4 (3.33)
+    theta6: sp.Expr   # of q1..q5 (3.35)
+    norm: sp.Expr     # |S5| of q1..q3
+
+    def joints(self, sub123: dict[sp.Symbol, sp.Expr]) -> tuple[sp.Expr, ...]:
+        """theta4, theta5, theta6, |S5| with q1..q3 given by ``sub123``, and theta6 of q1..q4."""
+        q1, q2, q3, q4, q5, q6 = Q
+        theta4 = self.theta4.subs(sub123, simultaneous=True)
+        norm = self.norm.subs(sub123, simultaneous=True)
+        theta5 = self.theta5.subs({**sub123, q4: theta4}, simultaneous=True)
+        theta6 = self.theta6.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
+        return theta4, theta5, theta6, norm, self.theta6.subs({q5: self.theta5})
+
+
+def spherical_wrist(r: DHRobot) -> SphericalWrist:
+    """Paul's wrist steps: rows 1, 2 of the 3rd column of A3^-1 A2^-1 A1^-1 T6 = U4 (3.31,
+    +-C4 S5 and +-S4 S5, the wrist sign choosing the branch: the 180 degree shift of the text
+    after 3.31), then of A4^-1..A1^-1 T6 = U5 (3.33, +-S5, +-C5), then the 2nd column of
+    A5^-1..A1^-1 T6 = U6 (3.35, +-S6, +-C6)."""
+    q1, q2, q3, q4, q5, q6 = Q
+    e_4a, e_4b = pick(r, "3.31", 3, 1, 3), pick(r, "3.31", 3, 2, 3)
+    k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
+    k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
+    _require(r, k_c in (1, -1) and k_s in (1, -1), "the wrist must be spherical (3.31: +-C4 S5, +-S4 S5)")
+    theta4 = sp.atan2(wrist * k_s * e_4b.lhs, wrist * k_c * e_4a.lhs)
+    e_5a, e_5b = pick(r, "3.33", 4, 1, 3), pick(r, "3.33", 4, 2, 3)
+    ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
+    kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
+    _require(r, ks5 in (1, -1) and kc5 in (1, -1), "the wrist must be spherical (3.33: +-S5, +-C5)")
+    e_6a, e_6b = pick(r, "3.35", 5, 1, 2), pick(r, "3.35", 5, 2, 2)
+    ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
+    kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
+    _require(r, ks6 in (1, -1) and kc6 in (1, -1), "3.35 must read +-S6, +-C6")
+    return SphericalWrist((e_4a, e_4b, e_5a, e_5b, e_6a, e_6b), theta4,
+                          sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs), sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs),
+                          sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2))
+
+
 def articulated_ik(r: DHRobot) -> IKSolution:
     """The PUMA class (thesis eqs. 3.22-3.41 for the PUMA 260), derived from the table of
     ``r``: six revolute joints, a1 = 0 with the shoulder axes perpendicular, joints 2 and 3
@@ -184,44 +229,10 @@ def articulated_ik(r: DHRobot) -> IKSolution:
     theta2 = theta23 - theta3
     fold = (fp**2 + fz**2).subs(q1, theta1)
 
-    # theta4: rows 1, 2 of the 3rd column of (3.28) (3.31): rhs -C4 S5, -S4 S5
-    e_4a = pick(r, "3.31", 3, 1, 3)
-    e_4b = pick(r, "3.31", 3, 2, 3)
-    eqs += [e_4a, e_4b]
-    # the right-hand sides are k*C4*S5 and k*S4*S5 with k = +-1: read k off
-    k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
-    k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
-    _require(r, k_c in (1, -1) and k_s in (1, -1), "the wrist must be spherical (3.31: +-C4 S5, +-S4 S5)")
-    # wrist = sign(S5) selects the branch (the 180 degree shift of the text after 3.31)
-    y4 = wrist * k_s * e_4b.lhs
-    x4 = wrist * k_c * e_4a.lhs
-    theta4_of_q123 = sp.atan2(y4, x4)
-    wrist_norm = sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2)  # = |S5|
-
-    # theta5: rows 1, 2 of the 3rd column of A4^-1..A1^-1 T6 = U5 (3.33)
-    e_5a = pick(r, "3.33", 4, 1, 3)
-    e_5b = pick(r, "3.33", 4, 2, 3)
-    eqs += [e_5a, e_5b]
-    ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
-    kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
-    _require(r, ks5 in (1, -1) and kc5 in (1, -1), "the wrist must be spherical (3.33: +-S5, +-C5)")
-    theta5_of_q1234 = sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs)
-
-    # theta6: rows 1, 2 of the 2nd column of A5^-1..A1^-1 T6 = U6 (3.35)
-    e_6a = pick(r, "3.35", 5, 1, 2)
-    e_6b = pick(r, "3.35", 5, 2, 2)
-    eqs += [e_6a, e_6b]
-    ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
-    kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
-    _require(r, ks6 in (1, -1) and kc6 in (1, -1), "3.35 must read +-S6, +-C6")
-    theta6_of_q12345 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
-
-    sub123 = {q1: theta1, q2: theta2, q3: theta3}
-    theta4 = theta4_of_q123.subs(sub123, simultaneous=True)
-    wrist_norm = wrist_norm.subs(sub123, simultaneous=True)
-    theta5 = theta5_of_q1234.subs({**sub123, q4: theta4}, simultaneous=True)
-    theta6 = theta6_of_q12345.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
-    theta6_given_q4 = theta6_of_q12345.subs({q5: theta5_of_q1234})
+    # theta4..6: the spherical wrist (3.31-3.35)
+    w = spherical_wrist(r)
+    eqs += list(w.equations)
+    theta4, theta5, theta6, wrist_norm, theta6_given_q4 = w.joints({q1: theta1, q2: theta2, q3: theta3})
 
     scale = (a2 + forearm + sp.Abs(d3)) ** 2
     guards = (
@@ -241,12 +252,12 @@ def articulated_ik(r: DHRobot) -> IKSolution:
     named = {
         "f_p": fp, "f": f, "d": d, "r2": px**2 + py**2, "u1": a2 * sp.cos(q3),
         "u2": forearm - a2 * sp.sin(q3), "theta1": theta1, "theta3": theta3_of_q1,
-        "theta23": theta23_of_q13, "theta4": theta4_of_q123, "theta5": theta5_of_q1234,
-        "theta6": theta6_of_q12345, "h": h, "bend": bend, "forearm": forearm, "d_off": d3,
+        "theta23": theta23_of_q13, "theta4": w.theta4, "theta5": w.theta5,
+        "theta6": w.theta6, "h": h, "bend": bend, "forearm": forearm, "d_off": d3,
     }
     indicators = (h, -h * sp.expand(bend), sp.sin(q5))
     return IKSolution(r, tuple(eqs), (theta1, theta2, theta3, theta4, theta5, theta6),
-                      (arm, elbow, wrist), guards, (theta5_of_q1234, theta6_given_q4), named,
+                      (arm, elbow, wrist), guards, (w.theta5, theta6_given_q4), named,
                       "articulated", indicators)
 
 
@@ -361,40 +372,10 @@ def spherical_ik(r: DHRobot) -> IKSolution:
     ext3 = ext_of_q1.subs(q1, theta1)
     length2 = length2_of_q1.subs(q1, theta1)
 
-    # theta4: rows 1, 2 of the 3rd column of A3^-1 A2^-1 A1^-1 T6 = U4 (as 3.31)
-    e_4a = pick(r, "3.31", 3, 1, 3)
-    e_4b = pick(r, "3.31", 3, 2, 3)
-    eqs += [e_4a, e_4b]
-    k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
-    k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
-    _require(r, k_c in (1, -1) and k_s in (1, -1), "the wrist must be spherical (3.31: +-C4 S5, +-S4 S5)")
-    theta4_of_q123 = sp.atan2(wrist * k_s * e_4b.lhs, wrist * k_c * e_4a.lhs)
-    wrist_norm = sp.sqrt(e_4a.lhs**2 + e_4b.lhs**2)  # = |S5|
-
-    # theta5: rows 1, 2 of the 3rd column of A4^-1..A1^-1 T6 = U5 (as 3.33)
-    e_5a = pick(r, "3.33", 4, 1, 3)
-    e_5b = pick(r, "3.33", 4, 2, 3)
-    eqs += [e_5a, e_5b]
-    ks5 = sp.simplify(e_5a.rhs / sp.sin(q5))
-    kc5 = sp.simplify(e_5b.rhs / sp.cos(q5))
-    _require(r, ks5 in (1, -1) and kc5 in (1, -1), "the wrist must be spherical (3.33: +-S5, +-C5)")
-    theta5_of_q1234 = sp.atan2(ks5 * e_5a.lhs, kc5 * e_5b.lhs)
-
-    # theta6: rows 1, 2 of the 2nd column of A5^-1..A1^-1 T6 = U6 (as 3.35)
-    e_6a = pick(r, "3.35", 5, 1, 2)
-    e_6b = pick(r, "3.35", 5, 2, 2)
-    eqs += [e_6a, e_6b]
-    ks6 = sp.simplify(e_6a.rhs / sp.sin(q6))
-    kc6 = sp.simplify(e_6b.rhs / sp.cos(q6))
-    _require(r, ks6 in (1, -1) and kc6 in (1, -1), "3.35 must read +-S6, +-C6")
-    theta6_of_q12345 = sp.atan2(ks6 * e_6a.lhs, kc6 * e_6b.lhs)
-
-    sub123 = {q1: theta1, q2: theta2, q3: ext3}
-    theta4 = theta4_of_q123.subs(sub123, simultaneous=True)
-    wrist_norm = wrist_norm.subs(sub123, simultaneous=True)
-    theta5 = theta5_of_q1234.subs({**sub123, q4: theta4}, simultaneous=True)
-    theta6 = theta6_of_q12345.subs({**sub123, q4: theta4, q5: theta5}, simultaneous=True)
-    theta6_given_q4 = theta6_of_q12345.subs({q5: theta5_of_q1234})
+    # theta4..6: the spherical wrist, as the PUMA's (3.31-3.35)
+    w = spherical_wrist(r)
+    eqs += list(w.equations)
+    theta4, theta5, theta6, wrist_norm, theta6_given_q4 = w.joints({q1: theta1, q2: theta2, q3: ext3})
 
     planar2 = a_**2 + b_**2  # the wrist centre's squared distance from the joint-1 axis
     if d_off == 0:
@@ -421,11 +402,11 @@ def spherical_ik(r: DHRobot) -> IKSolution:
     fk = t6(r)
     h = tidy((a_ * c1 - b_ * s1).subs({px: fk[0, 3], py: fk[1, 3]}, simultaneous=True))
     named = {"d_off": d_off, "r2": planar2, "theta1": theta1, "f_s": fs, "f_c": fc,
-             "theta2": theta2_of_q1, "q3": ext_of_q1, "theta4": theta4_of_q123,
-             "theta5": theta5_of_q1234, "theta6": theta6_of_q12345, "h": h, "boom_off": boom_off}
+             "theta2": theta2_of_q1, "q3": ext_of_q1, "theta4": w.theta4,
+             "theta5": w.theta5, "theta6": w.theta6, "h": h, "boom_off": boom_off}
     indicators = (h, q3 + boom_off, sp.sin(q5))
     return IKSolution(r, tuple(eqs), (theta1, theta2, ext3, theta4, theta5, theta6),
-                      (arm, boom, wrist), guards, (theta5_of_q1234, theta6_given_q4), named,
+                      (arm, boom, wrist), guards, (w.theta5, theta6_given_q4), named,
                       "spherical", indicators)
 
 
