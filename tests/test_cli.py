@@ -79,3 +79,73 @@ def test_readme_first_program_runs_and_prints_what_happened():
     assert np.allclose([float(m.group(i)) for i in (2, 3, 4)], [-0.15, -0.15, -0.1973], atol=5e-4)
     assert float(m.group(1)) > 0
     assert "back at park, joints (deg): [0.0, 90.0, -180.0, 0.0, -90.0, 0.0]" in r.stdout
+
+
+@pytest.mark.parametrize("args, option, valid", [
+    (["--port", "99999"], "--port", "0..65535"),
+    (["--port", "-1"], "--port", "0..65535"),
+    (["--port", "abc"], "--port", "0..65535"),
+    (["--control-port", "70000"], "--control-port", "0..65535"),
+    (["--view", "--view-port", "99999"], "--view-port", "0..65535"),
+    (["--watchdog", "0"], "--watchdog", ">= 1"),
+    (["--watchdog-time", "-1"], "--watchdog-time", ">= 0 s"),
+    (["--watchdog-time", "nan"], "--watchdog-time", ">= 0 s"),
+    (["--lockstep-watchdog", "-3"], "--lockstep-watchdog", ">= 0 s"),
+    (["--rate", "2"], "--rate", "4..1000 Hz"),
+    (["--priority", "200"], "--priority", "0..99"),
+    (["--seed", "-1"], "--seed", ">= 0"),
+])
+def test_simula_checks_every_value_up_front_naming_the_option_and_range(args, option, valid, capsys):
+    """Nothing is clamped or left to a socket's OverflowError: the parser refuses the value."""
+    from rci.simula.__main__ import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--lockstep", *args])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}:" in err and f"(valid: {valid})" in err, err
+    assert "Traceback" not in err
+
+
+def test_simula_bad_port_is_one_line_not_a_traceback():
+    """The console script itself, as a user types it (it once printed an OverflowError traceback)."""
+    r = _run(str(BIN / "simula"), "--port", "99999", timeout=60)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "argument --port: 99999 is out of range (valid: 0..65535)" in r.stderr
+
+
+@pytest.mark.parametrize("option", ["--port", "--control-port"])
+def test_simula_says_which_port_is_already_in_use(option):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        other = [] if option == "--port" else ["--port", "0"]
+        r = _run(str(BIN / "simula"), "--lockstep", *other, option, str(port), timeout=60)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"{option} {port}: cannot listen on 127.0.0.1:{port}: Address already in use" in r.stderr
+    assert f"{option} 0 picks a free one" in r.stderr
+
+
+@pytest.mark.parametrize("url, meant", [
+    ("127.0.0.1:7600", "socket://127.0.0.1:7600"),
+    ("localhost:7600", "socket://localhost:7600"),
+    ("tcp://127.0.0.1:7600", "socket://127.0.0.1:7600"),
+])
+def test_a_link_address_without_socket_scheme_gets_a_hint(url, meant):
+    from rci.exceptions import DeviceError
+    from rci.link import open_link
+
+    with pytest.raises(DeviceError, match=f"did you mean '{meant}'"):
+        open_link(url)
+
+
+def test_a_device_path_that_is_missing_gets_no_network_hint():
+    from rci.exceptions import DeviceError
+    from rci.link import open_link
+
+    with pytest.raises(DeviceError) as err:
+        open_link("/dev/no-such-robot-line")
+    assert "socket://" not in str(err.value)

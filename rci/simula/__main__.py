@@ -16,9 +16,13 @@ follow, once per simulated second.
 from __future__ import annotations
 
 import argparse
+import errno
+import math
 import signal
 import sys
+from contextlib import contextmanager
 from dataclasses import replace
+from typing import Iterator
 
 from models import ModelError
 from models import available_robots, load_robot
@@ -29,6 +33,40 @@ from .params import load_params, parse_load, truth_from_model
 from .server import LOCKSTEP_WATCHDOG_S, WATCHDOG_CYCLES, Server
 
 DEFAULT_PORT = 7600
+PORT_RANGE = (0, 65535)
+PRIORITY_RANGE = (0, 99)          # SCHED_FIFO's on Linux; 0 leaves the scheduler alone
+RATE_RANGE_HZ = (4, 1000)         # the thesis's 9..72 Hz and anything up to 1 kHz
+
+
+def _integer(lo: int, hi: int | None = None, unit: str = ""):
+    """An argparse ``type`` for an integer in lo..hi (hi None: no upper end); the message
+    argparse prints names the option ("argument --port: ...") and this range."""
+    span = (f"{lo}..{hi}" if hi is not None else f">= {lo}") + unit
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer (valid: {span})") from None
+        if value < lo or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"{value} is out of range (valid: {span})")
+        return value
+    parse.__name__ = "integer"
+    return parse
+
+
+def _seconds(lo: float = 0.0):
+    """An argparse ``type`` for a finite number of seconds >= lo."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds (valid: >= {lo:g})") from None
+        if not math.isfinite(value) or value < lo:
+            raise argparse.ArgumentTypeError(f"{text} s is out of range (valid: >= {lo:g} s)")
+        return value
+    parse.__name__ = "seconds"
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lockstep", action="store_true",
                    help="advance one period per CHG received (deterministic, as fast as possible)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback only)")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT,
+    p.add_argument("--port", type=_integer(*PORT_RANGE), default=DEFAULT_PORT,
                    help=f"TCP port (default {DEFAULT_PORT}; 0 picks a free one, printed on line 1)")
     p.add_argument("--pty", action="store_true", help="serve a pseudo-terminal instead of TCP (path on line 1)")
     p.add_argument("--zenoh", metavar="KEY",
@@ -56,11 +94,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "tcp/0.0.0.0:7447 for other hosts)")
     p.add_argument("--zenoh-connect", metavar="ENDPOINT", action="append", default=[],
                    help="Zenoh endpoint (a router or a peer) to connect to (repeatable)")
-    p.add_argument("--control-port", type=int, default=0, help="control-channel port on loopback (0: any free)")
+    p.add_argument("--control-port", type=_integer(*PORT_RANGE), default=0, help="control-channel port on loopback (0: any free)")
     p.add_argument("--no-control", action="store_true", help="no control channel")
     p.add_argument("--test-channel", action="store_true",
                    help="allow the control channel's commands that act on the arm (torque, load): tests only")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random disturbance (reproducible runs)")
+    p.add_argument("--seed", type=_integer(0), default=0, help="seed of every random disturbance (reproducible runs)")
     p.add_argument("--load", default="none", help="pulley load: pulley:joint=J,mass=KG,radius=M[,sign=+-1]")
     p.add_argument("--env", action="append", default=[], metavar="SPEC",
                    help="environment (repeatable): plane:z=..., box:..., conveyor:..., tool:z=... "
@@ -68,24 +106,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", help="parameter file fitted by calib (schema rcci-calib-params/1)")
     p.add_argument("--dynamic", action="store_true",
                    help="couple current-mode joints through the full mass matrix and Coriolis terms")
-    p.add_argument("--rate", type=int, default=36, help="sample rate announced before START (Hz)")
-    p.add_argument("--watchdog", type=int, default=WATCHDOG_CYCLES,
-                   help="real-time mode: missing CHGs in a row before the arm is stopped")
-    p.add_argument("--watchdog-time", type=float, default=0.1,
-                   help="real time: and at least this many seconds without a CHG (default 0.1 s)")
-    p.add_argument("--lockstep-watchdog", type=float, default=LOCKSTEP_WATCHDOG_S,
+    p.add_argument("--rate", type=_integer(*RATE_RANGE_HZ, unit=" Hz"), default=36,
+                   help="sample rate announced before START (Hz, 4..1000; default 36)")
+    p.add_argument("--watchdog", type=_integer(1), default=WATCHDOG_CYCLES,
+                   help=f"real-time mode: missing CHGs in a row before the arm is stopped (>= 1; "
+                        f"default {WATCHDOG_CYCLES})")
+    p.add_argument("--watchdog-time", type=_seconds(), default=0.1,
+                   help="real time: and at least this many seconds without a CHG (>= 0; default 0.1 s)")
+    p.add_argument("--lockstep-watchdog", type=_seconds(), default=LOCKSTEP_WATCHDOG_S,
                    help=f"lockstep: wall-clock seconds without a CHG before a control is ended "
                         f"(default {LOCKSTEP_WATCHDOG_S}; 0: never)")
-    p.add_argument("--priority", type=int, default=70,
-                   help="real time: SCHED_FIFO priority (0: leave the scheduler alone); falls back quietly")
+    p.add_argument("--priority", type=_integer(*PRIORITY_RANGE), default=70,
+                   help="real time: SCHED_FIFO priority 1..99 (0: leave the scheduler alone); falls back quietly")
     p.add_argument("--warm", action="store_true", help="start with warmed-up joints (no cold friction excess)")
     p.add_argument("--power-on", action="store_true", help="start with arm power on")
     p.add_argument("--view", action="store_true",
                    help="show the arm live in a web browser (3D, with the --env surfaces): prints "
                         "'view http://127.0.0.1:PORT' after the control line (needs pip install 'rcci[view]')")
-    p.add_argument("--view-port", type=int, default=8080,
-                   help="the view's HTTP port (default 8080; 0: any free one; a busy one: the next free)")
+    p.add_argument("--view-port", type=_integer(*PORT_RANGE), default=8080,
+                   help="the view's HTTP port (0..65535, default 8080; 0: any free one; a busy one: the next free)")
     return p
+
+
+@contextmanager
+def _naming_the_port(option: str, host: str, port: int) -> Iterator[None]:
+    """A bind that fails says which option's port, and what to do when it is taken."""
+    try:
+        yield
+    except OSError as exc:
+        hint = (" (another simula, or another program, listens there: stop it or choose another "
+                f"{option}; {option} 0 picks a free one)") if exc.errno == errno.EADDRINUSE else ""
+        raise SimulaError(f"{option} {port}: cannot listen on {host}:{port}: {exc.strerror or exc}{hint}") from None
 
 
 def _realtime_setup(server: Server, priority: int) -> None:
@@ -118,21 +169,25 @@ def main(argv: list[str] | None = None) -> int:
         else:
             arm = SimulatedArm(model, truth, **kw)
         arm.power = bool(args.power_on)
-        if not 4 <= args.rate <= 1000:
-            raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")
+        # every value was checked by the parser (build_parser): none is clamped here
         server = Server(arm, model.name, lockstep=args.lockstep, verbose=args.verbose, rate_hz=args.rate,
-                        watchdog=max(1, args.watchdog), watchdog_time=max(0.0, args.watchdog_time),
-                        lockstep_watchdog=max(0.0, args.lockstep_watchdog))
+                        watchdog=args.watchdog, watchdog_time=args.watchdog_time,
+                        lockstep_watchdog=args.lockstep_watchdog)
         if args.zenoh:
             from rci.zenoh_bus import ZenohAddress
             url = server.serve_zenoh(ZenohAddress(args.zenoh.strip("/"), tuple(args.zenoh_connect),
                                                   tuple(args.zenoh_listen)),
                                      # real time: Zenoh's threads just above the serving loop
                                      priority=0 if args.lockstep or args.priority <= 0 else args.priority + 1)
+        elif args.pty:
+            url = server.open_pty()
         else:
-            url = server.open_pty() if args.pty else server.listen_tcp(args.host, args.port)
-        control = None if args.no_control else ControlChannel("127.0.0.1", args.control_port,
-                                                              test_commands=args.test_channel)
+            with _naming_the_port("--port", args.host, args.port):
+                url = server.listen_tcp(args.host, args.port)
+        control = None
+        if not args.no_control:
+            with _naming_the_port("--control-port", "127.0.0.1", args.control_port):
+                control = ControlChannel("127.0.0.1", args.control_port, test_commands=args.test_channel)
     except (ModelError, SimulaError, ValueError, OSError) as exc:
         print(f"simula: {exc}", file=sys.stderr)
         return 2

@@ -6,6 +6,8 @@ the first one's frames.
 """
 from __future__ import annotations
 
+import re
+
 import serial
 
 from ..exceptions import DeviceError, LinkClosed
@@ -65,6 +67,19 @@ def open_transport(url: str, *, timeout: float = 5.0, priority: int = 0) -> Seri
                                      **({"exclusive": True} if device else {}))
     except (serial.SerialException, OSError, ValueError) as e:
         hint = " (another program has this line open: one controller per line)" \
-            if device and "exclusively lock" in str(e) else ""
+            if device and "exclusively lock" in str(e) else _address_hint(url)
         raise DeviceError(f"cannot open robot link {url!r}: {e}{hint}") from None
     return SerialTransport(port, url)
+
+
+_HOST_PORT = re.compile(r"^(?:[a-z]+://)?(\[[0-9a-fA-F:]+\]|[\w.-]+):(\d+)/?$")
+
+
+def _address_hint(url: str) -> str:
+    """For a network address given without ``socket://`` (``127.0.0.1:7600``, ``tcp://host:7600``),
+    which pyserial took for a device path or an unknown scheme: the address that was meant."""
+    m = _HOST_PORT.match(url)
+    if m is None or url.startswith("socket://") or url.startswith("/"):
+        return ""
+    return (f" (a network address needs the socket:// scheme: did you mean "
+            f"'socket://{m.group(1)}:{m.group(2)}'? docs/protocol.md)")
