@@ -1,8 +1,9 @@
 """Per-cycle timing of the control task: lateness, period jitter, duration, user time.
 
 The control task writes one entry per cycle into preallocated arrays (no allocation in
-the cycle); the planning level reads ``last`` values or asks for a ``summary``. Times are
-host ``time.monotonic()`` seconds.
+the cycle); the planning level reads ``last`` values or asks for a ``summary`` (a record whose fields are
+seconds and counts, printed as a table in milliseconds). Times are host ``time.monotonic()``
+seconds.
 """
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass
+@dataclass(repr=False)
 class TimingSummary:
     """Statistics over the recorded cycles (all times in seconds)."""
 
@@ -37,6 +38,32 @@ class TimingSummary:
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
+
+    def table(self) -> str:
+        """The summary as a short table in milliseconds, for a person (``print(s.timing.summary())``)."""
+        rate = f" at {1.0 / self.period:.0f} Hz, period {_ms(self.period)}" if self.period > 0 else ""
+        rows = [("HOW interval jitter", self.jitter_p50, self.jitter_p99, self.jitter_max),
+                ("lateness", None, self.lateness_p99, None),
+                ("cycle duration", self.duration_p50, self.duration_p99, self.duration_max),
+                ("RCI overhead", self.overhead_p50, self.overhead_p99, None)]
+        lines = [f"timing over {self.cycles} cycles{rate}",
+                 f"{'':20}{'p50':>11}{'p99':>11}{'max':>11}"]
+        lines += [f"{name:20}" + "".join(f"{_ms(v) if v is not None else '-':>11}" for v in values)
+                  for name, *values in rows]
+        lines.append(f"{'share left to user':20}{self.user_share_p50:>11.1%}{self.user_share_p99:>11.1%}{'-':>11}")
+        limit = f" of {self.late_limit} allowed" if self.late_limit else ""
+        lines.append(f"missed {self.missed}, overruns {self.overruns}, late {self.late_cycles} "
+                     f"(longest run {self.late_run_max}{limit}), duplicate HOWs {self.duplicates}")
+        return "\n".join(lines)
+
+    # a person at a prompt sees the table, not 19 fields of 17-digit seconds; as_dict() for programs
+    __str__ = table
+    __repr__ = table
+
+
+def _ms(seconds: float) -> str:
+    """Seconds as milliseconds with three decimals (microsecond resolution)."""
+    return f"{seconds * 1e3:.3f} ms"
 
 
 class CycleTiming:
