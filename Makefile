@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 DERIVE_SRC   := $(sort $(wildcard derive/*.py models/*.py models/*.toml models/urdf/*.urdf))
 DERIVE_STAMP := rccl/kinematics/derived-from.sha256
 
-.PHONY: all venv derive derive-if-needed test demo bench clean
+.PHONY: all venv derive derive-if-needed test test-deps demo bench clean
 
 all: test
 
@@ -35,8 +35,14 @@ derive-if-needed: $(STAMP)
 	then echo "derive: generated code is up to date with derive/ and models/"; \
 	else $(MAKE) derive; fi
 
-test: $(STAMP)
+# What the tests need beyond .venv: a Chromium for tests/test_viewer.py, installed with apt-get
+# (Debian's chromium) when none is found and we are root or have passwordless sudo; otherwise
+# .ci/chromium says what to install and `make test` stops there (the browser test is never skipped)
+test: $(STAMP) test-deps
 	$(PY) -m pytest -q
+
+test-deps:
+	@./.ci/chromium
 
 # The demo's results go to $(DEMO_OUT)/ (untracked): timings and thread interleavings differ
 # from run to run, so the committed reports/ are rebuilt only by their own commands (each
