@@ -44,9 +44,12 @@ def friction_plots(results: list[FrictionResult], points: list[FrictionPoint],
             vs = np.linspace(0.0, max(v.max() if len(v) else 1.0, 1.0) * 1.05, 50)
             line = fit.coulomb + fit.viscous * np.radians(vs)
             ax.fill_between(vs, line - fit.coulomb_err, line + fit.coulomb_err, color="0.85", lw=0,
-                            label=f"F_c +- {fit.coulomb_err:.3f}")
-            ax.plot(vs, line, "k-", lw=0.9, label=f"{fit.coulomb:.3f} + {1e3 * fit.viscous:.2f}e-3 w")
-            label = f"passes ({len(pts)})" + (f", window gravity {fit.window_gravity:+.4f} taken off" if fit.window_gravity else "")
+                            label=f"F_c +- {fit.coulomb_err:.3f} N m")
+            # the line's slope in the axis's unit (N m per deg/s), and F_v as the fit gives it (per rad/s)
+            ax.plot(vs, line, "k-", lw=0.9, label=f"{fit.coulomb:.3f} + {1e3 * np.radians(fit.viscous):.3f}e-3 v, "
+                                                   f"v in deg/s (F_v {fit.viscous:.4f} N m s/rad)")
+            label = f"passes ({len(pts)})" + (f", window gravity {fit.window_gravity:+.4f} N m taken off"
+                                               if fit.window_gravity else "")
             ax.plot(v, f, "o", mfc=face, mec="k", ms=4, ls="none", label=label)
             ax.set_ylim(*y_limits(f, fit, np.radians(vs[-1])))
             ax.set_xlim(left=0)

@@ -109,8 +109,9 @@ def plot(arm, r_p0_end_t: float, out: Path = REPORT) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.8))
     for ax, sel, title in ((axes[0], first, "(a) moving toward a point which follows a circle"),
                            (axes[1], stopped, "(b) \"stopped\" at a point which follows a circle")):
-        ax.plot(1000 * xy[sel, 0], 1000 * xy[sel, 1], "-", lw=1.2)
-        ax.plot(1000 * xy[sel, 0][0], 1000 * xy[sel, 1][0], "o", ms=4)
+        ax.plot(1000 * xy[sel, 0], 1000 * xy[sel, 1], "-", lw=1.2, label="T6 path (measured)")
+        ax.plot(1000 * xy[sel, 0][0], 1000 * xy[sel, 1][0], "o", ms=4, label="start of the path shown")
+        ax.legend(fontsize=7, loc="lower left")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")

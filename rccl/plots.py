@@ -46,6 +46,21 @@ def line_deviation(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.norm(r - np.outer(r @ u, u), axis=1)
 
 
+def _marks_in_view(marks, j: int, close_mm: float = 3.0) -> list[tuple[str, tuple[float, float]]]:
+    """The marks ``(label, T)`` projected on (x, axis j) in mm, those that fall within ``close_mm``
+    of an earlier one named together ("c0, c1"): in the XZ view of the tour c0 and c1 differ
+    only in y, and two labels on one point overprinted each other."""
+    out: list[tuple[str, tuple[float, float]]] = []
+    for label, t in marks:
+        here = (float(t[0, 3] * 1e3), float(t[j, 3] * 1e3))
+        near = next((k for k, (_, at) in enumerate(out) if np.hypot(at[0] - here[0], at[1] - here[1]) < close_mm), None)
+        if near is None:
+            out.append((label, here))
+        else:
+            out[near] = (f"{out[near][0]}, {label}", out[near][1])
+    return out
+
+
 def path_plot(arm, marks, title: str, out: Path | None = None, extra=None) -> Path:
     """XY and XZ projections of the tool (T6) path of ``arm.trace`` (commanded and measured)."""
     import matplotlib
@@ -65,9 +80,9 @@ def path_plot(arm, marks, title: str, out: Path | None = None, extra=None) -> Pa
             ax = axes[row, col]
             ax.plot(pc[:, i], pc[:, j], "-", lw=2.5, color="tab:blue", alpha=0.45, label="commanded")
             ax.plot(pm[:, i], pm[:, j], ".", ms=3, color="tab:red", label="measured (simula how)")
-            for label, t in mk:
-                ax.plot(t[0, 3] * 1e3, t[j, 3] * 1e3 if j < 3 else 0, "k+", ms=12, mew=2)
-                ax.annotate(label, (t[0, 3] * 1e3, t[j, 3] * 1e3), textcoords="offset points", xytext=(6, 6))
+            for label, (x, y) in _marks_in_view(mk, j):
+                ax.plot(x, y, "k+", ms=12, mew=2)
+                ax.annotate(label, (x, y), textcoords="offset points", xytext=(6, 6))
             ax.set_xlabel("x (mm)")
             ax.set_ylabel(f"{lab} (mm)")
             ax.set_aspect("equal", adjustable="datalim")
