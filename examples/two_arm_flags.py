@@ -76,6 +76,7 @@ def run(url_puma: str, url_microbo: str, **options) -> dict:
 
 CELL = "two-arm-flags"
 ARMS = {"puma": "puma260", "microbo": "microbo"}
+ARM_START_S = 60.0     # s: how long run_bus waits for an arm process it started to serve its arm
 
 
 def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: float | None = None) -> dict:
@@ -96,7 +97,9 @@ def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: f
             stack.callback(_end, proc)
         ev = BusEvents(bus)
         stack.callback(ev.close)
-        puma, mic = ev.arm("puma"), ev.arm("microbo")
+        # the arm processes were just started: on a loaded machine their start (imports, the
+        # link, the bus) took over the default 10 s, so wait for each as long as a start may take
+        puma, mic = ev.arm("puma", timeout=ARM_START_S), ev.arm("microbo", timeout=ARM_START_S)
         pos = {"over_part": waist(puma, 0.3, "over_part"), "under_part": waist(mic, 0.2, "under_part")}
         pos["away"] = waist(puma, 0.15, "away")
         pos["lift"] = waist(mic, 0.1, "lift")

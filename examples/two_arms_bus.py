@@ -49,8 +49,10 @@ def run_arm(name: str, url: str, bus_endpoints: tuple[str, ...], rate_hz: int = 
             Session(url, robot, rate_hz=rate_hz, on_error="raise", signals=False, lock_memory=False,
                     # an ordinary (not real-time) process on a shared machine: a HOW may come a few
                     # periods late over the bus, so 0.25 s without one (not two periods) ends the
-                    # control; simula's watchdog stops the arm if this process itself stalls
-                    realtime=False, timeout=0.25) as s:
+                    # control, and so do late cycles in a row for as long (9 at 36 Hz; the default 3
+                    # ended it at a load of 4-5 on 2 cores); simula's watchdog stops the arm if this
+                    # process itself stalls
+                    realtime=False, timeout=0.25, late_limit=max(3, round(0.25 * rate_hz))) as s:
         reports = bus.channel("microbo", "planning", capacity=8)
         state = {"q0": None, "k": 0}
 

@@ -29,6 +29,10 @@ from rci.zenoh_bus import ZenohAddress, ZenohLinkError
 ROOT = Path(__file__).resolve().parent.parent
 WAIT = 10.0
 WATCHDOG_S = 0.25
+# what docs/zenoh.md and docs/safety.md promise for a robot that dies or stalls under load (a load
+# of 4-5 on 2 cores): the control ended within 0.5 s. Two periods (40 ms) on an idle machine
+# (5-10 ms seen), up to 0.19 s seen at that load: the detecting thread waits for a CPU
+DETECT_UNDER_LOAD_S = 0.5
 
 
 def _simula(*args: str, key: str = "test/puma", lockstep: bool = True) -> SimulaProcess:
@@ -182,13 +186,13 @@ def test_the_robot_killed_ends_the_control_with_a_severe_link_fault():
     err, last, detected = _fault_after_running(lambda sim: os.kill(sim.proc.pid, signal.SIGKILL))
     t = err.termination
     assert t.number in (codes.R_BTEST, codes.R_TIMEOUT) and t.severe
-    assert t.cycle - last <= 2 and detected < 2 * 0.02 + 0.05
+    assert t.cycle - last <= 2 and detected < DETECT_UNDER_LOAD_S, f"ended {detected:.3f} s after the kill"
 
 
 def test_the_robot_stopped_is_a_timeout():
     err, _, detected = _fault_after_running(lambda sim: os.kill(sim.proc.pid, signal.SIGSTOP))
     assert err.termination.number == codes.R_TIMEOUT
-    assert detected < 2 * 0.02 + 0.1
+    assert detected < DETECT_UNDER_LOAD_S, f"ended {detected:.3f} s after the stop"
 
 
 CONTROLLER = textwrap.dedent("""
@@ -389,9 +393,12 @@ def test_two_arms_in_two_processes_coordinated_over_the_bus():
     spec = importlib.util.spec_from_file_location("two_arms_bus", ROOT / "examples" / "two_arms_bus.py")
     example = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(example)
-    with SimulaProcess("-p", "--zenoh", "lab/puma", "--zenoh-listen", free_endpoint(),
+    # simula's watchdog at 0.25 s, as docs/zenoh.md advises on a loaded machine (the arm
+    # processes' own limits are the example's: a 0.25 s timeout, 9 late cycles at 36 Hz)
+    room = ("--watchdog-time", str(WATCHDOG_S))
+    with SimulaProcess("-p", *room, "--zenoh", "lab/puma", "--zenoh-listen", free_endpoint(),
                        robot="puma260", lockstep=False) as puma, \
-            SimulaProcess("-p", "--zenoh", "lab/microbo", "--zenoh-listen", free_endpoint(),
+            SimulaProcess("-p", *room, "--zenoh", "lab/microbo", "--zenoh-listen", free_endpoint(),
                           robot="microbo", lockstep=False) as microbo:
         reports = example.plan({"puma": puma.url, "microbo": microbo.url},
                                free_endpoint(), seconds=3.0, quiet=True)

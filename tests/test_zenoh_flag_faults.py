@@ -35,6 +35,9 @@ HERE = Path(__file__).resolve().parent
 RATE_HZ = 50
 HOW_TIMEOUT_S = 0.25          # the arm process's wait for a HOW: generous on a loaded 2-core machine
 WATCHDOG_S = 0.25             # simula holds the arm after this long without a CHG
+# the stopped planning process's silence: the default 0.5 s gave a live planner up while it started
+# at a load of 4-5 on 2 cores (its heartbeat thread waited longer for a CPU); docs/zenoh.md
+PLANNER_SILENCE_S = 1.0
 
 
 def _simula(stack: ExitStack) -> SimulaProcess:
@@ -229,7 +232,8 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
         proc = bus_arm.spawn("puma", sim.url, "puma260", "flags-mute", (listen,), RATE_HZ, how_timeout=HOW_TIMEOUT_S)
         stack.callback(_end, proc)
         planner = subprocess.Popen([sys.executable, str(HERE / "bus_planner.py"), "flags-mute", listen, "puma", "0.5",
-                                    "--connect"], stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
+                                    "--connect", "--silence", str(PLANNER_SILENCE_S)],
+                                   stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
         stack.callback(_end, planner)
         moving = _line(planner, 30.0, "moving").split()
         serials, planner_id = [int(x) for x in moving[1:3]], moving[3]
@@ -245,8 +249,8 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
         quiet = float(said.split("no heartbeat for ", 1)[1].split(" s", 1)[0])
         # not before the silence after its last beat, and within one heartbeat of the arm process
         # after it (its last beat left at most one heartbeat before the stop, if it was on time)
-        assert quiet >= SILENCE_S, said                         # (printed to the millisecond)
-        assert 0.0 < detected < SILENCE_S + HEARTBEAT_S + 0.1, f"given up {detected:.3f} s after the stop: {said}"
+        assert quiet >= PLANNER_SILENCE_S, said                 # (printed to the millisecond)
+        assert 0.0 < detected < PLANNER_SILENCE_S + HEARTBEAT_S + 0.1, f"given up {detected:.3f} s after the stop: {said}"
         # the arm holds where it is, under its control (simula's owner is still the arm process)
         q4 = held_where_it_is(lambda: sim.command("state"), q2, speed, t_held, t2, 0.4, "the planner was stopped")
         assert [(n["planner"], n["aborted"]) for n in notices] == [(planner_id, serials)]
