@@ -76,12 +76,19 @@ def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitO
     if notes:
         L += ["## Warnings and assumptions of the fits", ""] + [f"* {k}: {n}" for k, n in notes] + [""]
     L += ["## Notes on the thesis's equations", "",
-          "* 4.47 is printed `tau0 = -2(W_g1 - W_g2)`, `tau1 = 2(W_g1 + W_g2)`, and 4.44/4.46 lost "
-          "signs in the OCR. For a gravity torque a cos u + b sin u over the pass (u from the start), "
-          "the segment works are W1 = a + b, W2 = b - a, so tau0 = a = (W1 - W2)/2 and "
-          "tau1 = b = (W1 + W2)/2 moving in the + direction (and tau0 = -(W1 - W2)/2 moving in the - "
-          "direction); calib uses these. Table 4.8's header (W_g2 - W_g1)/2 is this with the "
-          "work counted as done by gravity.",
+          "* 4.44-4.47, the reading this report takes: tau is the loading gravity puts on the joint "
+          "(the text's tau0 = -m g r cos phi0, tau1 = m g r sin phi0) and W_g the work done against it "
+          "(the text's words; 4.48's W_1 = W_f1 + W_g1 is what the motor does), W_g = -integral of tau. "
+          "Then W_g2 of 4.44, 4.45 (W_g = -2 m g r sin phi0), 4.46 (W_g1 - W_g2 = 2 m g r cos phi0) and "
+          "Table 4.8's header (W_g2 - W_g1)/2 = tau0 stand as printed, and the OCR lost two signs and "
+          "one fraction: W_g1 = +m g r (cos phi0 - sin phi0) in 4.44, and 4.47 is tau0 = -(W_g1 - W_g2)/2, "
+          "tau1 = -(W_g1 + W_g2)/2 (printed -2(...) and 2(...): a 1/2 read as 2, and tau1's sign). "
+          "Counting W_g as the integral of tau instead (tau and W on the same side) keeps W_g1 but needs "
+          "four sign errors (W_g2, 4.45, 4.46, tau0) besides the 1/2, so this report does not take it "
+          "(reports/thesis-equations.md, written by derive/audit.py, still does). calib's formula does not "
+          "depend on the reading: for the motor's torque a cos u + b sin u over the pass (u from the start) "
+          "the segment works it measures are W1 = a + b, W2 = b - a, so its tau0 = a = (W1 - W2)/2 and "
+          "tau1 = b = (W1 + W2)/2 moving in the + direction (tau0 = -(W1 - W2)/2 in the - direction).",
           "* 4.43 gives sigma_i (A+ - A'+ - A- + A'-) = 2 W_mass with A the ampere-radians of motor i; "
           "with G lower triangular only motor i both turns and carries the pulley's torque, so "
           "the wrist's coupling does not enter.", ""]

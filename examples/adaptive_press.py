@@ -121,7 +121,7 @@ def plot(out: Path | None = None) -> Path:
         note = (f"36 Hz: static friction holds {f_true.mean():.1f} N, not 10 N (expected: the dither that "
                 "frees it needs a faster rate)" if rate == 36 else
                 f"500 Hz with the dither: {f_true.mean():.2f} N held, as asked")
-        ax.annotate(note, xy=(t[-1], f[-1]), xytext=(t[-1], f[-1] + (2.2 if rate == 36 else -3.0)),
+        ax.annotate(note, xy=(t[-1], f[-1]), xytext=(t[-1], f[-1] - (2.4 if rate == 36 else 3.0)),
                     ha="right", fontsize=7.5, color=colour)
     ax.axhline(10.0, color="k", lw=0.6, ls="--", label="asked: 10 N")
     ax.axhspan(10.0 - 0.46, 10.0 + 0.46, color="0.85", label="Table 4.4 band (joint 3, +-0.46 N)")

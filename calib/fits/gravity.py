@@ -10,10 +10,17 @@ from calib.gravity import fit_gravity, row_result
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
 from calib.tables import combination, table_4_8_4_9
 
-THESIS_4_8 = {  # Table 4.8 as printed: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2)
+THESIS_4_8 = {  # Table 4.8: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2), as printed but for j3A
     ("j5", 5): ("c15", -1.191), ("j4", 4): ("c15", -1.193), ("j3B", 3): ("c13", -1.744),
-    ("j2", 2): ("c12", 5.509), ("j3B", 2): ("c12 - c13", 7.288), ("j3A", 3): ("c13 + c15", -1.938),
+    ("j2", 2): ("c12", 5.509), ("j3B", 2): ("c12 - c13", 7.288),
+    # printed -1.938: an OCR misreading of -2.938. The row's own result c15 = -1.194 with the
+    # c13 = -1.744 of row j3B/3 needs c13 + c15 = -2.938 (-1.938 would give c15 = -0.194,
+    # six times smaller than every other c15), and Table 4.9's c13 + c15 is -2.954
+    ("j3A", 3): ("c13 + c15", -2.938),
 }
+J3A_NOTE = ("j3A/3's thesis value is -2.938, not the -1.938 of the OCR text: the row's own result "
+            "c15 = -1.194 with row j3B/3's c13 = -1.744 needs c13 + c15 = -2.938 (-1.938 would give "
+            "c15 = -0.194), and Table 4.9's c13 + c15 = -1.762 - 1.192 = -2.954.")
 
 
 def thesis_4_9(info) -> dict[str, tuple[float, float, float]] | None:
@@ -53,7 +60,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "opposite sign. j2 has no repeat: joint 2's axis is always horizontal and a "
          "zero start torque would need theta2 = +-90 deg at one end of the sweep, outside "
          "its range (docs/calib.md). Result: the row solved for its leading coefficient "
-         "with the others from the fit of Table 4.9.", "",
+         "with the others from the fit of Table 4.9." + (" " + J3A_NOTE if printed else ""), "",
          "| position | joint | dir | tau0 in c | thesis (W_g2 - W_g1)/2 | fit tau0 | uncompensated | result |",
          "|---|---|---|---|---|---|---|---|"]
     for r in g.rows:
