@@ -79,7 +79,8 @@ ARMS = {"puma": "puma260", "microbo": "microbo"}
 ARM_START_S = 60.0     # s: how long run_bus waits for an arm process it started to serve its arm
 
 
-def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: float | None = None) -> dict:
+def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: float | None = None,
+            silence: float | None = None) -> dict:
     """Check the flags statically, start the two arm processes, run ``plan`` from this process.
 
     Returns ``{"efts": {name: RemoteEFT}, "reports": [(arm, report), ...], "targets": {name: q}}``:
@@ -95,7 +96,9 @@ def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: f
         for name, robot in ARMS.items():
             proc = bus_arm.spawn(name, urls[name], robot, CELL, (listen,), rate_hz, how_timeout=how_timeout)
             stack.callback(_end, proc)
-        ev = BusEvents(bus)
+        # silence: how long the arms wait for this planning level's heartbeat before giving it up
+        # (BusEvents' default when None; longer where this process may wait for a CPU)
+        ev = BusEvents(bus) if silence is None else BusEvents(bus, silence=silence)
         stack.callback(ev.close)
         # the arm processes were just started: on a loaded machine their start (imports, the
         # link, the bus) took over the default 10 s, so wait for each as long as a start may take

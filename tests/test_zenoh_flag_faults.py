@@ -235,7 +235,9 @@ def test_a_stopped_planning_process_is_given_up_by_its_arm_and_told_so_when_it_c
                                     "--connect", "--silence", str(PLANNER_SILENCE_S)],
                                    stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
         stack.callback(_end, planner)
-        moving = _line(planner, 30.0, "moving").split()
+        # the planner waits up to 60 s for the arm process to serve (bus_planner.py): a start on a
+        # loaded machine; the motion's start comes after that
+        moving = _line(planner, 90.0, "moving").split()
         serials, planner_id = [int(x) for x in moving[1:3]], moving[3]
         time.sleep(0.2)
         t2, q2, speed = waist_on_its_way(lambda: _q(sim))      # on its way to 0.5 rad
