@@ -75,6 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cycles", type=int, help="release after this many cycles instead of waiting for <CR>")
     ap.add_argument("--simula", metavar="ARGS", help="start a lockstep simula with these options and use it")
     ap.add_argument("--params", metavar="FILE", help="parameter file of fitted values (`calib fit`)")
+    ap.add_argument("--timeout", type=float, metavar="S",
+                    help="end the control after S s without a HOW (default: the session's; give more on a "
+                         "loaded machine)")
     args = ap.parse_args(argv)
     from calib.exceptions import CalibError
     from calib.params import load_fitted
@@ -88,7 +91,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.simula is not None:
             from rci.simula.process import SimulaProcess
             url = stack.enter_context(SimulaProcess(*args.simula.split(), robot=args.robot, lockstep=True)).url
-        session = stack.enter_context(Session(url, args.robot, rate_hz=args.rate))
+        extra = {} if args.timeout is None else {"timeout": args.timeout}
+        session = stack.enter_context(Session(url, args.robot, rate_hz=args.rate, **extra))
         drift = run(session, args.cycles, fitted)
         print("joint drift while weightless (deg):", np.array2string(np.degrees(drift), precision=3))
     return 0
