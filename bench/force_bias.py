@@ -59,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
         from rccl.adaptive.force import ForceEstimator
         plain = ForceEstimator.net_torques
         ForceEstimator.net_torques = lambda self, q, qd, v, dt=None, sample=None: plain(self, q, qd, v)
-    print(f"estimator: {'before' if args.before else 'after'}; move {'at the first sample' if args.first else 'after 0.3 s'}")
+    when = "at the first sample" if args.first else "after 0.3 s"
+    print(f"estimator: {'before' if args.before else 'after'}; move {when}")
     print("robot     seed  max|fx|  max|fy|  max|fz|  median|F|   bar fx  bar fy  bar fz   (N)")
     for robot in args.robots:
         worst = []

@@ -29,7 +29,7 @@ from rccl.transform import trsl
 
 ROBOTS = ("puma260", "microbo", "puma560", "stanford")
 PROBE = 0.05        # m along z6
-DROP = 0.03         # m, straight down in the probe's frame... (its z points down at ready)
+DROP = 0.03         # m along the probe's own axis (down at the PUMAs' ready pose)
 SPEED = 0.01        # m/s: a slow move
 TOOL = trsl(0.0, 0.0, PROBE)
 
@@ -95,7 +95,8 @@ def test_model_torque_goes_through_the_adc_filter():
 
 def test_vet_refuses_a_limit_inside_the_bar_and_warns_near_it():
     bar = np.array([2.0, 9.0, 3.0, 0.1, 0.1, 0.1])
-    with pytest.raises(ForceLimitRefused, match=r"\|fy\| <= 8 N: the force estimate's free-air error here is \+-9 N.*above 27 N"):
+    refused = r"\|fy\| <= 8 N: the force estimate's free-air error here is \+-9 N.*above 27 N"
+    with pytest.raises(ForceLimitRefused, match=refused):
         Limit.parse("fy", 8.0).vet(bar)
     with pytest.warns(ForceEstimateWarning, match=r"\|fz\| <= 8 N: .*\+-3 N; a limit under 3x that \(9 N\)"):
         Limit.parse("fz", 8.0).vet(bar)
