@@ -22,7 +22,7 @@ import numpy as np
 ROBOTS = ("puma260", "microbo", "puma560", "stanford")
 
 
-def run(robot: str, seed: int, first: bool) -> tuple[np.ndarray, np.ndarray]:
+def run(robot: str, seed: int, first: bool, rate: int = 36) -> tuple[np.ndarray, np.ndarray]:
     """Forces (N, 6) over the move and the error bar (6,) at its start."""
     import rccl.adaptive
     from rccl import EQ, T6, TL, Trsf, makeposition
@@ -32,7 +32,7 @@ def run(robot: str, seed: int, first: bool) -> tuple[np.ndarray, np.ndarray]:
     rows = []
     tool_m = trsl(0.0, 0.0, 0.05)
     with SimulaProcess("-p", "--power-on", robot=robot, lockstep=True, seed=seed) as sim:
-        with rccl.adaptive.open(sim.url, robot=robot, timeout=2.0) as arm:
+        with rccl.adaptive.open(sim.url, robot=robot, timeout=2.0, rate_hz=rate) as arm:
             if not first:
                 arm.rci.wait(0.3)
             tool = Trsf("PROBE", tool_m)
@@ -53,6 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     ap.add_argument("--before", action="store_true", help="the estimator without the sample period (as before)")
     ap.add_argument("--first", action="store_true", help="move at the control's first sample")
+    ap.add_argument("--rate", type=int, default=36, help="sample rate (Hz), default 36")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore", RuntimeWarning)      # Python kinematics without the C kernels
     if args.before:
@@ -60,12 +61,12 @@ def main(argv: list[str] | None = None) -> int:
         plain = ForceEstimator.net_torques
         ForceEstimator.net_torques = lambda self, q, qd, v, dt=None, sample=None: plain(self, q, qd, v)
     when = "at the first sample" if args.first else "after 0.3 s"
-    print(f"estimator: {'before' if args.before else 'after'}; move {when}")
+    print(f"estimator: {'before' if args.before else 'after'}; move {when}; {args.rate} Hz")
     print("robot     seed  max|fx|  max|fy|  max|fz|  median|F|   bar fx  bar fy  bar fz   (N)")
     for robot in args.robots:
         worst = []
         for seed in args.seeds:
-            f, bar = run(robot, seed, args.first)
+            f, bar = run(robot, seed, args.first, args.rate)
             m = np.abs(f[:, :3]).max(axis=0)
             worst.append(m.max())
             med = float(np.median(np.linalg.norm(f[:, :3], axis=1)))
