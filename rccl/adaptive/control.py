@@ -26,6 +26,7 @@ from .exceptions import ForceEstimateError
 from .force import ForceEstimator, JointModel, condition_1, gravity_vector
 from .generator import AdaptiveGenerator
 from .check import Sample, estimates_of
+from .limit import vet_limits
 from .stiction import Dither
 
 # estimate: keep the force-servoed joint unless another does 1.5x better, so a joint does not
@@ -68,6 +69,7 @@ class AdaptiveControl:
         self.last: Sample | None = None          # what the motion checks saw last (read-out for programs)
         self._checked = None                     # the request whose checks' estimates are in _needs
         self._needs: frozenset[str] = frozenset()
+        self._vetted = None                      # the request whose force limits were vetted (limit.vet_limits)
         self._jac6: np.ndarray | None = None
         self._jac6_inv: np.ndarray | None = None
         self._q = None
@@ -139,9 +141,12 @@ class AdaptiveControl:
         want_dev = comply or "deviation" in needs
         t_a = force = dev = None
         if want_force or "torque" in needs:
-            t_a = self.estimator.net_torques(q, qd, v_adc)
+            t_a = self.estimator.net_torques(q, qd, v_adc, gen.dt, gen.samples)
         if want_force:
             self.estimator.check_condition(q, self.condition if jinv is not None else np.inf)
+            if req is not self._vetted:          # once, where the motion starts: can the estimate support its limits?
+                self._vetted = req
+                vet_limits(req.checks, self.estimator.error_bar(jinv, seg.tool), f"{self.kin.ROBOT} limit")
             force = maps.f @ (t_a @ jinv)            # F(T6->tool) J6^-T t_a (4.56, 1.22)
         if want_dev:
             # measured minus planned (nominal) path: along compliant axes this is what the comply

@@ -407,8 +407,14 @@ class SimulatedArm:
             self.flag(codes.ST_NOT_CALIBRATED, f"joint {i + 1} is not calibrated: motion refused (run zindex/STOPCAL)")
             return
         if com == POS:
+            target = value - self.cal_offset[i]
+            if self.mode[i] != CURRENT and np.rint(self.target[i] + self.cal_offset[i]) == value:
+                # a joint servo sees its error in whole counts: a joint held between counts (where
+                # a hold or a current-mode stretch left it) whose counter already reads the value
+                # commanded has nothing to correct, and stays where it is
+                target = self.target[i]
             self.mode[i] = SERVO
-            self.target[i] = value - self.cal_offset[i]
+            self.target[i] = target
             self.deadline[i] = self.t + period
         else:
             if not DAC_MIN <= value <= DAC_MAX:
