@@ -22,6 +22,7 @@ from dataclasses import replace
 
 from models import ModelError
 from models import available_robots, load_robot
+from ..rate import check_rate_hz
 from .arm import SimulatedArm
 from .control import ControlChannel
 from .exceptions import SimulaError
@@ -118,8 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             arm = SimulatedArm(model, truth, **kw)
         arm.power = bool(args.power_on)
-        if not 4 <= args.rate <= 1000:
-            raise ValueError(f"--rate {args.rate}: must be 4..1000 Hz")
+        check_rate_hz(args.rate, "--rate")
         server = Server(arm, model.name, lockstep=args.lockstep, verbose=args.verbose, rate_hz=args.rate,
                         watchdog=max(1, args.watchdog), watchdog_time=max(0.0, args.watchdog_time),
                         lockstep_watchdog=max(0.0, args.lockstep_watchdog))
