@@ -45,6 +45,7 @@ from .control_config import ControlConfig
 from .exceptions import ChecksumError, LinkClosed, ProtocolError, SequenceGap
 from .how import How
 from .link import Link
+from .rate import check_rate_hz
 from .realtime import GCControl, RealtimeStatus, set_fifo
 from .timing import CycleTiming
 
@@ -396,7 +397,9 @@ class ControlTask(threading.Thread):
             protocol.decode_how(frame.payload, frame.seq, into=buf)
             if buf.nj != self.nj:
                 raise ProtocolError(f"HOW has {buf.nj} joints, session opened with {self.nj}")
-        except ProtocolError as e:
+            if buf.rate_hz:                    # 0: a robot that does not say (the rate stays)
+                check_rate_hz(buf.rate_hz, "its rate_hz")
+        except (ProtocolError, ValueError) as e:
             self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), f"bad HOW frame: {e}")
             return None
         buf.received = t_arr

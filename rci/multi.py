@@ -34,12 +34,6 @@ Sample synchronisation (``sync=``):
 An error on any arm (a range check, a dead link, an exception in its function) ends that
 arm's control with its own implicit release (A.5), then releases every other arm at once
 (stop, power kept: they are healthy), and tells the planning level with the arm's name.
-
-Why this module is long: ``Workcell`` is one object. Its primitives (open, control,
-start, release, close, wait) share one lock, one lockstep barrier and one delivery of
-terminations, and each must leave every arm released whatever fails; shared data and
-channels are in rci.workcell_data, the primitive guard, signals and delivery (the same
-as a session's) in rci.lifecycle.
 """
 from __future__ import annotations
 
@@ -48,67 +42,21 @@ import math
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from . import codes
-from .exceptions import ControlTerminated, NoControl, NotOpen, RCIError
+from .exceptions import NoControl, NotOpen, RCIError
 from .lifecycle import Delivery, Lifecycle
 from .realtime import GCControl, RealtimeSettings, RealtimeStatus, lock_memory, unlock_memory
 from .session import Session
 from .workcell_data import Channel, ChannelFull, MultiError, Shared
+from .workcell_errors import ArmTerminated, ArmTermination, SyncTimeout
 
 __all__ = ["Workcell", "open", "describe", "PLANNING", "ArmTermination", "ArmTerminated", "SyncTimeout", "MultiError",
-           "ChannelFull", "Shared", "Channel"]   # Shared, Channel and their errors live in rci.workcell_data
+           "ChannelFull", "Shared", "Channel"]   # live in rci.workcell_data and rci.workcell_errors
 
 PLANNING = "planning"      # the planning level's name as a sender/receiver
 SYNC_MODES = ("free", "lockstep")
-
-
-# --- errors --------------------------------------------------------------------------
-class SyncTimeout(MultiError):
-    """Lockstep: an arm did not reach the sample barrier in time (names the arm that is late)."""
-
-
-@dataclass
-class ArmTermination:
-    """Why the workcell's control ended: ``arm`` (its name) and its ``rci.codes.Termination``.
-
-    ``released`` names the other arms the workcell released because of it.
-    """
-
-    arm: str
-    robot: str
-    termination: codes.Termination
-    released: list[str] = field(default_factory=list)
-
-    @property
-    def code(self) -> int:
-        return self.termination.code
-
-    def __str__(self) -> str:
-        rel = f"; released {', '.join(self.released)}" if self.released else ""
-        return f"arm {self.arm!r} ({self.robot}): {self.termination}{rel}"
-
-    def message(self) -> str:
-        """The TERMINATE/ message (the reason is printed after it by ``print_terminate_code``)."""
-        t = self.termination
-        where = f" (cycle {t.cycle})" if t.cycle >= 0 else ""
-        rel = f"; released {', '.join(self.released)}" if self.released else ""
-        return f"arm {self.arm!r} ({self.robot}): {t.detail or t.name}{where}{rel}"
-
-
-class ArmTerminated(ControlTerminated):
-    """Raised at the planning level (``on_error="raise"``): one arm's control ended on an error."""
-
-    def __init__(self, t: ArmTermination) -> None:
-        self.arm = t.arm
-        self.arm_termination = t
-        super().__init__(t.termination)
-        self.args = (str(t),)
-
-    def __str__(self) -> str:
-        return str(self.arm_termination)
 
 
 # --- copying what crosses between tasks ----------------------------------------------

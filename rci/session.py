@@ -38,7 +38,7 @@ from .control_config import ControlConfig
 from .exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTerminated, DeviceError,
                          LinkClosed, NoControl, NotOpen, ProtocolError, RobotBusy, RobotRefused, Timeout)
 from .how import How
-from .lifecycle import TERM_SIGNAL, Delivery, Lifecycle, run_on_error  # noqa: F401 (TERM_SIGNAL, run_on_error: public here too)
+from .lifecycle import Delivery, Lifecycle
 from .link import Link, open_link
 from .realtime import RealtimeStatus, lock_memory, unlock_memory
 from .timing import CycleTiming
