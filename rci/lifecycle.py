@@ -13,6 +13,11 @@ default release with power off, close, print and exit with status 130.
 ``rci.session.Session`` and ``rci.multi.Workcell`` each hold one ``Lifecycle`` and are its
 ``LifecycleHost``: they say what a termination means for them (the exception, the
 message, how to shut down) and the lifecycle does the rest the same way for both.
+
+The signal handlers are the process's, one pair for every lifecycle with signals on
+(two arms opened side by side in one program each get their terminations delivered; a
+second session no longer replaces the first one's handler): the termination signal
+delivers whatever is waiting in any of them, Ctrl-C interrupts all of them.
 """
 from __future__ import annotations
 
@@ -27,6 +32,10 @@ from . import codes
 from .exceptions import ControlTerminated
 
 TERM_SIGNAL = signal.SIGUSR1   # the thesis used SIGHUP; SIGUSR1 does not collide with terminal hangups
+
+_installed: list["Lifecycle"] = []      # lifecycles whose signals are on, oldest first (main thread only)
+_saved_handlers: dict[int, Any] = {}    # the process's handlers before the first of them
+_interrupt_pending = False              # Ctrl-C came during a primitive: acted on when it returns
 
 
 @dataclass(frozen=True)
@@ -85,8 +94,6 @@ class Lifecycle:
         self.termination: Any = None               # the termination waiting for, or given, delivery
         self.delivered: Any = None                 # the last termination delivered
         self.event = threading.Event()             # set when a termination waits for delivery
-        self._pending_interrupt = False
-        self._old_handlers: dict[int, Any] = {}
         self._main_ident: int | None = None
 
     # --- terminations -----------------------------------------------------------------
@@ -145,9 +152,10 @@ class Lifecycle:
             finally:
                 self.busy -= 1
         if self.busy == 0 and threading.current_thread() is threading.main_thread():
-            if self._pending_interrupt:
-                self._pending_interrupt = False
-                self.handle_interrupt()
+            global _interrupt_pending
+            if _interrupt_pending and not any(lc.busy for lc in _installed):
+                _interrupt_pending = False
+                _interrupt_all()
             self.deliver()
 
     # --- waiting ----------------------------------------------------------------------------
@@ -179,39 +187,62 @@ class Lifecycle:
     # --- signals ----------------------------------------------------------------------------
     @property
     def signals_active(self) -> bool:
-        return bool(self._old_handlers)
+        return self in _installed
 
     def install_signals(self) -> None:
-        """Take the termination signal and SIGINT (main thread only, once, if signals are on)."""
-        if self._old_handlers or not self.use_signals or threading.current_thread() is not threading.main_thread():
+        """Take the termination signal and SIGINT for this lifecycle too (main thread only, once,
+        if signals are on); the first lifecycle installs the process's handlers."""
+        if self in _installed or not self.use_signals or threading.current_thread() is not threading.main_thread():
             return
         self._main_ident = threading.main_thread().ident
-        self._old_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, self._on_term_signal)
-        self._old_handlers[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_sigint)
+        if not _installed:
+            _saved_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, _on_term_signal)
+            _saved_handlers[signal.SIGINT] = signal.signal(signal.SIGINT, _on_sigint)
+        _installed.append(self)
 
     def restore_signals(self) -> None:
-        """Give back the handlers ``install_signals`` replaced."""
-        if not self._old_handlers or threading.current_thread() is not threading.main_thread():
+        """This lifecycle leaves the signals; the last one gives back the handlers it found."""
+        if self not in _installed or threading.current_thread() is not threading.main_thread():
             return
-        for sig, old in self._old_handlers.items():
-            signal.signal(sig, old if old is not None else signal.SIG_DFL)
-        self._old_handlers = {}
-
-    def _on_term_signal(self, signum, frame) -> None:
-        self.deliver()
-
-    def _on_sigint(self, signum, frame) -> None:
-        if self.busy:
-            self._pending_interrupt = True
-            return
-        self.handle_interrupt()
+        _installed.remove(self)
+        if not _installed:
+            for sig, old in _saved_handlers.items():
+                signal.signal(sig, old if old is not None else signal.SIG_DFL)
+            _saved_handlers.clear()
 
     def handle_interrupt(self) -> None:
-        """A.5.3 user_interrupt, or the default: release (power off), close, print, exit 130."""
-        host = self.host
-        if host.on_interrupt is not None:
-            host.on_interrupt()
-            return
-        host.shut(True)
-        codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), self.interrupt_text)
-        raise SystemExit(130)
+        """A.5.3 user_interrupt for this host, or the default: release (power off), close,
+        print, exit 130."""
+        _interrupt([self])
+
+
+def _on_term_signal(signum, frame) -> None:
+    for lc in list(_installed):
+        lc.deliver()
+
+
+def _on_sigint(signum, frame) -> None:
+    global _interrupt_pending
+    if any(lc.busy for lc in _installed):
+        _interrupt_pending = True        # a primitive is never cut in half
+        return
+    _interrupt_all()
+
+
+def _interrupt_all() -> None:
+    _interrupt(list(reversed(_installed)))
+
+
+def _interrupt(lifecycles: list[Lifecycle]) -> None:
+    """Ctrl-C: each host's ``on_interrupt``; the hosts without one are released with power off
+    and closed, and then the program prints TERMINATE and exits with status 130."""
+    plain = [lc for lc in lifecycles if lc.host.on_interrupt is None]
+    for lc in lifecycles:
+        if lc.host.on_interrupt is not None:
+            lc.host.on_interrupt()
+    if not plain:
+        return
+    for lc in plain:
+        lc.host.shut(True)
+    codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), plain[0].interrupt_text)
+    raise SystemExit(130)
