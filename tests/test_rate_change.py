@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rci.chg import POS
+from rci import codes, protocol
+from rci.chg import POS, Chg
+from rci.link import open_link
 from rci.session import Session
 from rci.simula.process import SimulaProcess
 
@@ -111,3 +113,51 @@ def test_rate_change_on_a_real_time_simula_next_how_carries_the_new_rate():
         seg = [r for r in log if r["rate"] == rate]
         gaps = np.diff([r["received"] for r in seg])
         assert abs(np.median(gaps) - 1.0 / rate) < 0.3 / rate, (rate, np.median(gaps))
+
+
+def _raw_how(link) -> "protocol.Frame":
+    f = link.recv(5.0)
+    assert f is not None and f.type == protocol.HOW, f
+    return f
+
+
+def test_simula_reads_the_rate_command_from_the_chg_itself():
+    """On the raw protocol (no rci control task): a rate command answers its HOW at the old
+    rate and the next HOW carries it; a stale CHG's rate is not executed; a value that is no
+    rate is status 4 in the next HOW; START takes Hz only (a thesis code is refused)."""
+    with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
+        link = open_link(sim.url)
+        try:
+            link.send(protocol.HELLO, 0, protocol.Hello("puma260", 36, "test").encode())
+            assert link.recv(10.0).type == protocol.WELCOME
+            link.send(protocol.START, 1, protocol.Start(1).encode())          # code 1 is not a rate in Hz
+            f = link.recv(5.0)
+            assert f.type == protocol.ERROR and "START rate_hz must be 4..1000 Hz" in protocol.ErrorMsg.decode(f.payload).text
+            link.send(protocol.START, 2, protocol.Start(36).encode())
+            f0 = _raw_how(link)
+            h0 = protocol.decode_how(f0.payload, f0.seq)
+            chg = Chg()
+            chg.rate.issue(1, 0)                       # thesis code 0: 72 Hz
+            link.send(protocol.CHG, f0.seq, protocol.encode_chg(chg))
+            f1 = _raw_how(link)
+            h1 = protocol.decode_how(f1.payload, f1.seq)
+            assert (h0.rate_hz, h1.rate_hz) == (36, 72)
+            assert h1.time_ns - h0.time_ns == pytest.approx(1e9 / 36, abs=2)   # CHG(n) ran at 36 Hz
+            stale = Chg()
+            stale.rate.issue(1, 500)
+            link.send(protocol.CHG, f0.seq, protocol.encode_chg(stale))      # for an old cycle: ignored
+            link.send(protocol.CHG, f1.seq, protocol.encode_chg(Chg()))
+            f2 = _raw_how(link)
+            h2 = protocol.decode_how(f2.payload, f2.seq)
+            assert h2.rate_hz == 72 and h2.time_ns - h1.time_ns == pytest.approx(1e9 / 72, abs=2)
+            bad = Chg()
+            bad.rate.issue(1, 5000)
+            link.send(protocol.CHG, f2.seq, protocol.encode_chg(bad))
+            f3 = _raw_how(link)
+            h3 = protocol.decode_how(f3.payload, f3.seq)
+            assert h3.status == codes.ST_BAD_COMMAND and h3.rate_hz == 72
+            end = Chg()
+            end.end.com = 1
+            link.send(protocol.CHG, f3.seq, protocol.encode_chg(end))
+        finally:
+            link.close()
