@@ -103,12 +103,12 @@ class Lifecycle:
         self.delivered = None
         self.event.clear()
 
-    def terminated(self, termination: Any, *, signal_main: bool = True) -> None:
+    def terminated(self, termination: Any) -> None:
         """A control thread reports a termination (after its release): record it and tell the
-        main thread (``signal_main``: with the termination signal, when signals are on)."""
+        main thread (with the termination signal, when signals are on)."""
         self.termination = termination
         self.event.set()
-        if signal_main and self.signals_active and self._main_ident is not None:
+        if self.signals_active and self._main_ident is not None:
             try:
                 signal.pthread_kill(self._main_ident, TERM_SIGNAL)
             except (ProcessLookupError, OSError):
@@ -117,10 +117,6 @@ class Lifecycle:
     def mark_delivered(self) -> None:
         """The termination recorded was delivered by someone else (a workcell, for its arms)."""
         self.delivered = self.termination
-
-    @property
-    def undelivered(self) -> bool:
-        return self.termination is not None and self.delivered is not self.termination
 
     def deliver(self) -> None:
         """Run the host's ``on_error`` for a termination not yet delivered, unless a primitive is
