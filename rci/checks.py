@@ -16,10 +16,10 @@ from typing import Callable
 import numpy as np
 
 from . import codes
-from .chg import CUR, DAC_MAX, DAC_MIN, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd, Flag
-from .chg import MOTION_NAMES, rate_hz
+from .chg import CUR, DAC_MAX, DAC_MIN, MOTION_NAMES, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd, Flag
 from models import ModelError
 from .how import How
+from .rate import rate_from_code
 
 
 class CheckFailed(Exception):
@@ -185,7 +185,7 @@ class Checker:
                 raise CheckFailed(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg.hand.value = {v} is neither OPEN (1) nor CLOSE (2)")
             if name == "rate":
                 try:
-                    rate_hz(v)
+                    rate_from_code(v)
                 except ValueError as e:
                     raise CheckFailed(codes.make_code(codes.R_BADCMD, codes.F_USER), str(e)) from None
             if name == "checking":

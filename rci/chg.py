@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Iterator
 
 from .how import NJ
+from .rate import MAX_RATE_HZ, RATE_CODES, RateChange, rate_from_code  # noqa: F401 (re-exported)
 
 # motion commands (chg.motion[i].com)
 NONE = 0
@@ -30,23 +31,14 @@ MOTION_NAMES = {NONE: "NONE", POS: "POS", CUR: "CUR", STOP: "STOP", STOPCAL: "ST
 OPEN = 1
 CLOSE = 2
 
-# chg.rate values: the thesis's codes 0..3, or any integer rate in Hz from 4 to 1000
-RATE_CODES = {0: 72, 1: 36, 2: 18, 3: 9}
-MAX_RATE_HZ = 1000
+# chg.rate values: the thesis's codes 0..3, or any integer rate in Hz from 4 to 1000; the
+# validation and the typed event are rci.rate's (these names stay for programs that use them)
+rate_hz = rate_from_code
 DAC_MIN, DAC_MAX = -2048, 2047
 
 # order of the valued single commands, as on the wire
 VALUED = ("setparamALL", "adco", "hand", "rate", "checking", "outport1", "pendant", "zindex")
 UNVALUED = ("end", "stop", "power_on", "power_off")
-
-
-def rate_hz(value: int) -> int:
-    """Sample rate in Hz for a chg.rate value (code 0..3 or Hz 4..1000); ValueError otherwise."""
-    if value in RATE_CODES:
-        return RATE_CODES[value]
-    if 4 <= value <= MAX_RATE_HZ:
-        return int(value)
-    raise ValueError(f"chg.rate value {value} is neither a code 0..3 nor a rate 4..{MAX_RATE_HZ} Hz")
 
 
 @dataclass
@@ -115,6 +107,10 @@ class Chg:
             yield name, getattr(self, name)
         for name in UNVALUED:
             yield name, getattr(self, name)
+
+    def rate_change(self) -> RateChange | None:
+        """The rate change this record commands (``rate`` set), or None; ValueError for a bad value."""
+        return RateChange.of(self)
 
     def pending(self) -> list[str]:
         """Names of the entries whose com is set."""

@@ -9,10 +9,20 @@ which tells the planning level. Faults are blamed on the party that caused them
 user's control functions (R_USERFUNC, R_BADCMD, R_NANCMD, R_OVERRUN: the arm stops,
 power stays as it was).
 
+The task owns its ``ControlConfig`` (rci.control_config: rate, timeouts, lateness policy,
+checks, recorder, real-time settings), built by the session; it reaches the session only
+through the ``ControlOwner`` protocol below (the records, the timing, the termination).
+
+The rate (docs/protocol.md, "Timing: one cycle"): a HOW's ``rate_hz`` is the rate at which
+the robot executes the CHG answering it, so the task's period for a cycle is always the
+rate of the cycle's HOW (``ControlTask.rate_hz``, the one place the running rate is kept).
+A ``chg.rate`` command changes nothing here when it is sent: the robot runs that CHG at the
+old rate, and the next HOW carries the new one.
+
 Lateness policy (docs/rci.md, "Late cycles"): a cycle is late when the robot reports
 that its CHG came late or never, or when the control task's own work overran the
-period. Isolated late cycles are counted, not fatal; ``Session.late_limit`` late cycles
-in a row end the control (against a real-time robot; a lockstep simulator only counts).
+period. Isolated late cycles are counted, not fatal; ``late_limit`` late cycles in a
+row end the control (against a real-time robot; a lockstep simulator only counts).
 
 A watchdog thread ends the control with R_OVERRUN when a user function has not returned
 two periods after its cycle began (an infinite loop in f1 cannot be interrupted in
@@ -24,21 +34,38 @@ import sys
 import threading
 import time
 import traceback
-from typing import TYPE_CHECKING, Callable
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
 from . import codes, protocol
 from .checks import Checker, CheckFailed
-from .chg import Chg, rate_hz
+from .chg import Chg
+from .control_config import ControlConfig
 from .exceptions import ChecksumError, LinkClosed, ProtocolError, SequenceGap
 from .how import How
+from .link import Link
+from .rate import check_rate_hz
 from .realtime import GCControl, RealtimeStatus, set_fifo
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .session import Session
+from .timing import CycleTiming
 
 ControlFunction = Callable[[], object]
+
+
+class ControlOwner(Protocol):
+    """What a control task reaches of the session that started it (``rci.session.Session``)."""
+
+    how: How                    # refilled in place each cycle
+    chg: Chg                    # sent and cleared each cycle
+    q: np.ndarray | None        # joint angles of the latest how, rad
+    terminate: Any              # A.5.2: a control function sets it to end the control
+    checker: Checker
+    timing: CycleTiming
+    rt_status: RealtimeStatus
+
+    def next_msg_seq(self) -> int: ...
+
+    def control_terminated(self, term: codes.Termination, task: "ControlTask") -> None: ...
 
 
 class _PrevCycle:
@@ -52,27 +79,32 @@ class _PrevCycle:
 
 
 class _RobotClock:
-    """The robot's clock as the control task sees it: when HOW ``seq`` was due, and the
-    robot's overrun counter at the last HOW (the CHGs it got late or never since)."""
+    """The robot's clock as the control task sees it: when each HOW was due, and the robot's
+    overrun counter at the last HOW (the CHGs it got late or never since)."""
 
-    __slots__ = ("t_base", "seq_base", "robot_over0", "old_period")
+    __slots__ = ("due", "seq", "robot_over0")
 
     def __init__(self) -> None:
-        self.t_base: float | None = None       # arrival time of the HOW the schedule counts from
-        self.seq_base = 0
+        self.due: float | None = None          # when the latest HOW was due (host clock, s)
+        self.seq = 0
         self.robot_over0: int | None = None
-        self.old_period = 0.0                  # the period before a rate change, until the next HOW
 
     def read(self, seq: int, t_arr: float, robot_overruns: int, period: float) -> tuple[float, int]:
-        """(lateness of this HOW in s, CHGs the robot got late or missed since the last HOW)."""
-        if self.t_base is None:
-            self.t_base, self.seq_base = t_arr, seq
+        """(lateness of HOW ``seq`` in s, CHGs the robot got late or missed since the last HOW).
+
+        ``period`` is the period of the cycle the previous HOW began (its ``rate_hz``): the
+        robot sends HOW ``seq`` that long after it, whatever rate HOW ``seq`` announces.
+        """
+        if self.due is None:
+            self.due = t_arr                   # the first HOW sets the schedule
+        else:
+            self.due += ((seq - self.seq) & 0xFFFFFFFF) * period
+        self.seq = seq
         if self.robot_over0 is None:
             self.robot_over0 = robot_overruns
-        lateness = t_arr - (self.t_base + ((seq - self.seq_base) & 0xFFFFFFFF) * period)
         robot_late = (robot_overruns - self.robot_over0) & 0xFFFFFFFF
         self.robot_over0 = robot_overruns
-        return lateness, robot_late
+        return t_arr - self.due, robot_late
 
 
 def _is_zero(value: object) -> bool:
@@ -95,13 +127,16 @@ def _describe_exception(e: BaseException) -> str:
 class ControlTask(threading.Thread):
     """Runs the control cycles of one control (from RCIcontrol to release or termination)."""
 
-    def __init__(self, session: "Session", f1: ControlFunction | None, f2: ControlFunction | None) -> None:
+    def __init__(self, owner: ControlOwner, link: Link, config: ControlConfig, nj: int, nadc: int,
+                 f1: ControlFunction | None, f2: ControlFunction | None) -> None:
         super().__init__(name="rci-control", daemon=True)
-        self.s = session
+        self.s = owner
+        self.config = config
+        self.nj = nj
         self.f1 = f1
         self.f2 = f2
-        self.link = session.link
-        self.period = 1.0 / session.rate_hz
+        self.link = link
+        self.rate_hz = config.rate_hz          # the rate of the cycle in progress: its HOW's (Hz)
         self.release_requested = False
         self.release_power_off = False
         self.started = threading.Event()       # first HOW handled (or failure)
@@ -113,10 +148,20 @@ class ControlTask(threading.Thread):
         self.in_user = False                   # inside f1 or f2
         self.cycle_start = 0.0
         self.cycles = 0
-        self.gc = GCControl(session.gc_mode)
+        self.gc = GCControl(config.realtime.gc)
         self.rt = RealtimeStatus()
-        self._how_buf = How(pos=np.zeros(session.nj, dtype=np.int64), adcr=np.zeros(session.nadc, dtype=np.int64))
+        self._how_buf = How(pos=np.zeros(nj, dtype=np.int64), adcr=np.zeros(nadc, dtype=np.int64))
         self._seqcheck = protocol.SequenceChecker()
+
+    @property
+    def period(self) -> float:
+        """The period of the cycle in progress, s (1 / the rate its HOW announced)."""
+        return 1.0 / self.rate_hz
+
+    def use_recorder(self, recorder) -> None:
+        """Log the cycles from the next one into ``recorder`` (None: stop); the one setting a
+        running control takes (the configuration record is replaced whole, never edited)."""
+        self.config = self.config.changed(recorder=recorder)
 
     # --- helpers ------------------------------------------------------------------
     def _send_chg(self, seq: int, payload: bytes) -> None:
@@ -137,7 +182,7 @@ class ControlTask(threading.Thread):
                 return
             self.ended = True
             if link_ok and self.seq is not None:
-                rel = Chg(nj=self.s.nj)
+                rel = Chg(nj=self.nj)
                 rel.stop.com = 1
                 rel.end.com = 1
                 if codes.is_severe(code):
@@ -159,7 +204,7 @@ class ControlTask(threading.Thread):
     def send_release(self) -> None:
         """Send the release now (end, stop; power off if asked): the cycle loop's release, and the
         session's fallback when the control thread is stuck in a user function."""
-        rel = Chg(nj=self.s.nj)
+        rel = Chg(nj=self.nj)
         rel.end.com = 1
         rel.stop.com = 1
         if self.release_power_off:
@@ -177,12 +222,13 @@ class ControlTask(threading.Thread):
     # --- the thread -----------------------------------------------------------------
     def run(self) -> None:
         s = self.s
-        if s.realtime:
-            set_fifo(s.priority, self.rt)
+        rt = self.config.realtime
+        if rt.realtime:
+            set_fifo(rt.priority, self.rt)
         self.rt.mlockall = s.rt_status.mlockall
         saved_interval = sys.getswitchinterval()
-        if s.switch_interval:
-            sys.setswitchinterval(s.switch_interval)
+        if rt.switch_interval:
+            sys.setswitchinterval(rt.switch_interval)
         self.rt.switch_interval = sys.getswitchinterval()
         self.gc.apply(self.rt)
         s.rt_status = self.rt
@@ -191,10 +237,10 @@ class ControlTask(threading.Thread):
             # the watchdog starts before START, not after: creating a thread under
             # mlockall(MCL_FUTURE) faults in and locks its whole stack (8 MiB by default),
             # which took 1-2 ms and made the first cycles miss their deadline at 1 kHz
-            if s.watchdog:
+            if self.config.watchdog:
                 watchdog.start()
             try:
-                self.link.send(protocol.START, s.next_msg_seq(), protocol.Start(s.rate_hz).encode())
+                self.link.send(protocol.START, s.next_msg_seq(), protocol.Start(self.config.rate_hz).encode())
             except LinkClosed as e:
                 self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), str(e), link_ok=False)
                 return
@@ -219,7 +265,7 @@ class ControlTask(threading.Thread):
                 return
             # overruns counted only (lockstep simulator): a function that has not returned
             # after 2 s is hung all the same, and the simulator waits for it forever
-            limit = 2 * self.period if self.s.overrun == "error" else max(2 * self.period, 2.0)
+            limit = self.config.user_hang_limit(self.period)
             if self.in_user and time.monotonic() - self.cycle_start > limit:
                 self.terminate(codes.make_code(codes.R_OVERRUN, codes.F_USER),
                                f"user function still running {time.monotonic() - self.cycle_start:.3f} s after its cycle began "
@@ -232,7 +278,7 @@ class ControlTask(threading.Thread):
         s.checker.reset()
         timing = s.timing
         timing.reset()
-        timing.late_limit = s.late_limit_for(s.rate_hz) if s.overrun == "error" else 0
+        timing.late_limit = self.config.late_limit_for(self.rate_hz) if self.config.late_policy == "error" else 0
         clock = _RobotClock()
         prev = _PrevCycle()
         self.late_run = 0
@@ -244,7 +290,7 @@ class ControlTask(threading.Thread):
             if self.release_requested:
                 self.send_release()
                 return
-            frame = self._receive(clock)
+            frame = self._receive()
             if frame is None:
                 return
             t_arr = time.monotonic()
@@ -263,7 +309,7 @@ class ControlTask(threading.Thread):
                 t_user += spent
             if not _is_zero(s.terminate) and self._user_terminate():
                 return
-            payload = self._answer(frame.seq, t_arr, clock, prev)
+            payload = self._answer(frame.seq, t_arr, prev)
             if payload is None:
                 return
             if self.f2 is not None:
@@ -277,7 +323,7 @@ class ControlTask(threading.Thread):
             duration = time.monotonic() - t_arr
             timing.add(t_arr, lateness, duration, t_user, self.period)
             self.cycles += 1
-            rec = s.recorder                   # may be set or cleared while running
+            rec = self.config.recorder         # may be set or cleared while running (use_recorder)
             if rec is not None:
                 rec.append(s.how, payload, lateness, duration)
             prev.overran = duration > self.period
@@ -285,12 +331,13 @@ class ControlTask(threading.Thread):
             if prev.overran:
                 timing.overruns += 1
 
-    def _receive(self, clock: "_RobotClock"):
+    def _receive(self):
         """Wait for the robot's next HOW frame; None if the control ended meanwhile (released,
         or terminated here: a link fault, a timeout, the robot's ERROR, an unexpected frame)."""
-        s = self.s
-        # the HOW that follows a rate change ends the cycle already running, at the old rate
-        timeout = s.start_timeout if not self.started.is_set() else s.timeout_for(max(self.period, clock.old_period))
+        # the HOW that follows a rate command ends the cycle in progress, whose period is still
+        # that of its own HOW (the robot runs a CHG at the rate of the HOW it answers)
+        config = self.config
+        timeout = config.start_timeout if not self.started.is_set() else config.timeout_for(self.period)
         link_fault = codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE)
         t_wait = time.monotonic()
         try:
@@ -346,25 +393,27 @@ class ControlTask(threading.Thread):
             return None
         self.seq = frame.seq
         self.answered = False
-        clock.old_period = 0.0
         try:
             protocol.decode_how(frame.payload, frame.seq, into=buf)
-            if buf.nj != s.nj:
-                raise ProtocolError(f"HOW has {buf.nj} joints, session opened with {s.nj}")
-        except ProtocolError as e:
+            if buf.nj != self.nj:
+                raise ProtocolError(f"HOW has {buf.nj} joints, session opened with {self.nj}")
+            if buf.rate_hz:                    # 0: a robot that does not say (the rate stays)
+                check_rate_hz(buf.rate_hz, "its rate_hz")
+        except (ProtocolError, ValueError) as e:
             self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE), f"bad HOW frame: {e}")
             return None
         buf.received = t_arr
-        if buf.rate_hz and buf.rate_hz != round(1.0 / self.period):
-            self.period = 1.0 / buf.rate_hz     # the robot keeps the clock: follow its rate
-            s.rate_hz = buf.rate_hz
-            clock.t_base = None
-        lateness, robot_late = clock.read(frame.seq, t_arr, buf.robot_overruns, self.period)
+        # the cycle that just ended ran at the previous HOW's rate; the one this HOW begins runs
+        # at the rate it announces (the robot keeps the clock: follow it)
+        ended_period = self.period
+        if buf.rate_hz:
+            self.rate_hz = buf.rate_hz
+        lateness, robot_late = clock.read(frame.seq, t_arr, buf.robot_overruns, ended_period)
         s.timing.missed += robot_late
         if self._late(robot_late, prev, lateness):
             return None
         try:
-            q = s.checker.check_how(buf, self.period)
+            q = s.checker.check_how(buf, ended_period)
         except CheckFailed as f:
             s.how.copy_from(buf)
             self.terminate(f.code, f.detail)
@@ -375,9 +424,10 @@ class ControlTask(threading.Thread):
             self.started.set()
         return lateness
 
-    def _answer(self, seq: int, t_arr: float, clock: "_RobotClock", prev: "_PrevCycle") -> bytes | None:
-        """Check ``session.chg``, send it as the CHG for HOW ``seq`` and clear its commands; take
-        a rate change into effect. The payload sent, or None if the control ended here."""
+    def _answer(self, seq: int, t_arr: float, prev: "_PrevCycle") -> bytes | None:
+        """Check ``session.chg`` (at the period of HOW ``seq``, the rate the robot executes it
+        at, a rate command included), send it as the CHG for HOW ``seq`` and clear its
+        commands. The payload sent, or None if the control ended here."""
         s = self.s
         chg = s.chg
         checker = s.checker
@@ -393,7 +443,6 @@ class ControlTask(threading.Thread):
                 self._discard_commands(chg)
                 self.terminate(codes.make_code(codes.R_BADCMD, codes.F_USER), f"chg: {e}")
                 return None
-            new_rate = rate_hz(int(round(float(chg.rate.value)))) if chg.rate.com else None
             chg.clear()
         checker.checking = new_checking
         prev.send_delay = time.monotonic() - t_arr
@@ -403,10 +452,6 @@ class ControlTask(threading.Thread):
             self.terminate(codes.make_code(codes.R_BTEST, codes.F_COMM | codes.F_SEVERE),
                            f"link lost: {e}", link_ok=False)
             return None
-        if new_rate is not None and new_rate != s.rate_hz:
-            s.rate_hz = new_rate           # the HOW after next comes at the new rate (docs/protocol.md)
-            clock.old_period, self.period = self.period, 1.0 / new_rate
-            clock.t_base = None
         return payload
 
     @staticmethod
@@ -440,9 +485,10 @@ class ControlTask(threading.Thread):
         self.late_run += late
         timing.late_cycles += late
         timing.late_run_max = max(timing.late_run_max, self.late_run)
-        limit = s.late_limit_for(round(1.0 / self.period))
-        timing.late_limit = limit if s.overrun == "error" else 0
-        if s.overrun != "error" or self.late_run < limit:
+        limit = self.config.late_limit_for(self.rate_hz)
+        policy = self.config.late_policy
+        timing.late_limit = limit if policy == "error" else 0
+        if policy != "error" or self.late_run < limit:
             return False
         period_ms = self.period * 1e3
         if self.run_overran:

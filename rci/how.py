@@ -2,7 +2,8 @@
 
 Every A.4 field is kept with its thesis name and meaning. Added for a modern user (not in
 A.4): ``cycle`` (the frame's sequence number), ``time_ns`` (the robot's own clock),
-``rate_hz`` (the sample rate the robot is running), ``robot_overruns`` (chg frames the
+``rate_hz`` (the rate at which the robot executes the chg that answers this how: the
+period until the next how; docs/protocol.md), ``robot_overruns`` (chg frames the
 robot saw late or missing) and ``received`` (host monotonic arrival time, never on the wire).
 ``how`` must be treated as read-only by user code; the control task refills it in place
 each cycle, so a reference taken once stays current.
@@ -41,7 +42,8 @@ class How:
     # --- ours ---
     cycle: int = -1             # sequence number of the HOW frame this came from (-1: none yet)
     time_ns: int = 0            # robot clock at the start of the cycle, ns (monotonic, robot's epoch)
-    rate_hz: int = 36           # sample rate the robot is running at
+    rate_hz: int = 36           # the rate the robot executes the chg answering this how at, Hz: the next
+                                # how comes 1/rate_hz s later (a chg.rate command shows in the next how)
     robot_overruns: int = 0     # chg frames the robot received late or never (real-time mode)
     received: float = 0.0       # host time.monotonic() when the frame was decoded (s)
 

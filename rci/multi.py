@@ -34,80 +34,29 @@ Sample synchronisation (``sync=``):
 An error on any arm (a range check, a dead link, an exception in its function) ends that
 arm's control with its own implicit release (A.5), then releases every other arm at once
 (stop, power kept: they are healthy), and tells the planning level with the arm's name.
-
-Why this module is long: ``Workcell`` is one object. Its primitives (open, control,
-start, release, close, wait) share one lock, one lockstep barrier and one delivery of
-terminations, and each must leave every arm released whatever fails; shared data and
-channels are in rci.workcell_data.
 """
 from __future__ import annotations
 
 import itertools
 import math
-import signal
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from . import codes
-from .exceptions import ControlTerminated, NoControl, NotOpen, RCIError
-from .realtime import GCControl, RealtimeStatus, lock_memory, unlock_memory
-from .session import TERM_SIGNAL, Session, run_on_error
+from .exceptions import NoControl, NotOpen, RCIError
+from .lifecycle import Delivery, Lifecycle
+from .realtime import GCControl, RealtimeSettings, RealtimeStatus, lock_memory, unlock_memory
+from .session import Session
 from .workcell_data import Channel, ChannelFull, MultiError, Shared
+from .workcell_errors import ArmTerminated, ArmTermination, SyncTimeout
 
 __all__ = ["Workcell", "open", "describe", "PLANNING", "ArmTermination", "ArmTerminated", "SyncTimeout", "MultiError",
-           "ChannelFull", "Shared", "Channel"]   # Shared, Channel and their errors live in rci.workcell_data
+           "ChannelFull", "Shared", "Channel"]   # live in rci.workcell_data and rci.workcell_errors
 
 PLANNING = "planning"      # the planning level's name as a sender/receiver
 SYNC_MODES = ("free", "lockstep")
-
-
-# --- errors --------------------------------------------------------------------------
-class SyncTimeout(MultiError):
-    """Lockstep: an arm did not reach the sample barrier in time (names the arm that is late)."""
-
-
-@dataclass
-class ArmTermination:
-    """Why the workcell's control ended: ``arm`` (its name) and its ``rci.codes.Termination``.
-
-    ``released`` names the other arms the workcell released because of it.
-    """
-
-    arm: str
-    robot: str
-    termination: codes.Termination
-    released: list[str] = field(default_factory=list)
-
-    @property
-    def code(self) -> int:
-        return self.termination.code
-
-    def __str__(self) -> str:
-        rel = f"; released {', '.join(self.released)}" if self.released else ""
-        return f"arm {self.arm!r} ({self.robot}): {self.termination}{rel}"
-
-    def message(self) -> str:
-        """The TERMINATE/ message (the reason is printed after it by ``print_terminate_code``)."""
-        t = self.termination
-        where = f" (cycle {t.cycle})" if t.cycle >= 0 else ""
-        rel = f"; released {', '.join(self.released)}" if self.released else ""
-        return f"arm {self.arm!r} ({self.robot}): {t.detail or t.name}{where}{rel}"
-
-
-class ArmTerminated(ControlTerminated):
-    """Raised at the planning level (``on_error="raise"``): one arm's control ended on an error."""
-
-    def __init__(self, t: ArmTermination) -> None:
-        self.arm = t.arm
-        self.arm_termination = t
-        super().__init__(t.termination)
-        self.args = (str(t),)
-
-    def __str__(self) -> str:
-        return str(self.arm_termination)
 
 
 # --- copying what crosses between tasks ----------------------------------------------
@@ -146,12 +95,14 @@ class Workcell:
         self.sync_timeout = sync_timeout
         self.on_error = on_error
         self.on_interrupt = on_interrupt
-        self.use_signals = signals
+        self.lifecycle = Lifecycle(self, signals=signals, interrupt_text="interrupt (every arm released, power off)")
         # process-wide real-time settings are the workcell's, once for all arms: one arm's task
         # starting (gc.collect() of the whole heap) or ending (unfreeze, switch interval back)
         # must not stall or unprotect another arm's running control
-        self._gc = GCControl(session_options.pop("gc", "freeze"))
-        self._switch_interval = session_options.pop("switch_interval", 2e-4)
+        rt = RealtimeSettings(gc=session_options.pop("gc", "freeze"),
+                              switch_interval=session_options.pop("switch_interval", 2e-4))
+        self._gc = GCControl(rt.gc)
+        self._switch_interval = rt.switch_interval
         self._saved_interval: float | None = None
         self._gc_applied = False
         self._rt_lock = threading.Lock()
@@ -161,29 +112,33 @@ class Workcell:
         deferred = sync == "lockstep"
         self.shared = Shared(deferred=deferred)
         self.channels: dict[tuple[str, str], Channel] = {}
-        self.termination: ArmTermination | None = None       # the first arm error
         self.terminations: list[ArmTermination] = []          # every arm error, in order
         self.sample = 0                                       # lockstep: sync samples completed
         self.rt_status = RealtimeStatus()
-        self._delivered: ArmTermination | None = None
-        self._lock = threading.RLock()
-        self._term_event = threading.Event()
+        self._lock = self.lifecycle.lock
         self._barrier: threading.Barrier | None = None
         self._armed: set[str] = set()
         self._arrived: dict[str, int] = {}
         self._threads: dict[int, str] = {}
         self._stamp = itertools.count()
-        self._old_handlers: dict[int, Any] = {}
-        self._main_ident: int | None = None
-        self._busy = 0
+
+    @property
+    def termination(self) -> ArmTermination | None:
+        """The first arm error of the control in progress or of the last one (None: none)."""
+        return self.lifecycle.termination
+
+    @property
+    def in_control(self) -> bool:
+        """True while any arm of the workcell is under control."""
+        return any(s.in_control for s in self.sessions.values())
 
     def _make_session(self, name: str, spec: ArmSpec, rate: int | None, options: dict) -> Session:
         if isinstance(spec, Session):
             if spec.is_open:
                 raise MultiError(f"arm {name!r}: give the Workcell an unopened Session (it opens it)")
             s = spec
-            s.use_signals = False
-            s.gc_mode, s.switch_interval = "leave", None     # the workcell's (see __init__)
+            # the workcell owns the signals and the process-wide settings (see __init__)
+            s.configure(signals=False, gc="leave", switch_interval=None)
         else:
             url, robot = (spec, "puma260") if isinstance(spec, str) else spec
             opts = dict(options)
@@ -241,7 +196,7 @@ class Workcell:
                     e.add_note(f"while opening arm {name!r}")
                 raise
             lock_memory(self.rt_status)
-            self._install_signals()
+            self.lifecycle.install_signals()
             return self
 
     # --- RCIcontrol ---------------------------------------------------------------------
@@ -264,9 +219,7 @@ class Workcell:
                                      f"({sorted(self.sessions)}), got {sorted(functions)}")
                 if any(s.in_control for s in self.sessions.values()):
                     raise MultiError("control(): release the workcell before starting a lockstep control again")
-            self.termination = None
-            self._delivered = None
-            self._term_event.clear()
+            self.lifecycle.reset()
             pairs = {}
             for name, fns in functions.items():
                 f1, f2 = (fns if isinstance(fns, tuple) else (None, fns))
@@ -320,9 +273,7 @@ class Workcell:
                 if any(s.in_control for s in self.sessions.values()):
                     raise MultiError("start(): release the workcell before starting a lockstep control again")
                 self._prepare_lockstep()
-            self.termination = None
-            self._delivered = None
-            self._term_event.clear()
+            self.lifecycle.reset()
             self._realtime_on()
             errors: list[BaseException] = []
 
@@ -346,7 +297,7 @@ class Workcell:
             if errors:
                 self._close_all(power_off=False)
                 raise errors[0]
-            self._install_signals()
+            self.lifecycle.install_signals()
 
     def _timeout(self) -> float:
         if self.sync_timeout is not None:
@@ -505,13 +456,13 @@ class Workcell:
         if self.rt_status.mlockall is True:
             unlock_memory()
             self.rt_status.mlockall = None
-        self._restore_signals()
+        self.lifecycle.restore_signals()
 
     def __enter__(self) -> "Workcell":
         if not any(s.is_open for s in self.sessions.values()):
             self.open()
         else:       # sessions opened and controlled by a layer above (RCCL arms): take over the signals
-            self._install_signals()
+            self.lifecycle.install_signals()
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -569,30 +520,14 @@ class Workcell:
             left = deadline - time.monotonic()
             if left <= 0:
                 return None
-            self._deliver_here()
+            self.lifecycle.deliver_here()
             time.sleep(min(0.002, left))
 
-    # --- planning-level wait and error delivery -------------------------------------------
+    # --- planning-level wait and error delivery (rci.lifecycle) ---------------------------
     def wait(self, seconds: float | None = None, until: Callable[[], bool] | None = None,
              poll: float = 0.005) -> bool:
         """Block the planning level ``seconds`` or until ``until()``; arm errors are delivered at once."""
-        deadline = None if seconds is None else time.monotonic() + seconds
-        while True:
-            self._deliver_here()
-            if until is not None and until():
-                return True
-            now = time.monotonic()
-            if deadline is not None and now >= deadline:
-                return False
-            if until is None and deadline is None and not any(s.in_control for s in self.sessions.values()):
-                return False
-            step = poll if deadline is None else min(poll, deadline - now)
-            if until is None:
-                self._term_event.wait(max(step, 0.0) if deadline is None else max(deadline - now, 0.0))
-                if self.termination is not None and self._delivered is self.termination:
-                    self._term_event.clear()
-            else:
-                time.sleep(max(step, 0.0))
+        return self.lifecycle.wait(seconds, until, poll)
 
     def _arm_terminated(self, name: str, term: codes.Termination) -> None:
         """Session listener, in the failing arm's control thread: release the others, tell the planner."""
@@ -603,76 +538,37 @@ class Workcell:
             self.terminations.append(at)
             first = self.termination is None
             if first:
-                self.termination = at
+                self.lifecycle.termination = at     # under the lock: one first error
         for n in others:
             # stop, power kept: the other arms are healthy; their tasks send the release next cycle
             self.sessions[n].control_task.request_release(False)
         if self._barrier is not None:
             self._barrier.abort()
-        self._term_event.set()
-        if first and self._old_handlers and self._main_ident is not None:
-            try:
-                signal.pthread_kill(self._main_ident, TERM_SIGNAL)
-            except (ProcessLookupError, OSError):
-                pass
-
-    def _deliver_here(self) -> None:
-        if threading.current_thread() is threading.main_thread() or not self._old_handlers:
-            self._deliver()
+        if first:
+            self.lifecycle.terminated(at)
 
     def _deliver(self) -> None:
-        t = self.termination
-        if t is None or self._delivered is t or self._busy:
-            return
-        self._delivered = t
-        for s in self.sessions.values():        # the sessions' own record of it is delivered too
+        self.lifecycle.deliver()
+
+    def delivery(self, t: ArmTermination) -> Delivery:
+        """LifecycleHost: what the program is told about an arm's termination."""
+        return Delivery(ArmTerminated(t), t.code, t.message(), t.termination.severe)
+
+    def before_delivery(self, t: ArmTermination) -> None:
+        """LifecycleHost: the sessions' own record of it is delivered too; their threads get a
+        moment to finish (never waiting for a user function that does not return)."""
+        for s in self.sessions.values():
             s.mark_delivered()
             task = s.control_task
             if task is not None and task is not threading.current_thread():
                 task.finished.wait(min(0.2, 4 * task.period))
-        run_on_error(self.on_error, ArmTerminated(t), t.code, t.message(), t.termination.severe,
-                     lambda severe: self._close_all(power_off=severe), t)
 
-    class _Primitive:
-        def __init__(self, cell: "Workcell") -> None:
-            self.cell = cell
+    def shut(self, power_off: bool) -> None:
+        """LifecycleHost: release every arm (power off if asked) and close every link."""
+        self._close_all(power_off=power_off)
 
-        def __enter__(self) -> None:
-            self.cell._lock.acquire()
-            self.cell._busy += 1
-
-        def __exit__(self, exc_type, exc, tb) -> None:
-            c = self.cell
-            c._busy -= 1
-            c._lock.release()
-            if c._busy == 0 and exc_type is None and threading.current_thread() is threading.main_thread():
-                c._deliver()
-
-    def _primitive(self) -> "_Primitive":
-        return Workcell._Primitive(self)
-
-    # --- signals ---------------------------------------------------------------------------
-    def _install_signals(self) -> None:
-        if self._old_handlers or not self.use_signals or threading.current_thread() is not threading.main_thread():
-            return
-        self._main_ident = threading.main_thread().ident
-        self._old_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, lambda *_: self._deliver())
-        self._old_handlers[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_sigint)
-
-    def _restore_signals(self) -> None:
-        if not self._old_handlers or threading.current_thread() is not threading.main_thread():
-            return
-        for sig, old in self._old_handlers.items():
-            signal.signal(sig, old if old is not None else signal.SIG_DFL)
-        self._old_handlers = {}
-
-    def _on_sigint(self, signum, frame) -> None:
-        if self.on_interrupt is not None:
-            self.on_interrupt()
-            return
-        self._close_all(power_off=True)
-        codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), "interrupt (every arm released, power off)")
-        raise SystemExit(130)
+    def _primitive(self):
+        return self.lifecycle.primitive()
 
 
 def open(arms: dict[str, ArmSpec], **options: Any) -> Workcell:  # noqa: A001 (thesis name)

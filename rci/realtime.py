@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 MCL_CURRENT = 1
 MCL_FUTURE = 2
+GC_MODES = ("freeze", "off", "leave")
 
 
 @dataclass
@@ -31,6 +32,37 @@ class RealtimeStatus:
     def summary(self) -> str:
         return (f"SCHED_FIFO: {self.sched_fifo}; mlockall: {self.mlockall}; gc: {self.gc}; "
                 f"GIL switch interval: {self.switch_interval * 1e6:.0f} us")
+
+
+@dataclass(frozen=True)
+class RealtimeSettings:
+    """What a control asks of the operating system (each measure tried, skipped where refused).
+
+    ``realtime``: put the control thread under SCHED_FIFO at ``priority`` (1..99; the link's
+    own threads run one above it); ``gc``: the collector during a control (``GCControl``:
+    ``"freeze"``, ``"off"``, ``"leave"``); ``lock_memory``: mlockall while the session is
+    open; ``switch_interval``: the GIL switch interval during a control, s (None: leave it).
+    """
+
+    realtime: bool = True
+    priority: int = 80
+    gc: str = "freeze"
+    lock_memory: bool = True
+    switch_interval: float | None = 2e-4
+
+    @property
+    def link_priority(self) -> int:
+        """SCHED_FIFO priority for the link's own threads (0: none): just above the control thread."""
+        return min(self.priority + 1, 99) if self.realtime else 0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.priority, bool) or not isinstance(self.priority, int) or not 1 <= self.priority <= 99:
+            raise ValueError(f"priority must be an integer 1..99 (SCHED_FIFO), not {self.priority!r}")
+        if self.gc not in GC_MODES:
+            raise ValueError(f"gc must be one of {GC_MODES}, not {self.gc!r}")
+        si = self.switch_interval
+        if si is not None and (isinstance(si, bool) or not isinstance(si, (int, float)) or not 0 < si < 1):
+            raise ValueError(f"switch_interval must be None or a number of seconds in (0, 1), not {si!r}")
 
 
 _mlocked = False
@@ -125,7 +157,7 @@ class GCControl:
     _active_mode = "leave"
 
     def __init__(self, mode: str = "freeze") -> None:
-        if mode not in ("freeze", "off", "leave"):
+        if mode not in GC_MODES:
             raise ValueError(f"gc mode must be 'freeze', 'off' or 'leave', not {mode!r}")
         self.mode = mode
         self._applied = False

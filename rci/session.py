@@ -12,19 +12,18 @@ error delivery to the planning level. Thesis -> Python:
 * ``user_interrupt``       -> ``s.on_interrupt``
 
 When the control ends on an error, the control task has already released the arm; the
-planning level is then told at once, even when blocked in ``s.wait()``, ``time.sleep``
-or ``input()``: the control thread sends SIGUSR1 to the main thread, whose handler runs
-``on_error``. The default prints ``TERMINATE/ <message> / <reason>`` and exits with
-status 1. ``on_error="raise"`` raises ``ControlTerminated`` in the main thread wherever it
-is (the Python form of A.5.5's longjmp). Without signals (a session opened outside the
-main thread) the error is delivered by the next ``wait()`` or primitive call.
+planning level is then told at once (``rci.lifecycle``: the termination signal, the
+primitive guard, Ctrl-C, shared with ``rci.multi``). The default prints
+``TERMINATE/ <message> / <reason>`` and exits with status 1; ``on_error="raise"`` raises
+``ControlTerminated`` in the main thread wherever it is (the Python form of A.5.5's longjmp).
+
+Every setting of the control cycle is one immutable ``ControlConfig`` (rci.control_config),
+validated once here and owned by each control task the session starts.
 """
 from __future__ import annotations
 
 import atexit
 import os
-import signal
-import sys
 import threading
 import time
 from typing import Any, Callable
@@ -33,34 +32,20 @@ import numpy as np
 
 from . import codes, protocol
 from .checks import Checker, CommandLimits
-from .chg import Chg, MAX_RATE_HZ
+from .chg import Chg
 from .control import ControlTask
+from .control_config import ControlConfig
 from .exceptions import (AlreadyOpen, BadFunction, ControlInProgress, ControlTerminated, DeviceError,
                          LinkClosed, NoControl, NotOpen, ProtocolError, RobotBusy, RobotRefused, Timeout)
 from .how import How
+from .lifecycle import Delivery, Lifecycle
 from .link import Link, open_link
 from .realtime import RealtimeStatus, lock_memory, unlock_memory
 from .timing import CycleTiming
 
 #: how long control() waits for an ended control's thread that is past its user functions (s)
 FINISH_WAIT = 10.0
-TERM_SIGNAL = signal.SIGUSR1   # the thesis used SIGHUP; SIGUSR1 does not collide with terminal hangups
 
-
-
-def run_on_error(on_error: Any, error: ControlTerminated, code: int, message: str, severe: bool,
-                 close: Callable[[bool], None], argument: Any) -> None:
-    """The one way a control's end on an error reaches the program, for a session and for a
-    workcell alike: ``on_error == "raise"`` raises ``error``; None (the thesis's default
-    handler) prints ``TERMINATE/ code message``, closes (``close(severe)``: power off after a
-    severe error) and exits with status 1; a callable is called with ``argument``."""
-    if on_error == "raise":
-        raise error
-    if on_error is None:
-        codes.print_terminate_code(code, message)
-        close(severe)
-        raise SystemExit(1)
-    on_error(argument)
 
 class Session:
     """One RCI session with one robot (or simula) over one link.
@@ -81,6 +66,10 @@ class Session:
     watchdog has stopped (docs/protocol.md, "Ownership"); ``realtime`` try SCHED_FIFO at ``priority`` for
     the control thread; ``gc`` ``"freeze"``/``"off"``/``"leave"``; ``lock_memory`` mlockall;
     ``signals`` deliver errors and Ctrl-C through signals when opened in the main thread.
+
+    The control settings are validated once into ``self.config`` (a ``ControlConfig``);
+    ``configure(...)`` changes them between controls. ``rate_hz`` is the rate of the control
+    in progress (the robot's, from its latest HOW), else the rate the next control starts at.
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
@@ -92,45 +81,18 @@ class Session:
                  signals: bool = True, watchdog: bool = True, max_commands: int = 16,
                  on_error: Callable[[codes.Termination], Any] | str | None = None,
                  on_interrupt: Callable[[], Any] | None = None, client: str = "rci") -> None:
-        if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (4 <= rate_hz <= MAX_RATE_HZ):
-            raise ValueError(f"rate_hz must be 4..{MAX_RATE_HZ} (Hz), not {rate_hz!r}")
-        for name, value, none_means in (("timeout", timeout, "twice the period, at least min_timeout"),
-                                        ("min_timeout", min_timeout, None), ("start_timeout", start_timeout, None),
-                                        ("lockstep_timeout", lockstep_timeout, None)):
-            if value is None and none_means:
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value < float("inf")):
-                alt = f" or None ({none_means})" if none_means else ""
-                raise ValueError(f"{name} must be a number of seconds > 0{alt}, not {value!r}")
-        if overrun not in ("error", "count", "auto"):
-            raise ValueError(f"overrun must be 'error', 'count' or 'auto', not {overrun!r}")
-        if late_limit is not None and (isinstance(late_limit, bool) or not isinstance(late_limit, int)
-                                       or late_limit < 1):
-            raise ValueError(f"late_limit must be None (automatic) or an integer >= 1, not {late_limit!r}")
+        self.config = ControlConfig.build(
+            rate_hz=rate_hz, limits=limits, timeout=timeout, min_timeout=min_timeout, start_timeout=start_timeout,
+            overrun=overrun, late_limit=late_limit, lockstep_timeout=lockstep_timeout, realtime=realtime,
+            priority=priority, gc=gc, lock_memory=lock_memory, switch_interval=switch_interval, watchdog=watchdog,
+            max_commands=max_commands)
         self.url = url
         self.robot = robot
-        self.rate_hz = int(rate_hz)
-        self.limits_spec = limits
-        self.timeout = timeout
-        self.min_timeout = min_timeout
-        self.start_timeout = start_timeout
-        self.overrun_mode = overrun
-        self.overrun = "error" if overrun == "auto" else overrun   # resolved at open()
-        self.late_limit = late_limit
-        self.lockstep_timeout = lockstep_timeout
         self.takeover = takeover
-        self.lockstep = False
-        self.realtime = realtime
-        self.priority = priority
-        self.gc_mode = gc
-        self.lock_memory = lock_memory
-        self.switch_interval = switch_interval
-        self.use_signals = signals
-        self.watchdog = watchdog
-        self.max_commands = max_commands
         self.on_error = on_error
         self.on_interrupt = on_interrupt
         self.client = client
+        self.lifecycle = Lifecycle(self, signals=signals)
         # state
         self.link: Link | None = None
         self.welcome: protocol.Welcome | None = None
@@ -142,24 +104,15 @@ class Session:
         self.checker: Checker | None = None
         self.timing = CycleTiming()
         self.rt_status = RealtimeStatus()
-        self.recorder = None
         self.terminate = 0                        # RCIterminate: 0, or the code of the last termination
-        self.termination: codes.Termination | None = None
         self._task: ControlTask | None = None
-        self._term_event = threading.Event()     # set when a termination is waiting for delivery
         # called with the Termination in the control thread, after the implicit release (rci.multi
         # uses it to release the other arms of a workcell at once); must be quick, must not raise
         self.termination_listeners: list[Callable[[codes.Termination], Any]] = []
         # (f1, f2) -> (f1, f2) applied by control(): lets rci.multi put its sample barrier around the
         # functions a layer above (RCCL's Arm) gives to control()
         self.control_wrapper: Callable[[Any, Any], tuple[Any, Any]] | None = None
-        self._delivered: codes.Termination | None = None
-        self._busy = 0
-        self._pending_interrupt = False
         self._msg_seq = 0
-        self._old_handlers: dict[int, Any] = {}
-        self._main_ident: int | None = None
-        self._lock = threading.RLock()
 
     # --- small helpers --------------------------------------------------------------
     def next_msg_seq(self) -> int:
@@ -168,19 +121,46 @@ class Session:
         self._msg_seq = (self._msg_seq + 1) & 0xFFFFFFFF
         return self._msg_seq
 
+    def configure(self, **changes: Any) -> None:
+        """Change control settings (the names of ``Session(...)``: ``rate_hz=``, ``timeout=``,
+        ``gc=`` ...) for the controls started from now on; validated like the first. Refused
+        while a control runs (``record`` changes the recorder of a running control)."""
+        if self.in_control:
+            raise ControlInProgress("configure(): a control is in progress; release it first")
+        if "signals" in changes:
+            self.lifecycle.use_signals = bool(changes.pop("signals"))
+        self.config = self.config.changed(**changes)
+
     def timeout_for(self, period: float) -> float:
         """Seconds without a HOW before R_TIMEOUT, for a sample period in s."""
-        if self.timeout is not None:
-            return self.timeout
-        floor = max(self.min_timeout, self.lockstep_timeout if self.lockstep else 0.0)
-        return max(2.0 * period, floor)
+        return self.config.timeout_for(period)
 
     def late_limit_for(self, rate_hz: float) -> int:
-        """Late cycles in a row that end a control at ``rate_hz`` (``late_limit``, or the default:
-        3, and up to 20 ms worth of cycles at high rates, e.g. 5 at 250 Hz and 20 at 1 kHz)."""
-        if self.late_limit is not None:
-            return self.late_limit
-        return max(3, int(round(0.02 * rate_hz)))
+        """Late cycles in a row that end a control at ``rate_hz`` (``ControlConfig.late_limit_for``)."""
+        return self.config.late_limit_for(rate_hz)
+
+    @property
+    def rate_hz(self) -> int:
+        """The sample rate, Hz: the robot's, from the latest HOW, while a control runs; else the
+        rate the next control starts at."""
+        t = self._task
+        return t.rate_hz if t is not None and not t.ended else self.config.rate_hz
+
+    @property
+    def lockstep(self) -> bool:
+        """True when the robot is a lockstep simulator (known once open)."""
+        return self.config.lockstep
+
+    @property
+    def recorder(self):
+        """The ``rci.recorder.Recorder`` logging every cycle, or None."""
+        t = self._task
+        return t.config.recorder if t is not None and not t.ended else self.config.recorder
+
+    @property
+    def termination(self) -> codes.Termination | None:
+        """The termination of the last control that ended on an error (None if it did not)."""
+        return self.lifecycle.termination
 
     @property
     def is_open(self) -> bool:
@@ -200,15 +180,20 @@ class Session:
     def mark_delivered(self) -> None:
         """The termination recorded has been delivered by the caller (a workcell delivers its
         arms' terminations itself): this session will not deliver it again."""
-        self._delivered = self.termination
+        self.lifecycle.mark_delivered()
 
     @property
     def period(self) -> float:
+        """The sample period, s (1 / ``rate_hz``)."""
         return 1.0 / self.rate_hz
 
     def record(self, recorder) -> None:
-        """Log every control cycle into ``recorder`` (an ``rci.recorder.Recorder``); None stops."""
-        self.recorder = recorder
+        """Log every control cycle into ``recorder`` (an ``rci.recorder.Recorder``); None stops.
+        Takes effect at the next cycle of a running control, and for every later control."""
+        self.config = self.config.changed(recorder=recorder)
+        t = self._task
+        if t is not None and not t.ended:
+            t.use_recorder(recorder)
 
     # --- A.3 primitives -------------------------------------------------------------
     def open(self) -> "Session":
@@ -217,11 +202,11 @@ class Session:
             if self.link is not None:
                 raise AlreadyOpen(f"session with {self.url} is already open")
             # a real-time session's link threads (the Zenoh bus has some) run just above its control thread
-            link = open_link(self.url, priority=self.priority + 1 if self.realtime else 0)
+            link = open_link(self.url, priority=self.config.realtime.link_priority)
             try:
                 link.drain()
                 link.send(protocol.HELLO, self.next_msg_seq(),
-                          protocol.Hello(self.robot, self.rate_hz, self.client, os.getpid(), self.takeover).encode())
+                          protocol.Hello(self.robot, self.config.rate_hz, self.client, os.getpid(), self.takeover).encode())
                 welcome = self._await_welcome(link)
             except (LinkClosed, OSError) as e:
                 link.close()
@@ -233,15 +218,13 @@ class Session:
                 link.close()
                 raise RobotRefused(0, f"asked for robot {self.robot!r}, {self.url} is {welcome.robot!r}")
             self.welcome = welcome
-            self.lockstep = welcome.mode == protocol.MODE_LOCKSTEP
-            if self.overrun_mode == "auto":
-                self.overrun = "count" if self.lockstep else "error"
+            self.config = self.config.changed(lockstep=welcome.mode == protocol.MODE_LOCKSTEP)
             self.nj, self.nadc = welcome.nj, welcome.nadc
             self.how = How(pos=np.zeros(self.nj, dtype=np.int64), adcr=np.zeros(self.nadc, dtype=np.int64))
             self.how.state = welcome.state
             self.how.rate_hz = welcome.rate_hz
             self.chg = Chg(nj=self.nj)
-            limits = self.limits_spec
+            limits = self.config.limits
             if limits == "model":
                 try:
                     limits = CommandLimits.for_robot(self.robot)
@@ -249,20 +232,21 @@ class Session:
                     link.close()
                     raise
             self.checker = Checker(self.nj, self.nadc, limits if isinstance(limits, CommandLimits) else None,
-                                   max_commands=self.max_commands)
+                                   max_commands=self.config.max_commands)
             self.link = link
-            if self.lock_memory:
+            if self.config.realtime.lock_memory:
                 lock_memory(self.rt_status)
-            self._install_signals()
+            self.lifecycle.install_signals()
             atexit.register(self._atexit)
             return self
 
     def _await_welcome(self, link: Link) -> protocol.Welcome:
-        deadline = time.monotonic() + self.start_timeout
+        start_timeout = self.config.start_timeout
+        deadline = time.monotonic() + start_timeout
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
-                raise Timeout(f"{self.url}: no answer to HELLO within {self.start_timeout} s (is the robot/simula running?)")
+                raise Timeout(f"{self.url}: no answer to HELLO within {start_timeout} s (is the robot/simula running?)")
             try:
                 frame = link.recv(left)
             except LinkClosed as e:
@@ -308,20 +292,18 @@ class Session:
             if self.control_wrapper is not None:
                 f1, f2 = self.control_wrapper(f1, f2)
             self.terminate = 0
-            self.termination = None
-            self._delivered = None
-            self._term_event.clear()
+            self.lifecycle.reset()
             try:
                 self.link.drain()
             except LinkClosed as e:
                 raise DeviceError(f"{self.url}: {e}") from None
-            task = ControlTask(self, f1, f2)
+            task = ControlTask(self, self.link, self.config, self.nj, self.nadc, f1, f2)
             self._task = task
             task.start()
-            task.started.wait(self.start_timeout + 1.0)
+            task.started.wait(self.config.start_timeout + 1.0)
             t = self.termination
             if t is not None and t.number == codes.R_TIMEOUT and task.seq is None:
-                self._delivered = t
+                self.lifecycle.mark_delivered()
                 raise Timeout(f"control(): {t.detail}")
 
     def release(self, power_off: bool = False) -> None:
@@ -372,9 +354,9 @@ class Session:
                 pass
             self.link = None
             link.close()
-            if self.lock_memory and self.rt_status.mlockall is True:
+            if self.config.realtime.lock_memory and self.rt_status.mlockall is True:
                 unlock_memory()      # mlockall is process-wide: give it back with the session
-            self._restore_signals()
+            self.lifecycle.restore_signals()
             atexit.unregister(self._atexit)
 
     # --- context manager ------------------------------------------------------------
@@ -401,7 +383,7 @@ class Session:
             link, self.link = self.link, None
             if link is not None:
                 link.close()
-            self._restore_signals()
+            self.lifecycle.restore_signals()
 
     def _atexit(self) -> None:
         self.close_quietly(power_off=False)
@@ -414,119 +396,40 @@ class Session:
         Returns True if ``until`` became true, False on timeout. A termination of the
         control is delivered (``on_error``) as soon as it happens.
         """
-        deadline = None if seconds is None else time.monotonic() + seconds
-        while True:
-            self._deliver()
-            if until is not None and until():
-                return True
-            now = time.monotonic()
-            if deadline is not None and now >= deadline:
-                return False
-            if until is None and deadline is None and not self.in_control:
-                return False
-            if self.termination is not None and self._delivered is self.termination and until is None:
-                # delivered to a handler that returned: keep waiting out the time, quietly
-                self._term_event.clear()
-            if until is None and self.termination is None:
-                # nothing to poll: sleep in one block until a termination or the deadline,
-                # so the planning thread does not keep taking the GIL from the control thread
-                self._term_event.wait(None if deadline is None else max(deadline - now, 0.0))
-                continue
-            step = poll if deadline is None else min(poll, deadline - now)
-            time.sleep(max(step, 0.0))
+        return self.lifecycle.wait(seconds, until, poll)
 
-    # --- termination delivery -----------------------------------------------------
+    # --- termination delivery (rci.lifecycle) ---------------------------------------
     def control_terminated(self, term: codes.Termination, task: ControlTask) -> None:
         """The control task (its thread or its watchdog) reports the end of its control on an
         error, after the implicit release: record it, tell the listeners, signal the main thread."""
         self.terminate = term.code
-        self.termination = term
-        self._term_event.set()
+        self.lifecycle.termination = term
         for listener in list(self.termination_listeners):
             listener(term)
-        if self._signals_active() and self._main_ident is not None:
-            try:
-                signal.pthread_kill(self._main_ident, TERM_SIGNAL)
-            except (ProcessLookupError, OSError):
-                pass
+        self.lifecycle.terminated(term)
 
     def _deliver(self) -> None:
-        """Run on_error for a termination not yet delivered (main thread, or a wait() caller)."""
-        t = self.termination
-        if t is None or self._delivered is t:
-            return
-        if self._busy:
-            return                        # delivered when the primitive in progress returns
-        self._delivered = t
+        self.lifecycle.deliver()
+
+    def delivery(self, t: codes.Termination) -> Delivery:
+        """LifecycleHost: what the program is told about ``t``."""
+        where = f" (cycle {t.cycle})" if t.cycle >= 0 else ""
+        message = f"{t.detail}{where}" if t.detail else f"control ended{where}"
+        return Delivery(ControlTerminated(t), t.code, message, t.severe)
+
+    def before_delivery(self, t: codes.Termination) -> None:
+        """LifecycleHost: the arm is already released; give the control thread a moment to
+        finish, but do not wait for a user function that may never return."""
         task = self._task
         if task is not None and task is not threading.current_thread():
-            # the arm is already released; give the control thread a moment to finish, but
-            # do not wait for a user function that may never return
             task.finished.wait(min(0.1, 2 * task.period))
-        run_on_error(self.on_error, ControlTerminated(t), t.code, self._message(t), t.severe,
-                     lambda severe: self.close_quietly(power_off=severe), t)
 
-    @staticmethod
-    def _message(t: codes.Termination) -> str:
-        where = f" (cycle {t.cycle})" if t.cycle >= 0 else ""
-        return f"{t.detail}{where}" if t.detail else f"control ended{where}"
+    def shut(self, power_off: bool) -> None:
+        """LifecycleHost: release and close whatever state the session is in."""
+        self.close_quietly(power_off=power_off)
 
-    class _Primitive:
-        def __init__(self, s: "Session") -> None:
-            self.s = s
-
-        def __enter__(self) -> None:
-            self.s._lock.acquire()
-            self.s._busy += 1
-
-        def __exit__(self, exc_type, exc, tb) -> None:
-            s = self.s
-            s._busy -= 1
-            s._lock.release()
-            if s._busy == 0 and exc_type is None and threading.current_thread() is threading.main_thread():
-                if s._pending_interrupt:
-                    s._pending_interrupt = False
-                    s._handle_interrupt()
-                s._deliver()
-
-    def _primitive(self) -> "_Primitive":
-        return Session._Primitive(self)
-
-    # --- signals ------------------------------------------------------------------
-    def _signals_active(self) -> bool:
-        return bool(self._old_handlers)
-
-    def _install_signals(self) -> None:
-        if not self.use_signals or threading.current_thread() is not threading.main_thread():
-            return
-        self._main_ident = threading.main_thread().ident
-        self._old_handlers[TERM_SIGNAL] = signal.signal(TERM_SIGNAL, self._on_term_signal)
-        self._old_handlers[signal.SIGINT] = signal.signal(signal.SIGINT, self._on_sigint)
-
-    def _restore_signals(self) -> None:
-        if not self._old_handlers or threading.current_thread() is not threading.main_thread():
-            return
-        for sig, old in self._old_handlers.items():
-            signal.signal(sig, old if old is not None else signal.SIG_DFL)
-        self._old_handlers = {}
-
-    def _on_term_signal(self, signum, frame) -> None:
-        self._deliver()
-
-    def _on_sigint(self, signum, frame) -> None:
-        if self._busy:
-            self._pending_interrupt = True
-            return
-        self._handle_interrupt()
-
-    def _handle_interrupt(self) -> None:
-        """A.5.3 user_interrupt, or the default: release (power off), close, print, exit 130."""
-        if self.on_interrupt is not None:
-            self.on_interrupt()
-            return
-        self.close_quietly(power_off=True)
-        codes.print_terminate_code(codes.make_code(codes.R_INTERRUPT), "interrupt")
-        raise SystemExit(130)
+    def _primitive(self):
+        return self.lifecycle.primitive()
 
 
 def open(url: str, robot: str = "puma260", **options: Any) -> Session:  # noqa: A001 (thesis name)

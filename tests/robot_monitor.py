@@ -26,7 +26,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from rci import codes, protocol
-from rci.chg import CUR, POS, STOP, STOPCAL, Chg, rate_hz
+from rci.chg import CUR, POS, STOP, STOPCAL, Chg
 from rci.exceptions import ProtocolError
 from rci.how import How
 
@@ -221,6 +221,7 @@ class Monitor:
         next_t = 0.0
         answered = True
         missing = 0
+        change = None          # a rate command: its CHG runs at the old rate, the next HOW carries the new
         while not self.stop_event.is_set():
             self._refuse_newcomers()
             if running and not self.lockstep:
@@ -254,6 +255,8 @@ class Monitor:
                             self._send_how(stream, watchdog=True)
                             continue
                     self.arm.step(period)
+                    if change is not None:
+                        self.rate_hz, period, change = change.hz, change.period, None
                     next_t += period
                     self._send_how(stream)
                     answered = False
@@ -278,7 +281,7 @@ class Monitor:
                 st = protocol.Start.decode(frame.payload)
                 self.rate_hz = st.rate_hz
                 period = 1.0 / st.rate_hz
-                running, answered, missing = True, False, 0
+                running, answered, missing, change = True, False, 0, None
                 next_t = time.monotonic() + period
                 self._send_how(stream)
             elif t == protocol.CHG:
@@ -287,9 +290,7 @@ class Monitor:
                 if current:
                     answered, missing = True, 0
                     self._apply(chg)
-                    if chg.rate.com:
-                        self.rate_hz = rate_hz(int(chg.rate.value))
-                        period = 1.0 / self.rate_hz
+                    change = chg.rate_change()
                 elif chg.end.com or chg.stop.com or chg.power_off.com:
                     safety = Chg(nj=chg.nj)
                     safety.end.com, safety.stop.com, safety.power_off.com = chg.end.com, chg.stop.com, chg.power_off.com
@@ -302,6 +303,8 @@ class Monitor:
                     continue
                 if current and self.lockstep and running:
                     self.arm.step(period)
+                    if change is not None:
+                        self.rate_hz, period, change = change.hz, change.period, None
                     self._send_how(stream)
                     answered = False
             elif t == protocol.BYE:

@@ -335,14 +335,14 @@ class SimulatedArm:
         return s
 
     # --- commands --------------------------------------------------------------------
-    def apply(self, chg: Chg, period: float) -> list[str]:
-        """Execute one CHG in the protocol's order (docs/protocol.md); returns the events
-        the server must act on (``"rate:<hz>"``, ``"end"``)."""
-        events: list[str] = []
+    def apply(self, chg: Chg, period: float) -> None:
+        """Execute the arm's part of one CHG in the protocol's order (docs/protocol.md), for a
+        period of ``period`` s. The rate command and ``end`` are the server's (it reads them
+        from ``chg``: ``chg.rate_change()``, ``chg.end``): they change the clock, not the arm."""
         n = self.n
         if chg.nj != n:
             self.flag(codes.ST_BAD_COMMAND, f"CHG for {chg.nj} joints, robot has {n}")
-            return events
+            return
         if chg.power_off.com:
             self.power = False
             self._hold_here(range(n))
@@ -358,8 +358,6 @@ class SimulatedArm:
         if chg.setparamALL.com:
             for i in range(n):
                 self.setparams[(i, (int(chg.setparamALL.value) >> 24) & 0xFF)] = int(chg.setparamALL.value) & 0xFFFFFF
-        if chg.rate.com:
-            events.append(f"rate:{int(chg.rate.value)}")
         if chg.zindex.com:
             bits = int(chg.zindex.value)
             for i in range(n):
@@ -381,9 +379,6 @@ class SimulatedArm:
             self.pendant = int(chg.pendant.value)
         if chg.adco.com and not 0 <= int(chg.adco.value) < N_ADC:
             self.flag(codes.ST_BAD_COMMAND, f"adco channel {chg.adco.value} is not 0..{N_ADC - 1}")
-        if chg.end.com:
-            events.append("end")
-        return events
 
     def _motion(self, i: int, com: int, value: int, period: float) -> None:
         if com == STOP:

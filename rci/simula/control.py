@@ -28,14 +28,11 @@ from __future__ import annotations
 import json
 import socket
 from collections import deque
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from .params import parse_load
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .server import Server
 
 MAX_LINE = 4096          # bytes in one command line
 MAX_QUEUED = 64          # commands waiting per client
@@ -44,7 +41,20 @@ BUDGET = 4               # commands run per pass of simula's loop, over all clie
 TEST_COMMANDS = ("torque", "load")
 
 
-def execute(line: str, server: "Server", *, test_commands: bool = False) -> dict:
+class ServedRobot(Protocol):
+    """What the channel reads of simula's server (``rci.simula.server.Server``, which imports
+    this module: a protocol here, not an import back)."""
+
+    arm: Any                   # the SimulatedArm
+    seq: int                   # the latest HOW's cycle number
+    session: Any               # the owner's Client, or None
+
+    def owner_info(self) -> dict | None: ...
+
+    def events_info(self) -> dict: ...
+
+
+def execute(line: str, server: "ServedRobot", *, test_commands: bool = False) -> dict:
     """Run one control command against the server's arm; returns the reply object."""
     arm = server.arm
     words = line.split()
@@ -125,7 +135,7 @@ class ControlChannel:
         """True if commands are waiting to run."""
         return any(p.lines for p in self.clients.values())
 
-    def on_readable(self, sock, server: "Server | None" = None) -> None:  # noqa: ARG002 (server: older callers)
+    def on_readable(self, sock, server: "ServedRobot | None" = None) -> None:  # noqa: ARG002 (server: older callers)
         """Take in what a socket has (accept, or queue complete lines); runs nothing."""
         if sock is self.listener:
             try:
@@ -163,7 +173,7 @@ class ControlChannel:
         if peer is not None:
             self._flush(peer)
 
-    def service(self, server: "Server", budget: int = BUDGET) -> int:
+    def service(self, server: "ServedRobot", budget: int = BUDGET) -> int:
         """Run up to ``budget`` queued commands, one per client in turn; returns how many ran."""
         ran = 0
         while ran < budget:

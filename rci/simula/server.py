@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import codes, protocol
-from ..chg import rate_hz as chg_rate_hz
 from ..chg import Chg
+from ..rate import RateChange, check_rate_hz
 from ..exceptions import ProtocolError, VersionError
 from ..how import How
 from .arm import N_ADC, SimulatedArm
@@ -129,7 +129,7 @@ class Server:
         self.robot = robot
         self.lockstep = lockstep
         self.verbose = verbose
-        self.rate = rate_hz
+        self.rate = check_rate_hz(rate_hz, "simula rate_hz")   # the rate of the period in progress (Hz)
         self.watchdog = watchdog
         self.watchdog_time = watchdog_time
         self.lockstep_watchdog = lockstep_watchdog
@@ -153,7 +153,9 @@ class Server:
         self.last_tick_wall = 0.0     # when the latest HOW was sent (real time: the tick)
         self.last_chg_wall = 0.0      # when the latest CHG of the running control came in
         self.stopping = False
-        self._pending_rate = rate_hz
+        # a rate command of the CHG just executed: that CHG runs at ``rate``; the next HOW
+        # carries the new rate and begins the first period at it (_begin_period)
+        self._rate_change: RateChange | None = None
         # real-time mode: the next HOW frame, computed as soon as the CHG that decides it is
         # in, so a tick only writes bytes (the arm step and the encoding, ~75 us at 1 kHz,
         # used to sit between the tick and the HOW and added their variation to the jitter)
@@ -261,10 +263,22 @@ class Server:
             self.log_limited("status", f"status {smp.status} ({codes.STATUS_TEXT.get(smp.status, '?')}) at cycle {seq}")
         how = How(pos=smp.pos, adcr=smp.adcr, status=smp.status, state=smp.state, exio=0,
                   inport1=smp.inport1, outport1=smp.outport1,
-                  time_ns=int(round(self.arm.t * 1e9)), rate_hz=self.rate,
+                  time_ns=int(round(self.arm.t * 1e9)), rate_hz=self._announced_rate(),
                   robot_overruns=self.overruns)
         self.ticks.append([seq, None, self.arm.q.copy()])
         return how
+
+    def _announced_rate(self) -> int:
+        """The rate the next HOW carries: the one it begins the period at (Hz)."""
+        return self.rate if self._rate_change is None else self._rate_change.hz
+
+    def _begin_period(self) -> None:
+        """The HOW that ends the period in progress goes out now: a rate change commanded by the
+        CHG of that period takes effect here, so that HOW carries the new rate and the next
+        period runs at it (docs/protocol.md, "Timing: one cycle")."""
+        change, self._rate_change = self._rate_change, None
+        if change is not None:
+            self.rate = change.hz
 
     def _sent(self) -> None:
         """The latest HOW has just been written: remember when (the arm's position at that instant is known)."""
@@ -274,7 +288,10 @@ class Server:
             self.ticks[-1][1] = now
 
     def _send_how(self) -> None:
-        self._send(protocol.HOW, self.seq, protocol.encode_how(self._how(self.seq)))
+        """Sample the arm and send HOW(seq), beginning the next period (at a new rate if one was commanded)."""
+        payload = protocol.encode_how(self._how(self.seq))
+        self._begin_period()
+        self._send(protocol.HOW, self.seq, payload)
         self._sent()
 
     def _prepare_next(self) -> None:
@@ -293,7 +310,6 @@ class Server:
             self.arm.restore_state(self._rewind[0])
             self._rewind = None
             return
-        self.rate = self._pending_rate
         seq = (self.seq + 1) & 0xFFFFFFFF
         how = self._how(seq)
         self._prepared = (how, protocol.encode_frame(protocol.HOW, seq, protocol.encode_how(how)))
@@ -349,6 +365,7 @@ class Server:
         self.arm.hold_all()
         self._prepared = None
         self._rewind = None
+        self._rate_change = None
         wall, self._took_effect = self._took_effect or time.monotonic(), 0.0
         self.events.append({"cause": cause, "flags": flags, "seq": seq, "wall": wall,
                             "t": self.arm.t, "q": [float(x) for x in self.arm.q], "power": bool(self.arm.power),
@@ -532,11 +549,12 @@ class Server:
 
     def _start(self, c: Client, f: protocol.Frame) -> None:
         try:
-            rate = chg_rate_hz(protocol.Start.decode(f.payload).rate_hz)
+            rate = check_rate_hz(protocol.Start.decode(f.payload).rate_hz, "START rate_hz")
         except (ProtocolError, ValueError) as exc:
             self._error(codes.ST_BAD_COMMAND, f"bad START: {exc}", c)
             return
-        self.rate = self._pending_rate = rate
+        self.rate = rate
+        self._rate_change = None
         self._prepared = None
         self._rewind = None
         c.running = True
@@ -567,30 +585,29 @@ class Server:
         self.last_chg_wall = time.monotonic()
         if self.trace is not None:
             self.trace.got_chg(self.last_chg_wall)
-        events = self.arm.apply(chg, 1.0 / self.rate)
+        # this CHG runs at the current rate, the period of the HOW it answers; a rate command
+        # in it is read here, from the record itself, and begins with the next HOW
+        try:
+            change = chg.rate_change()
+        except ValueError as exc:
+            change = None
+            self.arm.flag(codes.ST_BAD_COMMAND, str(exc))
+        self.arm.apply(chg, 1.0 / self.rate)
         if self.arm.status:
             self.log_limited("status", self.arm.status_text)
-        new_rate = self.rate
-        for ev in events:
-            if ev.startswith("rate:"):
-                try:
-                    new_rate = chg_rate_hz(int(ev[5:]))
-                except ValueError as exc:
-                    self.arm.flag(codes.ST_BAD_COMMAND, str(exc))
-        if "end" in events:
+        if chg.end.com:
             flags = ",".join(n for n in ("end", "stop", "power_on", "power_off") if getattr(chg, n).com)
             self._end_control("release", f.seq, flags=flags)
             return
+        self._rate_change = change
         if self.lockstep:
             self._rewind = (self.arm.save_state(), self.seq)
             self.arm.step(1.0 / self.rate)
-            self.rate = new_rate
             self._report()
             self.seq = (self.seq + 1) & 0xFFFFFFFF
             self.got_chg = False
             self._send_how()
         else:
-            self._pending_rate = new_rate
             t0 = time.monotonic()
             self._prepare_next()
             if self.trace is not None:
@@ -684,7 +701,6 @@ class Server:
         self._rewind = None
         if prepared is None:                  # no CHG in time (or none yet): step the arm now
             self.arm.step(1.0 / self.rate)
-            self.rate = self._pending_rate
             self.seq = (self.seq + 1) & 0xFFFFFFFF
             self.got_chg = False
             self._send_how()
@@ -694,7 +710,8 @@ class Server:
                 self.log_limited("late", f"no CHG for cycle {(self.seq - 1) & 0xFFFFFFFF}: "
                                          f"current-mode joints held")
         else:
-            how, frame = prepared
+            how, frame = prepared             # made by _prepare_next, at the rate it announces
+            self._begin_period()
             self.seq = (self.seq + 1) & 0xFFFFFFFF
             self.got_chg = False
             if how.robot_overruns != self.overruns:
