@@ -26,6 +26,7 @@ from typing import Iterator
 
 from models import ModelError
 from models import available_robots, load_robot
+from ..rate import MAX_RATE_HZ, MIN_RATE_HZ
 from .arm import SimulatedArm
 from .control import ControlChannel
 from .exceptions import SimulaError
@@ -35,7 +36,7 @@ from .server import LOCKSTEP_WATCHDOG_S, WATCHDOG_CYCLES, Server
 DEFAULT_PORT = 7600
 PORT_RANGE = (0, 65535)
 PRIORITY_RANGE = (0, 99)          # SCHED_FIFO's on Linux; 0 leaves the scheduler alone
-RATE_RANGE_HZ = (4, 1000)         # the thesis's 9..72 Hz and anything up to 1 kHz
+RATE_RANGE_HZ = (MIN_RATE_HZ, MAX_RATE_HZ)   # the one home of the rate range: rci.rate
 
 
 def _integer(lo: int, hi: int | None = None, unit: str = ""):
