@@ -4,7 +4,7 @@
     .venv/bin/python examples/record_rccl.py socket://127.0.0.1:7600  # a running `simula -p --power-on`
     .venv/bin/python examples/record_rccl.py --log run.rcilog --png run.png --mcap run.mcap
 
-The PUMA 260 goes from park to the corner of a 6 cm square in a horizontal plane near park (a joint
+The PUMA 260 goes from park to the corner of a 5 cm square in a horizontal plane near park (a joint
 move), round the square in straight lines (Cartesian moves) and back to park. RCCL's
 trajectory generator is an RCI control function, so the recorder is attached to the arm's RCI
 session (``arm.rci.record``): it logs every cycle's HOW (encoder counts, currents, time) and
@@ -24,7 +24,7 @@ import rccl
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rci.recorder import Recorder, read_log
 
-SIDE = 0.06                                   # m, the square's side
+SIDE = 0.05                                   # m, the square's side
 CORNER = np.array([0.17, -0.16, 0.17])        # m, base frame: in front of the shoulder, near park
 TOOL_DOWN = np.diag([-1.0, 1.0, -1.0])        # T6's z axis pointing down (a turn of pi about y)
 
@@ -44,7 +44,7 @@ def run(url: str, log_path: Path, rate_hz: int = 36) -> Recorder:
         arm.rci.record(rec)                   # from now on every control cycle is logged
         rec.start_writer()                    # the planning level writes the log while the arm moves
         try:
-            arm.setvel(0.05, math.radians(60))                 # m/s, rad/s
+            arm.setvel(0.08, math.radians(60))                 # m/s, rad/s
             arm.setmod("joint")
             arm.move(pose("c0", corners[0]))
             arm.setmod("cartesian")                            # straight lines round the square
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
           f"lost {rec.lost})")
     if args.png:
         from rci.plot import plot_log
-        print("wrote", plot_log(log, args.png, title="examples/record_rccl.py: a 6 cm square on the PUMA 260 "
+        print("wrote", plot_log(log, args.png, title="examples/record_rccl.py: a 5 cm square on the PUMA 260 "
                                                      "(simula, 36 Hz)"))
     if args.mcap:
         from rci.export import to_mcap
