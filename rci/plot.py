@@ -86,7 +86,7 @@ def plot_log(log: Log, out: str | Path, *, title: str | None = None, dpi: int = 
     a_late = a_t.twinx()
     a_late.plot(t, np.asarray(r["lateness"], float) * 1e3, lw=0.8, color="#7f7f7f", alpha=0.7)
     a_late.set_ylabel("HOW lateness (ms, grey)", color="#555555")
-    a_t.legend(fontsize=8, loc="upper left")
+    a_t.legend(fontsize=8, loc="center right")
     p = si.T6[:, :3, 3]
     pc = si.T6_cmd[:, :3, 3]
     for a, (i, k), names in ((a_xy, (0, 1), "xy"), (a_xz, (0, 2), "xz")):
