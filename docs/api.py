@@ -49,6 +49,7 @@ def _code_names(packages: tuple[str, ...]) -> re.Pattern:
 def check(out: Path, packages: tuple[str, ...] = PACKAGES) -> list[str]:
     """Broken links, and names of ``packages`` that name nothing, in the built pages under ``out``."""
     problems = []
+    out = out.resolve()                  # links are resolved to absolute paths below
     code = _code_names(tuple(packages) + tuple(p for p in PACKAGES if p not in packages))
     pages = {p: p.read_text(encoding="utf-8") for p in out.rglob("*.html")}
     ids = {p: set(_ID.findall(text)) for p, text in pages.items()}

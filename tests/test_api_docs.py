@@ -37,7 +37,8 @@ def test_a_broken_reference_fails_the_build(tmp_path, monkeypatch):
     (pkg / "part.py").write_text('"""Part of the probe: ``apidoc_probe.part.kept`` is here."""\n\n\n'
                                  'def kept() -> int:\n    """One."""\n    return 1\n')
     monkeypatch.syspath_prepend(str(tmp_path / "src"))
-    problems = api.build(tmp_path / "out", ("apidoc_probe",))
+    monkeypatch.chdir(tmp_path)
+    problems = api.build(Path("out"), ("apidoc_probe",))           # relative, as `make docs` gives it
     named = "\n".join(problems)
     assert len(problems) == 2, named
     assert "rci.recorder.NoSuchRecorder" in named and "apidoc_probe.part.gone" in named
