@@ -199,3 +199,18 @@ def test_a_prismatic_arm_is_in_metres(tmp_path):
     assert np.allclose(si.qd, 0.1, atol=conv.rounding_step().max() * 100)
     from rccl.kinematics import microbo
     assert np.allclose(si.T6, microbo.fk(si.q), atol=1e-12)
+
+
+def test_the_replay_shows_the_record_in_si_units(recorded):
+    from rci.view import Replay
+
+    replay = Replay(recorded)
+    si = log_in_si(read_log(recorded))
+    i = 45                                              # motor 6 by current: a torque command on joint 6
+    rows = replay.table(i).splitlines()
+    joint6 = [c.strip() for c in rows[2 + 5].split("|")[1:-1]]
+    assert joint6[0] == "6" and joint6[1] == f"{si.q[i, 5]:+.4f}" and joint6[2] == f"{si.qd[i, 5]:+.4f}"
+    assert joint6[5] == f"{si.tau_cmd[i, 5]:+.4f}" and joint6[4] == ""      # no position command there
+    assert joint6[6] == "rad, rad/s, N m"
+    assert f"T6 at ({si.T6[i, 0, 3]:+.4f}" in rows[-1]
+    assert np.array_equal(replay.q, si.q) and np.isnan(replay.q_cmd[i]).all()
