@@ -68,8 +68,12 @@ def run(url: str, **rci_options) -> dict[str, tuple[float, np.ndarray]]:
 
 
 def main(argv: list[str]) -> int:
-    if argv:
-        run(argv[0])
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("url", nargs="?", help=f"robot link of a powered {ROBOT} (default: start a lockstep simula)")
+    args = ap.parse_args(argv)
+    if args.url:
+        run(args.url)
         return 0
     from rci.simula.process import SimulaProcess
     with SimulaProcess("-p", "--power-on", robot=ROBOT, lockstep=True) as sim:
