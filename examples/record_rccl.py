@@ -36,10 +36,11 @@ def pose(name: str, p: np.ndarray):
     return makeposition(name, T6, EQ, Trsf(name.upper(), T), TL, T6)
 
 
-def run(url: str, log_path: Path, rate_hz: int = 36) -> Recorder:
-    """Move round the square on the arm at ``url``, recording every cycle into ``log_path``."""
+def run(url: str, log_path: Path, rate_hz: int = 36, **rci_options) -> Recorder:
+    """Move round the square on the arm at ``url``, recording every cycle into ``log_path``;
+    ``rci_options`` go to the RCI session (e.g. ``timeout``, s)."""
     corners = [CORNER + SIDE * np.array(d) for d in ((0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 0))]
-    with rccl.open(url, robot="puma260", rate_hz=rate_hz) as arm:
+    with rccl.open(url, robot="puma260", rate_hz=rate_hz, **rci_options) as arm:
         rec = Recorder(log_path, robot=arm.robot, rate_hz=rate_hz, meta={"program": "examples/record_rccl.py"})
         arm.rci.record(rec)                   # from now on every control cycle is logged
         rec.start_writer()                    # the planning level writes the log while the arm moves
@@ -65,14 +66,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--log", type=Path, default=Path("demo-out/record-rccl.rcilog"), help="the log to write")
     ap.add_argument("--png", type=Path, help="also draw the log (python -m rci.plot)")
     ap.add_argument("--mcap", type=Path, help="also export it for Foxglove (python -m rci.export)")
+    ap.add_argument("--lockstep", action="store_true",
+                    help="start simula in lockstep (one period per command: a busy machine slows the run down "
+                         "instead of making cycles late; the timing panel then shows the machine, not the robot)")
     args = ap.parse_args(argv)
     args.log.parent.mkdir(parents=True, exist_ok=True)
     if args.url:
         rec = run(args.url, args.log)
     else:
         from rci.simula.process import SimulaProcess
-        with SimulaProcess("-p", "--power-on", lockstep=False) as sim:   # real time, as a robot
-            rec = run(sim.url, args.log)
+        with SimulaProcess("-p", "--power-on", lockstep=args.lockstep) as sim:   # real time, as a robot
+            rec = run(sim.url, args.log, timeout=2.0 if args.lockstep else None)
     log = read_log(args.log)
     print(f"recorded {len(log)} cycles into {args.log} (written {rec.written}, dropped {rec.dropped}, "
           f"lost {rec.lost})")

@@ -37,7 +37,8 @@ def recorded(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("si") / "run.rcilog"
     rec = Recorder(path, robot="puma260", rate_hz=100)
     with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
-        with Session(sim.url, "puma260", rate_hz=100, signals=False, lock_memory=False, on_error="raise") as s:
+        with Session(sim.url, "puma260", rate_hz=100, signals=False, lock_memory=False, on_error="raise",
+                     timeout=2.0) as s:
             start: list[int] = []
 
             def f1():

@@ -84,7 +84,8 @@ def test_a_full_disk_during_a_control_warns_and_the_control_goes_on(small_disk):
     path = small_disk / "run.rcilog"
     rec = Recorder(path, robot="puma260", rate_hz=100, block_records=32)    # on_write_error="warn", the default
     with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
-        with Session(sim.url, "puma260", rate_hz=100, signals=False, lock_memory=False, on_error="raise") as s:
+        with Session(sim.url, "puma260", rate_hz=100, signals=False, lock_memory=False, on_error="raise",
+                     timeout=2.0) as s:
             s.record(rec)
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
@@ -110,7 +111,8 @@ def test_the_program_can_end_the_control_when_the_log_cannot_be_written(small_di
     path = small_disk / "run.rcilog"
     code = codes.R_USER_BASE + 7
     with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
-        with Session(sim.url, "puma260", rate_hz=100, signals=False, lock_memory=False, on_error="raise") as s:
+        with Session(sim.url, "puma260", rate_hz=100, signals=False, lock_memory=False, on_error="raise",
+                     timeout=2.0) as s:
             rec = Recorder(path, robot="puma260", rate_hz=100, block_records=32,
                            on_write_error=lambda e: setattr(s, "terminate", code))
             s.record(rec)

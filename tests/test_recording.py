@@ -1,6 +1,7 @@
 """Recording an RCCL run and looking at it (issue 29, items 2 and 3): examples/record_rccl.py and python -m rci.plot.
 
-The example runs as a user runs it (its own simula, real time) and writes the log, the PNG and
+The example runs as a user runs it (its own simula; lockstep, so that a loaded machine cannot make
+its cycles late) and writes the log, the PNG and
 the MCAP file; the log's commanded T6 goes round the square, the measured T6 follows it, and
 the picture has the six panels' curves in it.
 """
@@ -30,7 +31,7 @@ def _run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
 def run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("rec")
     r = _run("examples/record_rccl.py", "--log", str(out / "run.rcilog"), "--png", str(out / "run.png"),
-             "--mcap", str(out / "run.mcap"))
+             "--mcap", str(out / "run.mcap"), "--lockstep")
     assert r.returncode == 0, r.stderr
     assert "recorded" in r.stdout and "lost 0" in r.stdout
     return out
