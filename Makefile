@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 DERIVE_SRC   := $(sort $(wildcard derive/*.py models/*.py models/*.toml models/urdf/*.urdf))
 DERIVE_STAMP := rccl/kinematics/derived-from.sha256
 
-.PHONY: all venv derive derive-if-needed test test-deps demo bench clean
+.PHONY: all venv derive derive-if-needed test test-deps demo bench docs clean
 
 all: test
 
@@ -43,6 +43,11 @@ test: $(STAMP) test-deps
 
 test-deps:
 	@./.ci/chromium
+
+# The API reference from the docstrings (pdoc): docs/api/index.html, one page per module; fails
+# on a broken reference (docs/api.py says what it checks)
+docs: $(STAMP)
+	$(PY) docs/api.py --out docs/api
 
 # The demo's results go to $(DEMO_OUT)/ (untracked): timings and thread interleavings differ
 # from run to run, so the committed reports/ are rebuilt only by their own commands (each

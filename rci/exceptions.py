@@ -130,3 +130,29 @@ class LogFormatError(RCIError):
         self.where = where
         self.problem = problem
         super().__init__(f"{self.path}: {where}: {problem}")
+
+
+class LogWriteError(RCIError):
+    """The recorder could not write its log (a full disk, a quota, an I/O error).
+
+    ``errno`` and ``strerror`` are the operating system's; ``written`` the records the file
+    holds in whole blocks; ``lost`` those recorded but not written; ``where`` the byte or part
+    of the file where writing stopped. The file stays readable to its last whole block.
+    """
+
+    def __init__(self, path: str, error: OSError, *, written: int, lost: int, where: str) -> None:
+        self.path = str(path)
+        self.errno = error.errno
+        self.strerror = error.strerror or str(error)
+        self.written = written
+        self.lost = lost
+        self.where = where
+        super().__init__(path, where)
+
+    def __str__(self) -> str:
+        return (f"{self.path}: the recorder cannot write its log at {self.where}: {self.strerror}; "
+                f"recording stopped: {self.written} records are in the file, {self.lost} recorded were not written")
+
+
+class RecorderWarning(UserWarning):
+    """The recorder stopped writing its log (``Recorder(on_write_error="warn")``, the default)."""

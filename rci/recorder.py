@@ -6,6 +6,16 @@ level dumps the ring to disk in CRC-protected blocks (``flush``), by hand or fro
 background writer thread (``start_writer``). The file format is in docs/log-format.md;
 ``read_log`` reads it back and raises ``LogFormatError`` naming the file and the block on
 corruption. After a crash the log is readable up to the last block that reached the disk.
+
+A write that fails (a full disk, a quota, an I/O error) never reaches the control level and
+never leaves half a block behind: the file is cut back to the end of its last complete
+block, ``written`` counts only whole blocks, the records that could not be written are
+counted in ``lost``, recording stops, and the program is told as it chose with
+``on_write_error``: ``"warn"`` (a ``RecorderWarning``), ``"raise"`` (a ``LogWriteError`` from
+``flush``, ``check`` or ``close``), or a function called with the ``LogWriteError`` (e.g. to
+end the control: ``lambda e: setattr(session, "terminate", codes.R_USER_BASE + 1)``).
+``close`` then still writes the end marker if it fits, so the file reads back complete up to
+its last whole block either way.
 """
 from __future__ import annotations
 
@@ -17,14 +27,15 @@ import struct
 import sys
 import threading
 import time
+import warnings
 import zlib
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, Union
 
 import numpy as np
 
 from .chg import UNVALUED, VALUED, Chg, Cmd, as_wire_int
-from .exceptions import LogFormatError
+from .exceptions import LogFormatError, LogWriteError, RecorderWarning
 from .how import How
 
 MAGIC = b"RCILOG\x00\x01"       # 6 letters, NUL, format version 1
@@ -34,6 +45,8 @@ _U32 = struct.Struct("<I")
 _BLOCK = struct.Struct("<4sIII")  # magic, n records, payload bytes, crc32 of payload
 _END = struct.Struct("<4sQ")      # magic, total records
 FORMAT_VERSION = 1
+WRITE_ERROR_CHOICES = ("warn", "raise")
+OnWriteError = Union[str, Callable[[LogWriteError], None]]
 
 
 def record_dtype(nj: int, nadc: int, user_fields: Mapping[str, tuple[str, tuple[int, ...] | int]] | None = None) -> np.dtype:
@@ -95,13 +108,22 @@ class Recorder:
 
     ``user_fields`` maps a name to ``(dtype, shape)``; the control function sets values in
     ``recorder.user[name]`` and each record copies them (stored as ``u_<name>``; unset
-    float fields are NaN). ``every`` records one cycle in ``every``.
+    float fields are NaN). ``every`` records one cycle in ``every``. ``on_write_error`` says
+    how the program hears of a write that failed (module docstring): ``"warn"``, ``"raise"``
+    or a function of the ``LogWriteError``.
+
+    Counts (records): ``written`` on disk in whole blocks, ``dropped`` not kept because the
+    ring was full, ``lost`` kept but not written because writing failed (``error``).
     """
 
     def __init__(self, path: str | os.PathLike, *, robot: str, nj: int = 6, nadc: int = 16,
                  rate_hz: int = 36, user_fields: Mapping[str, tuple[str, Any]] | None = None,
                  meta: Mapping[str, Any] | None = None, capacity: int = 1 << 16,
-                 block_records: int = 512, every: int = 1) -> None:
+                 block_records: int = 512, every: int = 1, on_write_error: OnWriteError = "warn") -> None:
+        if not (on_write_error in WRITE_ERROR_CHOICES or callable(on_write_error)):
+            raise ValueError(f"Recorder on_write_error={on_write_error!r}: expected one of "
+                             f"{', '.join(map(repr, WRITE_ERROR_CHOICES))} or a function of the LogWriteError")
+        self.on_write_error = on_write_error
         self.path = os.fspath(path)
         self.nj, self.nadc = nj, nadc
         self.dtype = record_dtype(nj, nadc, user_fields)
@@ -115,6 +137,9 @@ class Recorder:
         self.tail = 0          # records written (consumer only)
         self.dropped = 0
         self.written = 0
+        self.lost = 0           # records kept in the ring but not written: the writing failed
+        self.error: LogWriteError | None = None
+        self._reported = False  # the error went to the program (raised, warned or handed over)
         self._count = 0
         self._t0 = time.monotonic()
         self._lock = threading.Lock()     # serialises flushes (planning-level callers)
@@ -129,8 +154,14 @@ class Recorder:
         }
         raw = json.dumps(header, sort_keys=True).encode("utf-8")
         self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        os.write(self._fd, MAGIC + _U32.pack(len(raw)) + raw + _U32.pack(zlib.crc32(raw)))
-        os.fsync(self._fd)
+        self._end = 0           # bytes of the file that hold the header and whole blocks
+        try:
+            self._write_all(MAGIC + _U32.pack(len(raw)) + raw + _U32.pack(zlib.crc32(raw)))
+            os.fsync(self._fd)
+        except OSError as e:
+            os.close(self._fd)
+            raise LogWriteError(self.path, e, written=0, lost=0, where="the header") from None
+        self._end = os.lseek(self._fd, 0, os.SEEK_CUR)
         self.closed = False
 
     # --- control level ------------------------------------------------------------
@@ -180,27 +211,91 @@ class Recorder:
         self.head += 1
 
     # --- planning level -------------------------------------------------------------
+    def _write_all(self, data: bytes) -> None:
+        """Write every byte of ``data`` (a short write on a filling disk is retried until it fails)."""
+        view = memoryview(data)
+        while view:
+            n = os.write(self._fd, view)
+            if n <= 0:
+                raise OSError(28, "No space left on device")
+            view = view[n:]
+
     def flush(self) -> int:
-        """Write every record appended so far to disk, in blocks; returns how many were written."""
+        """Write every record appended so far to disk, in blocks; returns how many were written.
+
+        After a failed write it writes nothing: the records appended since count in ``lost``
+        (and with ``on_write_error="raise"`` the ``LogWriteError`` is raised).
+        """
         with self._lock:
             if self.closed:
                 return 0
+            if self.error is not None:
+                self._discard()
+                self._report()
+                return 0
             n_total = 0
-            while True:
-                head = self.head
-                n = min(head - self.tail, self.block_records)
-                if n <= 0:
-                    break
-                start = self.tail % self.capacity
-                n = min(n, self.capacity - start)     # do not wrap inside one block
-                payload = self.ring[start:start + n].tobytes()
-                os.write(self._fd, _BLOCK.pack(BLOCK_MAGIC, n, len(payload), zlib.crc32(payload)) + payload)
-                self.tail += n
-                self.written += n
-                n_total += n
-            if n_total:
-                os.fsync(self._fd)
+            try:
+                while True:
+                    head = self.head
+                    n = min(head - self.tail, self.block_records)
+                    if n <= 0:
+                        break
+                    start = self.tail % self.capacity
+                    n = min(n, self.capacity - start)     # do not wrap inside one block
+                    payload = self.ring[start:start + n].tobytes()
+                    self._write_all(_BLOCK.pack(BLOCK_MAGIC, n, len(payload), zlib.crc32(payload)) + payload)
+                    self.tail += n
+                    n_total += n
+                if n_total:
+                    os.fsync(self._fd)
+            except OSError as e:
+                # blocks written in this flush but not fsync'd may not be on the disk: give them up
+                # with the block that failed, so that `written` is only what the file holds
+                self.tail -= n_total
+                self._fail(e)
+                self._report()
+                return 0
+            self.written += n_total
+            self._end = os.lseek(self._fd, 0, os.SEEK_CUR)
             return n_total
+
+    def _fail(self, e: OSError) -> None:
+        """A write failed: cut the file back to its last whole block, stop writing, count the loss."""
+        try:
+            os.ftruncate(self._fd, self._end)
+            os.lseek(self._fd, self._end, os.SEEK_SET)
+        except OSError:
+            pass                 # a reader stops at the cut block by itself (docs/log-format.md)
+        self.error = LogWriteError(self.path, e, written=self.written, lost=0, where=f"byte {self._end}")
+        self._discard()
+
+    def _discard(self) -> None:
+        """Count the records waiting in the ring as lost (recording has stopped on an error)."""
+        head = self.head
+        self.lost += head - self.tail
+        self.tail = head
+        if self.error is not None:
+            self.error.lost = self.lost
+
+    def _report(self) -> None:
+        """Tell the program of ``error`` once, as ``on_write_error`` says."""
+        err = self.error
+        if err is None or self._reported:
+            if err is not None and self.on_write_error == "raise":
+                raise err
+            return
+        self._reported = True
+        if self.on_write_error == "raise":
+            raise err
+        if self.on_write_error == "warn":
+            warnings.warn(RecorderWarning(str(err)), stacklevel=3)
+        else:
+            self.on_write_error(err)
+
+    def check(self) -> None:
+        """Raise the ``LogWriteError`` if writing has failed (whatever ``on_write_error`` says)."""
+        if self.error is not None:
+            raise self.error
 
     def start_writer(self, interval: float = 0.2) -> None:
         """Flush from a background (planning-level) thread every ``interval`` s."""
@@ -209,24 +304,49 @@ class Recorder:
 
         def run() -> None:
             while not self._stop.wait(interval):
-                self.flush()
+                try:
+                    self.flush()
+                except LogWriteError:
+                    pass              # kept in self.error; "raise" raises it in flush/check/close
+                if self.error is not None:
+                    return            # nothing more can be written: stop polling
 
         self._writer = threading.Thread(target=run, name="rci-recorder", daemon=True)
         self._writer.start()
 
     def close(self) -> None:
-        """Flush, write the end marker and close the file."""
+        """Flush, write the end marker and close the file.
+
+        After a write error the file is closed with the end marker if it fits (else without,
+        readable to its last whole block all the same), then the error is reported once more
+        with ``on_write_error="raise"``.
+        """
         if self.closed:
             return
         self._stop.set()
         if self._writer is not None:
             self._writer.join(timeout=5)
-        self.flush()
+        try:
+            self.flush()
+        except LogWriteError:
+            pass
         with self._lock:
-            os.write(self._fd, _END.pack(END_MAGIC, self.written))
-            os.fsync(self._fd)
+            if self.error is not None:
+                self._discard()
+            try:
+                self._write_all(_END.pack(END_MAGIC, self.written))
+                os.fsync(self._fd)
+            except OSError as e:
+                try:
+                    os.ftruncate(self._fd, self._end)       # no half end marker
+                except OSError:
+                    pass
+                if self.error is None:
+                    self.error = LogWriteError(self.path, e, written=self.written, lost=self.lost,
+                                               where="the end marker")
             os.close(self._fd)
             self.closed = True
+        self._report()
 
     def __enter__(self) -> "Recorder":
         return self

@@ -5,12 +5,13 @@
     python -m rci.view run.rcilog --screenshot run.png --at 12.5   # a picture (headless Chromium), then exit
 
 The arm is drawn at the joint angles the robot reported in each recorded cycle (``how_pos``
-converted by ``rci.conversions``: the log's own robot, docs/log-format.md); the tool path
+converted by ``rci.log_units``: the log's own robot, docs/log-format.md); the tool path
 of the whole log (link 6's origin) is a grey polyline, the part already played is orange;
 where every joint was commanded by position (``chg`` POS), the commanded link-6 frame is
 shown as axes (the target the arm was following). ``--env`` draws simula's surfaces
 (``plane:z=...``, ``box:...``). The panel has the slider (time from the first record, s), a
-play/pause button, the speed and a loop switch.
+play/pause button, the speed and a loop switch, and the record shown in SI units: per joint the
+measured and commanded position (rad, m), rate (rad/s, m/s) and torque (N m, N), and T6.
 """
 from __future__ import annotations
 
@@ -35,25 +36,34 @@ class Replay:
     """A log's joint angles over time, and where link 6 was and was sent, ready to draw."""
 
     def __init__(self, path: str | Path) -> None:
-        from .conversions import Conversions
+        from .log_units import log_in_si
         from .recorder import read_log
 
         self.log = read_log(path)
         self.name = Path(path).name
-        r = self.log.records
-        if len(r) == 0:
+        if len(self.log.records) == 0:
             raise ValueError(f"{path}: the log has no records")
         self.robot = self.log.meta["robot"]
-        conv = Conversions.for_robot(self.robot)
-        self.q = conv.counts_to_angles(np.asarray(r["how_pos"], float))
-        ns = np.asarray(r["robot_time_ns"], dtype=np.int64)
-        # the robot's clock when it runs (one HOW per cycle); the host's otherwise
-        t = (ns - ns[0]) * 1e-9 if np.all(np.diff(ns) > 0) else np.asarray(r["t"], float) - float(r["t"][0])
-        self.t = t
-        com = np.asarray(r["chg_motion_com"])
-        commanded = np.all(com == 1, axis=1)                      # chg POS on every joint
-        self.q_cmd = np.where(commanded[:, None],
-                              conv.counts_to_angles(np.asarray(r["chg_motion_value"], float)), np.nan)
+        self.si = log_in_si(self.log)                  # the same SI numbers as rci.export and rci.plot
+        self.t = self.si.t
+        self.q = self.si.q
+        # the commanded frame is drawn where every joint was commanded by position (chg POS)
+        self.q_cmd = np.where(np.all(np.isfinite(self.si.q_cmd), axis=1)[:, None], self.si.q_cmd, np.nan)
+
+    def table(self, i: int) -> str:
+        """Record ``i`` in SI units as a Markdown table: a row per joint, measured and commanded."""
+        si = self.si
+        units = [f"{a}, {b}, {c}" for a, b, c in zip(si.unit("q"), si.unit("qd"), si.unit("tau"))]
+
+        def cell(x: np.ndarray | None, j: int) -> str:
+            return "" if x is None or not np.isfinite(x[i, j]) else f"{x[i, j]:+.4f}"
+        rows = ["| joint | q | qd | tau | q cmd | tau cmd | units |", "|---|---|---|---|---|---|---|"]
+        for j, name in enumerate(si.joint_names):
+            rows.append(f"| {j + 1} | {cell(si.q, j)} | {cell(si.qd, j)} | {cell(si.tau, j)} | "
+                        f"{cell(si.q_cmd, j)} | {cell(si.tau_cmd, j)} | {units[j]} |")
+        x, y, z = si.T6[i, :3, 3]
+        rows.append(f"\nT6 at ({x:+.4f}, {y:+.4f}, {z:+.4f}) m")
+        return "\n".join(rows)
 
     @property
     def duration(self) -> float:
@@ -108,7 +118,7 @@ class ReplayView:
         v.set_path("recorded", [(self._path, PATH_COLOR), (played, PLAYED_COLOR)])
         cmd = r.q_cmd[i]
         v.set_target(None if np.isnan(cmd).any() else v.tree.link_poses(cmd)[self._tip])
-        v.set_status(f"**{r.name}** ({r.robot}), record {i + 1} of {len(r.q)}, t = {r.t[i]:.2f} s")
+        v.set_status(f"**{r.name}** ({r.robot}), record {i + 1} of {len(r.q)}, t = {r.t[i]:.2f} s\n\n{r.table(i)}")
 
     def toggle(self) -> None:
         if self._playing.is_set():
