@@ -230,10 +230,19 @@ def test_a_fault_freezes_the_arm_with_a_named_error():
     assert np.array_equal(q, gen.q)
 
 
-def test_adaptive_arm_refuses_the_jerk_limited_mode():
+def test_one_arm_has_the_adaptive_primitives_whatever_its_generator():
+    from rci.exceptions import DeviceError
+    """Issue 25, defect 3: rccl.adaptive.open is rccl.open; one Arm class, both generators."""
+    import rccl.adaptive
     from rccl.adaptive.session import AdaptiveArm
-    with pytest.raises(ValueError, match="quartic generator only"):
-        AdaptiveArm("socket://127.0.0.1:1", trajectory="ruckig")
+    from rccl.session import Arm
+    assert AdaptiveArm is Arm
+    for kind in ("quartic", "ruckig"):
+        arm = Arm("socket://127.0.0.1:1", trajectory=kind)     # not opened: nothing is connected
+        for name in ("limit", "evalfn", "add_check", "comply", "lock", "cond", "move", "setvel"):
+            assert callable(getattr(arm, name)), (kind, name)
+    with pytest.raises(DeviceError, match="cannot open robot link"):    # the same open, the same error
+        rccl.adaptive.open("socket://127.0.0.1:1", trajectory="ruckig", timeout=0.5)
 
 
 def test_unknown_trajectory_is_named():

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import spec as specmod
 from ..ending import MotionEnd
-from .check import Sample
+from .check import Estimate, Sample
 
 
 @dataclass(frozen=True)
@@ -51,9 +51,10 @@ class Limit:
         return bool(self._dev_items)
 
     @property
-    def estimates(self) -> frozenset[str]:
+    def estimates(self) -> Estimate:
         """MotionCheck: the tool-frame force if a force component is limited, the deviation if one is."""
-        return frozenset(({"force"} if self._force_items else set()) | ({"deviation"} if self._dev_items else set()))
+        return ((Estimate.FORCE if self._force_items else Estimate.NONE)
+                | (Estimate.DEVIATION if self._dev_items else Estimate.NONE))
 
     def ends(self, s: Sample) -> MotionEnd | None:
         """MotionCheck: the first exceeded component of this sample, or None."""
