@@ -88,7 +88,7 @@ class Arm(Planner):
     at). ``trajectory`` picks the generator: "quartic" (the thesis's, default) or "ruckig"
     (jerk-limited, ``rccl.jerk``). With ``record=True``: ``trace`` holds (t s, nominal q
     rad, measured q rad) per cycle, ``adaptive_trace`` (t, nominal q, commanded q, measured
-    q, {joint: DAC}) and ``adc_trace`` (how.adcr) too.
+    q, {joint: DAC}), ``adc_trace`` (how.adcr) and ``clock_trace`` (the robot's clock, s) too.
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
@@ -118,6 +118,7 @@ class Arm(Planner):
         self.trace: list[tuple[float, np.ndarray, np.ndarray]] | None = [] if record else None
         self.adaptive_trace: list[tuple] | None = [] if record else None
         self.adc_trace: list[np.ndarray] | None = [] if record else None
+        self.clock_trace: list[float] | None = [] if record else None     # how.time_ns per cycle, in s
 
     # -- rccl_open / rccl_control / rccl_close --------------------------------------------
     def open(self) -> "Arm":
@@ -222,6 +223,7 @@ class Arm(Planner):
             self.trace.append((gen.t, q_nom, q_meas))
             self.adaptive_trace.append((gen.t, q_nom, cmd.q, q_meas, dict(cmd.current)))
             self.adc_trace.append(np.array(how.adcr, dtype=np.int64))
+            self.clock_trace.append(how.time_ns * 1e-9)
 
     # -- 5.4 primitives (planning level), the same for every generator ------------------------
     def limit(self, spec: str, *values: float) -> Limit:
