@@ -186,6 +186,7 @@ class JerkLimitedGenerator:
         self.jac6_cond: float | None = None
         self._tool = np.eye(4)
         self.blends = 0                          # requests entered while the arm was still moving
+        self.blend = True                        # False: every move starts and ends at rest (for comparison)
 
     def set_period(self, dt: float, limits: Limits) -> None:
         """Samples ``dt`` s apart from the next step on (rccl.generator.MotionGenerator).
@@ -287,7 +288,7 @@ class JerkLimitedGenerator:
     def _may_blend(self, mv: _Move) -> bool:
         """Whether the head request may take over now: ``mv`` has under half its transition time left,
         and the next request has the same mode (and, in Cartesian mode, the same tool frame)."""
-        if mv.finished or self.result != Result.Working:
+        if not self.blend or mv.finished or self.result != Result.Working:
             return False
         left = self._out.trajectory.duration - self._out.time
         if left > 0.5 * mv.req.params.transition_time:
