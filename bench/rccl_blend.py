@@ -112,10 +112,10 @@ def section(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def merge(path: Path, text: str) -> None:
-    """Put ``text`` (a section starting with HEADING) into ``path``, replacing an older one."""
+def merge(path: Path, text: str, heading: str = HEADING) -> None:
+    """Put ``text`` (a section starting with ``heading``) into ``path``, replacing an older one."""
     old = path.read_text() if path.exists() else ""
-    pattern = re.compile(re.escape(HEADING) + r".*?(?=^## |\Z)", re.S | re.M)
+    pattern = re.compile(re.escape(heading) + r".*?(?=^## |\Z)", re.S | re.M)
     new = pattern.sub(lambda m: text + "\n", old) if pattern.search(old) else old.rstrip("\n") + "\n\n" + text
     path.write_text(new)
 
