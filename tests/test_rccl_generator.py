@@ -198,3 +198,41 @@ def test_a_move_at_the_joint_speed_limit_with_a_monitor_reaches_its_target(sim, 
         assert speed[:, 0].max() > 0.93 * vmax[0]          # it did run at the limit
         assert np.all(speed <= vmax), speed.max(axis=0)    # what RCI's R_REQVEL check accepts
         assert np.allclose(arm.measured_q(), q1, atol=2e-3)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_set_period_keeps_the_motion_in_real_time_without_a_robot(kind):
+    """The generator alone: a line stepped at 36 Hz, then at 1 kHz from 0.5 s on, ends when the
+    same line stepped at 36 Hz throughout does (within one 36 Hz period), never faster than setvel."""
+    from rccl.jerk import JerkLimitedGenerator
+    from rccl.limits import for_link, load_limits
+    from rccl.planner import Planner
+    from rccl.session import load_kinematics
+    from rccl.trajectory import TrajectoryGenerator
+    from rci.conversions import Conversions
+
+    kin, limits = load_kinematics("puma260"), load_limits("puma260")
+    rounding = Conversions.for_robot("puma260").rounding_step()
+    cls = TrajectoryGenerator if kind == "quartic" else JerkLimitedGenerator
+    ends = []
+    for switch in (False, True):
+        gen = cls(kin, for_link(limits, rounding, 1 / 36), 1 / 36, Q0)
+        arm = Planner(kin, gen.limits, gen)
+        arm.setmod("cartesian")
+        arm.setvel(SPEED, 0.5)
+        goal = kin.fk(Q0)
+        goal[0, 3] += 0.04
+        req = arm.move(makeposition("goal", T6, EQ, Trsf("G", goal), TL, T6))
+        t, p_prev, vmax = 0.0, kin.fk(Q0)[:3, 3], 0.0
+        while req.status != "done" and t < 10.0:
+            if switch and gen.dt > 1e-3 and t >= 0.5:
+                gen.set_period(1e-3, for_link(limits, rounding, 1e-3))
+            q = gen.step()
+            t = gen.t
+            p = kin.fk(q)[:3, 3]
+            vmax = max(vmax, float(np.linalg.norm(p - p_prev)) / gen.dt)
+            p_prev = p
+        assert req.status == "done" and not gen.errors
+        assert vmax <= SPEED * 1.001, vmax
+        ends.append(req.finished_t)
+    assert abs(ends[1] - ends[0]) <= 1 / 36 + 1e-9, ends
