@@ -201,13 +201,19 @@ def force_limit(arm) -> str:
     q, _ = line_to(goal, -LINE, "back")
     arm.limit("fx fy fz", 1e-3, 1e-3, 1e-3)
     req = arm.move(q)
-    wait(arm, q)
+    try:
+        wait(arm, q)
+    except TrajectoryFault as exc:
+        why = _refusal(exc)
+        if why is None:
+            raise
+        raise Refused(f"50 N in free air: completed (peak estimate {peak[0]:.1f} N); a 1 mN limit: {why}") from None
     end = req.ended
     expect(end is not None and end.reason == "limit", f"the line was not ended by its 1 mN limit (ended: {end})")
     q_stop = arm.measured_q()
     settle(arm, 0.3)
     drift = float(np.abs(arm.measured_q() - q_stop).max())
-    return (f"free air: peak |f| estimate {peak[0]:.1f} N under a 50 N limit, completed; 1 mN: ended on "
+    return (f"free air: peak force estimate {peak[0]:.1f} N under a 50 N limit, completed; 1 mN: ended on "
             f"{end.what} = {end.value:.3g} N at t = {end.t:.3f} s, joints drift {drift:.1e} after")
 
 
@@ -347,9 +353,8 @@ def _refusal(exc: BaseException) -> str | None:
         return str(exc)
     if isinstance(exc, BadRequest):
         return str(exc)
-    if isinstance(exc, TrajectoryFault) and isinstance(exc.__cause__ or (exc.args[1] if len(exc.args) > 1 else None),
-                                                       ForceEstimateError):
-        return str(exc)
+    if isinstance(exc, TrajectoryFault) and isinstance(exc.cause, ForceEstimateError):
+        return str(exc.cause)
     return None
 
 
