@@ -79,7 +79,9 @@ def expect(ok: bool, what: str) -> None:
 def simula(robot: str, link: str) -> Iterator:
     """A powered lockstep ``simula --robot ROBOT`` on ``link`` ("socket" or "zenoh")."""
     from rci.simula.process import SimulaProcess
-    args = ["-p", "--power-on"]
+    # a control thread descheduled for seconds on a shared machine (load 12-16) is not what a cell
+    # tests: simula waits 10 s for a CHG before ending the control (its default is 3 s)
+    args = ["-p", "--power-on", "--lockstep-watchdog", "10"]
     if link == "zenoh":
         from rci.zenoh_bus import free_endpoint
         args += ["--zenoh", f"matrix/{robot}", "--zenoh-listen", free_endpoint()]
