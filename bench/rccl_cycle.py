@@ -174,7 +174,8 @@ def jerk_table(rows: list[dict], jerk_rows: list[dict]) -> list[str]:
     out = ["## Jerk-limited generator (Ruckig, `rccl.jerk`)", "",
            "The same tour, timed the same way in the same run, with `JerkLimitedGenerator.step()` (Ruckig's online",
            "update for the 6 joints, or for the tool's 6 coordinates plus one inverse kinematics call in Cartesian",
-           "mode). Each move starts and ends at rest in this mode, so the tour takes more cycles per lap.", "",
+           "mode). Queued positions blend (a queued one becomes Ruckig's target while the arm still moves); the "
+           "corners differ from the quartic's, so the laps differ in length (bench/rccl_blend.py compares them).", "",
            "| robot | mode | targets | mean (us) | median (us) | p99 (us) | max (us) | move starts: n, mean, max (us) "
            "| quartic p99 (us), same row | p99 / quartic p99 |",
            "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
@@ -260,7 +261,13 @@ def main(argv: list[str] | None = None) -> int:
         "shared machine include interrupts and cache misses).",
         ""]
     lines += jerk_table(rows, jerk_rows)
-    emit("\n".join(lines), args.out)
+    text = "\n".join(lines)
+    if args.out != "-" and Path(args.out).exists():   # keep bench/rccl_blend.py's section of the report
+        from bench.rccl_blend import HEADING
+        old = Path(args.out).read_text()
+        if HEADING in old:
+            text = text.rstrip("\n") + "\n\n" + old[old.index(HEADING):]
+    emit(text, args.out)
     return 0
 
 

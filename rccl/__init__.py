@@ -11,6 +11,11 @@
         arm.move(arm.park)
         arm.waitfor(arm.park.end)
 
+Every arm has the adaptive primitives of 5.4 too (``arm.limit``, ``arm.evalfn``, ``arm.comply``,
+``arm.cond``, ...: docs/adaptive.md), whichever trajectory generator runs
+(``rccl.open(url, trajectory="quartic")``, the thesis's, default; or ``"ruckig"``, jerk-limited);
+both implement ``rccl.generator.MotionGenerator``.
+
 docs/rccl.md maps every RCCL primitive of the thesis to its Python spelling.
 """
 from __future__ import annotations

@@ -20,8 +20,14 @@ re-solved every sample, so a moving target re-plans from the arm's present state
   a straight line (the tool point moves straight, the tool turns about a fixed axis), and
   T6 = X Tool^-1 is solved by inverse kinematics in the arm's configuration every sample.
 
-Each move starts and ends at rest (zero velocity and acceleration at every corner): this
-mode does not blend through corners as the quartic transitions do. ``abort(end)`` (or a
+Blending (as the quartic's transitions do): when the running move has less than half its
+transition time (``settime``) left and the next queued request is of the same mode (and, in
+Cartesian mode, the same tool), that request becomes Ruckig's target at once, from the
+arm's present velocity and acceleration, within the same limits; the first request is
+done at that sample. Other corners (a change of mode or tool, an empty queue) are reached
+at rest. Ruckig's phase synchronisation needs a start at rest: a blended Cartesian move
+falls back to time synchronisation, so its tool point curves through the blend and then
+heads straight for the target only approximately. ``abort(end)`` (or a
 request's ``watch``) ends the running move at once: Ruckig's velocity interface
 brings the arm to rest with the same jerk and acceleration limits, and the next queued
 request then starts from there.
@@ -39,11 +45,14 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
 
+from .adaptive.functional import FunctionalUpdater
 from .ending import MotionEnd
 from .exceptions import BadRequest, MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
 from .limits import Limits
 from .motion import MotionParams, Request
+from .generator import follow_early_end
 from .queue import MotionQueue
+from .segments import TransitionEvent
 from .transform import T6, axis_angle, inverse
 
 # estimate: each joint reaches its acceleration limit in 0.1 s (j = a_max / 0.1 s). The
@@ -85,6 +94,12 @@ class JerkLimits:
         return JerkLimits(vel, acc, acc / ramp,
                           (_check_limit(limits.translational_velocity, "translational velocity limit"), ta, ta / ramp),
                           (_check_limit(limits.rotational_velocity, "rotational velocity limit"), ra, ra / ramp))
+
+
+def _capped(jerk: JerkLimits, limits: Limits) -> JerkLimits:
+    """``jerk`` with each joint's speed within ``limits`` (the speeds less encoder rounding, rccl.limits.for_link)."""
+    vel = np.minimum(jerk.joint_velocity, limits.joint_velocity)
+    return JerkLimits(vel, jerk.joint_acceleration, jerk.joint_jerk, jerk.translational, jerk.rotational)
 
 
 def _check_limit(value, what: str) -> float:
@@ -133,16 +148,17 @@ class _Move:
 class JerkLimitedGenerator:
     """Runs at the control level: ``step()`` once per sample returns the joint angles to command (rad).
 
-    The same surface as ``rccl.trajectory.TrajectoryGenerator`` for the planning level
-    (``queue``, ``q``, ``t``, ``dt``, ``errors``, ``faulted``, ``busy``, ``restart``,
-    ``abort``). ``result`` is Ruckig's result code of the last sample (None while holding).
+    Implements ``rccl.generator.MotionGenerator``, as the quartic generator does: the
+    planning level, the adaptive features and the event flags use either through it.
+    ``result`` is Ruckig's result code of the last sample (None while holding).
     """
 
     def __init__(self, kin, limits: Limits, dt: float, q0: np.ndarray,
                  queue: MotionQueue[Request] | None = None, jerk: JerkLimits | None = None) -> None:
         self.kin = kin
         self.limits = limits
-        self.jerk = jerk if jerk is not None else JerkLimits.from_limits(limits)
+        self._jerk_base = jerk if jerk is not None else JerkLimits.from_limits(limits)
+        self.jerk = _capped(self._jerk_base, limits)
         self.dt = float(dt)
         self.queue: MotionQueue[Request] = queue if queue is not None else MotionQueue()
         self.t = 0.0
@@ -162,6 +178,45 @@ class JerkLimitedGenerator:
         self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
         self._step_list = self._step_bound.tolist()
         self._lo_list, self._hi_list = (limits.lower - 1e-9).tolist(), (limits.upper + 1e-9).tolist()
+        self.before_transition: list = []       # as TrajectoryGenerator's: around each blend or start
+        self.on_transition: list = []
+        self.functional = FunctionalUpdater(limits.joint_velocity, dt, qdd_max=limits.joint_acceleration)
+        self.jac6: np.ndarray | None = None      # frame-6 Jacobian where the arm is, if the caller measured it
+        self.jac6_inv: np.ndarray | None = None
+        self.jac6_cond: float | None = None
+        self._tool = np.eye(4)
+        self.blends = 0                          # requests entered while the arm was still moving
+        self.blend = True                        # False: every move starts and ends at rest (for comparison)
+
+    def set_period(self, dt: float, limits: Limits) -> None:
+        """Samples ``dt`` s apart from the next step on (rccl.generator.MotionGenerator).
+
+        Ruckig is made anew for the new period; the next step re-plans from the present
+        position, velocity and acceleration with the same limits, so the motion keeps its
+        speeds in real time.
+        """
+        dt = float(dt)
+        if not dt > 0.0:
+            raise ValueError(f"set_period: the sample period must be positive, got {dt!r} s")
+        self.dt = dt
+        self.limits = limits
+        self.jerk = _capped(self._jerk_base, limits)
+        if self.move is not None and self.move.mode == "joint":
+            self._inp.max_velocity = np.minimum(self._inp.max_velocity, self.jerk.joint_velocity).tolist()
+        self._otg = Ruckig(6, dt)
+        self._step_bound = limits.joint_velocity * dt * STEP_MARGIN + 1e-9
+        self._step_list = self._step_bound.tolist()
+        self.functional.set_period(limits.joint_velocity, dt, limits.joint_acceleration)
+
+    @property
+    def request(self) -> Request | None:
+        """The request being driven now (None while holding at rest)."""
+        return self.move.req if self.move is not None else None
+
+    @property
+    def tool(self) -> np.ndarray:
+        """The tool frame (from link 6, 4x4, m) of the running move, or of the last one."""
+        return self._tool
 
     # -- planning-level calls -------------------------------------------------------------
     def restart(self) -> None:
@@ -211,6 +266,8 @@ class JerkLimitedGenerator:
                     mv = None
             if (mv is None or mv.finished) and not self._braking and len(self.queue):
                 mv = self._start_next() or mv
+            elif mv is not None and not self._braking and len(self.queue) and self._may_blend(mv):
+                mv = self._start_next(blend_from=mv) or mv
             if self._braking:
                 q = self._brake_sample()
             elif mv is None:
@@ -228,14 +285,35 @@ class JerkLimitedGenerator:
         return q
 
     # -- internals ----------------------------------------------------------------------
-    def _start_next(self) -> _Move | None:
+    def _may_blend(self, mv: _Move) -> bool:
+        """Whether the head request may take over now: ``mv`` has under half its transition time left,
+        and the next request has the same mode (and, in Cartesian mode, the same tool frame)."""
+        if not self.blend or mv.finished or self.result != Result.Working:
+            return False
+        left = self._out.trajectory.duration - self._out.time
+        if left > 0.5 * mv.req.params.transition_time:
+            return False
+        nxt = self.queue.peek()
+        if nxt is None or nxt.mode != mv.mode:
+            return False
+        if mv.mode == "joint":
+            return True
+        tool = np.eye(4) if nxt.position.tool is T6 else nxt.position.tool_from_t6(nxt.snap)
+        return bool(np.allclose(tool, mv.tool, atol=1e-12))
+
+    def _start_next(self, blend_from: _Move | None = None) -> _Move | None:
+        """Start the head request: from rest, or (``blend_from``) from the state of the move still running."""
+        for listener in self.before_transition:
+            listener()
         req = self.queue.get()
         if req is None:
             return None
         req.status = "running"
         try:
             mv = _Move(req, self.kin, self.q)
-            self._prepare(mv, self.move)
+            if blend_from is not None and mv.mode == "cartesian":
+                mv.r_ref = blend_from.r_ref      # the state's rotation vector stays relative to the same frame
+            self._prepare(mv, self.move, carry=blend_from is not None)
         except (MotionError, ValueError) as exc:
             err = exc if isinstance(exc, MotionError) else MotionError(f"move({req.position.name}): {exc}")
             req.finish(err)
@@ -243,16 +321,30 @@ class JerkLimitedGenerator:
             for dropped in self.queue.clear():
                 dropped.finish(MotionError(f"{dropped.position.name}: not run, an earlier request failed"))
             return None
+        if blend_from is not None:
+            blend_from.finished = True
+            old = blend_from.req
+            if old.finished_t is None:
+                old.finished_t = self.t
+            old.finish()
+            self.blends += 1
+        prev_name = self.move.req.position.name if self.move is not None else "here"
         self.move = mv
+        self._tool = mv.tool
+        if self.on_transition:
+            event = TransitionEvent(self.t, self.t, prev_name, req.position.name, blend_from is not None)
+            for listener in self.on_transition:
+                listener(event)
         return mv
 
-    def _prepare(self, mv: _Move, prev: _Move | None) -> None:
-        """Fill Ruckig's input record for ``mv`` starting at ``self.q``: at rest, or, after a joint-mode
-        move still following a moving target, with that move's joint velocity and acceleration."""
+    def _prepare(self, mv: _Move, prev: _Move | None, carry: bool = False) -> None:
+        """Fill Ruckig's input record for ``mv`` starting at ``self.q``: at rest; or, after a joint-mode
+        move still following a moving target or when blending (``carry``), from Ruckig's present
+        state (position, velocity, acceleration in the move's state space)."""
         target = self._target(mv)      # first: a refused destination leaves the input record untouched
         inp, lim, params = self._inp, self.jerk, mv.req.params
         inp.control_interface = ControlInterface.Position
-        if not (prev is not None and prev.mode == "joint" and mv.mode == "joint"):
+        if not carry and not (prev is not None and prev.mode == "joint" and mv.mode == "joint"):
             inp.current_velocity = [0.0] * 6
             inp.current_acceleration = [0.0] * 6
         inp.target_velocity = [0.0] * 6
@@ -278,7 +370,10 @@ class JerkLimitedGenerator:
             inp.max_velocity = [c * vt] * 3 + [c * vr] * 3
             inp.max_acceleration = [c * lim.translational[1]] * 3 + [c * lim.rotational[1]] * 3
             inp.max_jerk = [c * lim.translational[2]] * 3 + [c * lim.rotational[2]] * 3
-            inp.current_position = start
+            if carry:    # Ruckig's own state carries on: no phase-synchronised profile from a moving start
+                inp.synchronization = Synchronization.Time
+            else:
+                inp.current_position = start
         inp.target_position = target
 
     def _target(self, mv: _Move) -> list[float]:
@@ -298,6 +393,11 @@ class JerkLimitedGenerator:
     def _sample(self, mv: _Move) -> np.ndarray:
         inp, out = self._inp, self._out
         if not mv.static:
+            # functional transforms (5.4.4): called once per sample, their change limited (E.8)
+            have = self.jac6 is not None
+            jac6 = self.jac6 if have else self._jacobian_here
+            self.functional.update([mv.req.position], jac6, mv.req.snap, self.jac6_inv if have else None,
+                                   self.jac6_cond if have else None)
             inp.target_position = self._target(mv)    # a moving target: Ruckig re-plans from the present state
         result = self._update(mv.where)
         out.pass_to_input(inp)
@@ -317,6 +417,11 @@ class JerkLimitedGenerator:
         if mv.finished and mv.static:
             self.move = None       # holding still at a fixed point: nothing more to compute
         return q
+
+    def _jacobian_here(self) -> np.ndarray | None:
+        """The frame-6 Jacobian at the last command, or None (no limiting) for kinematics without one."""
+        jacobian6 = getattr(self.kin.module, "jacobian6", None)
+        return None if jacobian6 is None else jacobian6(self.q)
 
     def _update(self, where: str) -> Result:
         """One Ruckig online step; a refusal (result code or Ruckig's input check) is a MotionError."""
@@ -356,6 +461,7 @@ class JerkLimitedGenerator:
         req.finished_t = self.t
         self.ended.append((req, end))
         req.finish()
+        follow_early_end(self.queue, req, end)    # 5.6.1: a matching conditional branch runs next
 
     def _brake_sample(self) -> np.ndarray:
         inp, out = self._inp, self._out

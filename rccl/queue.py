@@ -49,13 +49,21 @@ class MotionQueue(Generic[T]):
         self._items: collections.deque[T] = collections.deque()
         self._lock = threading.Lock()
         self.policy = policy if policy is not None else QueuePolicy()
+        #: motion checks made since the last ``put`` (rccl.adaptive: limit, evalfn, add_check);
+        #: the next request put takes them (5.4.1, 5.4.2: "for the next motion only")
+        self.pending: list = []
 
     def set_policy(self, policy: QueuePolicy) -> None:
         """Serve the queue through ``policy`` from the next ``get`` on (requests already queued included)."""
         with self._lock:
             self.policy = policy
 
-    def put(self, item: T) -> None:
+    def put(self, item: T, *, take_pending: bool = True) -> None:
+        """Append ``item`` (planning level); it takes the pending motion checks unless ``take_pending`` is False
+        (a conditional branch queued by the trajectory level)."""
+        if take_pending and self.pending:
+            item.checks.extend(self.pending)
+            self.pending = []
         self.policy.queued(item)
         with self._lock:
             self._items.append(item)

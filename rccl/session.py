@@ -1,22 +1,30 @@
-"""An RCCL session: the trajectory generator running as an RCI control function (thesis 5.1, 5.3.4).
+"""An RCCL session: the trajectory generator running as an RCI control function (thesis 5.1, 5.3.4, 5.4).
 
 ``rccl.open(url, robot="puma260")`` is ``rccl_open`` + ``rccl_control``: it opens an RCI
 session on the robot link (``socket://host:port`` for simula, a serial device or pty for a
 robot), starts the control with the trajectory generator as its control function, and
 returns an ``Arm`` that carries the planning-level primitives (move, setvel, settime,
-setmod, setconf, stop, waitfor) and the predefined position ``park``. Leaving the ``with``
-block (or ``arm.close()``) is ``rccl_close``: it waits for the queued motions to finish,
-releases the control and closes the session.
+setmod, setconf, stop, waitfor), the adaptive ones of 5.4 (limit, evalfn, add_check,
+comply, lock, cond) and the predefined position ``park``, whichever generator runs
+(``trajectory="quartic"``, the thesis's, or ``"ruckig"``, jerk-limited): both implement
+``rccl.generator.MotionGenerator``. Leaving the ``with`` block (or ``arm.close()``) is
+``rccl_close``: it waits for the queued motions to finish, releases the control and closes
+the session.
 
-Each sample the control function reads nothing but time from ``how`` (RCCL is a position
-generator; the adaptive features of 5.4 will read ``how`` too), asks the generator for the
-joint angles, converts them to encoder counts (``rci.conversions``) and issues one POS
-command per joint in ``chg``.
+Each sample the control function (one start-up and one cycle for every arm) reads ``how``:
+the robot's rate (``how.rate_hz`` is the rate at which the robot executes the CHG that
+answers this HOW, so a change takes effect for the generator in the same cycle as for the
+robot), the encoder counts and motor-current ADC values; runs the adaptive control
+(``rccl.adaptive.control``) around the generator's step, and issues POS for the
+position-servoed joints and CUR for the force-servoed ones. The generator's limits are the
+arm's less what encoder rounding adds at the running rate (``rccl.limits.for_link``), so
+the counts sent never trip RCI's R_REQVEL check.
 """
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from dataclasses import replace
+from typing import Any, Callable
 
 import numpy as np
 
@@ -25,10 +33,19 @@ from rci import codes
 from rci.conversions import Conversions
 from rci.session import Session
 
-from .exceptions import NotRunning, PowerOff
+from .adaptive.check import MotionCheck, as_check
+from .adaptive.control import AdaptiveControl, Command
+from .adaptive.force import JointModel
+from .adaptive.limit import Limit
+from .adaptive.monitor import Monitor
+from .conditional import Conditional
+from .exceptions import MotionError, NotRunning, PowerOff
 from .limits import Limits, for_link, load_limits
+from .motion import Request
 from .planner import Planner
 from .position import Position, joint_position
+from .generator import MotionGenerator, check_kind
+from .jerk import JerkLimitedGenerator, JerkLimits
 from .segments import Kinematics
 from .trajectory import TrajectoryGenerator
 
@@ -54,38 +71,54 @@ def load_kinematics(robot: str) -> Kinematics:
                          "run `make derive`") from None
 
 
+def make_generator(kind: str, kin: Kinematics, limits: Limits, dt: float, q0: np.ndarray,
+                   jerk=None) -> MotionGenerator:
+    """A generator of ``kind`` ("quartic" or "ruckig") at rest at joints ``q0`` (rad), samples ``dt`` s apart."""
+    if check_kind(kind) == "ruckig":
+        return JerkLimitedGenerator(kin, limits, dt, q0, jerk=jerk)
+    return TrajectoryGenerator(kin, limits, dt, q0)
+
+
 class Arm(Planner):
-    """One robot under RCCL control: the planning-level primitives plus open/close.
+    """One robot under RCCL control: the planning-level and adaptive primitives plus open/close.
 
     Attributes: ``park`` (a Position), ``rci`` (the RCI Session), ``gen`` (the trajectory
-    generator, running at the control level), ``rate_hz``. ``trajectory`` picks the generator:
-    "quartic" (the thesis's, default) or "ruckig" (jerk-limited, ``rccl.jerk``).
+    generator, a ``rccl.generator.MotionGenerator``, running at the control level),
+    ``adaptive`` (the per-sample adaptive control), ``rate_hz`` (the rate the generator runs
+    at). ``trajectory`` picks the generator: "quartic" (the thesis's, default) or "ruckig"
+    (jerk-limited, ``rccl.jerk``). With ``record=True``: ``trace`` holds (t s, nominal q
+    rad, measured q rad) per cycle, ``adaptive_trace`` (t, nominal q, commanded q, measured
+    q, {joint: DAC}), ``adc_trace`` (how.adcr) and ``clock_trace`` (the robot's clock, s) too.
     """
 
     def __init__(self, url: str, robot: str = "puma260", *, rate_hz: int = 36,
                  kinematics: Kinematics | None = None, limits: Limits | None = None,
                  record: bool = False, trajectory: str = "quartic", **rci_options: Any) -> None:
-        if trajectory not in ("quartic", "ruckig"):
-            raise ValueError(f"rccl.open: trajectory={trajectory!r} is not 'quartic' (the thesis's, default) "
-                             "or 'ruckig' (jerk-limited, rccl.jerk)")
-        self.trajectory = trajectory
+        self.trajectory = check_kind(trajectory)
         self.url = url
         self.robot = robot
         self.rate_hz = int(rate_hz)
         self._kin = kinematics or load_kinematics(robot)
-        self._limits = limits or load_limits(robot)
+        self._arm_limits = limits or load_limits(robot)    # the model's; the generator's follow the rate
+        self._limits = self._arm_limits
         self._jerk = None
         if trajectory == "ruckig":   # check the limits here, before anything opens (rccl/jerk.py)
-            from .jerk import JerkLimits
             self._jerk = JerkLimits.from_limits(self._limits)
         self.conv = Conversions.for_robot(robot)
+        self.adaptive = AdaptiveControl(self._kin.module, JointModel.for_robot(robot, self.conv))
         self.rci = Session(url, robot, rate_hz=self.rate_hz, **rci_options)
-        self.gen: TrajectoryGenerator | None = None
+        self.gen: MotionGenerator | None = None
         self.park: Position | None = None
-        self._pos_cmd = [chgmod.POS] * 6
         self.control_error: BaseException | None = None
-        # with record=True: one (t s, commanded q rad, measured q rad) per control cycle
+        self.last_command: Command | None = None
+        self._q_meas: np.ndarray | None = None
+        self._last_dt = 1.0 / self.rate_hz      # the period over which the last two HOWs' positions differ
+        self._fault_hold: Command | None = None
+        self.rate_changes: list[tuple[float, int]] = []   # (trajectory time s, new rate Hz) as the generator saw them
         self.trace: list[tuple[float, np.ndarray, np.ndarray]] | None = [] if record else None
+        self.adaptive_trace: list[tuple] | None = [] if record else None
+        self.adc_trace: list[np.ndarray] | None = [] if record else None
+        self.clock_trace: list[float] | None = [] if record else None     # how.time_ns per cycle, in s
 
     # -- rccl_open / rccl_control / rccl_close --------------------------------------------
     def open(self) -> "Arm":
@@ -112,34 +145,135 @@ class Arm(Planner):
         """The kinematics module RCCL plans with (rccl.kinematics.<robot>, or a calibrated one)."""
         return self._kin
 
+    def _link_limits(self, rate: float) -> Limits:
+        """The arm's limits less what rounding to encoder counts adds to a step at ``rate`` Hz."""
+        return for_link(self._arm_limits, self.conv.rounding_step(), 1.0 / float(rate))
+
+    def _start(self, how, chg, q_meas: np.ndarray) -> None:
+        """The first cycle (one start-up for every arm and generator): the generator, at rest at ``q_meas``."""
+        if not how.state & codes.CALIB_OK:
+            self.control_error = NotRunning(
+                f"{self.url}: the robot is not calibrated (how.state = {how.state:#x}); calibrate it, "
+                "or start simula with -p (ready) or -c (nest)")
+            chg.end.issue()
+            return
+        rate = int(how.rate_hz or self.rate_hz)
+        self._limits = self._link_limits(rate)
+        self.rate_hz = rate
+        self._q_meas = q_meas
+        self._last_dt = 1.0 / rate
+        self.gen = make_generator(self.trajectory, self._kin, self._limits, 1.0 / rate, q_meas, jerk=self._jerk)
+
+    def _change_rate(self, gen: MotionGenerator, rate: int) -> None:
+        """The robot executes this cycle's CHG at ``rate`` Hz: the generator steps by its period from now on."""
+        limits = self._link_limits(rate)
+        gen.set_period(1.0 / rate, limits)
+        self._limits = self.limits = limits      # the planning level checks new paths with them too
+        self.rate_hz = rate
+        self.rate_changes.append((gen.t, rate))
+
     def _cycle(self) -> None:
-        """The RCI control function: one trajectory sample, as POS commands in encoder counts."""
+        """The RCI control function: measure, check, one generator sample, the command in counts/DAC."""
         how, chg = self.rci.how, self.rci.chg
         gen = self.gen
+        q_meas = self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))
         if gen is None:
-            if not how.state & codes.CALIB_OK:
-                self.control_error = NotRunning(
-                    f"{self.url}: the robot is not calibrated (how.state = {how.state:#x}); calibrate it, "
-                    "or start simula with -p (ready) or -c (nest)")
-                chg.end.issue()
-                return
-            q0 = self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))
-            period = 1.0 / float(how.rate_hz or self.rate_hz)
-            # plans whose rounded counts RCI's R_REQVEL check accepts
-            self._limits = for_link(self._limits, self.conv.rounding_step(), period)
-            if self.trajectory == "ruckig":
-                from .jerk import JerkLimitedGenerator
-                gen = JerkLimitedGenerator(self._kin, self._limits, period, q0, jerk=self._jerk)
-            else:
-                gen = TrajectoryGenerator(self._kin, self._limits, period, q0)
-            self.gen = gen
+            self._start(how, chg, q_meas)
             return
+        qd = (q_meas - self._q_meas) / self._last_dt
+        self._q_meas = q_meas
+        rate = how.rate_hz
+        if rate and rate != self.rate_hz:
+            self._change_rate(gen, int(rate))
+        self._last_dt = gen.dt
         if not how.power:            # the brakes hold the arm: follow them, end any motion
-            gen.follow_unpowered(self.conv.counts_to_angles(np.asarray(how.pos, dtype=float)))
-        q = gen.step()
-        self.conv.command_positions(chg, q)
+            gen.follow_unpowered(q_meas)
+        try:
+            self.adaptive.before(gen, q_meas, qd, np.asarray(how.adcr[:6], dtype=float), how)
+        except MotionError as exc:       # a monitor's error, a force estimate refused: stop the arm, tell the planner
+            if gen.faulted is None:
+                gen.freeze(exc)
+        q_nom = gen.step()
+        cmd = None
+        if gen.faulted is None:
+            try:
+                cmd = self.adaptive.after(q_nom)
+            except (MotionError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                gen.freeze(exc)
+        if cmd is None:     # stopped by a fault: every joint position-servoed (compliance off)
+            if self._fault_hold is None:
+                forced = self.last_command is not None and bool(self.last_command.current)
+                held = self.adaptive.hold(q_meas)     # where it was measured, after force servoing
+                self._fault_hold = held if forced else Command(gen.q.copy())   # else the frozen command
+            cmd = self._fault_hold
+        else:
+            self._fault_hold = None
+        self.last_command = cmd
+        if cmd.current:
+            counts = self.conv.angles_to_counts_int(cmd.q)
+            motion = chg.motion
+            for i in range(len(motion)):
+                if i in cmd.current:
+                    motion[i].issue(chgmod.CUR, cmd.current[i])
+                else:
+                    motion[i].issue(chgmod.POS, int(counts[i]))
+        else:
+            self.conv.command_positions(chg, cmd.q)
         if self.trace is not None:
-            self.trace.append((gen.t, q, self.conv.counts_to_angles(np.asarray(how.pos, dtype=float))))
+            self.trace.append((gen.t, q_nom, q_meas))
+            self.adaptive_trace.append((gen.t, q_nom, cmd.q, q_meas, dict(cmd.current)))
+            self.adc_trace.append(np.array(how.adcr, dtype=np.int64))
+            self.clock_trace.append(how.time_ns * 1e-9)
+
+    # -- 5.4 primitives (planning level), the same for every generator ------------------------
+    def limit(self, spec: str, *values: float) -> Limit:
+        """Force/torque or deviation limits (tool frame, SI) for the next motion only (5.4.1)."""
+        return self.add_check(Limit.parse(spec, *values))
+
+    def evalfn(self, fn: Callable, needs: tuple[str, ...] = ()) -> Monitor:
+        """Run ``fn(sample)`` every sample of the next motion; a true return value ends it (5.4.2)."""
+        return self.add_check(Monitor(fn, tuple(needs)))
+
+    def add_check(self, check: MotionCheck) -> MotionCheck:
+        """Attach any motion check (``rccl.adaptive.check.MotionCheck``) to the next motion only.
+
+        ``limit`` and ``evalfn`` are the thesis's two; several checks on one motion are all
+        run, in the order given, and the first to answer ends it.
+        """
+        as_check(check, "add_check()")
+        if self.gen is None:
+            raise NotRunning("RCCL is not running: use rccl.open(...)")
+        self.gen.queue.pending.append(check)
+        return check
+
+    def comply(self, spec: str, *values: float) -> None:
+        """Make tool-frame force/torque components compliant with these values (N, N*m) from now on (5.4.3)."""
+        self.adaptive.compliance.comply(spec, *values)
+
+    def lock(self, spec: str) -> None:
+        """Take components out of compliance (5.4.3)."""
+        self.adaptive.compliance.lock(spec)
+
+    def cond(self, when, position: Position) -> Request:
+        """A conditional motion (5.6.1): if the last moved request ends by ``when``, go to ``position`` instead.
+
+        ``when`` is "limit", "monitor", a component ("fz", "dz"), a monitor name or code, or a
+        function of the MotionEnd. The branch uses the current motion parameters. Returns the
+        conditional request (``waitfor`` works on it once it runs).
+        """
+        from .adaptive.exceptions import SpecError
+
+        if self.last is None:
+            raise SpecError("cond: no motion to attach a conditional motion to (call move first)")
+        if not isinstance(position, Position):
+            raise SpecError(f"cond: {position!r} is not a position")
+        if self.last.is_conditional:
+            raise SpecError("cond: a conditional motion cannot have conditional motions of its own (5.6.1)")
+        req = Request(position, position.snapshot(), replace(self.params), next(self._serial))
+        req.is_conditional = True
+        if not self.last.attach_conditional(Conditional(when, req), on_attach=position.end.expect):
+            raise SpecError(f"cond: the motion to {self.last.position.name} has already ended")
+        return req
 
     # -- arm power (thesis A.4 power_on / power_off) ------------------------------------------
     @property
@@ -221,5 +355,9 @@ class Arm(Planner):
 
 
 def open(url: str, robot: str = "puma260", **options: Any) -> Arm:  # noqa: A001 - thesis name rccl_open
-    """``rccl_open`` + ``rccl_control``: an Arm with the trajectory generator running (use in ``with``)."""
+    """``rccl_open`` + ``rccl_control``: an Arm with the trajectory generator running (use in ``with``).
+
+    Options: ``rate_hz`` (4..1000), ``trajectory`` ("quartic" or "ruckig"), ``record``,
+    ``kinematics``, ``limits``, and the RCI Session's (``timeout``, ``on_error``, ...).
+    """
     return Arm(url, robot, **options).open()

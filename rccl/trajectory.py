@@ -59,12 +59,14 @@ from typing import Callable
 
 import numpy as np
 
+from .adaptive.functional import FunctionalUpdater
 from .drive import drive
 from .ending import MotionEnd
 from .exceptions import MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
 from .limits import Limits
 from .motion import MotionParams, Request
 from .position import joint_position
+from .generator import follow_early_end
 from .queue import MotionQueue
 from .segments import (ACC_PEAK, CONTROL_CHECK_POINTS, MIN_BLEND_SCALE, STEP_MARGIN, Kinematics, Plan,
                        Segment, Transition, TransitionEvent, check_range, hold_plan, holds_still,
@@ -118,7 +120,38 @@ class TrajectoryGenerator:
         self._lo = limits.lower - 1e-9
         self._hi = limits.upper + 1e-9
         self._step_list, self._lo_list, self._hi_list = self._step_ok.tolist(), self._lo.tolist(), self._hi.tolist()
+        # functional transforms (5.4.4): called once per sample, their change limited through the Jacobian (E.8)
+        self.functional = FunctionalUpdater(limits.joint_velocity, dt, qdd_max=limits.joint_acceleration)
+        self.jac6: np.ndarray | None = None      # frame-6 Jacobian where the arm is, if the caller measured it
+        self.jac6_inv: np.ndarray | None = None  # its inverse, if the caller has it
+        self.jac6_cond: float | None = None      # cond_1 of jac6, if the caller has it (with jac6_inv)
         self._hold_here(0.0)
+
+    def set_period(self, dt: float, limits: Limits) -> None:
+        """Samples ``dt`` s apart from the next step on, within ``limits`` (rccl.generator.MotionGenerator).
+
+        Segments and transitions are timed in seconds, so the running motion keeps its speeds
+        and accelerations in real time; only the per-sample step bounds change with the period.
+        """
+        dt = float(dt)
+        if not dt > 0.0:
+            raise ValueError(f"set_period: the sample period must be positive, got {dt!r} s")
+        self.dt = dt
+        self.limits = limits
+        self._step_ok = limits.joint_velocity * dt * (1 + 1e-9)
+        self._step_bound = self._step_ok * STEP_MARGIN + 1e-9
+        self._step_list = self._step_ok.tolist()
+        self.functional.set_period(limits.joint_velocity, dt, limits.joint_acceleration)
+
+    @property
+    def request(self) -> Request:
+        """The request whose segment runs now (a hold's repetition included)."""
+        return self.seg.req
+
+    @property
+    def tool(self) -> np.ndarray:
+        """The tool frame (from link 6, 4x4, m) of the running segment."""
+        return self.seg.tool
 
     def _hold_here(self, t: float) -> None:
         """Make the arm hold at the last commanded joint angles from time ``t`` on."""
@@ -190,11 +223,14 @@ class TrajectoryGenerator:
 
     # -- internals ----------------------------------------------------------------------
     def _update_functional(self) -> None:
-        pos = self.seg.req.position
-        pos.update_functional()
-        tr = self.trans
-        if tr is not None and tr.prev.req.position is not pos:
-            tr.prev.req.position.update_functional(skip=pos.transforms())   # once per sample if shared
+        """Call the functional transforms of the segments in play once, their change limited (E.8)."""
+        positions = [self.seg.req.position]
+        if self.trans is not None:
+            positions.append(self.trans.prev.req.position)
+        have = self.jac6 is not None
+        jac6 = self.jac6 if have else self._jacobian_here
+        self.functional.update(positions, jac6, self.seg.req.snap, self.jac6_inv if have else None,
+                               self.jac6_cond if have else None)
 
     def _evaluate(self, t: float) -> np.ndarray:
         seg = self.seg
@@ -250,6 +286,9 @@ class TrajectoryGenerator:
         taken from the queue and ``now`` the last sample's time (s), in the middle of a hold
         at rest, which the request then leaves from ``now`` on.
         """
+        if not self.seg.static:
+            # Figure 5.4: leave a segment whose destination moved from where the arm really is, at its velocity
+            self.seg = self._continuation(self.seg.req, self._velocity(), self.seg.tau_out, self.seg)
         prev = self.seg
         tau = prev.tau_out
         t_b = prev.t0 + prev.T
@@ -359,7 +398,8 @@ class TrajectoryGenerator:
             self._ended_early(req, end)
 
     def _ended_early(self, req: Request, end: MotionEnd) -> None:
-        """Called after ``req`` was ended by ``end``; a subclass may queue what follows (5.6.1)."""
+        """Called after ``req`` was ended by ``end``: its matching conditional branch runs next (5.6.1)."""
+        follow_early_end(self.queue, req, end)
 
     def _continuation(self, req: Request, v: np.ndarray, tau: float, like: Segment) -> Segment:
         """A joint-mode segment through the present command q at velocity v (rad/s), its corner tau s ahead."""
@@ -383,6 +423,11 @@ class TrajectoryGenerator:
         for r in ([self.trans.prev.req] if self.trans else []) + [self.seg.req] + self.queue.clear():
             if r.status in ("queued", "running"):
                 r.finish(fault)
+
+    def _jacobian_here(self) -> np.ndarray | None:
+        """The frame-6 Jacobian at the last command, or None (no limiting) for kinematics without one."""
+        jacobian6 = getattr(self.kin.module, "jacobian6", None)
+        return None if jacobian6 is None else jacobian6(self.q)
 
     # -- read-out -------------------------------------------------------------------------
     @property

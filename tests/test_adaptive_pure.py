@@ -398,7 +398,8 @@ def test_control_fast_path_matches_the_reference_force_estimate_and_condition():
 class WaistPast:
     """A motion check of the test's own (not one of the thesis's): ends the motion once joint 1 passes an angle."""
 
-    estimates = frozenset()
+    from rccl.adaptive.check import Estimate
+    estimates = Estimate.NONE
 
     def __init__(self, angle: float) -> None:
         self.angle = angle
@@ -446,5 +447,5 @@ def test_a_new_motion_check_plugs_in_through_the_protocol_alone():
     class Greedy(WaistPast):
         estimates = frozenset({"jerk"})
 
-    with pytest.raises(SpecError, match=r"Greedy.estimates has \['jerk'\]"):
+    with pytest.raises(SpecError, match=r"Greedy.estimates is frozenset\(\{'jerk'\}\), not an rccl.adaptive.check.Estimate"):
         as_check(Greedy(0.0), "add_check()")

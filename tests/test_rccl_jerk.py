@@ -102,6 +102,47 @@ def test_joint_mode_keeps_velocity_acceleration_and_jerk_within_the_limits(sim):
         assert rj.max() > 0.9
 
 
+@pytest.mark.parametrize("mode", ["joint", "cartesian"])
+def test_queued_positions_blend_within_the_limits(sim, mode):
+    """Issue 25: a queued position becomes Ruckig's target while the arm still moves: the tool does
+    not stop at the corners, the tour is shorter than rest to rest, and the limits hold."""
+    runs = {}
+    for blend in (True, False):
+        with open_arm(sim) as arm:
+            base = go_start(arm)
+            arm.gen.blend = blend
+            arm.setmod(mode)
+            arm.setvel(0.1, 1.0)
+            n0 = len(arm.trace)
+            ps = tour(base)
+            for p in ps:
+                arm.move(p)
+            arm.waitfor(ps[-1].end)
+            q = np.array([x[1] for x in arm.trace[n0:]])
+            pts = np.array([arm.kinematics.fk(x)[:3, 3] for x in q])
+            speed = np.linalg.norm(np.diff(pts, axis=0), axis=1) * RATE
+            moving = np.nonzero(speed > 1e-5)[0]
+            corner_speed = []
+            for p in ps[:-1]:
+                k = int(np.argmin(np.linalg.norm(pts - p.solve()[:3, 3], axis=1)))
+                corner_speed.append(speed[max(k - 3, 0):k + 3].min())
+            runs[blend] = dict(q=q, pts=pts, time=(moving[-1] + 1 - moving[0]) / RATE, corner=corner_speed,
+                               blends=arm.gen.blends)
+            assert np.abs(arm.t6 - ps[-1].solve()).max() < 1e-9
+    b, r = runs[True], runs[False]
+    assert b["blends"] == 3 and r["blends"] == 0
+    assert min(b["corner"]) > 0.005 and max(r["corner"]) < 0.002, (b["corner"], r["corner"])   # m/s
+    assert b["time"] < 0.97 * r["time"], (b["time"], r["time"])
+    if mode == "joint":
+        v, a, j = derivatives(b["q"], 1.0 / RATE)
+        lim = (JERK.joint_velocity, JERK.joint_acceleration, JERK.joint_jerk)
+        assert all((np.abs(x).max(axis=0) / m).max() <= TOL for x, m in zip((v, a, j), lim))
+    else:
+        v, a, j = derivatives(b["pts"], 1.0 / RATE)
+        for x, m in zip((v, a, j), JERK.translational):
+            assert np.linalg.norm(x, axis=1).max() <= m * TOL
+
+
 def test_cartesian_mode_keeps_the_tool_within_its_limits_on_a_straight_line(sim):
     with open_arm(sim) as arm:
         base = go_start(arm)
@@ -230,10 +271,19 @@ def test_a_fault_freezes_the_arm_with_a_named_error():
     assert np.array_equal(q, gen.q)
 
 
-def test_adaptive_arm_refuses_the_jerk_limited_mode():
+def test_one_arm_has_the_adaptive_primitives_whatever_its_generator():
+    from rci.exceptions import DeviceError
+    """Issue 25, defect 3: rccl.adaptive.open is rccl.open; one Arm class, both generators."""
+    import rccl.adaptive
     from rccl.adaptive.session import AdaptiveArm
-    with pytest.raises(ValueError, match="quartic generator only"):
-        AdaptiveArm("socket://127.0.0.1:1", trajectory="ruckig")
+    from rccl.session import Arm
+    assert AdaptiveArm is Arm
+    for kind in ("quartic", "ruckig"):
+        arm = Arm("socket://127.0.0.1:1", trajectory=kind)     # not opened: nothing is connected
+        for name in ("limit", "evalfn", "add_check", "comply", "lock", "cond", "move", "setvel"):
+            assert callable(getattr(arm, name)), (kind, name)
+    with pytest.raises(DeviceError, match="cannot open robot link"):    # the same open, the same error
+        rccl.adaptive.open("socket://127.0.0.1:1", trajectory="ruckig", timeout=0.5)
 
 
 def test_unknown_trajectory_is_named():

@@ -402,6 +402,9 @@ def test_recover_after_a_fault():
     q = run_until(gen, lambda: r.status == "done")
     assert np.all(np.abs(np.diff(q, axis=0)) <= LIM.joint_velocity * gen.dt * 1.001)
     assert np.allclose(q[0], q_frozen, atol=LIM.joint_velocity.max() * gen.dt)
+    # Figure 5.4: a segment whose (variable) destination moved is left from where the arm is, and
+    # the holds that follow converge onto the destination (5e-7 m after 0.5 s, 4e-9 m after 1 s)
+    q = run(gen, 1.5)
     assert np.allclose(K.fk(q[-1]), p.solve(), atol=1e-9)
 
 

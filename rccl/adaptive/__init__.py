@@ -1,7 +1,7 @@
 """RCCL's adaptive path control (thesis 5.4, appendix E.2): limits, monitors, compliance, functional transforms.
 
-    import rccl.adaptive
-    with rccl.adaptive.open("socket://127.0.0.1:7600") as arm:
+    import rccl
+    with rccl.open("socket://127.0.0.1:7600") as arm:   # either generator: trajectory="ruckig" too
         arm.limit("fz", 10.0)          # 5.4.1, next motion only
         arm.evalfn(monitor)            # 5.4.2, next motion only
         arm.comply("fz", -5.0)         # 5.4.3, until lock("fz")
@@ -17,15 +17,16 @@ from .exceptions import AdaptiveError, ForceEstimateError, FunctionalError, Moni
 from .force import ForceEstimator, JointModel
 from .functional import FunctionalUpdater
 from .limit import Limit
+from .check import Estimate
 from .monitor import Monitor, Sample
 
 
 def open(url: str, robot: str = "puma260", **options):  # noqa: A001 - thesis name rccl_open
-    """``rccl_open`` + ``rccl_control`` with adaptive features: see ``rccl.adaptive.session.open``."""
+    """The same as ``rccl.open`` (every arm has the adaptive features); kept for existing programs."""
     from .session import open as _open
     return _open(url, robot, **options)
 
 
-__all__ = ["open", "Limit", "Monitor", "Sample", "MotionEnd", "Compliance", "select_joints", "servo_dac",
+__all__ = ["open", "Estimate", "Limit", "Monitor", "Sample", "MotionEnd", "Compliance", "select_joints", "servo_dac",
            "ForceEstimator", "JointModel", "FunctionalUpdater", "AdaptiveError", "SpecError", "MonitorError",
            "ForceEstimateError", "FunctionalError"]

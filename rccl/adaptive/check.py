@@ -10,6 +10,7 @@ is a class in a module of its own with these two members, attached to the next m
 """
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -18,9 +19,26 @@ import numpy as np
 from ..ending import MotionEnd
 from .exceptions import SpecError
 
-#: the estimates a check may ask for, costliest last: net joint torques (4.37), the tool-frame
-#: force/torque (4.56, needs the torques and J^-1), the tool-frame path deviation (E.2)
+
+class Estimate(enum.Flag):
+    """The estimates a check may ask for (combine with ``|``): net joint torques (4.37), the
+    tool-frame force/torque (4.56, needs the torques and J^-1), the tool-frame path deviation (E.2)."""
+
+    NONE = 0
+    TORQUE = enum.auto()
+    FORCE = enum.auto()
+    DEVIATION = enum.auto()
+
+
+#: the names of the estimates (the words of Monitor's ``needs``)
 ESTIMATES = frozenset({"torque", "force", "deviation"})
+
+
+def estimate_named(name: str, where: str) -> Estimate:
+    """The Estimate of one of ``ESTIMATES``' names, else a SpecError naming ``where``."""
+    if name not in ESTIMATES:
+        raise SpecError(f"{where}: {name!r} is not an estimate ({', '.join(sorted(ESTIMATES))})")
+    return Estimate[name.upper()]
 
 
 @dataclass
@@ -47,8 +65,8 @@ class MotionCheck(Protocol):
     """An adaptive feature watching one motion: what it needs measured, and whether the motion ends now."""
 
     @property
-    def estimates(self) -> frozenset[str]:
-        """Which of ``ESTIMATES`` the control level must compute for ``ends``."""
+    def estimates(self) -> Estimate:
+        """Which estimates the control level must compute for ``ends`` (an ``Estimate`` flag)."""
         ...
 
     def ends(self, s: Sample) -> MotionEnd | None:
@@ -63,12 +81,15 @@ def as_check(obj: Any, where: str) -> MotionCheck:
     """``obj`` if it is a usable motion check, else a SpecError naming ``where`` and what is wrong."""
     if not isinstance(obj, MotionCheck) or not callable(getattr(obj, "ends", None)):
         raise SpecError(f"{where}: {obj!r} is not a motion check (it needs an 'estimates' set and an 'ends(sample)' method)")
-    unknown = set(obj.estimates) - ESTIMATES
-    if unknown:
-        raise SpecError(f"{where}: {type(obj).__name__}.estimates has {sorted(unknown)}, not among {sorted(ESTIMATES)}")
+    if not isinstance(obj.estimates, Estimate):
+        raise SpecError(f"{where}: {type(obj).__name__}.estimates is {obj.estimates!r}, not an "
+                        "rccl.adaptive.check.Estimate (e.g. Estimate.FORCE | Estimate.DEVIATION, or Estimate.NONE)")
     return obj
 
 
-def estimates_of(checks: list[MotionCheck]) -> frozenset[str]:
+def estimates_of(checks: list[MotionCheck]) -> Estimate:
     """Every estimate the checks of one motion need."""
-    return frozenset().union(*(c.estimates for c in checks)) if checks else frozenset()
+    out = Estimate.NONE
+    for c in checks:
+        out |= c.estimates
+    return out

@@ -24,8 +24,7 @@ from .comply import Compliance, select_joints, servo_dac
 from .deviation import ToolMaps
 from .exceptions import ForceEstimateError
 from .force import ForceEstimator, JointModel, condition_1, gravity_vector
-from .generator import AdaptiveGenerator
-from .check import Sample, estimates_of
+from .check import Estimate, Sample, estimates_of
 from .limit import vet_limits
 from .stiction import Dither
 
@@ -68,7 +67,7 @@ class AdaptiveControl:
         self.compliance = Compliance()
         self.last: Sample | None = None          # what the motion checks saw last (read-out for programs)
         self._checked = None                     # the request whose checks' estimates are in _needs
-        self._needs: frozenset[str] = frozenset()
+        self._needs = Estimate.NONE
         self._vetted = None                      # the request whose force limits were vetted (limit.vet_limits)
         self._jac6: np.ndarray | None = None
         self._jac6_inv: np.ndarray | None = None
@@ -103,50 +102,55 @@ class AdaptiveControl:
                 return None
         return self._J_inv_t.T
 
-    def before(self, gen: AdaptiveGenerator, q: np.ndarray, qd: np.ndarray, v_adc: np.ndarray, how=None) -> None:
-        """Measure and check, before ``gen.step()``; may call ``gen.abort``."""
+    def before(self, gen, q: np.ndarray, qd: np.ndarray, v_adc: np.ndarray, how=None) -> None:
+        """Measure and check, before ``gen.step()``; may call ``gen.abort``.
+
+        ``gen`` is any ``rccl.generator.MotionGenerator`` (quartic or Ruckig): only its
+        ``request``, ``tool``, ``q``, ``t``, ``samples``, ``dt``, ``abort`` and the ``jac6``
+        fields it reuses are touched.
+        """
         self._q, self._qd, self.dt = q, qd, gen.dt
         hist = self._q_hist
         hist.append(np.array(q, dtype=float))     # a copy: a caller may reuse its array
         if len(hist) > max(1, int(round(SPEED_WINDOW / gen.dt))) + 1:
             hist.popleft()
-        seg = gen.seg
-        req = seg.req
+        req = gen.request          # None: holding at rest between moves (the jerk-limited generator)
         c = self.compliance
         comply = bool(c.forces) or c.offset.any()
-        functional = req.has_functional
+        functional = False if req is None else req.has_functional
         if functional is None:      # once per request: whether its position has a functional transform
             functional = req.has_functional = any(t.kind == "functional" for t in req.position.transforms())
-        running = req.status == "running" and not req.repeat
+        running = req is not None and req.status == "running" and not req.repeat
         checks = req.checks if running else ()
         if not (comply or functional or checks):
             gen.jac6 = self._jac6 = gen.jac6_inv = self._jac6_inv = None
             gen.jac6_cond = None
             return
-        if req is not self._checked:            # once per request: what its checks need estimated
+        if checks and req is not self._checked:   # once per request: what its checks need estimated
             self._checked, self._needs = req, estimates_of(req.checks)
-        needs = self._needs if checks else frozenset()
+        needs = self._needs if checks else Estimate.NONE
         q = np.ascontiguousarray(q, dtype=float)
         jac6 = self.kin.jacobian6(q, out=self._J)
         gen.jac6 = self._jac6 = jac6
-        want_force = "force" in needs
+        want_force = Estimate.FORCE in needs
         jinv = None
         if comply or functional or want_force:     # one inverse per sample: E.8, the comply law, 4.56
             jinv = self._inverse(q, jac6)
             self.condition = condition_1(jac6, jinv, self._work) if jinv is not None else np.inf
         gen.jac6_inv = self._jac6_inv = jinv
         gen.jac6_cond = self.condition if jinv is not None else None
-        self._tool = seg.tool
-        maps = self._maps.of(seg.tool)
-        want_dev = comply or "deviation" in needs
+        tool = gen.tool
+        self._tool = tool
+        maps = self._maps.of(tool)
+        want_dev = comply or Estimate.DEVIATION in needs
         t_a = force = dev = None
-        if want_force or "torque" in needs:
+        if want_force or Estimate.TORQUE in needs:
             t_a = self.estimator.net_torques(q, qd, v_adc, gen.dt, gen.samples)
         if want_force:
             self.estimator.check_condition(q, self.condition if jinv is not None else np.inf)
             if req is not self._vetted:          # once, where the motion starts: can the estimate support its limits?
                 self._vetted = req
-                vet_limits(req.checks, self.estimator.error_bar(jinv, seg.tool), f"{self.kin.ROBOT} limit")
+                vet_limits(req.checks, self.estimator.error_bar(jinv, tool), f"{self.kin.ROBOT} limit")
             force = maps.f @ (t_a @ jinv)            # F(T6->tool) J6^-T t_a (4.56, 1.22)
         if want_dev:
             # measured minus planned (nominal) path: along compliant axes this is what the comply

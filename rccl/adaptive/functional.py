@@ -80,6 +80,7 @@ class FunctionalUpdater:
     def __init__(self, qd_max: np.ndarray, dt: float, share: float = DEFAULT_SHARE,
                  max_condition: float = DEFAULT_MAX_CONDITION, qdd_max: np.ndarray | None = None) -> None:
         self.max_step = np.asarray(qd_max, dtype=float) * float(dt) * float(share)
+        self._dt, self.share = float(dt), float(share)
         # with joint acceleration limits, the functional part of each joint's step may also change by
         # at most share x qdd_max x dt^2 from one sample to the next (no velocity step either)
         self.max_step_change = (None if qdd_max is None
@@ -95,6 +96,17 @@ class FunctionalUpdater:
         self.max_condition = float(max_condition)
         self.last = UpdateInfo()
         self.limited = 0           # samples in which a change was scaled down
+
+    def set_period(self, qd_max: np.ndarray, dt: float, qdd_max: np.ndarray | None = None) -> None:
+        """New step bounds for samples ``dt`` s apart; the last step is rescaled to the same speed."""
+        share = self.share
+        self.max_step = np.asarray(qd_max, dtype=float) * float(dt) * share
+        self.max_step_change = (None if qdd_max is None
+                                else np.asarray(qdd_max, dtype=float) * float(dt) ** 2 * share)
+        self.prev_dtheta = self.prev_dtheta * (float(dt) / self._dt)
+        self._max_step = self.max_step.tolist()
+        self._max_step_change = None if self.max_step_change is None else self.max_step_change.tolist()
+        self._dt = float(dt)
 
     @staticmethod
     def functional_transforms(positions) -> list:

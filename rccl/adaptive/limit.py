@@ -24,7 +24,7 @@ import numpy as np
 
 from . import spec as specmod
 from ..ending import MotionEnd
-from .check import Sample
+from .check import Estimate, Sample
 from .exceptions import ForceEstimateError
 
 # thesis 6.2: "a typical static friction error of .5 Newton-meters (Table 4.6) will result in an
@@ -77,9 +77,10 @@ class Limit:
         return bool(self._dev_items)
 
     @property
-    def estimates(self) -> frozenset[str]:
+    def estimates(self) -> Estimate:
         """MotionCheck: the tool-frame force if a force component is limited, the deviation if one is."""
-        return frozenset(({"force"} if self._force_items else set()) | ({"deviation"} if self._dev_items else set()))
+        return ((Estimate.FORCE if self._force_items else Estimate.NONE)
+                | (Estimate.DEVIATION if self._dev_items else Estimate.NONE))
 
     def vet(self, bar: np.ndarray, where: str = "limit") -> list[str]:
         """Check the force/torque bounds against the estimate's free-air error bar ``bar`` (6,)

@@ -16,7 +16,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..ending import MotionEnd
-from .check import Sample
+from .check import Estimate, Sample, estimate_named
 from .exceptions import MonitorError
 
 __all__ = ["Monitor", "Sample"]
@@ -41,9 +41,12 @@ class Monitor:
             raise MonitorError(f"evalfn: needs {sorted(bad)} not among 'force', 'deviation'")
 
     @property
-    def estimates(self) -> frozenset[str]:
+    def estimates(self) -> Estimate:
         """A monitor always sees the net joint torques; force and deviation if it asked (MotionCheck)."""
-        return frozenset({"torque", *self.needs})
+        out = Estimate.TORQUE
+        for name in self.needs:
+            out |= estimate_named(name, "evalfn(needs=...)")
+        return out
 
     def ends(self, s: Sample) -> MotionEnd | None:
         """MotionCheck: the monitor's verdict on this sample."""
