@@ -80,6 +80,9 @@ class MeasurementPlan:
     simula_args: list[str] = field(default_factory=list)
     warmup: Path | None = None
     rate_hz: int = 36
+    # poses the approach passes through on its way to the first setpoint (calib.headroom
+    # chooses them where the straight joint move would ask a motor for too much current)
+    via: tuple[np.ndarray, ...] = ()
 
 
 WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)
@@ -229,41 +232,104 @@ SENSITIVITY_MASS = {1: 4.0, 2: 4.0, 3: 4.0, 4: 1.0, 5: 1.0, 6: 1.0}
 
 def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7),
                       speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0,
-                      robot=None) -> list[MeasurementPlan]:
+                      robot=None, notes: list[str] | None = None) -> list[MeasurementPlan]:
     """4.5.2: the same arc with the pulley's mass and without it (two simula runs).
 
     The pulley is a simula load option (``--load pulley:...``); its string winds on a
     drum on the joint axis, and the mass rises as the joint angle increases (sign +1).
-    ``mass_kg`` None takes SENSITIVITY_MASS. The arcs start from the friction poses (the
-    thesis arm's); ``robot`` (calib.robot.RobotInfo, None: the thesis's arm) has them checked
-    against its joint ranges.
+    ``mass_kg`` None takes SENSITIVITY_MASS, made smaller where the arm could not carry it
+    (calib.headroom: the motors' current limits, with margins for a truth whose sensitivity,
+    friction and gravity are not the data file's, from the ``ready`` pose a fresh arm
+    stands in); each such change is appended to ``notes`` and kept in the log's metadata
+    (``load_note``). A ``mass_kg`` given that the arm could not carry is refused. The arcs
+    start from the friction poses (the thesis arm's); ``robot`` (calib.robot.RobotInfo,
+    None: the thesis's arm) has them checked against its joint ranges.
     """
     from calib.exceptions import CalibError
+    from calib.robot import robot_info
 
-    lower, upper, _ = _robot_limits(THESIS_ARM if robot is None else robot.name)
+    info = robot if robot is not None else robot_info(THESIS_ARM)
+    lower, upper, _ = _robot_limits(info.name)
     plans = []
     for j in joints:
-        mass_j = SENSITIVITY_MASS[j] if mass_kg is None else mass_kg
         qdeg, _ = FRICTION_POSES[j]
         q = np.array(qdeg, float) * DEG
         lo, hi = q[j - 1] - arc_deg / 2 * DEG, q[j - 1] + arc_deg / 2 * DEG
         ends = np.tile(q, (2, 1))
         ends[:, j - 1] = lo - 4 * DEG, hi + 4 * DEG
         if np.any(ends < lower) or np.any(ends > upper):
-            arm = THESIS_ARM if robot is None else robot.name
-            raise CalibError(f"robot {arm}: the sensitivity arc of joint {j} from the friction pose "
+            raise CalibError(f"robot {info.name}: the sensitivity arc of joint {j} from the friction pose "
                              f"{list(qdeg)} deg leaves the joint ranges (calib.experiments.FRICTION_POSES "
                              f"are the {THESIS_ARM}'s)")
-        for mass in (mass_j, 0.0):
+
+        def make(mass: float) -> MeasurementPlan:
             path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
             meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
                     "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1},
                     "log_set": [f"sensitivity-j{j}-loaded", f"sensitivity-j{j}-unloaded"]}
             tag = "loaded" if mass > 0 else "unloaded"
             args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
-            plans.append(MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
-                              warmup=sweep_warmup(q, j - 1, lo, hi)))
+            return MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
+                                   warmup=sweep_warmup(q, j - 1, lo, hi))
+
+        loaded = _carried_load(info, j, make, SENSITIVITY_MASS[j] if mass_kg is None else mass_kg,
+                               radius_m, adapt=mass_kg is None, notes=notes)
+        plans += [loaded, make(0.0)]
     return plans
+
+
+SENSITIVITY_MASS_STEPS = (1.0, 0.8, 0.64, 0.5, 0.4, 0.32, 0.25)   # of the default mass, tried in turn
+MIN_LOAD_OF_FRICTION = 0.2   # the load torque m g r must be at least this share of the joint's friction
+
+
+def _carried_load(info, j: int, make, mass: float, radius_m: float, adapt: bool,
+                  notes: list[str] | None) -> MeasurementPlan:
+    """The loaded plan of joint ``j`` with the largest mass (``mass`` times a step of
+    SENSITIVITY_MASS_STEPS; only ``mass`` itself unless ``adapt``) that calib.headroom says
+    the arm carries from its ready pose; CalibError naming the motor and currents if none."""
+    from calib.exceptions import CalibError
+    from calib.headroom import approach_routes, plan_setpoints, start_pose, worst
+    from calib.sensitivity import GRAVITY
+
+    fr = info.nominal["friction"]
+    friction = 0.5 * (fr["coulomb_pos"]["values"][j - 1] + fr["coulomb_neg"]["values"][j - 1])
+    first = None
+    for step in SENSITIVITY_MASS_STEPS if adapt else (1.0,):
+        m = round(mass * step, 3)
+        if adapt and m * GRAVITY * radius_m < MIN_LOAD_OF_FRICTION * friction:
+            break
+        plan = make(m)
+        load = np.zeros(len(info.lower))
+        load[j - 1] = -m * GRAVITY * radius_m          # simula: -sign m g r on the joint
+        here = start_pose(info.name)
+        start = plan.warmup.segments[0].start if plan.warmup is not None else plan.path.segments[0].start
+        tried = []
+        for via in approach_routes(here, start):
+            plan.via = via
+            tried.append((worst(info, plan_setpoints(plan, here), plan.rate_hz, load), via))
+        # the straight approach when it is carried (as recorded in the shipped logs), else the best
+        head, plan.via = tried[0] if tried[0][0].ok else min(tried, key=lambda hv: hv[0].current / hv[0].limit)
+        first = first or tried[0][0]
+        if head.ok:
+            said = []
+            if plan.via:
+                said.append(f"the approach from the ready pose goes by {np.round(np.degrees(plan.via[0]), 1).tolist()} "
+                            "deg")
+            if step < 1.0:
+                said.append(f"recording with {m:g} kg")
+            if said:
+                note = (f"sensitivity-j{j}-loaded: {mass:g} kg on the straight approach is not carried "
+                        f"({first.describe()}); " + " and ".join(said) + " (calib.headroom)")
+                plan.meta["load_note"] = note
+                if notes is not None:
+                    notes.append(note)
+            return plan
+    why = (first.describe() if first is not None else
+           f"its load m g r = {mass * GRAVITY * radius_m:.2f} N m is under {100 * MIN_LOAD_OF_FRICTION:.0f} % of "
+           f"the joint's friction ({friction:.2f} N m), too small to stand out of it: give a larger --mass or --radius")
+    raise CalibError(f"robot {info.name}: sensitivity-j{j}-loaded with {mass:g} kg on a {radius_m:g} m drum: "
+                     f"{why}" + ("; no smaller mass whose load stands out of the joint's friction is carried "
+                                 "either" if adapt else "; give a smaller --mass"))
 
 
 GRAVITY_TURN_ACCEL = 6.0  # rad/s^2 at the turns of the sweeps chosen by the regressor: short

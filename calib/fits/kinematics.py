@@ -166,7 +166,7 @@ def record(req: RecordRequest) -> None:
     from calib.touch import touch_plan
     from calib.touch_program import run_touches
 
-    plan = touch_plan(max(1, req.args.touches // 3), robot=req.robot)
+    plan = touch_plan(max(1, (req.args.touches or 48) // 3), robot=req.robot)
     path = os.path.join(req.out, plan.name + ".rcilog")
     n = run_touches(req.url, plan, path, req.robot, extra_meta=req.extra_meta)
     print(f"{plan.name}: {n} records -> {path}")
@@ -175,9 +175,11 @@ def record(req: RecordRequest) -> None:
 def regen(ctx: RegenContext) -> list:
     """The touches on a simula of their own (the fixture and the probe are its environment)."""
     from calib.regen import record_kinematics_log
+    from calib.registry import OwnSimula
+    from calib.touch import touch_plan
 
-    record_kinematics_log(ctx)
-    return []
+    touch_plan(1, robot=ctx.info.name)     # refused here, before any recording, if the arm cannot
+    return [(("own",), OwnSimula("kinematics", lambda: record_kinematics_log(ctx)))]
 
 
 KIND = FitKind(

@@ -48,15 +48,19 @@ def record(req: RecordRequest) -> None:
     from calib.experiments import sensitivity_plans
     from calib.program import record_plans
 
-    record_plans(req, [p for p in sensitivity_plans(req.args.mass, req.args.radius, req.joints, robot=req.info)
-                       if (p.meta["load"]["mass_kg"] > 0) == req.args.loaded])
+    notes: list[str] = []
+    plans = sensitivity_plans(req.args.mass, req.args.radius or RADIUS_M, req.joints, robot=req.info, notes=notes)
+    for note in notes:
+        print(f"note: {note}")
+    record_plans(req, [p for p in plans if (p.meta["load"]["mass_kg"] > 0) == req.args.loaded])
 
 
 def regen(ctx: RegenContext) -> list:
     """Without the mass on the shared simula; with it, a simula with the pulley load per joint."""
     from calib.experiments import sensitivity_plans
 
-    plans = sensitivity_plans(None, RADIUS_M, robot=ctx.info)
+    o = ctx.options
+    plans = sensitivity_plans(o.mass, o.radius or RADIUS_M, ctx.joints(), robot=ctx.info, notes=ctx.notes)
     return ([((), p) for p in plans if not p.simula_args]
             + [(tuple(p.simula_args), p) for p in plans if p.simula_args])
 

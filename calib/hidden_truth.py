@@ -1,0 +1,67 @@
+"""A hidden truth for an arm: a simula parameter file drawn away from the robot data file.
+
+Calibration is only shown to work when it finds values it was not given. ``hidden_truth``
+draws, for a seed, a parameter file (schema of docs/simula.md) whose torque sensitivities
+and friction are each 10-30 % away from the data file (up or down at random), whose
+gravity coefficients are 3-10 % away, and whose DH table has errors of Table 3.1's size
+(0.1-0.5 mm, 0.05-0.25 deg) with random signs. ``calib hidden-truth`` writes one; a test or
+a user then records against it (``calib record ... --simula "--params FILE --seed N"``)
+and scores the fits against it in ``calib report``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from calib.params import dumps
+from models import load_robot
+from models.params import SCHEMA
+
+FACTOR_RANGE = (0.10, 0.30)        # relative distance of sigma and friction from the data file
+GRAVITY_RANGE = (0.03, 0.10)       # ... of the gravity coefficients (their centres of mass move)
+DEG = np.pi / 180
+
+
+def _factors(rng: np.random.Generator, n: int, span: tuple[float, float]) -> np.ndarray:
+    """``n`` factors 1 +- u, u uniform in ``span``, the sign at random."""
+    return 1.0 + rng.choice((-1.0, 1.0), n) * rng.uniform(*span, n)
+
+
+def hidden_truth(robot: str, seed: int) -> dict:
+    """The parameter file's tables (``calib.params.dumps`` writes them) of a truth of ``robot``
+    drawn with ``seed`` as the module docstring says. Joints with a zero data-file value
+    (no friction given) stay zero."""
+    m = load_robot(robot)
+    n = m.n_joints
+    rng = np.random.default_rng(seed)
+    sigma = np.asarray(m.motors.torque_sensitivity.values, float) * _factors(rng, n, FACTOR_RANGE)
+    fr = m.friction
+    friction = {}
+    for key in ("coulomb_pos", "coulomb_neg", "viscous_pos", "viscous_neg", "static_pos", "static_neg"):
+        base = np.asarray(getattr(fr, key).values, float)
+        friction[key] = [float(x) for x in np.round(base * _factors(rng, n, FACTOR_RANGE), 6)]
+    # breakaway must stay above the kinetic friction it starts from
+    for d in ("pos", "neg"):
+        friction[f"static_{d}"] = [max(s, 1.05 * c) for s, c in
+                                   zip(friction[f"static_{d}"], friction[f"coulomb_{d}"])]
+    gravity = {name: float(round(c.value * _factors(rng, 1, GRAVITY_RANGE)[0], 5))
+               for name, c in m.gravity_coeffs.items()}
+    sgn = lambda k: rng.choice((-1.0, 1.0), k)  # noqa: E731
+    kin = {"dtheta": sgn(n) * rng.uniform(0.05, 0.25, n) * DEG, "dd": sgn(n) * rng.uniform(0.0, 0.5e-3, n),
+           "da": sgn(n) * rng.uniform(0.1e-3, 0.4e-3, n), "dalpha": sgn(n) * rng.uniform(0.03, 0.1, n) * DEG}
+    return {"calib": {"schema": SCHEMA, "robot": robot,
+                      "hidden_truth": f"calib.hidden_truth seed {seed}: sigma and friction 10-30 %, "
+                                      "gravity 3-10 % away from the data file"},
+            "motors": {"torque_sensitivity": [float(x) for x in np.round(sigma, 6)]},
+            "friction": friction,
+            "gravity_coeffs": gravity,
+            "kinematics": {k: [float(x) for x in np.round(v, 8)] for k, v in kin.items()}}
+
+
+def write_hidden_truth(path: str, robot: str, seed: int) -> dict:
+    """Write :func:`hidden_truth` to ``path`` (atomically) and return its tables."""
+    from calib.params import atomic_write
+
+    data = hidden_truth(robot, seed)
+    atomic_write(path, f"# a hidden truth of {robot} (calib hidden-truth --seed {seed}); docs/calib.md\n\n"
+                       + dumps(data))
+    return data
