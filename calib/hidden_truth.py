@@ -26,13 +26,43 @@ def _factors(rng: np.random.Generator, n: int, span: tuple[float, float]) -> np.
     return 1.0 + rng.choice((-1.0, 1.0), n) * rng.uniform(*span, n)
 
 
+HOLD_SHARE = 0.8   # a valid truth holds the arm still anywhere in its ranges under this share of max_current
+
+
 def hidden_truth(robot: str, seed: int) -> dict:
     """The parameter file's tables (``calib.params.dumps`` writes them) of a truth of ``robot``
-    drawn with ``seed`` as the module docstring says. Joints with a zero data-file value
+    drawn with ``seed`` as the module docstring says, redrawn (from the same generator) until
+    it is an arm that could exist: one whose motors hold it against gravity and move it against
+    Coulomb friction anywhere in its ranges under HOLD_SHARE of their current limit (a real
+    motor too weak for its arm would not have been built). Joints with a zero data-file value
     (no friction given) stay zero."""
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        data = _draw(robot, seed, rng)
+        if _holds(robot, data):
+            return data
+    raise ValueError(f"robot {robot}: no valid hidden truth in 200 draws of seed {seed}")
+
+
+def _holds(robot: str, data: dict) -> bool:
+    """True when the truth ``data`` moves its arm at every one of 400 random poses under
+    HOLD_SHARE of each motor's current limit (gravity plus Coulomb friction, through G)."""
+    from calib.robot import robot_info
+
+    info = robot_info(robot)
+    m = load_robot(robot)
+    coeffs = np.array([data["gravity_coeffs"][k] for k in info.gravity_names])
+    fc = np.maximum(data["friction"]["coulomb_pos"], data["friction"]["coulomb_neg"])
+    q = np.random.default_rng(0).uniform(info.lower, info.upper, (400, len(info.lower)))
+    tau = np.abs(np.array([info.regressor(x) @ coeffs for x in q])) + fc
+    Ginv_T = np.abs(np.linalg.inv(np.asarray(info.drive.G, float).T))
+    cur = (tau @ Ginv_T.T) / np.asarray(data["motors"]["torque_sensitivity"])
+    return bool((cur <= HOLD_SHARE * np.asarray(m.max_current, float)).all())
+
+
+def _draw(robot: str, seed: int, rng: np.random.Generator) -> dict:
     m = load_robot(robot)
     n = m.n_joints
-    rng = np.random.default_rng(seed)
     sigma = np.asarray(m.motors.torque_sensitivity.values, float) * _factors(rng, n, FACTOR_RANGE)
     fr = m.friction
     friction = {}

@@ -1,0 +1,130 @@
+"""Issue 30: recording a calibration on a truth that is not the data file's, as a user runs it.
+
+The truth is calib.hidden_truth seed 1 (torque sensitivities 18-29 % off Table 4.1, joint 5's
+18 % low; friction 10-30 % off; gravity 3-10 % off; DH errors), recorded on lockstep simulas
+seeded 4 and 3, not the shipped logs' 1985: the loaded sensitivity run of joint 5 that aborted
+with R_MAXCUR on the straight approach from ready is carried on the route calib chooses, a
+failed recording keeps its partial log, every `calib record --simula` option is honoured or
+refused, and a campaign resumes without recording a finished log again.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from calib import headroom
+from calib.exceptions import CalibError
+from calib.experiments import sensitivity_plans
+from calib.hidden_truth import hidden_truth, write_hidden_truth
+from calib.logs import load_trace
+from calib.program import run_plan
+from calib.regen import regen
+from calib.registry import RecordOptions
+from calib.robot import robot_info
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+INFO = robot_info("puma260")
+NOMINAL_SIGMA = INFO.drive.sigma
+
+
+@pytest.fixture(scope="module")
+def truth(tmp_path_factory) -> str:
+    path = str(tmp_path_factory.mktemp("truth") / "hidden.toml")
+    write_hidden_truth(path, "puma260", 1)
+    return path
+
+
+def test_the_hidden_truth_is_10_to_30_percent_away_and_valid():
+    t = hidden_truth("puma260", 1)
+    factors = [s / n for s, n in zip(t["motors"]["torque_sensitivity"], NOMINAL_SIGMA)]
+    assert all(0.69 <= abs(f) <= 0.91 or 1.09 <= f <= 1.31 for f in factors), factors
+    assert factors[4] < 0.9                       # joint 5's motor weaker: the issue's case, harder
+    assert hidden_truth("puma260", 1) == t        # a seed is one truth
+
+
+def _calib(*args: str, cwd: str = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "calib", *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=600)
+
+
+def test_loaded_j5_is_carried_from_ready_on_a_weaker_motor(truth, tmp_path):
+    """The straight approach trips R_MAXCUR on this truth; the plan calib makes goes another way,
+    says so, and records (short arcs: the approach is what is tested)."""
+    from rci.simula.process import SimulaProcess
+
+    notes: list[str] = []
+    plan = sensitivity_plans(None, 0.05, joints=[5], speeds_deg=(40,), trips=1, robot=INFO, notes=notes)[0]
+    assert plan.meta["load"]["mass_kg"] > 0 and plan.via and "load_note" in plan.meta
+    assert any("sensitivity-j5-loaded" in n and "approach" in n for n in notes)
+    plan.warmup = None
+    straight = sensitivity_plans(None, 0.05, joints=[5], speeds_deg=(40,), trips=1, robot=INFO)[0]
+    straight.warmup, straight.via = None, ()
+    with SimulaProcess("-p", "--params", truth, *plan.simula_args, lockstep=True, seed=3) as sim:
+        with pytest.raises(CalibError, match="R_MAXCUR"):
+            run_plan(sim.url, straight, str(tmp_path / "straight.rcilog"))
+    with SimulaProcess("-p", "--params", truth, *plan.simula_args, lockstep=True, seed=3) as sim:
+        run = run_plan(sim.url, plan, str(tmp_path / "routed.rcilog"))
+    assert run.records > 100
+    assert load_trace(run.path).meta["load"]["mass_kg"] == plan.meta["load"]["mass_kg"]
+
+
+def test_a_failed_recording_keeps_the_log_its_error_names(truth, tmp_path, monkeypatch):
+    """With the headroom check blinded (no margins, any current allowed) the campaign takes the
+    straight approach and aborts; the partial log the error names is still there."""
+    monkeypatch.setattr(headroom, "MARGINS", {"sigma": 0.0, "friction": 0.0, "gravity": 0.0})
+    monkeypatch.setattr(headroom, "HEADROOM", 10.0)
+    out = str(tmp_path / "logs")
+    os.makedirs(out)
+    # the unloaded run counts as recorded (resume), so the loaded one, which fails, comes first
+    open(os.path.join(out, "sensitivity-j5-unloaded.rcilog.xz"), "wb").close()
+    with pytest.raises(CalibError, match="R_MAXCUR") as exc:
+        regen(out, 3, ("sensitivity",), truth, quiet=True, options=RecordOptions(joints=(5,)), resume=True)
+    named = str(exc.value).split("partial log: ")[1].rstrip(")")
+    assert os.path.exists(named) and named.startswith(os.path.join(out, ".work"))
+
+
+@pytest.mark.parametrize("kind, option", [
+    ("gravity", ["--joints", "2"]), ("static", ["--joints", "2"]), ("kinematics", ["--joints", "1"]),
+    ("friction", ["--mass", "1"]), ("gravity", ["--radius", "0.1"]), ("friction", ["--halts", "5"]),
+    ("static", ["--touches", "9"]), ("kinematics", ["--rate", "100"]), ("breakaway", ["--rate", "100"]),
+    ("sensitivity", ["--loaded"]), ("friction", ["--joints", "7"]), ("all", ["--loaded"]),
+])
+def test_simula_refuses_an_option_it_cannot_honour(kind, option, tmp_path, capsys):
+    from calib.__main__ import main
+
+    assert main(["record", kind, "--simula", "--seed 4", *option, "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert option[0] in err and "does not apply" in err or "--loaded is for --url" in err or "has joints" in err
+    assert not os.path.exists(tmp_path / "x")          # refused before anything is made
+
+
+def test_simula_options_are_honoured_and_a_campaign_resumes(truth, tmp_path):
+    out = str(tmp_path / "logs")
+    first = _calib("record", "static", "--simula", f"--seed 4 --params {truth}", "--halts", "2",
+                   "--rate", "50", "--out", out, "-q")
+    assert first.returncode == 0, first.stderr
+    path = os.path.join(out, "static.rcilog.xz")
+    meta = load_trace(path).meta
+    assert meta["halts"] == 2 and meta["rate_hz"] == 50 and meta["truth"]["seed"] == 4
+    assert "recorded 1 log(s) in" in first.stdout and not os.path.exists(os.path.join(out, ".work"))
+    stamp = os.stat(path).st_mtime_ns
+    again = _calib("record", "static", "--simula", f"--seed 4 --params {truth}", "--halts", "2",
+                   "--rate", "50", "--out", out, "-q")
+    assert again.returncode == 0, again.stderr
+    assert "already in" in again.stdout and "recorded 0 log(s)" in again.stdout
+    assert os.stat(path).st_mtime_ns == stamp
+
+
+def test_record_all_names_what_an_arm_cannot_support(tmp_path):
+    """The Stanford arm: the kinds whose programs are the PUMA 260's are refused with the reason
+    and the others planned; with nothing planned to record the campaign says so (quick)."""
+    from calib.regen import campaign_plans
+    from calib.registry import RegenContext
+
+    ctx = RegenContext(str(tmp_path), str(tmp_path), 4, None, robot_info("stanford"))
+    plans, refused = campaign_plans(ctx, ("sensitivity", "gravity", "static"), skip_refused=True)
+    assert "sensitivity" in refused and "stanford" in refused["sensitivity"]
+    assert {p.meta["experiment"] for _, p in plans} >= {"gravity", "static"}
