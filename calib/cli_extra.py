@@ -36,7 +36,8 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
             continue
         params = read_params(params_path) if os.path.exists(params_path) else None
         out = run_fit(kind, sel, info, params, assume_datafile=assume_datafile, params_name=params_path)
-        update_params(params_path, info.name, out.sections, f"calib fit {kind} ({len(sel)} logs)", kind, out.assumed)
+        update_params(params_path, info.name, out.sections, f"calib fit {kind} ({len(sel)} logs)", kind,
+                      out.assumed, out.truth)
         outcomes[kind] = out
     return {"info": info, "outcomes": outcomes, "traces": traces}
 
@@ -50,6 +51,9 @@ def _report(args: argparse.Namespace) -> int:
     if not paths:
         raise CalibError(f"no logs (*.rcilog, *.rcilog.xz, *.rcilog.gz) in {args.logs}; run `calib regen-logs`")
     out_dir = os.path.dirname(os.path.abspath(args.out))
+    if args.params:
+        from calib.params import writable_params
+        writable_params(args.params)
     with tempfile.TemporaryDirectory(prefix="calib-report-") as tmp:
         params = args.params or os.path.join(tmp, "fitted.toml")
         res = fit_all(paths, params, quiet=args.quiet, assume_datafile=args.assume_datafile)

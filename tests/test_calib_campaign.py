@@ -128,3 +128,29 @@ def test_record_all_names_what_an_arm_cannot_support(tmp_path):
     plans, refused = campaign_plans(ctx, ("sensitivity", "gravity", "static"), skip_refused=True)
     assert "sensitivity" in refused and "stanford" in refused["sensitivity"]
     assert {p.meta["experiment"] for _, p in plans} >= {"gravity", "static"}
+    _fits_name_their_truth(out, path, str(tmp_path))
+
+
+def _fits_name_their_truth(out: str, static_log: str, tmp: str) -> None:
+    """The refusal points at logs of this truth (not calib/logs/, another truth); a parameter
+    file says what each fit's logs were recorded against; a fit that takes an input fitted on
+    another truth's logs says so."""
+    refused = _calib("fit", "static", static_log)
+    assert refused.returncode == 2
+    assert os.path.join(out, "sensitivity-*.rcilog*") in refused.stderr and "calib/logs/" not in refused.stderr
+    params = os.path.join(tmp, "p.toml")
+    shipped = [os.path.join(ROOT, "calib", "logs", f"sensitivity-j5-{t}.rcilog.xz") for t in ("loaded", "unloaded")]
+    assert _calib("fit", "sensitivity", *shipped, "-p", params, "-q").returncode == 0
+    text = open(params, encoding="utf-8").read()
+    assert "truth_sensitivity = \"simula puma260 seed 1985 on" in text
+    mixed = _calib("fit", "static", static_log, "-p", params, "--assume-datafile", "-q")
+    assert mixed.returncode == 0, mixed.stderr
+    assert "mixes two truths" in mixed.stdout and "seed 1985" in mixed.stdout and "seed 4" in mixed.stdout
+    assert "truth_static = \"simula puma260 seed 4 on" in open(params, encoding="utf-8").read()
+
+
+def test_a_parameter_file_in_a_missing_folder_is_refused_before_the_fit(tmp_path):
+    log = os.path.join(ROOT, "calib", "logs", "sensitivity-j5-loaded.rcilog.xz")
+    out = _calib("fit", "sensitivity", log, "-p", str(tmp_path / "no" / "p.toml"))
+    assert out.returncode == 2 and "does not exist" in out.stderr and "nothing was fitted" in out.stderr
+    assert "Table 4.1" not in out.stdout
