@@ -154,3 +154,32 @@ def test_a_parameter_file_in_a_missing_folder_is_refused_before_the_fit(tmp_path
     out = _calib("fit", "sensitivity", log, "-p", str(tmp_path / "no" / "p.toml"))
     assert out.returncode == 2 and "does not exist" in out.stderr and "nothing was fitted" in out.stderr
     assert "Table 4.1" not in out.stdout
+
+
+def _j5_logs():
+    return [load_trace(os.path.join(ROOT, "calib", "logs", f"sensitivity-j5-{t}.rcilog.xz"))
+            for t in ("loaded", "unloaded")]
+
+
+def test_sensitivity_at_the_adc_rail_is_named():
+    """Every pass of joint 5 at the rail: refused, naming the rail; all but one round trip: one
+    trial, and a note that its spread is unknown."""
+    from calib.logs import ADC_RAIL
+    from calib.sensitivity import fit_sensitivity
+    from calib.work import find_passes
+
+    loaded, unloaded = _j5_logs()
+    full = loaded.adc.copy()
+    loaded.adc[:, 4] = ADC_RAIL
+    with pytest.raises(Exception, match=r"ADC channel off its rails \(\+-2047\)"):
+        fit_sensitivity([loaded, unloaded], INFO.drive)
+    loaded.adc[:] = full
+    theta = INFO.drive.current_angles(loaded.t, loaded.counts)[:, 4]
+    passes = find_passes(theta, *loaded.meta["window"])
+    for p in passes[2:]:                       # the first round trip kept, every later one clipped
+        loaded.adc[p.first, 4] = ADC_RAIL
+    notes: list[str] = []
+    (res,) = fit_sensitivity([loaded, unloaded], INFO.drive, notes)
+    assert res.trials == 1
+    assert any("1 trial" in n and "unknown" in n for n in notes)
+    assert any("at the rail" in n for n in notes)

@@ -11,6 +11,7 @@ import numpy as np
 from calib.exceptions import FitError
 from calib.fitting import FitOutcome
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from calib.touch import SLOW
 
 ACCURACY_TARGETS = 20   # target poses of the before/after positioning run
 
@@ -81,7 +82,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          f"`calib record kinematics` touches the three faces of a fixture (a floor and two walls, "
          f"known in the base frame) {fit_.measurements} times with a touch-trigger probe on the flange "
          f"(tip at ({', '.join(f'{1e3 * x:.0f}' for x in t.tip)}) mm in link 6, a cranked stylus), "
-         "approaching each face along its normal at 0.8 mm/s and stopping on the cycle the probe's "
+         f"approaching each face along its normal at {1e3 * SLOW:.1f} mm/s (calib.touch.SLOW) and stopping on "
+         "the cycle the probe's "
          "switch (inport1) is seen closed; the joint angles between the last open and the first "
          "closed reading put the tip on the face: one equation n . p(q, e) = h per touch. The touches "
          "are made in both arm and both wrist configurations. Why touches and not the motor "

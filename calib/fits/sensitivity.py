@@ -29,7 +29,9 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     err = np.asarray(ctx.info.nominal["motors"]["torque_sensitivity"]["uncertainty"], float)
     L = ["## Table 4.1: motor torque sensitivity (N m / A)", "",
          "The fit's independent error is the thesis's kind (4.5.2): the relative uncertainties of "
-         "the mass, the drum radius and the current scale V_g / R_i combined.", "",
+         "the mass, the drum radius and the current scale V_g / R_i combined, an a priori bound, not "
+         "a 99.73 % interval; the fit std is one standard deviation of the trials (the 99.73 % error "
+         "of the mean that later fits inherit is Student's t x std / sqrt(trials)).", "",
          "| joint | thesis mean | thesis indep. error | truth | fit mean | fit std | trials | fit indep. error "
          "| abs(fit - truth) | within thesis bound | within fit error |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
