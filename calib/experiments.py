@@ -306,7 +306,7 @@ def _carried_load(info, j: int, make, mass: float, radius_m: float, adapt: bool,
         tried = []
         for via in approach_routes(here, start):
             plan.via = via
-            tried.append((worst(info, plan_setpoints(plan, here), plan.rate_hz, load), via))
+            tried.append((worst(info, plan_setpoints(plan, here, ACCEL), plan.rate_hz, load), via))
         # the straight approach when it is carried (as recorded in the shipped logs), else the best
         head, plan.via = tried[0] if tried[0][0].ok else min(tried, key=lambda hv: hv[0].current / hv[0].limit)
         first = first or tried[0][0]

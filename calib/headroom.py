@@ -104,18 +104,17 @@ def approach_routes(here: np.ndarray, first: np.ndarray) -> list[tuple[np.ndarra
     return [(), (wrist_first,), (arm_first,)]
 
 
-def plan_setpoints(plan, here: np.ndarray, rate_hz: float | None = None) -> np.ndarray:
+def plan_setpoints(plan, here: np.ndarray, accel: float, rate_hz: float | None = None) -> np.ndarray:
     """Every setpoint (N, n) calib.program.run_plan commands for ``plan`` from the pose ``here``:
-    the approach, the warm-up, the settle and the recorded path."""
-    from calib.experiments import ACCEL
-    from calib.paths import Path, PathSegment
-    from calib.program import approach_path
+    the approach, the warm-up, the settle and the recorded path (``accel``: the moves'
+    acceleration, rad/s^2, calib.experiments.ACCEL)."""
+    from calib.paths import Path, PathSegment, approach_path
 
     rate = rate_hz or plan.rate_hz
     body = plan.path.sample(rate)
     parts = [] if plan.warmup is None else [plan.warmup.sample(rate)]
     first = parts[0][0] if parts else body[0]
     last = parts[0][-1] if parts else first
-    approach = approach_path(here, plan.via, first).sample(rate)
-    settle = Path((PathSegment(last, body[0], 0.6, ACCEL, 0.5),)).sample(rate)
+    approach = approach_path(here, plan.via, first, accel).sample(rate)
+    settle = Path((PathSegment(last, body[0], 0.6, accel, 0.5),)).sample(rate)
     return np.vstack([approach, *parts, settle, body])

@@ -15,7 +15,7 @@ import numpy as np
 
 from calib.exceptions import CalibError
 from calib.experiments import ACCEL, MeasurementPlan
-from calib.paths import Path, PathSegment
+from calib.paths import Path, PathSegment, approach_path
 from rci import codes
 from rci.conversions import Conversions
 from rci.exceptions import RCIError
@@ -70,12 +70,6 @@ def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, n
         rec.close()
 
 
-def approach_path(here: np.ndarray, via, first: np.ndarray) -> Path:
-    """From ``here`` through the poses ``via`` to ``first`` (rad): straight joint moves at 0.6 rad/s."""
-    poses = [np.asarray(here, float), *[np.asarray(v, float) for v in via], np.asarray(first, float)]
-    return Path(tuple(PathSegment(a, b, 0.6, ACCEL, 0.5) for a, b in zip(poses, poses[1:])))
-
-
 def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
     """POS commands for every joint: the angles ``q`` (rad) in whole encoder counts."""
     conv.command_positions(session.chg, q)
@@ -106,7 +100,7 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
             parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
             first = parts[0][0] if parts else body[0]
             last = parts[0][-1] if parts else first
-            approach = approach_path(here, plan.via, first).sample(rate_hz)
+            approach = approach_path(here, plan.via, first, ACCEL).sample(rate_hz)
             settle = Path((PathSegment(last, body[0], 0.6, ACCEL, 0.5),)).sample(rate_hz)
             lead = np.vstack([approach, *parts, settle])
             state["setpoints"] = np.vstack([lead, body])
