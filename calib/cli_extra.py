@@ -248,3 +248,7 @@ def add_commands(sub: Any) -> None:
     rep.set_defaults(func=_report)
     from calib.regen import add_regen
     add_regen(sub)
+    from calib.coverage import add_coverage
+    add_coverage(sub)
+    from calib.hidden_truth import add_hidden_truth
+    add_hidden_truth(sub)

@@ -95,3 +95,28 @@ def write_hidden_truth(path: str, robot: str, seed: int) -> dict:
     atomic_write(path, f"# a hidden truth of {robot} (calib hidden-truth --seed {seed}); docs/calib.md\n\n"
                        + dumps(data))
     return data
+
+
+def add_hidden_truth(sub) -> None:
+    """Register `hidden-truth` on the `calib` parser (``sub``: its subparsers)."""
+    p = sub.add_parser("hidden-truth", help="write a simula parameter file drawn away from the data file")
+    p.add_argument("--robot", default="puma260")
+    p.add_argument("--seed", type=int, required=True, help="the draw (one seed, one truth)")
+    p.add_argument("-o", "--out", required=True, metavar="FILE", help="parameter file to write")
+    p.set_defaults(func=_main)
+
+
+def _main(args) -> int:
+    from calib.exceptions import CalibError
+    from calib.params import writable_params
+    from calib.robot import robot_info
+
+    robot_info(args.robot)              # an arm calib cannot model is refused
+    writable_params(args.out)
+    try:
+        write_hidden_truth(args.out, args.robot, args.seed)
+    except ValueError as exc:
+        raise CalibError(str(exc)) from None
+    print(f"wrote {args.out}: a truth of {args.robot} (seed {args.seed}); record against it with "
+          f"calib record all --simula \"--params {args.out} --seed N\"")
+    return 0

@@ -112,7 +112,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
             continue
         d = abs(fit_.e[i] - E[i])
         L.append(f"| {name} ({unit}) | {f * E[i]:.3f} | {f * fit_.e[i]:.3f} +- {f * k * fit_.std[i]:.3f} | "
-                 f"{f * d:.3f} | {check('kinematic', d <= k * fit_.std[i])} |")
+                 f"{f * d:.3f} | {check('kinematic fit', d <= k * fit_.std[i])} |")
     for name, value, sd, unit, coef in fit_.combinations():
         f = 1e3 if unit == "m" else np.degrees(1) * 1e3
         u = "mm" if unit == "m" else "mdeg"
@@ -122,7 +122,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
         tv = float(coef @ E)
         d = abs(value - tv)
         L.append(f"| {name} ({u}) | {f * tv:.3f} | {f * value:.3f} +- {f * k * sd:.3f} | {f * d:.3f} | "
-                 f"{check('kinematic', d <= k * sd)} |")
+                 f"{check('kinematic fit', d <= k * sd)} |")
     L.append("")
     return L + _accuracy_section(accuracy)
 
