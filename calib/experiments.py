@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from calib.friction_poses import check_friction_pose, friction_pose
 from calib.paths import Path, PathSegment, sweep_path
 from calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
                          table_4_7_identifies)
@@ -131,26 +132,27 @@ def _robot_limits(robot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)
 
 
-def check_friction_pose(info, joint: int, lo: float, hi: float, q: np.ndarray, points: int = 61) -> None:
-    """Refuse (CalibError) a friction window of ``joint`` (1-based) over which gravity does work
-    on the arm of ``info`` (calib.robot.RobotInfo), judged by its regressor: the mean of every
-    column of the joint's row over [lo, hi] must vanish (4.5.4), whatever the coefficients.
-    FRICTION_POSES were chosen on the PUMA 260; another arm needs poses of its own."""
+def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, float]:
+    """(pose rad, half window rad) of joint ``j``'s friction sweeps on the arm of ``robot``
+    (calib.robot.RobotInfo; None: the thesis's): FRICTION_POSES where they serve it (gravity
+    does no work over the window, and the window with its turns fits the range), else
+    calib.friction_poses.friction_pose's; CalibError when neither does."""
     from calib.exceptions import CalibError
 
-    th = np.linspace(lo, hi, points)
-    rows = []
-    for x in th:
-        qq = q.copy()
-        qq[joint - 1] = x
-        rows.append(np.asarray(info.regressor(qq))[joint - 1])
-    mean = np.abs(np.trapezoid(np.array(rows), th, axis=0) / (hi - lo))
-    if mean.max() > 1e-9:
-        names = ", ".join(n for n, m in zip(info.gravity_names, mean) if m > 1e-9)
-        raise CalibError(f"robot {info.name}: gravity does work on joint {joint} over its friction window "
-                         f"[{np.degrees(lo):.0f}, {np.degrees(hi):.0f}] deg at the pose "
-                         f"{np.round(np.degrees(q), 1).tolist()} deg (through {names}); the friction poses "
-                         f"(calib.experiments.FRICTION_POSES) are the {THESIS_ARM}'s, this arm needs its own")
+    qdeg, half = FRICTION_POSES[j]
+    q = np.array(qdeg, float) * DEG
+    if robot is None:
+        return q, half * DEG
+    try:
+        check_friction_pose(robot, j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, q)
+        friction_top_speed(j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, lower, upper, np.full(len(q), 1.0))
+        return q, half * DEG
+    except (CalibError, ValueError):
+        found = friction_pose(robot, j)
+    if found is None:
+        raise CalibError(f"robot {robot.name}: no pose found for joint {j}'s friction window over which "
+                         "gravity does no work (calib.friction_poses)")
+    return found
 
 
 def friction_plans(joints=range(1, 7), speeds_deg=None,
@@ -174,11 +176,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
     lower, upper, vmax = _robot_limits(THESIS_ARM if robot is None else robot.name)
     plans = []
     for j in joints:
-        qdeg, half = FRICTION_POSES[j]
-        q = np.array(qdeg, float) * DEG
-        lo, hi = q[j - 1] - half * DEG, q[j - 1] + half * DEG
-        if robot is not None:
-            check_friction_pose(robot, j, lo, hi, q)
+        q, half_rad = pose_for(robot, j, lower, upper)
+        half = half_rad / DEG
+        lo, hi = q[j - 1] - half_rad, q[j - 1] + half_rad
         if speeds_deg is None:
             try:
                 top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
@@ -252,30 +252,45 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
     lower, upper, _ = _robot_limits(info.name)
     plans = []
     for j in joints:
-        qdeg, _ = FRICTION_POSES[j]
-        q = np.array(qdeg, float) * DEG
-        lo, hi = q[j - 1] - arc_deg / 2 * DEG, q[j - 1] + arc_deg / 2 * DEG
+        q, _ = pose_for(robot, j, lower, upper)
+        prismatic = info.kinds[j - 1] == "prismatic"
+        # a prismatic joint: a 0.2 m stroke, the string over a pulley fixed to the base pulls
+        # the slide with the mass's weight (radius 1: the load's "torque" m g r is m g newtons)
+        half = 0.1 if prismatic else arc_deg / 2 * DEG
+        radius_j = 1.0 if prismatic else radius_m
+        lo, hi = q[j - 1] - half, q[j - 1] + half
         ends = np.tile(q, (2, 1))
         ends[:, j - 1] = lo - 4 * DEG, hi + 4 * DEG
         if np.any(ends < lower) or np.any(ends > upper):
-            raise CalibError(f"robot {info.name}: the sensitivity arc of joint {j} from the friction pose "
-                             f"{list(qdeg)} deg leaves the joint ranges (calib.experiments.FRICTION_POSES "
-                             f"are the {THESIS_ARM}'s)")
+            raise CalibError(f"robot {info.name}: the sensitivity arc of joint {j} from its friction pose "
+                             f"{np.round(np.degrees(q), 1).tolist()} deg leaves the joint ranges")
 
         def make(mass: float) -> MeasurementPlan:
             path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
             meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
-                    "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1},
+                    "load": {"mass_kg": mass, "radius_m": radius_j, "sign": 1},
                     "log_set": [f"sensitivity-j{j}-loaded", f"sensitivity-j{j}-unloaded"]}
             tag = "loaded" if mass > 0 else "unloaded"
-            args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
+            args = [f"--load=pulley:joint={j},mass={mass},radius={radius_j}"] if mass > 0 else []
             return MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
                                    warmup=sweep_warmup(q, j - 1, lo, hi))
 
-        loaded = _carried_load(info, j, make, SENSITIVITY_MASS[j] if mass_kg is None else mass_kg,
-                               radius_m, adapt=mass_kg is None, notes=notes)
+        loaded = _carried_load(info, j, make, _default_mass(info, j, radius_j) if mass_kg is None else mass_kg,
+                               radius_j, adapt=mass_kg is None, notes=notes)
         plans += [loaded, make(0.0)]
     return plans
+
+
+def _default_mass(info, j: int, radius: float) -> float:
+    """SENSITIVITY_MASS on the thesis's arm; on another, the mass whose load m g r is half the
+    joint's data-file friction (kg, to 0.1 kg, at least 0.2 kg)."""
+    from calib.sensitivity import GRAVITY
+
+    if info.name == THESIS_ARM:
+        return SENSITIVITY_MASS[j]
+    fr = info.nominal["friction"]
+    friction = 0.5 * (fr["coulomb_pos"]["values"][j - 1] + fr["coulomb_neg"]["values"][j - 1])
+    return max(0.2, round(0.5 * friction / (GRAVITY * radius), 1))
 
 
 SENSITIVITY_MASS_STEPS = (1.0, 0.8, 0.64, 0.5, 0.4, 0.32, 0.25)   # of the default mass, tried in turn
