@@ -51,7 +51,7 @@ def _holds(robot: str, data: dict) -> bool:
 
     info = robot_info(robot)
     m = load_robot(robot)
-    coeffs = np.array([data["gravity_coeffs"][k] for k in info.gravity_names])
+    coeffs = np.array([data["gravity_coeffs"].get(k, m.gravity_coeffs[k].value) for k in info.gravity_names])
     fc = np.maximum(data["friction"]["coulomb_pos"], data["friction"]["coulomb_neg"])
     q = np.random.default_rng(0).uniform(info.lower, info.upper, (400, len(info.lower)))
     tau = np.abs(np.array([info.regressor(x) @ coeffs for x in q])) + fc
@@ -73,14 +73,17 @@ def _draw(robot: str, seed: int, rng: np.random.Generator) -> dict:
     for d in ("pos", "neg"):
         friction[f"static_{d}"] = [max(s, 1.05 * c) for s, c in
                                    zip(friction[f"static_{d}"], friction[f"coulomb_{d}"])]
+    from rci.simula.arm import gravity_moves
+
+    movable = gravity_moves(m)      # simula moves a centre of mass for these; the others fix masses
     gravity = {name: float(round(c.value * _factors(rng, 1, GRAVITY_RANGE)[0], 5))
-               for name, c in m.gravity_coeffs.items()}
+               for name, c in m.gravity_coeffs.items() if name in movable}
     sgn = lambda k: rng.choice((-1.0, 1.0), k)  # noqa: E731
     kin = {"dtheta": sgn(n) * rng.uniform(0.05, 0.25, n) * DEG, "dd": sgn(n) * rng.uniform(0.0, 0.5e-3, n),
            "da": sgn(n) * rng.uniform(0.1e-3, 0.4e-3, n), "dalpha": sgn(n) * rng.uniform(0.03, 0.1, n) * DEG}
     return {"calib": {"schema": SCHEMA, "robot": robot,
                       "hidden_truth": f"calib.hidden_truth seed {seed}: sigma and friction 10-30 %, "
-                                      "gravity 3-10 % away from the data file"},
+                                      "gravity 3-10 % away from the data file (those simula can move)"},
             "motors": {"torque_sensitivity": [float(x) for x in np.round(sigma, 6)]},
             "friction": friction,
             "gravity_coeffs": gravity,
