@@ -81,6 +81,8 @@ def _draw(robot: str, seed: int, rng: np.random.Generator) -> dict:
     sgn = lambda k: rng.choice((-1.0, 1.0), k)  # noqa: E731
     kin = {"dtheta": sgn(n) * rng.uniform(0.05, 0.25, n) * DEG, "dd": sgn(n) * rng.uniform(0.0, 0.5e-3, n),
            "da": sgn(n) * rng.uniform(0.1e-3, 0.4e-3, n), "dalpha": sgn(n) * rng.uniform(0.03, 0.1, n) * DEG}
+    revolute = np.array([k == "revolute" for k in m.kinds])
+    kin = {k: np.where(revolute, v, 0.0) for k, v in kin.items()}   # simula has no DH errors for a slide
     return {"calib": {"schema": SCHEMA, "robot": robot,
                       "hidden_truth": f"calib.hidden_truth seed {seed}: sigma and friction 10-30 %, "
                                       "gravity 3-10 % away from the data file (those simula can move)"},

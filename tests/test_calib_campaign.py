@@ -13,6 +13,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from calib import headroom
@@ -116,6 +117,7 @@ def test_simula_options_are_honoured_and_a_campaign_resumes(truth, tmp_path):
     assert again.returncode == 0, again.stderr
     assert "already in" in again.stdout and "recorded 0 log(s)" in again.stdout
     assert os.stat(path).st_mtime_ns == stamp
+    _fits_name_their_truth(out, path, str(tmp_path))
 
 
 def test_record_all_names_what_an_arm_cannot_support(tmp_path):
@@ -128,7 +130,6 @@ def test_record_all_names_what_an_arm_cannot_support(tmp_path):
     plans, refused = campaign_plans(ctx, ("sensitivity", "gravity", "static"), skip_refused=True)
     assert "sensitivity" in refused and "stanford" in refused["sensitivity"]
     assert {p.meta["experiment"] for _, p in plans} >= {"gravity", "static"}
-    _fits_name_their_truth(out, path, str(tmp_path))
 
 
 def _fits_name_their_truth(out: str, static_log: str, tmp: str) -> None:
@@ -183,3 +184,26 @@ def test_sensitivity_at_the_adc_rail_is_named():
     assert res.trials == 1
     assert any("1 trial" in n and "unknown" in n for n in notes)
     assert any("at the rail" in n for n in notes)
+
+
+def test_other_arms_get_friction_and_sensitivity_plans_where_gravity_allows():
+    """Stanford's prismatic joint 3: a window inside its range, the axis horizontal (no work by
+    gravity), speeds in m/s, the pulley pulling the slide with m g; PUMA 560 joint 1: a window of
+    its own inside +-160 deg; joints whose centres of mass lie off the links are refused by name."""
+    from calib.experiments import check_friction_pose, friction_plans
+
+    stanford = robot_info("stanford")
+    fr = friction_plans([3], robot=stanford)[0]
+    lo, hi = fr.meta["window"]
+    assert stanford.lower[2] < lo < hi < stanford.upper[2] and hi - lo > 0.5
+    check_friction_pose(stanford, 3, lo, hi, np.array(fr.meta["pose"]))
+    assert max(fr.meta["speeds"]) < 1.0                         # m/s
+    loaded, unloaded = sensitivity_plans(None, 0.05, joints=[3], robot=stanford)
+    assert loaded.meta["load"]["radius_m"] == 1.0 and loaded.meta["load"]["mass_kg"] > 0
+    assert "radius=1.0" in loaded.simula_args[0]
+    puma560 = robot_info("puma560")
+    j1 = friction_plans([1], robot=puma560)[0]
+    assert puma560.lower[0] < j1.meta["window"][0] and j1.meta["window"][1] < puma560.upper[0]
+    for robot, j in ((puma560, 2), (puma560, 3), (stanford, 2)):
+        with pytest.raises(CalibError, match=f"no pose found for joint {j}"):
+            friction_plans([j], robot=robot)
