@@ -206,21 +206,22 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             groups = [(f"friction-j{j}", FRICTION_RATE_HZ, [v for v, _ in slow], [n for _, n in slow]),
                       (f"friction-j{j}-servo", SERVO_RATE_HZ, fast, list(fast_trips[-len(fast):]))]
         for name, rate, vs, ns in groups:
-            plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns)
+            plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns, float(vmax[j - 1]))
             plan.meta["log_set"] = [g[0] for g in groups]   # the fit warns when one is missing
             plans.append(plan)
     return plans
 
 
 def _friction_plan(name: str, rate: int, j: int, q: np.ndarray, lo: float, hi: float,
-                   speeds: list[float], trips: list[int]) -> MeasurementPlan:
+                   speeds: list[float], trips: list[int], vmax_j: float = np.inf) -> MeasurementPlan:
     segs: list[PathSegment] = []
     for v, n in zip(speeds, trips):
         segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
                            start=segs[-1].end if segs else None, dwell=0.0).segments
     meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
             "speeds": [v * DEG for v in speeds], "trips": list(trips)}
-    warm = sweep_warmup(q, j - 1, lo, hi, seconds=FRICTION_WARMUP_S, dwell=0.0)
+    warm = sweep_warmup(q, j - 1, lo, hi, speed=min(WARMUP_SPEED, 0.8 * vmax_j), seconds=FRICTION_WARMUP_S,
+                        dwell=0.0)
     return MeasurementPlan(name, Path(tuple(segs)), meta, warmup=warm, rate_hz=rate)
 
 
@@ -249,7 +250,7 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
     from calib.robot import robot_info
 
     info = robot if robot is not None else robot_info(THESIS_ARM)
-    lower, upper, _ = _robot_limits(info.name)
+    lower, upper, vmax = _robot_limits(info.name)
     plans = []
     for j in joints:
         q, _ = pose_for(robot, j, lower, upper)
@@ -273,7 +274,7 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
             tag = "loaded" if mass > 0 else "unloaded"
             args = [f"--load=pulley:joint={j},mass={mass},radius={radius_j}"] if mass > 0 else []
             return MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
-                                   warmup=sweep_warmup(q, j - 1, lo, hi))
+                                   warmup=sweep_warmup(q, j - 1, lo, hi, speed=min(WARMUP_SPEED, 0.8 * vmax[j - 1])))
 
         loaded = _carried_load(info, j, make, _default_mass(info, j, radius_j) if mass_kg is None else mass_kg,
                                radius_j, adapt=mass_kg is None, notes=notes)

@@ -107,8 +107,8 @@ def sweep_path(q: np.ndarray, joint: int, lo: float, hi: float, speeds: list[flo
     return Path(tuple(segs))
 
 
-def approach_path(here: np.ndarray, via, first: np.ndarray, accel: float) -> Path:
+def approach_path(here: np.ndarray, via, first: np.ndarray, accel: float, speed: float = 0.6) -> Path:
     """From ``here`` through the poses ``via`` to ``first`` (rad): straight joint moves at
-    0.6 rad/s with ``accel`` rad/s^2, half a second's halt at each pose."""
+    ``speed`` rad/s with ``accel`` rad/s^2, half a second's halt at each pose."""
     poses = [np.asarray(here, float), *[np.asarray(v, float) for v in via], np.asarray(first, float)]
-    return Path(tuple(PathSegment(a, b, 0.6, accel, 0.5) for a, b in zip(poses, poses[1:])))
+    return Path(tuple(PathSegment(a, b, speed, accel, 0.5) for a, b in zip(poses, poses[1:])))
