@@ -55,7 +55,9 @@ def _main(args: argparse.Namespace) -> int:
     check_seeds(args.seeds)
     seeds = [int(s) for s in args.seeds.split(",")]
     inside = total = 0
-    with tempfile.TemporaryDirectory(prefix="calib-coverage-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="calib-coverage-") as scratch:
+        tmp = args.keep or scratch
+        os.makedirs(tmp, exist_ok=True)
         for seed in seeds:
             rows = gravity_coverage(args.robot, seed, args.speed, tmp)
             ok = [abs(v - t) <= e for _, v, e, t in rows]
@@ -78,6 +80,7 @@ def add_coverage(sub: Any) -> None:
     p.add_argument("--robot", default="puma560")
     p.add_argument("--seeds", default="1,2,3,4,5", help="comma-separated simula seeds (each its own truth)")
     p.add_argument("--speed", type=float, default=20.0, help="sweep speed (deg/s), the plans' default 20")
+    p.add_argument("--keep", metavar="DIR", help="keep the truths and logs here (default: a scratch folder)")
     p.set_defaults(func=_main)
 
 

@@ -197,6 +197,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
         else:
             speeds = list(speeds_deg)
             n_trips = trips if trips is not None else 1
+            if max(speeds) * DEG > 0.9 * vmax[j - 1]:
+                raise CalibError(f"joint {j}: a sweep at {max(speeds):g} deg/s ({max(speeds) * DEG:.3f} "
+                                 f"rad/s or m/s) is over 90 % of its velocity limit {vmax[j - 1]:g}")
         n_trips = [n_trips] * len(speeds) if isinstance(n_trips, int) else list(n_trips)
         groups = [(f"friction-j{j}", FRICTION_RATE_HZ, speeds, n_trips)]
         if speeds_deg is None and trips is None and j in SERVO_RATE_JOINTS:
