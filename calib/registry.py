@@ -93,6 +93,22 @@ class RegenContext:
         """The joints to record (1-based): the options' or all."""
         return list(self.options.joints or range(1, len(self.info.lower) + 1))
 
+    def per_joint(self, kind: str, plan: Callable[[int], list]) -> list:
+        """``plan(j)`` for each joint; without --joints a joint the arm cannot support is left
+        out with its reason in ``notes`` (CalibError when none is left), with --joints refused."""
+        out, why = [], []
+        for j in self.joints():
+            try:
+                out += plan(j)
+            except CalibError as exc:
+                if self.options.joints:
+                    raise
+                why.append(str(exc))
+        if not out:
+            raise CalibError("; ".join(why))
+        self.notes += [f"{kind}: not recorded: {w}" for w in why]
+        return out
+
 
 @dataclass(frozen=True)
 class OwnSimula:

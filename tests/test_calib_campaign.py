@@ -121,15 +121,18 @@ def test_simula_options_are_honoured_and_a_campaign_resumes(truth, tmp_path):
 
 
 def test_record_all_names_what_an_arm_cannot_support(tmp_path):
-    """The Stanford arm: the kinds whose programs are the PUMA 260's are refused with the reason
-    and the others planned; with nothing planned to record the campaign says so (quick)."""
+    """The Stanford arm: the touch fixture (the PUMA 260's) is out of its reach, so kinematics is
+    refused with the reason; joint 2's sensitivity is left out by name and the others planned."""
     from calib.regen import campaign_plans
     from calib.registry import RegenContext
 
     ctx = RegenContext(str(tmp_path), str(tmp_path), 4, None, robot_info("stanford"))
-    plans, refused = campaign_plans(ctx, ("sensitivity", "gravity", "static"), skip_refused=True)
-    assert "sensitivity" in refused and "stanford" in refused["sensitivity"]
-    assert {p.meta["experiment"] for _, p in plans} >= {"gravity", "static"}
+    plans, refused = campaign_plans(ctx, ("kinematics", "sensitivity", "gravity", "static"), skip_refused=True)
+    assert set(refused) == {"kinematics"} and "reachable" in refused["kinematics"]
+    assert any(n.startswith("sensitivity: not recorded") and "joint 2" in n for n in ctx.notes)
+    names = {p.name for _, p in plans}
+    assert "sensitivity-j3-loaded" in names and "sensitivity-j2-loaded" not in names
+    assert {p.meta["experiment"] for _, p in plans} >= {"gravity", "static", "sensitivity"}
 
 
 def _fits_name_their_truth(out: str, static_log: str, tmp: str) -> None:

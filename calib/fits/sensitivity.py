@@ -62,7 +62,8 @@ def regen(ctx: RegenContext) -> list:
     from calib.experiments import sensitivity_plans
 
     o = ctx.options
-    plans = sensitivity_plans(o.mass, o.radius or RADIUS_M, ctx.joints(), robot=ctx.info, notes=ctx.notes)
+    plans = ctx.per_joint("sensitivity", lambda j: sensitivity_plans(o.mass, o.radius or RADIUS_M, [j], robot=ctx.info,
+                                                                      notes=ctx.notes))
     return ([((), p) for p in plans if not p.simula_args]
             + [(tuple(p.simula_args), p) for p in plans if p.simula_args])
 
