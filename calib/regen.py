@@ -217,8 +217,8 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
         if ok:
             shutil.rmtree(work, ignore_errors=True)
         else:
-            print(f"partial logs kept in {work} (a rerun of the same command resumes: finished logs "
-                  "are not recorded again)", flush=True)
+            print(f"stopped after {(time.monotonic() - t0) / 60:.1f} min; partial logs kept in {work} (a rerun "
+                  "of the same command resumes: finished logs are not recorded again)", flush=True)
     seconds = time.monotonic() - t0
     print(f"recorded {len(todo)} log(s) in {seconds / 60:.1f} min"
           + (f" ({len(done)} already there)" if done else ""), flush=True)
