@@ -11,7 +11,7 @@ from calib.cli_extra import add_commands
 from calib.exceptions import CalibError
 from calib.fitting import run_fit
 from calib.logs import load_trace
-from calib.params import read_params, update_params
+from calib.params import read_params, update_params, writable_params
 from calib.progress import progress
 from calib.robot import robot_info
 
@@ -29,6 +29,7 @@ def _fit_files(args: argparse.Namespace, kind) -> int:
     print(f"calib fit {kind.name}: {len(args.logs)} file(s) of robot {robot} ({how})\n")
     print(table)
     if args.params:
+        writable_params(args.params)
         _existing_params(args.params, robot)
         update_params(args.params, robot, sections, _command(), kind.name, [])
         print(f"\nwrote {args.params}")
@@ -76,6 +77,8 @@ def _fit(args: argparse.Namespace) -> int:
             os.makedirs(args.plots, exist_ok=True)
         except OSError as exc:
             raise CalibError(f"--plots {args.plots}: cannot create the folder: {exc.strerror}") from None
+    if args.params:
+        writable_params(args.params)       # before the fit: its result must not be lost
     paths = list(args.logs)
     traces = [load_trace(p, args.allow_truncated)
               for p in progress(paths, len(paths), f"reading {args.kind} logs",
@@ -97,7 +100,8 @@ def _fit(args: argparse.Namespace) -> int:
     print(f"calib fit {args.kind}: {len(traces)} log(s) of robot {robot}\n")
     print_outcome(outcome)
     if args.params:
-        update_params(args.params, robot, outcome.sections, _command(), args.kind, outcome.assumed)
+        update_params(args.params, robot, outcome.sections, _command(), args.kind, outcome.assumed,
+                      outcome.truth)
         print(f"\nwrote {args.params}" + (" (with [calib] assumed)" if outcome.assumed else ""))
     if args.plots and kind.plot:
         for path in kind.plot(outcome, args.plots, f"calib-{kind.name}-j"):

@@ -36,7 +36,8 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
             continue
         params = read_params(params_path) if os.path.exists(params_path) else None
         out = run_fit(kind, sel, info, params, assume_datafile=assume_datafile, params_name=params_path)
-        update_params(params_path, info.name, out.sections, f"calib fit {kind} ({len(sel)} logs)", kind, out.assumed)
+        update_params(params_path, info.name, out.sections, f"calib fit {kind} ({len(sel)} logs)", kind,
+                      out.assumed, out.truth)
         outcomes[kind] = out
     return {"info": info, "outcomes": outcomes, "traces": traces}
 
@@ -50,6 +51,9 @@ def _report(args: argparse.Namespace) -> int:
     if not paths:
         raise CalibError(f"no logs (*.rcilog, *.rcilog.xz, *.rcilog.gz) in {args.logs}; run `calib regen-logs`")
     out_dir = os.path.dirname(os.path.abspath(args.out))
+    if args.params:
+        from calib.params import writable_params
+        writable_params(args.params)
     with tempfile.TemporaryDirectory(prefix="calib-report-") as tmp:
         params = args.params or os.path.join(tmp, "fitted.toml")
         res = fit_all(paths, params, quiet=args.quiet, assume_datafile=args.assume_datafile)
@@ -88,6 +92,54 @@ def _regen_command(traces) -> str:
     return cmd
 
 
+#: which kinds take each option of `calib record` (any other kind refuses it: never ignored)
+OPTIONS = {"joints": ("friction", "sensitivity", "breakaway"), "mass": ("sensitivity",),
+           "radius": ("sensitivity",), "loaded": ("sensitivity",),
+           "rate": ("friction", "sensitivity", "gravity", "static"), "halts": ("static",),
+           "touches": ("kinematics",)}
+WHY_NOT = {"rate": "its rate is part of the program's design (kinematics: 250 Hz, 6 um of approach per "
+                   "cycle; breakaway: the ramp's readings)",
+           "joints": "its programs move every joint (static halts, kinematic touches) or are chosen to "
+                     "identify every coefficient together (gravity sweeps)"}
+
+
+def record_options(args: argparse.Namespace, kinds: tuple[str, ...]) -> "RecordOptions":
+    """The options given to `calib record` for ``kinds``, each checked: refused (CalibError) when
+    no kind of ``kinds`` takes it, or when a single kind does not; bad values named."""
+    from calib.registry import RecordOptions
+
+    given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) not in (None, False)}
+    for key, value in given.items():
+        takers = [k for k in kinds if k in OPTIONS[key]]
+        if not takers or (len(kinds) == 1 and kinds[0] not in OPTIONS[key]):
+            why = WHY_NOT.get(key, f"only {', '.join(OPTIONS[key])} take(s) it")
+            raise CalibError(f"calib record {args.kind}: --{key} does not apply: {why}")
+    if args.simula is not None and args.loaded:
+        raise CalibError("calib record sensitivity --simula: records the runs with and without the mass "
+                         "(on simulas with and without the pulley); --loaded is for --url, where you hang it")
+    joints = None
+    if args.joints:
+        try:
+            joints = tuple(int(j) for j in args.joints.split(","))
+        except ValueError:
+            raise CalibError(f"--joints {args.joints!r}: not comma-separated joint numbers") from None
+        n = len(robot_joints(args.robot))
+        bad = [j for j in joints if not 1 <= j <= n]
+        if bad:
+            raise CalibError(f"--joints {args.joints}: robot {args.robot} has joints 1..{n}, not {bad}")
+    for key in ("mass", "radius", "rate", "halts", "touches"):
+        v = given.get(key)
+        if v is not None and not v > 0:
+            raise CalibError(f"--{key} {v}: must be positive")
+    return RecordOptions(joints, args.mass, args.radius, args.rate, args.halts, args.touches)
+
+
+def robot_joints(robot: str) -> list[int]:
+    from calib.robot import robot_info
+
+    return list(range(1, len(robot_info(robot).lower) + 1))
+
+
 def _record(args: argparse.Namespace) -> int:
     from calib.registry import RecordRequest
     from calib.robot import robot_info
@@ -96,52 +148,69 @@ def _record(args: argparse.Namespace) -> int:
     if bool(args.url) == bool(args.simula):
         raise CalibError("calib record: give --url (a robot, or a simula you started) or --simula ARGS "
                          "(calib starts a lockstep simula with those options), not both")
-    info = robot_info(args.robot)
-    joints = [int(j) for j in args.joints.split(",")] if args.joints else list(range(1, 7))
-    os.makedirs(args.out, exist_ok=True)
+    kinds = registry.names("record_order") if args.kind == "all" else (args.kind,)
+    options = record_options(args, kinds)
     if args.simula is not None:
-        return _record_on_own_simula(args)
+        return _record_on_own_simula(args, kinds, options)
+    if args.kind == "all":
+        raise CalibError("calib record all: only with --simula (on a robot, hang the pulley's mass and "
+                         "mount the touch fixture for each kind: record the kinds one by one)")
+    info = robot_info(args.robot)
+    os.makedirs(args.out, exist_ok=True)
+    joints = list(options.joints or range(1, len(info.lower) + 1))
     request = RecordRequest(args.url, args.out, args.robot, info, joints, args,
                             {"truth": parse_against(args.against)})
     registry.kind(args.kind).record(request)
     return 0
 
 
-def _record_on_own_simula(args: argparse.Namespace) -> int:
-    """``calib record KIND --simula "ARGS"``: the logs of regen-logs' programs for KIND, on
-    lockstep simulas calib starts with ARGS (which may hold --seed and --params)."""
-    from calib.regen import record_kinematics, regen
-
-    words = shlex.split(args.simula)
+def simula_words(spec: str) -> tuple[int, str | None]:
+    """(seed, parameter file) of ``--simula "ARGS"``; any other simula option is refused (the
+    programs start the simulas they need, with the loads and fixtures they need)."""
+    words = shlex.split(spec)
     seed, params, rest = 0, None, []
     it = iter(words)
     for w in it:
-        if w == "--seed":
-            seed = int(next(it, "0"))
-        elif w.startswith("--seed="):
-            seed = int(w.split("=", 1)[1])
-        elif w == "--params":
-            params = next(it, None)
-        elif w.startswith("--params="):
-            params = w.split("=", 1)[1]
+        key, eq, val = w.partition("=")
+        if key in ("--seed", "--params"):
+            val = val if eq else next(it, None)
+            if val is None:
+                raise CalibError(f"calib record --simula: {key} needs a value")
+            if key == "--seed":
+                try:
+                    seed = int(val)
+                except ValueError:
+                    raise CalibError(f"calib record --simula: --seed {val!r} is not an integer") from None
+            else:
+                params = val
         else:
             rest.append(w)
     if rest:
         raise CalibError(f"calib record --simula: only --seed and --params are passed on (the "
                          f"programs start the simulas they need); not {' '.join(rest)!r}")
-    if args.kind == "kinematics":
-        path = os.path.join(args.out, "kinematics.rcilog")
-        n = record_kinematics(path, seed, params, touches_per_face=max(1, args.touches // 3), robot=args.robot)
-        print(f"kinematics: {n} records -> {path}")
-        return 0
-    regen(args.out, seed, (args.kind,), params, robot=args.robot)
+    return seed, params
+
+
+def _record_on_own_simula(args: argparse.Namespace, kinds: tuple[str, ...], options) -> int:
+    """``calib record KIND|all --simula "ARGS"``: regen-logs' programs for the kinds, on lockstep
+    simulas calib starts with ARGS (--seed, --params), into --out as .rcilog.xz; logs already
+    there are not recorded again unless --fresh; ``all`` leaves out, with the reason, a kind
+    the arm cannot support."""
+    from calib.regen import check_truth_file, regen
+
+    seed, params = simula_words(args.simula)
+    if params:
+        check_truth_file(params, args.robot)
+    regen(args.out, seed, kinds, params, quiet=args.quiet, robot=args.robot, options=options,
+          skip_refused=args.kind == "all", resume=not args.fresh)
     return 0
 
 
 def add_commands(sub: Any) -> None:
     """Register record / regen-logs / report on the `calib` parser (``sub``: its subparsers)."""
     rec = sub.add_parser("record", help="run a measurement program against a robot or simula and log it")
-    rec.add_argument("kind", choices=registry.names())
+    rec.add_argument("kind", choices=registry.names() + ("all",),
+                     help="one kind, or all (with --simula: the whole campaign, resumable)")
     rec.add_argument("--url", help="robot link, e.g. socket://127.0.0.1:7600 (simula's default) or /dev/ttyUSB0")
     rec.add_argument("--against", default="robot", metavar="TRUTH",
                      help="with --url, what the log says it was recorded against: 'robot' (default: no "
@@ -157,12 +226,15 @@ def add_commands(sub: Any) -> None:
     rec.add_argument("--joints", help="comma-separated joints (default all)")
     rec.add_argument("--mass", type=float, default=None,
                      help="pulley mass (kg), sensitivity (default 4 kg on joints 1-3, 1 kg on 4-6)")
-    rec.add_argument("--radius", type=float, default=0.05, help="pulley drum radius (m), sensitivity")
+    rec.add_argument("--radius", type=float, default=None, help="pulley drum radius (m), sensitivity (default 0.05)")
     rec.add_argument("--loaded", action="store_true",
                      help="sensitivity: the mass hangs on the pulley (else the unloaded runs)")
-    rec.add_argument("--halts", type=int, default=275, help="static: number of random halts")
-    rec.add_argument("--touches", type=int, default=48,
-                     help="kinematics: touches in all (spread over the fixture's three faces)")
+    rec.add_argument("--halts", type=int, default=None, help="static: number of random halts (default 275)")
+    rec.add_argument("--touches", type=int, default=None,
+                     help="kinematics: touches in all, spread over the fixture's three faces (default 48)")
+    rec.add_argument("--fresh", action="store_true",
+                     help="with --simula: record every log again, even those already in --out")
+    rec.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     rec.set_defaults(func=_record)
     rep = sub.add_parser("report", help="fit the shipped logs and write reports/calibration.md")
     rep.add_argument("--logs", default=LOG_DIR, metavar="DIR", help=f"folder of the logs to fit (default {LOG_DIR})")
@@ -176,3 +248,7 @@ def add_commands(sub: Any) -> None:
     rep.set_defaults(func=_report)
     from calib.regen import add_regen
     add_regen(sub)
+    from calib.coverage import add_coverage
+    add_coverage(sub)
+    from calib.hidden_truth import add_hidden_truth
+    add_hidden_truth(sub)

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from calib.friction_poses import check_friction_pose, friction_pose
 from calib.paths import Path, PathSegment, sweep_path
 from calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
                          table_4_7_identifies)
@@ -80,6 +81,9 @@ class MeasurementPlan:
     simula_args: list[str] = field(default_factory=list)
     warmup: Path | None = None
     rate_hz: int = 36
+    # poses the approach passes through on its way to the first setpoint (calib.headroom
+    # chooses them where the straight joint move would ask a motor for too much current)
+    via: tuple[np.ndarray, ...] = ()
 
 
 WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)
@@ -128,26 +132,27 @@ def _robot_limits(robot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)
 
 
-def check_friction_pose(info, joint: int, lo: float, hi: float, q: np.ndarray, points: int = 61) -> None:
-    """Refuse (CalibError) a friction window of ``joint`` (1-based) over which gravity does work
-    on the arm of ``info`` (calib.robot.RobotInfo), judged by its regressor: the mean of every
-    column of the joint's row over [lo, hi] must vanish (4.5.4), whatever the coefficients.
-    FRICTION_POSES were chosen on the PUMA 260; another arm needs poses of its own."""
+def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, float]:
+    """(pose rad, half window rad) of joint ``j``'s friction sweeps on the arm of ``robot``
+    (calib.robot.RobotInfo; None: the thesis's): FRICTION_POSES where they serve it (gravity
+    does no work over the window, and the window with its turns fits the range), else
+    calib.friction_poses.friction_pose's; CalibError when neither does."""
     from calib.exceptions import CalibError
 
-    th = np.linspace(lo, hi, points)
-    rows = []
-    for x in th:
-        qq = q.copy()
-        qq[joint - 1] = x
-        rows.append(np.asarray(info.regressor(qq))[joint - 1])
-    mean = np.abs(np.trapezoid(np.array(rows), th, axis=0) / (hi - lo))
-    if mean.max() > 1e-9:
-        names = ", ".join(n for n, m in zip(info.gravity_names, mean) if m > 1e-9)
-        raise CalibError(f"robot {info.name}: gravity does work on joint {joint} over its friction window "
-                         f"[{np.degrees(lo):.0f}, {np.degrees(hi):.0f}] deg at the pose "
-                         f"{np.round(np.degrees(q), 1).tolist()} deg (through {names}); the friction poses "
-                         f"(calib.experiments.FRICTION_POSES) are the {THESIS_ARM}'s, this arm needs its own")
+    qdeg, half = FRICTION_POSES[j]
+    q = np.array(qdeg, float) * DEG
+    if robot is None:
+        return q, half * DEG
+    try:
+        check_friction_pose(robot, j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, q)
+        friction_top_speed(j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, lower, upper, np.full(len(q), 1.0))
+        return q, half * DEG
+    except (CalibError, ValueError):
+        found = friction_pose(robot, j)
+    if found is None:
+        raise CalibError(f"robot {robot.name}: no pose found for joint {j}'s friction window over which "
+                         "gravity does no work (calib.friction_poses)")
+    return found
 
 
 def friction_plans(joints=range(1, 7), speeds_deg=None,
@@ -171,11 +176,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
     lower, upper, vmax = _robot_limits(THESIS_ARM if robot is None else robot.name)
     plans = []
     for j in joints:
-        qdeg, half = FRICTION_POSES[j]
-        q = np.array(qdeg, float) * DEG
-        lo, hi = q[j - 1] - half * DEG, q[j - 1] + half * DEG
-        if robot is not None:
-            check_friction_pose(robot, j, lo, hi, q)
+        q, half_rad = pose_for(robot, j, lower, upper)
+        half = half_rad / DEG
+        lo, hi = q[j - 1] - half_rad, q[j - 1] + half_rad
         if speeds_deg is None:
             try:
                 top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
@@ -194,6 +197,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
         else:
             speeds = list(speeds_deg)
             n_trips = trips if trips is not None else 1
+            if max(speeds) * DEG > 0.9 * vmax[j - 1]:
+                raise CalibError(f"joint {j}: a sweep at {max(speeds):g} deg/s ({max(speeds) * DEG:.3f} "
+                                 f"rad/s or m/s) is over 90 % of its velocity limit {vmax[j - 1]:g}")
         n_trips = [n_trips] * len(speeds) if isinstance(n_trips, int) else list(n_trips)
         groups = [(f"friction-j{j}", FRICTION_RATE_HZ, speeds, n_trips)]
         if speeds_deg is None and trips is None and j in SERVO_RATE_JOINTS:
@@ -203,21 +209,22 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             groups = [(f"friction-j{j}", FRICTION_RATE_HZ, [v for v, _ in slow], [n for _, n in slow]),
                       (f"friction-j{j}-servo", SERVO_RATE_HZ, fast, list(fast_trips[-len(fast):]))]
         for name, rate, vs, ns in groups:
-            plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns)
+            plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns, float(vmax[j - 1]))
             plan.meta["log_set"] = [g[0] for g in groups]   # the fit warns when one is missing
             plans.append(plan)
     return plans
 
 
 def _friction_plan(name: str, rate: int, j: int, q: np.ndarray, lo: float, hi: float,
-                   speeds: list[float], trips: list[int]) -> MeasurementPlan:
+                   speeds: list[float], trips: list[int], vmax_j: float = np.inf) -> MeasurementPlan:
     segs: list[PathSegment] = []
     for v, n in zip(speeds, trips):
         segs += sweep_path(q, j - 1, lo, hi, [v * DEG], n, SWEEP_ACCEL,
                            start=segs[-1].end if segs else None, dwell=0.0).segments
     meta = {"experiment": "friction", "joint": j, "window": [lo, hi], "pose": list(q),
             "speeds": [v * DEG for v in speeds], "trips": list(trips)}
-    warm = sweep_warmup(q, j - 1, lo, hi, seconds=FRICTION_WARMUP_S, dwell=0.0)
+    warm = sweep_warmup(q, j - 1, lo, hi, speed=min(WARMUP_SPEED, 0.8 * vmax_j), seconds=FRICTION_WARMUP_S,
+                        dwell=0.0)
     return MeasurementPlan(name, Path(tuple(segs)), meta, warmup=warm, rate_hz=rate)
 
 
@@ -229,41 +236,119 @@ SENSITIVITY_MASS = {1: 4.0, 2: 4.0, 3: 4.0, 4: 1.0, 5: 1.0, 6: 1.0}
 
 def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7),
                       speeds_deg=(15, 30), trips: int = 3, arc_deg: float = 60.0,
-                      robot=None) -> list[MeasurementPlan]:
+                      robot=None, notes: list[str] | None = None) -> list[MeasurementPlan]:
     """4.5.2: the same arc with the pulley's mass and without it (two simula runs).
 
     The pulley is a simula load option (``--load pulley:...``); its string winds on a
     drum on the joint axis, and the mass rises as the joint angle increases (sign +1).
-    ``mass_kg`` None takes SENSITIVITY_MASS. The arcs start from the friction poses (the
-    thesis arm's); ``robot`` (calib.robot.RobotInfo, None: the thesis's arm) has them checked
-    against its joint ranges.
+    ``mass_kg`` None takes SENSITIVITY_MASS, made smaller where the arm could not carry it
+    (calib.headroom: the motors' current limits, with margins for a truth whose sensitivity,
+    friction and gravity are not the data file's, from the ``ready`` pose a fresh arm
+    stands in); each such change is appended to ``notes`` and kept in the log's metadata
+    (``load_note``). A ``mass_kg`` given that the arm could not carry is refused. The arcs
+    start from the friction poses (the thesis arm's); ``robot`` (calib.robot.RobotInfo,
+    None: the thesis's arm) has them checked against its joint ranges.
     """
     from calib.exceptions import CalibError
+    from calib.robot import robot_info
 
-    lower, upper, _ = _robot_limits(THESIS_ARM if robot is None else robot.name)
+    info = robot if robot is not None else robot_info(THESIS_ARM)
+    lower, upper, vmax = _robot_limits(info.name)
     plans = []
     for j in joints:
-        mass_j = SENSITIVITY_MASS[j] if mass_kg is None else mass_kg
-        qdeg, _ = FRICTION_POSES[j]
-        q = np.array(qdeg, float) * DEG
-        lo, hi = q[j - 1] - arc_deg / 2 * DEG, q[j - 1] + arc_deg / 2 * DEG
+        q, _ = pose_for(robot, j, lower, upper)
+        prismatic = info.kinds[j - 1] == "prismatic"
+        # a prismatic joint: a 0.2 m stroke, the string over a pulley fixed to the base pulls
+        # the slide with the mass's weight (radius 1: the load's "torque" m g r is m g newtons)
+        half = 0.1 if prismatic else arc_deg / 2 * DEG
+        radius_j = 1.0 if prismatic else radius_m
+        lo, hi = q[j - 1] - half, q[j - 1] + half
         ends = np.tile(q, (2, 1))
         ends[:, j - 1] = lo - 4 * DEG, hi + 4 * DEG
         if np.any(ends < lower) or np.any(ends > upper):
-            arm = THESIS_ARM if robot is None else robot.name
-            raise CalibError(f"robot {arm}: the sensitivity arc of joint {j} from the friction pose "
-                             f"{list(qdeg)} deg leaves the joint ranges (calib.experiments.FRICTION_POSES "
-                             f"are the {THESIS_ARM}'s)")
-        for mass in (mass_j, 0.0):
+            raise CalibError(f"robot {info.name}: the sensitivity arc of joint {j} from its friction pose "
+                             f"{np.round(np.degrees(q), 1).tolist()} deg leaves the joint ranges")
+
+        def make(mass: float) -> MeasurementPlan:
             path = sweep_path(q, j - 1, lo, hi, [v * DEG for v in speeds_deg], trips, ACCEL)
             meta = {"experiment": "sensitivity", "joint": j, "window": [lo, hi], "pose": list(q),
-                    "load": {"mass_kg": mass, "radius_m": radius_m, "sign": 1},
+                    "load": {"mass_kg": mass, "radius_m": radius_j, "sign": 1},
                     "log_set": [f"sensitivity-j{j}-loaded", f"sensitivity-j{j}-unloaded"]}
             tag = "loaded" if mass > 0 else "unloaded"
-            args = [f"--load=pulley:joint={j},mass={mass},radius={radius_m}"] if mass > 0 else []
-            plans.append(MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
-                              warmup=sweep_warmup(q, j - 1, lo, hi)))
+            args = [f"--load=pulley:joint={j},mass={mass},radius={radius_j}"] if mass > 0 else []
+            return MeasurementPlan(f"sensitivity-j{j}-{tag}", path, meta, args,
+                                   warmup=sweep_warmup(q, j - 1, lo, hi, speed=min(WARMUP_SPEED, 0.8 * vmax[j - 1])))
+
+        loaded = _carried_load(info, j, make, _default_mass(info, j, radius_j) if mass_kg is None else mass_kg,
+                               radius_j, adapt=mass_kg is None, notes=notes)
+        plans += [loaded, make(0.0)]
     return plans
+
+
+def _default_mass(info, j: int, radius: float) -> float:
+    """SENSITIVITY_MASS on the thesis's arm; on another, the mass whose load m g r is half the
+    joint's data-file friction (kg, to 0.1 kg, at least 0.2 kg)."""
+    from calib.sensitivity import GRAVITY
+
+    if info.name == THESIS_ARM:
+        return SENSITIVITY_MASS[j]
+    fr = info.nominal["friction"]
+    friction = 0.5 * (fr["coulomb_pos"]["values"][j - 1] + fr["coulomb_neg"]["values"][j - 1])
+    return max(0.2, round(0.5 * friction / (GRAVITY * radius), 1))
+
+
+SENSITIVITY_MASS_STEPS = (1.0, 0.8, 0.64, 0.5, 0.4, 0.32, 0.25)   # of the default mass, tried in turn
+MIN_LOAD_OF_FRICTION = 0.2   # the load torque m g r must be at least this share of the joint's friction
+
+
+def _carried_load(info, j: int, make, mass: float, radius_m: float, adapt: bool,
+                  notes: list[str] | None) -> MeasurementPlan:
+    """The loaded plan of joint ``j`` with the largest mass (``mass`` times a step of
+    SENSITIVITY_MASS_STEPS; only ``mass`` itself unless ``adapt``) that calib.headroom says
+    the arm carries from its ready pose; CalibError naming the motor and currents if none."""
+    from calib.exceptions import CalibError
+    from calib.headroom import approach_routes, plan_setpoints, start_pose, worst
+    from calib.sensitivity import GRAVITY
+
+    fr = info.nominal["friction"]
+    friction = 0.5 * (fr["coulomb_pos"]["values"][j - 1] + fr["coulomb_neg"]["values"][j - 1])
+    first = None
+    for step in SENSITIVITY_MASS_STEPS if adapt else (1.0,):
+        m = round(mass * step, 3)
+        if adapt and m * GRAVITY * radius_m < MIN_LOAD_OF_FRICTION * friction:
+            break
+        plan = make(m)
+        load = np.zeros(len(info.lower))
+        load[j - 1] = -m * GRAVITY * radius_m          # simula: -sign m g r on the joint
+        here = start_pose(info.name)
+        start = plan.warmup.segments[0].start if plan.warmup is not None else plan.path.segments[0].start
+        tried = []
+        for via in approach_routes(here, start):
+            plan.via = via
+            tried.append((worst(info, plan_setpoints(plan, here, ACCEL), plan.rate_hz, load), via))
+        # the straight approach when it is carried (as recorded in the shipped logs), else the best
+        head, plan.via = tried[0] if tried[0][0].ok else min(tried, key=lambda hv: hv[0].current / hv[0].limit)
+        first = first or tried[0][0]
+        if head.ok:
+            said = []
+            if plan.via:
+                said.append(f"the approach from the ready pose goes by {np.round(np.degrees(plan.via[0]), 1).tolist()} "
+                            "deg")
+            if step < 1.0:
+                said.append(f"recording with {m:g} kg")
+            if said:
+                note = (f"sensitivity-j{j}-loaded: {mass:g} kg on the straight approach is not carried "
+                        f"({first.describe()}); " + " and ".join(said) + " (calib.headroom)")
+                plan.meta["load_note"] = note
+                if notes is not None:
+                    notes.append(note)
+            return plan
+    why = (first.describe() if first is not None else
+           f"its load m g r = {mass * GRAVITY * radius_m:.2f} N m is under {100 * MIN_LOAD_OF_FRICTION:.0f} % of "
+           f"the joint's friction ({friction:.2f} N m), too small to stand out of it: give a larger --mass or --radius")
+    raise CalibError(f"robot {info.name}: sensitivity-j{j}-loaded with {mass:g} kg on a {radius_m:g} m drum: "
+                     f"{why}" + ("; no smaller mass whose load stands out of the joint's friction is carried "
+                                 "either" if adapt else "; give a smaller --mass"))
 
 
 GRAVITY_TURN_ACCEL = 6.0  # rad/s^2 at the turns of the sweeps chosen by the regressor: short

@@ -42,6 +42,7 @@ class FitOutcome:
     extra: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     assumed: list[str] = field(default_factory=list)
+    truth: str = ""        # what its logs were recorded against (calib.truth.truth_label), for [calib]
 
 
 class Inputs:
@@ -49,10 +50,24 @@ class Inputs:
     above; ``assumed`` lists what came from the data file instead."""
 
     def __init__(self, info: RobotInfo, params: dict | None, kind: str, assume_datafile: bool,
-                 params_name: str | None, logs: str) -> None:
+                 params_name: str | None, logs: str, folder: str = ".", truth: str = "") -> None:
         self.info, self.params, self.kind = info, params or {}, kind
         self.assume, self.params_name, self.logs = assume_datafile, params_name, logs
+        self.folder, self.truth = folder, truth
         self.assumed: list[str] = []
+        self.mixed: list[str] = []     # inputs fitted on logs of another truth than this fit's
+
+    def _same_truth(self, provider: str, what: str) -> None:
+        """Note when ``what`` comes from a fit (``provider``) whose logs were recorded against
+        another truth than this fit's: the values are another arm's (or another simula's)."""
+        theirs = self.params.get("calib", {}).get(f"truth_{provider}")
+        if theirs is None or not self.truth or theirs == self.truth:
+            return
+        note = (f"{what} in {self.params_name} were fitted on logs recorded against {theirs}, "
+                f"these logs against {self.truth}: the result mixes two truths (refit {provider} "
+                "on logs of this truth)")
+        if note not in self.mixed:
+            self.mixed.append(note)
 
     def _missing(self, what: str, which: str) -> CalibError:
         src = (f"the parameter file {self.params_name} does not hold them" if self.params_name
@@ -60,7 +75,9 @@ class Inputs:
         fit = PROVIDER[what]
         return CalibError(
             f"calib fit {self.kind} needs the fitted {which}, and {src}. Fit them "
-            f"first:\n    calib fit {fit} calib/logs/{fit}-*.rcilog.xz -p {self.params_name or 'fitted.toml'}\n"
+            f"first from logs recorded against the same arm as these (the same robot, or the same "
+            f"simula truth and seed), e.g.:\n    calib fit {fit} {os.path.join(self.folder, fit + '-*.rcilog*')} "
+            f"-p {self.params_name or 'fitted.toml'}\n"
             f"then run this fit with the same -p; or pass --assume-datafile to use the robot data "
             f"file's values (models/{self.info.name}.toml, the thesis's tables), which the output "
             "and the parameter file will then say were assumed")
@@ -80,6 +97,8 @@ class Inputs:
             self.assumed.append(f"{self.kind}: torque sensitivity of motor(s) {names} = "
                                 + ", ".join(f"{nominal[m]:.4f}" for m in gap)
                                 + f" N m/A, Table 4.1 from models/{self.info.name}.toml")
+        if len(gap) < len(need):
+            self._same_truth("sensitivity", "the torque sensitivities")
         # motors that load none of the fitted joints do not enter: any finite stand-in
         return np.where(np.isfinite(sigma), sigma, nominal)
 
@@ -110,6 +129,7 @@ class Inputs:
         kin = self.params.get("kinematics", {})
         if "dtheta" not in kin:
             return self.info.regressor
+        self._same_truth("kinematics", "the joint offsets (d theta of [kinematics])")
         offset = np.nan_to_num(np.asarray(kin["dtheta"], dtype=float))
         reg = self.info.regressor
         return lambda q: reg(np.asarray(q, dtype=float) + offset)
@@ -127,6 +147,8 @@ class Inputs:
         got = self.params.get("gravity_coeffs", {})
         vals = np.array([float(got.get(n, np.nan)) for n in names])
         gap = [n for n, v in zip(names, vals) if not np.isfinite(v)]
+        if len(gap) < len(names):
+            self._same_truth("gravity", "the gravity coefficients")
         if gap:
             if not self.assume:
                 raise self._missing("gravity", f"gravity loading coefficients {', '.join(gap)} (Table 4.9)")
@@ -167,11 +189,19 @@ def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None
             assume_datafile: bool = False, params_name: str | None = None) -> FitOutcome:
     """Fit ``kind`` (a name in calib.registry) on ``traces``; inputs from ``params`` (see the
     module docstring)."""
+    from calib.truth import truth_label
+
     fit_kind = registry.kind(kind)
     logs = " ".join(os.path.basename(t.path) for t in traces)
-    inputs = Inputs(info, params, kind, assume_datafile, params_name, logs)
+    labels = sorted({truth_label(t) for t in traces})
+    folders = sorted({os.path.dirname(t.path) or "." for t in traces})
+    inputs = Inputs(info, params, kind, assume_datafile, params_name, logs, folders[0], "; ".join(labels))
     notes = log_set_notes(traces)
+    if len(labels) > 1:
+        notes.append(f"the {kind} logs were recorded against different truths ({'; '.join(labels)}): "
+                     "one fit combines them")
     out = fit_kind.fit(traces, info, params or {}, inputs, notes)
-    out.notes = notes + out.notes
+    out.notes = notes + inputs.mixed + out.notes
     out.assumed = inputs.assumed
+    out.truth = inputs.truth
     return out

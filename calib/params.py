@@ -33,8 +33,14 @@ def read_params(path: str) -> dict[str, Any]:
 
 
 def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any]],
-                  command: str, kind: str | None = None, assumed: list[str] | None = None) -> dict[str, Any]:
+                  command: str, kind: str | None = None, assumed: list[str] | None = None,
+                  truth: str = "") -> dict[str, Any]:
     """Merge ``sections`` into the file at ``path`` (created if absent), atomically.
+
+    ``[calib] truth_KIND`` says what the logs of fit ``kind`` were recorded against
+    (calib.truth.truth_label: the robot, or the simula's seed and parameter file with its
+    hash), so that every value's origin is in the file and a later fit that takes it as an
+    input can warn when its own logs are of another truth (calib.fitting.Inputs).
 
     ``[calib] assumed`` lists the values fits took from the robot data file instead of an
     earlier fit (``--assume-datafile``); the entries of fit ``kind`` are replaced by
@@ -57,6 +63,8 @@ def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any
         data["calib"]["assumed"] = kept + list(assumed or [])
         if not data["calib"]["assumed"]:
             del data["calib"]["assumed"]
+    if kind is not None and truth:
+        data["calib"][f"truth_{kind}"] = truth
     for name, body in sections.items():
         data[name] = dict(body)
     head = ("# Calibration parameters fitted by `calib` (docs/calib.md); rebuilt by the\n"
@@ -68,6 +76,18 @@ def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any
     text = head + "\n" + dumps(data)
     atomic_write(path, text)
     return data
+
+
+def writable_params(path: str) -> None:
+    """Refuse (CalibError) a parameter file calib could not write: its folder missing or not
+    writable, or the path a folder; checked before a fit so that its result is not lost."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise CalibError(f"-p {path}: is a folder, not a parameter file")
+    if not os.path.isdir(folder):
+        raise CalibError(f"-p {path}: the folder {folder} does not exist; create it first (nothing was fitted)")
+    if not os.access(folder, os.W_OK):
+        raise CalibError(f"-p {path}: the folder {folder} is not writable (nothing was fitted)")
 
 
 def atomic_write(path: str, text: str) -> None:

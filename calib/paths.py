@@ -105,3 +105,10 @@ def sweep_path(q: np.ndarray, joint: int, lo: float, hi: float, speeds: list[flo
             segs.append(PathSegment(low, high, v, accel, dwell))
             segs.append(PathSegment(high, low, v, accel, dwell))
     return Path(tuple(segs))
+
+
+def approach_path(here: np.ndarray, via, first: np.ndarray, accel: float, speed: float = 0.6) -> Path:
+    """From ``here`` through the poses ``via`` to ``first`` (rad): straight joint moves at
+    ``speed`` rad/s with ``accel`` rad/s^2, half a second's halt at each pose."""
+    poses = [np.asarray(here, float), *[np.asarray(v, float) for v in via], np.asarray(first, float)]
+    return Path(tuple(PathSegment(a, b, speed, accel, 0.5) for a, b in zip(poses, poses[1:])))

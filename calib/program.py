@@ -15,7 +15,7 @@ import numpy as np
 
 from calib.exceptions import CalibError
 from calib.experiments import ACCEL, MeasurementPlan
-from calib.paths import Path, PathSegment
+from calib.paths import Path, PathSegment, approach_path
 from rci import codes
 from rci.conversions import Conversions
 from rci.exceptions import RCIError
@@ -70,6 +70,14 @@ def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, n
         rec.close()
 
 
+def approach_speed(robot: str) -> float:
+    """Speed (rad/s or m/s, of the joint that moves most) of the moves to a plan's start: 0.6, or
+    80 % of the slowest joint's limit where that is less (the Stanford arm's 0.5 m/s slide)."""
+    from models import load_robot
+
+    return float(min(0.6, 0.8 * min(load_robot(robot).max_velocity)))
+
+
 def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
     """POS commands for every joint: the angles ``q`` (rad) in whole encoder counts."""
     conv.command_positions(session.chg, q)
@@ -85,6 +93,7 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
     pass None for the session's default of two periods when driving a real arm.
     """
     conv = Conversions.for_robot(robot)
+    speed = approach_speed(robot)
     body = plan.path.sample(rate_hz)
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
@@ -100,8 +109,8 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
             parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
             first = parts[0][0] if parts else body[0]
             last = parts[0][-1] if parts else first
-            approach = Path((PathSegment(here, first, 0.6, ACCEL, 0.5),)).sample(rate_hz)
-            settle = Path((PathSegment(last, body[0], 0.6, ACCEL, 0.5),)).sample(rate_hz)
+            approach = approach_path(here, plan.via, first, ACCEL, speed).sample(rate_hz)
+            settle = Path((PathSegment(last, body[0], speed, ACCEL, 0.5),)).sample(rate_hz)
             lead = np.vstack([approach, *parts, settle])
             state["setpoints"] = np.vstack([lead, body])
             state["recording_from"] = len(lead)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TextIO, TypeVar
 
 from rich.console import Console
@@ -24,8 +24,10 @@ def wanted(stream: TextIO | None = None) -> bool:
 
 
 def progress(items: Iterable[T], total: int, label: str, enabled: bool | None = None,
-             stream: TextIO | None = None) -> Iterator[T]:
-    """Yield ``items`` while a bar ``label ━━━━  k/total  elapsed`` advances on ``stream``.
+             stream: TextIO | None = None, name: Callable[[T], str] | None = None) -> Iterator[T]:
+    """Yield ``items`` while a bar ``label ━━━━  k/total  elapsed`` advances on ``stream``;
+    with ``name``, the label says which item is in hand (``label: name(item)``), so a long
+    item (a recording of minutes) shows what is running while its elapsed time counts.
 
     ``enabled=None`` decides with :func:`wanted`; ``False`` (``-q``) never draws.
     """
@@ -34,10 +36,14 @@ def progress(items: Iterable[T], total: int, label: str, enabled: bool | None = 
     if not on:
         yield from items
         return
-    console = Console(file=out, force_terminal=bool(enabled))
+    # drawn only when wanted (a terminal, or enabled=True): rich must then treat ``out`` as
+    # one, whatever its own detection says (force_terminal=False would hide the bar)
+    console = Console(file=out, force_terminal=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task(label, total=total)
         for item in items:
+            if name is not None:
+                bar.update(task, description=f"{label}: {name(item)}")
             yield item
             bar.advance(task)

@@ -27,7 +27,7 @@ from calib.exceptions import CalibError
 from calib.experiments import MeasurementPlan
 from calib.logs import LOG_DIR
 from calib.program import run_plan
-from calib.registry import RegenContext
+from calib.registry import OwnSimula, RecordOptions, RegenContext
 from calib.robot import robot_info
 from calib.truth import truth_meta
 
@@ -56,12 +56,17 @@ def _simula_args(params: str | None, extra: list[str]) -> list[str]:
 
 
 def _run(url: str, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None,
-         robot: str) -> None:
+         robot: str, rate: int | None = None) -> None:
     t0 = time.monotonic()
     raw = os.path.join(work, plan.name + ".rcilog")
-    info = run_plan(url, plan, raw, robot, rate_hz=plan.rate_hz,
+    info = run_plan(url, plan, raw, robot, rate_hz=rate or plan.rate_hz,
                     extra_meta={"truth": truth_meta(seed, params, _simula_args(params, plan.simula_args))})
     _report_log(plan.name, info.records, _store(raw, out_dir), t0)
+
+
+def finished(out_dir: str, name: str) -> bool:
+    """True when the log ``name`` is recorded in ``out_dir`` (its .xz is written last, by rename)."""
+    return os.path.exists(os.path.join(out_dir, name + ".rcilog.xz"))
 
 
 class _Simula:
@@ -77,30 +82,36 @@ class _Simula:
                                           lockstep=True, seed=seed)
         self.sim = self.make().start()
 
-    def run(self, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None) -> None:
+    def run(self, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None,
+            rate: int | None = None) -> None:
         try:
-            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot)
+            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot, rate)
         except CalibError as exc:
             if self.sim.proc is None or self.sim.proc.poll() is None:
                 raise                                    # simula is alive: a real error
             print(f"{plan.name}: simula exited ({exc}); starting it again", flush=True)
             self.sim.stop()
             self.sim = self.make().start()
-            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot)
+            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot, rate)
 
     def stop(self) -> None:
         self.sim.stop()
 
 
 def record_breakaway(ctx: RegenContext) -> None:
-    """Table 4.5's breakaway ramps, every joint, on a fresh lockstep simula."""
+    """Table 4.5's breakaway ramps of the context's joints on a fresh lockstep simula (the
+    ramps already recorded in its folder are not recorded again)."""
     from calib.breakaway_program import breakaway_plans, run_breakaway
     from rci.simula.process import SimulaProcess
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
     args = _simula_args(ctx.params, [])
+    todo = [p for p in breakaway_plans(static, ctx.info.drive.G, ctx.joints())
+            if not (ctx.resume and finished(ctx.out_dir, p.name))]
+    if not todo:
+        return
     with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
-        for plan in breakaway_plans(static, ctx.info.drive.G):
+        for plan in todo:
             t0 = time.monotonic()
             raw = os.path.join(ctx.work, plan.name + ".rcilog")
             n = run_breakaway(sim.url, plan, raw, ctx.info.name, extra_meta={"truth": truth_meta(ctx.seed, ctx.params, args)})
@@ -124,44 +135,107 @@ def record_kinematics(out_path: str, seed: int, params: str | None,
 
 
 def record_kinematics_log(ctx: RegenContext) -> None:
-    """The shipped kinematics log: :func:`record_kinematics`, compressed into ``ctx.out_dir``."""
+    """The shipped kinematics log: :func:`record_kinematics`, compressed into ``ctx.out_dir``
+    (``ctx.options.touches`` in all, spread over the fixture's three faces)."""
     t0 = time.monotonic()
     raw = os.path.join(ctx.work, "kinematics.rcilog")
-    n = record_kinematics(raw, ctx.seed, ctx.params, robot=ctx.info.name)
+    touches = ctx.options.touches
+    n = record_kinematics(raw, ctx.seed, ctx.params, robot=ctx.info.name,
+                          touches_per_face=KINEMATIC_TOUCHES if touches is None else max(1, touches // 3))
     _report_log("kinematics", n, _store(raw, ctx.out_dir), t0)
 
 
+def campaign_plans(ctx: RegenContext, kinds: tuple[str, ...], skip_refused: bool = False
+                   ) -> tuple[list[tuple[tuple[str, ...], Any]], dict[str, str]]:
+    """Every program of ``kinds`` in record_order, as (simula args, plan or OwnSimula), and the
+    kinds refused with the reason (only with ``skip_refused``: else the refusal is raised)."""
+    plans: list[tuple[tuple[str, ...], Any]] = []
+    refused: dict[str, str] = {}
+    for kind in registry.kinds("record_order"):
+        if kind.name not in kinds:
+            continue
+        try:
+            plans += kind.regen(ctx)
+        except CalibError as exc:
+            if not skip_refused:
+                raise
+            refused[kind.name] = str(exc)
+    return plans, refused
+
+
 def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = None,
-          quiet: bool = False, robot: str = "puma260") -> None:
+          quiet: bool = False, robot: str = "puma260", options: RecordOptions | None = None,
+          skip_refused: bool = False, resume: bool = False) -> dict[str, Any]:
     """Record every log of ``kinds`` of ``robot`` (default the thesis's arm) into ``out_dir``
-    (against simula with ``params``); a progress bar over the simula programs unless ``quiet``
-    (calib.progress)."""
+    (against simula with ``params``), with a progress bar naming the program in hand unless
+    ``quiet`` (calib.progress). With ``resume``, logs already in ``out_dir`` are not recorded
+    again (a campaign resumes after an interruption). Every program is planned before the first is recorded, so a
+    refusal costs no recording; with ``skip_refused`` a kind the arm cannot support is left out
+    and its reason returned. On an error the raw logs of ``out_dir/.work`` are kept (the error
+    names the partial log). Returns {"recorded": names, "skipped": names, "refused": {kind:
+    reason}, "notes": [...], "seconds": wall time}."""
     from calib.progress import progress
 
+    t0 = time.monotonic()
     info = robot_info(robot)
     os.makedirs(out_dir, exist_ok=True)
     work = os.path.join(out_dir, ".work")
     os.makedirs(work, exist_ok=True)
-    ctx = RegenContext(out_dir, work, seed, params, info)
-    plans: list[tuple[tuple[str, ...], MeasurementPlan]] = []
+    ctx = RegenContext(out_dir, work, seed, params, info, options or RecordOptions(), resume=resume)
+    plans, refused = campaign_plans(ctx, kinds, skip_refused)
+    for kind, why in refused.items():
+        print(f"{kind}: not recorded on {robot}: {why}", flush=True)
+    for note in ctx.notes:
+        print(f"note: {note}", flush=True)
+    def recorded(plan) -> bool:
+        names = plan.log_names() if isinstance(plan, OwnSimula) else (plan.name,)
+        return resume and all(finished(out_dir, n) for n in names)
+
+    done = [p.name for _, p in plans if recorded(p)]
+    todo = [(a, p) for a, p in plans if not recorded(p)]
+    if done:
+        print(f"{len(done)} log(s) already in {out_dir}, not recorded again: {', '.join(done)}", flush=True)
     sims: dict[tuple[str, ...], _Simula] = {}
+    ok = False
     try:
-        # in record_order: kinds on simulas of their own record as they are asked; the
-        # others' plans then run in that order on simulas shared by their options
-        for kind in registry.kinds("record_order"):
-            if kind.name in kinds:
-                plans += kind.regen(ctx)
-        for args, plan in progress(plans, len(plans), "recording logs", enabled=False if quiet else None):
+        # in record_order: programs that share a simula keep its state (position, warmth)
+        for args, plan in progress(todo, len(todo), "recording", enabled=False if quiet else None,
+                                   name=lambda item: item[1].name):
+            if isinstance(plan, OwnSimula):
+                plan.run()
+                continue
             if args not in sims:
                 if args:           # a pulley simula lives for its one program
                     for key in [k for k in sims if k]:
                         sims.pop(key).stop()
                 sims[args] = _Simula(args, seed, params, robot)
-            sims[args].run(plan, out_dir, work, seed, params)
+            sims[args].run(plan, out_dir, work, seed, params, ctx.options.rate)
+        ok = True
     finally:
         for sim in sims.values():
             sim.stop()
-        shutil.rmtree(work, ignore_errors=True)
+        if ok:
+            shutil.rmtree(work, ignore_errors=True)
+        else:
+            print(f"stopped after {(time.monotonic() - t0) / 60:.1f} min; partial logs kept in {work} (a rerun "
+                  "of the same command resumes: finished logs are not recorded again)", flush=True)
+    seconds = time.monotonic() - t0
+    print(f"recorded {len(todo)} log(s) in {seconds / 60:.1f} min"
+          + (f" ({len(done)} already there)" if done else ""), flush=True)
+    return {"recorded": [p.name for _, p in todo], "skipped": done, "refused": refused,
+            "notes": list(ctx.notes), "seconds": seconds}
+
+
+def check_truth_file(params: str, robot: str) -> None:
+    """Refuse a simula parameter file simula would refuse, before hours of recording."""
+    from models import load_robot
+    from rci.simula.exceptions import ParamsError
+    from rci.simula.params import load_params, truth_from_model
+
+    try:
+        load_params(params, robot, truth_from_model(load_robot(robot)))
+    except ParamsError as exc:
+        raise CalibError(str(exc)) from None
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -171,15 +245,8 @@ def _main(args: argparse.Namespace) -> int:
     if bad:
         raise SystemExit(f"calib regen-logs: unknown kind(s) {sorted(bad)}; known: {', '.join(known)}")
     if args.params:
-        from models import load_robot
-        from rci.simula.exceptions import ParamsError
-        from rci.simula.params import load_params, truth_from_model
-
-        try:            # refuse a bad file before hours of recording
-            load_params(args.params, args.robot, truth_from_model(load_robot(args.robot)))
-        except ParamsError as exc:
-            raise CalibError(str(exc)) from None
-    regen(args.out, args.seed, kinds, args.params, quiet=args.quiet, robot=args.robot)
+        check_truth_file(args.params, args.robot)
+    regen(args.out, args.seed, kinds, args.params, quiet=args.quiet, robot=args.robot, resume=args.resume)
     return 0
 
 
@@ -194,5 +261,7 @@ def add_regen(sub: Any) -> None:
                    help="simula parameter file: the truth to record against (default: the robot data file)")
     p.add_argument("--robot", default="puma260",
                    help="the arm's model (models/ROBOT.toml), default puma260 (the shipped logs' arm)")
+    p.add_argument("--resume", action="store_true",
+                   help="do not record again the logs already in --out (after an interruption)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_main)

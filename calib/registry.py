@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cache
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -62,15 +62,66 @@ class RecordRequest:
     extra_meta: dict[str, Any]    # metadata every log carries (the truth it was recorded against)
 
 
+@dataclass(frozen=True)
+class RecordOptions:
+    """The options of ``calib record ... --simula`` a kind's programs honour (None: its default).
+    Each kind refuses, before recording, the ones it cannot honour (calib.cli_extra.OPTIONS)."""
+
+    joints: tuple[int, ...] | None = None   # 1-based
+    mass: float | None = None               # kg on the pulley (sensitivity)
+    radius: float | None = None             # m, the pulley's drum (sensitivity)
+    rate: int | None = None                 # Hz, readings per second of the log
+    halts: int | None = None                # random halts (static)
+    touches: int | None = None              # touches in all (kinematics)
+
+
 @dataclass
 class RegenContext:
-    """``calib regen-logs``: where a kind's simula logs go and what they are recorded against."""
+    """``calib regen-logs`` / ``calib record --simula``: where a kind's simula logs go, what they
+    are recorded against, the options given and which logs are already recorded."""
 
     out_dir: str
     work: str                     # scratch folder for the raw logs before compression
     seed: int
     params: str | None            # simula's parameter file (None: the robot data file)
     info: "RobotInfo"
+    options: RecordOptions = field(default_factory=RecordOptions)
+    notes: list[str] = field(default_factory=list)   # what a kind changed in its plans, and why
+    resume: bool = False          # logs already in out_dir are not recorded again
+
+    def joints(self) -> list[int]:
+        """The joints to record (1-based): the options' or all."""
+        return list(self.options.joints or range(1, len(self.info.lower) + 1))
+
+    def per_joint(self, kind: str, plan: Callable[[int], list]) -> list:
+        """``plan(j)`` for each joint; without --joints a joint the arm cannot support is left
+        out with its reason in ``notes`` (CalibError when none is left), with --joints refused."""
+        out, why = [], []
+        for j in self.joints():
+            try:
+                out += plan(j)
+            except CalibError as exc:
+                if self.options.joints:
+                    raise
+                why.append(str(exc))
+        if not out:
+            raise CalibError("; ".join(why))
+        self.notes += [f"{kind}: not recorded: {w}" for w in why]
+        return out
+
+
+@dataclass(frozen=True)
+class OwnSimula:
+    """A program a kind records on a simula of its own (breakaway ramps, touches): ``run()``
+    records the log ``name`` into the context's folder; returned by ``regen`` with the key
+    ("own",) so that the campaign plans, counts, resumes and shows it with the others."""
+
+    name: str
+    run: Callable[[], None]
+    logs: tuple[str, ...] = ()    # the logs it writes (default: ``name`` alone)
+
+    def log_names(self) -> tuple[str, ...]:
+        return self.logs or (self.name,)
 
 
 @dataclass(frozen=True)
@@ -83,8 +134,9 @@ class FitKind:
     * ``report(ctx, outcome) -> list[str]``: Markdown lines of its report section.
     * ``plot(outcome, folder, prefix) -> list[str]``: the files written (None: no plots).
     * ``record(request) -> None``: record its logs on the robot at ``request.url``.
-    * ``regen(ctx) -> list[(simula_args, MeasurementPlan)]``: plans to run on simula, in order; a kind
-      whose programs need a simula of their own records them here and returns [].
+    * ``regen(ctx) -> list[(simula_args, MeasurementPlan | OwnSimula)]``: plans to run on simula,
+      in order; a program that needs a simula of its own is an OwnSimula under the key ("own",).
+      Nothing is recorded by ``regen`` itself, so a campaign refuses before its first log.
     * ``fit_files(paths, robot)``: see the field.
     """
 

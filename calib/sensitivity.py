@@ -19,7 +19,7 @@ import numpy as np
 
 from calib.drive import Drive
 from calib.exceptions import FitError, LogError
-from calib.logs import clipped_note, saturated_mask
+from calib.logs import ADC_RAIL, clipped_note, saturated_mask
 from calib.trace import Trace
 from calib.work import find_passes, window_work
 
@@ -64,8 +64,11 @@ def _ampere_radians(trace: Trace, drive: Drive,
     for p in keep:
         (plus if p.direction > 0 else minus).append(window_work(theta, current, p, lo, hi))
     if not plus or not minus:
+        rail = (f" with motor {i + 1}'s ADC channel off its rails (+-{ADC_RAIL}): {len(passes) - len(keep)} "
+                f"of {len(passes)} passes read at the rail, where the current is unknown (a smaller mass "
+                "or a larger current scale)" if len(keep) < len(passes) else "")
         raise LogError(trace.path, None, f"no complete pass in both directions through "
-                       f"the window [{lo:.4f}, {hi:.4f}] rad of joint {i + 1}")
+                       f"the window [{lo:.4f}, {hi:.4f}] rad of joint {i + 1}{rail}")
     return i, (lo, hi), _PassWork(np.array(plus), np.array(minus))
 
 
@@ -125,6 +128,10 @@ def fit_sensitivity(traces: list[Trace], drive: Drive, notes: list[str] | None =
             rel.update(tr.meta.get("rel_uncertainty", {}))
             rel2.append(sum(float(v) ** 2 for v in rel.values()))
         vals = np.array(values)
+        if len(vals) < 2 and notes is not None:
+            notes.append(f"joint {i + 1}: {len(vals)} trial (round trip with both passes complete): its "
+                         "spread, so its std and the error it passes on to later fits, is unknown (NaN); "
+                         "record more round trips")
         mean = float(vals.mean())
         std = float(vals.std(ddof=1)) if len(vals) > 1 else float("nan")
         results.append(SensitivityResult(joint=i + 1, trials=len(vals), mean=mean, std=std,

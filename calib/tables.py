@@ -15,6 +15,9 @@ def table_4_1(res: list[SensitivityResult]) -> str:
            f"{'Joint':>5}  {'trials':>6}  {'Mean':>7}  {'Std dev':>7}  {'Indep. error':>12}"]
     for r in res:
         out.append(f"{r.joint:>5}  {r.trials:>6}  {r.mean:7.4f}  {r.std:7.4f}  {r.independent_error:12.4f}")
+    out += ["Std dev: one standard deviation of the trials (not an interval). Indep. error: the thesis's",
+            "a priori bound from the mass, drum radius and current scale V_g/R_i (4.5.2), not a 99.73 %",
+            "interval; later fits add t x std / sqrt(trials) (99.73 %) of it to their errors."]
     return "\n".join(out)
 
 

@@ -92,6 +92,19 @@ def log_truth(trace) -> dict:
     return t
 
 
+def truth_label(trace) -> str:
+    """What a log was recorded against, in one line that also identifies it: ``robot``, or
+    ``simula seed N on FILE (sha256 0123456789ab)`` (``the data file`` when no parameter file).
+    Two logs of the same label were recorded against the same truth."""
+    t = log_truth(trace)
+    if t["kind"] != "simula":
+        return f"robot {trace.robot}"
+    text = t.get("params_toml")
+    digest = t.get("params_sha256") or (hashlib.sha256(text.encode()).hexdigest() if text else None)
+    where = f"{t.get('params_file')} (sha256 {digest[:12]})" if digest else "the data file"
+    return f"simula {trace.robot} seed {int(t['seed'])} on {where}"
+
+
 def _arm_key(t: dict) -> str:
     """What makes two simulas the same arm: the parameter file's content (seeds differ in noise)."""
     return json.dumps([t.get("kind"), t.get("params_toml")])

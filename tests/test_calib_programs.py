@@ -69,7 +69,7 @@ def test_friction_sweeps_turn_without_halting():
 
 
 def test_every_plan_stays_within_the_joint_ranges():
-    plans = (friction_plans() + sensitivity_plans(2.0, 0.05)
+    plans = (friction_plans() + sensitivity_plans(None, 0.05)
              + gravity_plans(INFO.regressor, INFO.lower, INFO.upper)
              + [static_plan(INFO.lower, INFO.upper)])
     for plan in plans:
@@ -184,8 +184,9 @@ def test_regen_logs_records_gravity_logs_that_fit(tmp_path):
 
 def test_the_thesis_poses_are_checked_on_the_arm_they_are_given():
     """The PUMA 260's friction poses suit it (the same plans as the default's), and another
-    arm's are refused with the reason, not recorded: on the PUMA 560 joint 1's window does not
-    fit its +-160 deg, and joint 2's leaves gravity doing work (cy2, and cx3 with its elbow offset a3)."""
+    arm's are not used where they do not serve it: on the PUMA 560 joint 1's window does not
+    fit its +-160 deg (another pose is found), and joint 2's leaves gravity doing work (cy2, and cx3
+    with its elbow offset a3), where no pose is found yet: refused with the reason, not recorded."""
     from calib.exceptions import CalibError
     from calib.experiments import check_friction_pose
 
@@ -193,8 +194,13 @@ def test_the_thesis_poses_are_checked_on_the_arm_they_are_given():
     for mine, default in zip(friction_plans([2], robot=INFO), friction_plans([2])):
         np.testing.assert_array_equal(mine.path.sample(72), default.path.sample(72))
     other = robot_info("puma560")
-    with pytest.raises(CalibError, match=r"robot puma560: joint 1: .*no room.*FRICTION_POSES"):
-        friction_plans([1], robot=other)
+    # joint 1's thesis window does not fit its +-160 deg: calib.friction_poses finds one that does
+    (plan,) = friction_plans([1], robot=other)
+    lo, hi = plan.meta["window"]
+    assert other.lower[0] < lo < hi < other.upper[0] and hi - lo >= np.radians(200)
+    check_friction_pose(other, 1, lo, hi, np.array(plan.meta["pose"]))
+    with pytest.raises(CalibError, match=r"robot puma560: no pose found for joint 2"):
+        friction_plans([2], robot=other)
     qdeg, half = FRICTION_POSES[2]
     q = np.radians(qdeg)
     with pytest.raises(CalibError, match=r"robot puma560: gravity does work on joint 2 .*through cy2, cx3"):

@@ -61,7 +61,7 @@ def test_the_cli_offers_the_registered_kinds_and_their_titles():
         assert kind.name in text and " ".join(kind.title.split()) in text
     out = subprocess.run([sys.executable, "-m", "calib", "record", "--help"], capture_output=True, text=True,
                          cwd=ROOT, timeout=60)
-    assert "{" + ",".join(registry.names()) + "}" in out.stdout.replace("\n", "").replace(" ", "")
+    assert "{" + ",".join(registry.names() + ("all",)) + "}" in out.stdout.replace("\n", "").replace(" ", "")
 
 
 def test_a_fit_writes_only_its_own_section(tmp_path):

@@ -68,10 +68,13 @@ def record(req: RecordRequest) -> None:
 def regen(ctx: RegenContext) -> list:
     """The ramps, every joint, on a simula of their own (so that `--kinds breakaway` alone
     records the same logs); recorded here, nothing left for the shared simula."""
+    from calib.breakaway_program import breakaway_plans
     from calib.regen import record_breakaway
+    from calib.registry import OwnSimula
 
-    record_breakaway(ctx)
-    return []
+    static = ctx.info.nominal["friction"]["static_pos"]["values"]
+    names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.joints()))
+    return [(("own",), OwnSimula("breakaway", lambda: record_breakaway(ctx), names))]
 
 
 KIND = FitKind(

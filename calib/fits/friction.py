@@ -160,7 +160,7 @@ def record(req: RecordRequest) -> None:
 def regen(ctx: RegenContext) -> list:
     from calib.experiments import friction_plans
 
-    return [((), p) for p in friction_plans(robot=ctx.info)]
+    return [((), p) for p in ctx.per_joint("friction", lambda j: friction_plans([j], robot=ctx.info))]
 
 
 KIND = FitKind(

@@ -11,6 +11,7 @@ import numpy as np
 from calib.exceptions import FitError
 from calib.fitting import FitOutcome
 from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from calib.touch import SLOW
 
 ACCURACY_TARGETS = 20   # target poses of the before/after positioning run
 
@@ -81,7 +82,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          f"`calib record kinematics` touches the three faces of a fixture (a floor and two walls, "
          f"known in the base frame) {fit_.measurements} times with a touch-trigger probe on the flange "
          f"(tip at ({', '.join(f'{1e3 * x:.0f}' for x in t.tip)}) mm in link 6, a cranked stylus), "
-         "approaching each face along its normal at 0.8 mm/s and stopping on the cycle the probe's "
+         f"approaching each face along its normal at {1e3 * SLOW:.1f} mm/s (calib.touch.SLOW) and stopping on "
+         "the cycle the probe's "
          "switch (inport1) is seen closed; the joint angles between the last open and the first "
          "closed reading put the tip on the face: one equation n . p(q, e) = h per touch. The touches "
          "are made in both arm and both wrist configurations. Why touches and not the motor "
@@ -110,7 +112,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
             continue
         d = abs(fit_.e[i] - E[i])
         L.append(f"| {name} ({unit}) | {f * E[i]:.3f} | {f * fit_.e[i]:.3f} +- {f * k * fit_.std[i]:.3f} | "
-                 f"{f * d:.3f} | {check('kinematic', d <= k * fit_.std[i])} |")
+                 f"{f * d:.3f} | {check('kinematic fit', d <= k * fit_.std[i])} |")
     for name, value, sd, unit, coef in fit_.combinations():
         f = 1e3 if unit == "m" else np.degrees(1) * 1e3
         u = "mm" if unit == "m" else "mdeg"
@@ -120,7 +122,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
         tv = float(coef @ E)
         d = abs(value - tv)
         L.append(f"| {name} ({u}) | {f * tv:.3f} | {f * value:.3f} +- {f * k * sd:.3f} | {f * d:.3f} | "
-                 f"{check('kinematic', d <= k * sd)} |")
+                 f"{check('kinematic fit', d <= k * sd)} |")
     L.append("")
     return L + _accuracy_section(accuracy)
 
@@ -166,7 +168,7 @@ def record(req: RecordRequest) -> None:
     from calib.touch import touch_plan
     from calib.touch_program import run_touches
 
-    plan = touch_plan(max(1, req.args.touches // 3), robot=req.robot)
+    plan = touch_plan(max(1, (req.args.touches or 48) // 3), robot=req.robot)
     path = os.path.join(req.out, plan.name + ".rcilog")
     n = run_touches(req.url, plan, path, req.robot, extra_meta=req.extra_meta)
     print(f"{plan.name}: {n} records -> {path}")
@@ -175,9 +177,11 @@ def record(req: RecordRequest) -> None:
 def regen(ctx: RegenContext) -> list:
     """The touches on a simula of their own (the fixture and the probe are its environment)."""
     from calib.regen import record_kinematics_log
+    from calib.registry import OwnSimula
+    from calib.touch import touch_plan
 
-    record_kinematics_log(ctx)
-    return []
+    touch_plan(1, robot=ctx.info.name)     # refused here, before any recording, if the arm cannot
+    return [(("own",), OwnSimula("kinematics", lambda: record_kinematics_log(ctx)))]
 
 
 KIND = FitKind(

@@ -29,7 +29,9 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     err = np.asarray(ctx.info.nominal["motors"]["torque_sensitivity"]["uncertainty"], float)
     L = ["## Table 4.1: motor torque sensitivity (N m / A)", "",
          "The fit's independent error is the thesis's kind (4.5.2): the relative uncertainties of "
-         "the mass, the drum radius and the current scale V_g / R_i combined.", "",
+         "the mass, the drum radius and the current scale V_g / R_i combined, an a priori bound, not "
+         "a 99.73 % interval; the fit std is one standard deviation of the trials (the 99.73 % error "
+         "of the mean that later fits inherit is Student's t x std / sqrt(trials)).", "",
          "| joint | thesis mean | thesis indep. error | truth | fit mean | fit std | trials | fit indep. error "
          "| abs(fit - truth) | within thesis bound | within fit error |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -48,15 +50,20 @@ def record(req: RecordRequest) -> None:
     from calib.experiments import sensitivity_plans
     from calib.program import record_plans
 
-    record_plans(req, [p for p in sensitivity_plans(req.args.mass, req.args.radius, req.joints, robot=req.info)
-                       if (p.meta["load"]["mass_kg"] > 0) == req.args.loaded])
+    notes: list[str] = []
+    plans = sensitivity_plans(req.args.mass, req.args.radius or RADIUS_M, req.joints, robot=req.info, notes=notes)
+    for note in notes:
+        print(f"note: {note}")
+    record_plans(req, [p for p in plans if (p.meta["load"]["mass_kg"] > 0) == req.args.loaded])
 
 
 def regen(ctx: RegenContext) -> list:
     """Without the mass on the shared simula; with it, a simula with the pulley load per joint."""
     from calib.experiments import sensitivity_plans
 
-    plans = sensitivity_plans(None, RADIUS_M, robot=ctx.info)
+    o = ctx.options
+    plans = ctx.per_joint("sensitivity", lambda j: sensitivity_plans(o.mass, o.radius or RADIUS_M, [j], robot=ctx.info,
+                                                                      notes=ctx.notes))
     return ([((), p) for p in plans if not p.simula_args]
             + [(tuple(p.simula_args), p) for p in plans if p.simula_args])
 

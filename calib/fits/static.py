@@ -42,13 +42,14 @@ def record(req: RecordRequest) -> None:
     from calib.experiments import static_plan
     from calib.program import record_plans
 
-    record_plans(req, [static_plan(req.info.lower, req.info.upper, halts=req.args.halts)])
+    record_plans(req, [static_plan(req.info.lower, req.info.upper, halts=req.args.halts or 275)])
 
 
 def regen(ctx: RegenContext) -> list:
     from calib.experiments import static_plan
 
-    return [((), static_plan(ctx.info.lower, ctx.info.upper))]
+    halts = ctx.options.halts
+    return [((), static_plan(ctx.info.lower, ctx.info.upper, **({} if halts is None else {"halts": halts})))]
 
 
 KIND = FitKind(
