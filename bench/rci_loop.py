@@ -96,7 +96,7 @@ def _link_args(link: str) -> tuple[str, ...]:
     """simula's options for the link under test: TCP (default) or the Zenoh bus on loopback."""
     if link == "socket":
         return ()
-    from rci.zenoh_bus import free_endpoint
+    from rci.bus.link import free_endpoint
     return ("--zenoh", "bench/puma260", "--zenoh-listen", free_endpoint())
 
 
@@ -162,7 +162,7 @@ def bus_round_trip(n: int = 2000) -> dict:
     """Round trip of a channel message between two processes over the Zenoh bus (rci.bus):
     planning -> echo process -> planning, one message in flight, a 6-float payload."""
     from rci.bus import Bus
-    from rci.zenoh_bus import free_endpoint
+    from rci.bus.link import free_endpoint
 
     endpoint = free_endpoint()
     with Bus("bench-echo", tasks=("planning",), listen=(endpoint,)) as bus:
@@ -320,7 +320,7 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None, 
         "  simula's own timing error, the link and the controller's wake-up latency.",
         "- *link*: `socket` is TCP on loopback (`socket://127.0.0.1:PORT`); `zenoh` is the Zenoh bus",
         "  (`simula --zenoh KEY`, link address `zenoh/KEY?connect=tcp/127.0.0.1:PORT`, peer to peer over TCP on",
-        "  loopback, rci/zenoh_bus.py): each frame is a publication, handed to the reader by the Zenoh thread",
+        "  loopback, rci/bus/link.py): each frame is a publication, handed to the reader by the Zenoh thread",
         "  that received it; in a pinned run both processes' Zenoh threads share their CPU (real time, priority + 1).",
         "  At 1 kHz that CPU is then busy with real-time work about 95 % of each second, and the kernel's",
         "  real-time throttling (sched_rt_runtime_us) stops its real-time threads ~50 ms once a second",
@@ -375,7 +375,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hogs", type=int, default=2, help="CPU hogs during the stress run")
     ap.add_argument("--only-stress", action="store_true", help="skip the per-rate runs")
     ap.add_argument("--zenoh-rates", type=int, nargs="*", default=[250, 1000],
-                    help="rates run once more over the Zenoh link (rci/zenoh_bus.py), for the comparison")
+                    help="rates run once more over the Zenoh link (rci/bus/link.py), for the comparison")
     ap.add_argument("--unpinned-too", action="store_true",
                     help="after the pinned runs, run the highest rate once more without pinning (for comparison)")
     args = ap.parse_args(argv)

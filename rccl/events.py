@@ -28,7 +28,7 @@ monitor does on an adaptive arm. Misuse is refused at once: an object that is no
 (``Deadlock``, naming the motions in the cycle), bad codes.
 
 Across processes and hosts (each arm served by its own process, the planning level in
-another), ``rccl.bus_events`` offers the same primitives over the Zenoh bus; the arm's
+another), ``rccl.bus.planning`` offers the same primitives over the Zenoh bus; the arm's
 process learns of each flag change through ``add_listener`` and publishes it.
 
 Thesis -> Python: ``move_ev(robot, position, params)`` -> ``move_ev(arm, position, start=START)``;
@@ -143,7 +143,7 @@ def add_listener(listener: Callable[[EFT], None]) -> None:
     """Call ``listener(eft)`` each time a flag of an EFT of this process changes (the motion is
     queued, a start or stop flag is set, it begins, it ends). Called under the flags' lock, from
     the planning level or the arm's control level: it must return at once and never wait (copy
-    what it needs and hand it to a thread, as ``rccl.bus_arm`` does to publish the flags)."""
+    what it needs and hand it to a thread, as ``rccl.bus.arm`` does to publish the flags)."""
     with _lock:
         _listeners.append(listener)
 
@@ -550,7 +550,7 @@ def never_starts(e, predecessor: Callable = None, seen: set | None = None) -> st
     """Why the motion of EFT ``e`` can never start (or end), or None if it can.
 
     Reads only the public flags (``start``, ``stop``, ``status``, ``after``, ``describe()``),
-    so it serves local EFTs and rccl.bus_events' remote ones alike; ``predecessor(e)``: the
+    so it serves local EFTs and rccl.bus.planning' remote ones alike; ``predecessor(e)``: the
     motion queued before ``e`` on its arm that has not ended (default: this process's queues)."""
     predecessor = predecessor or _predecessor
     if e.status != NULL or e.stop != NULL:      # started, or stopped: it will end

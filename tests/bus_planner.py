@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import sys
 
-from rccl.bus_events import BusEvents, PlannerLost
+from rccl.bus.planning import BusEvents, PlannerLost
 from rccl.position import joint_position
 from rci.bus import Bus
 

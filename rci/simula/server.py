@@ -137,7 +137,7 @@ class Server:
         self.err = err or sys.stderr
         self.listener: socket.socket | None = None
         self.pty: PtyTransport | None = None
-        self.zenoh = None                       # rci.zenoh_bus.RobotEndpoint with --zenoh
+        self.zenoh = None                       # rci.bus.link.RobotEndpoint with --zenoh
         self.session: Client | None = None      # the owner (or, on a pty, the line's one client)
         self.pending: list[Client] = []         # TCP connections not welcomed (yet)
         self.control: ControlChannel | None = None
@@ -180,8 +180,8 @@ class Server:
         return f"socket://{host}:{s.getsockname()[1]}"
 
     def serve_zenoh(self, address, priority: int = 0) -> str:
-        """Serve controllers on the Zenoh bus (rci.zenoh_bus); returns the ``zenoh/KEY?...`` address."""
-        from rci.zenoh_bus import RobotEndpoint
+        """Serve controllers on the Zenoh bus (rci.bus.link); returns the ``zenoh/KEY?...`` address."""
+        from rci.bus.link import RobotEndpoint
 
         # Zenoh hands every frame to Python on its own threads, which need the GIL this loop
         # holds while it computes or spins before a tick: hand it over often (the default
@@ -839,6 +839,9 @@ class Server:
             if control is not None and control.pending():
                 self._control_work(control)
             self._expire_pending()
+            if self.zenoh is not None:       # floods on the bus: one line each, with its count
+                for line in self.zenoh.report():
+                    self.log(line)
             if self.lockstep:
                 self._lockstep_watchdog()
             else:

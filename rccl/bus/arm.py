@@ -1,6 +1,6 @@
 """An arm process: one RCCL arm served on the Zenoh bus, for a planning level in another process.
 
-The other half of ``rccl.bus_events`` (key expressions and semantics there). The arm's
+The other half of ``rccl.bus.planning`` (key expressions and semantics there). The arm's
 process opens its RCCL arm (its control task runs here, at the arm's rate), attaches it
 to ``rccl.events`` under its name, and then:
 
@@ -27,7 +27,7 @@ to ``rccl.events`` under its name, and then:
 Its liveliness token ``rcci/CELL/arm/ARM`` is declared once it serves and ends with the
 process. Run it from the shell:
 
-    python -m rccl.bus_arm --cell lab --bus tcp/10.0.0.1:7447 puma 'zenoh/lab/puma260?connect=...' puma260
+    python -m rccl.bus.arm --cell lab --bus tcp/10.0.0.1:7447 puma 'zenoh/lab/puma260?connect=...' puma260
 
 It prints ``ARM: serving`` when ready and serves until the planning level sends ``close``,
 its arm faults, or it gets SIGTERM/SIGINT (then it releases the arm).
@@ -46,15 +46,18 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
-from rci.zenoh_bus import undeclare
+from rci.bus.guard import Episodes, TokenBucket
+from rci.bus.link import undeclare
 
-from . import events as ev
-from .bus_heartbeat import HEARTBEAT_S, Heartbeat
-from .bus_wire import (PlannerLost, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
+from .. import events as ev
+from .heartbeat import HEARTBEAT_S, Heartbeat
+from .wire import (PlannerLost, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
                        position_from_wire, set_key)
-from .events import ABORTED, FAULT, EventError
+from ..events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
+REQUEST_QUEUE = 32     # requests waiting for the serving thread; more are dropped (counted, reported once)
+REQUEST_RATE = 200.0   # requests answered a second at most
 GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
@@ -97,7 +100,13 @@ class ArmServer:
         self._remote: dict[tuple[str, int], dict] = {}      # other arms' EFTs' flags, latest seen
         self._waiting: dict[tuple[str, int], list[tuple[ev.EFT, int]]] = {}
         self._out: queue.Queue = queue.Queue()
-        self._requests: queue.Queue = queue.Queue()
+        # a bounded hand-over: a flood of requests costs a Zenoh thread one put each and this
+        # process's serving thread at most REQUEST_RATE answers a second (the control thread none)
+        self._requests: queue.Queue = queue.Queue(maxsize=REQUEST_QUEUE)
+        self._request_bucket = TokenBucket(REQUEST_RATE, REQUEST_QUEUE)
+        self.requests_dropped = 0
+        self._flood = Episodes(f"{name}: requests dropped (more than {REQUEST_QUEUE} waiting, at most "
+                               f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_dropped, lambda: "dropped")
         self._stop = threading.Event()
         self._block = zenoh.CongestionControl.BLOCK
         self._kind_delete = zenoh.SampleKind.DELETE
@@ -119,7 +128,7 @@ class ArmServer:
             s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
             s.declare_subscriber(set_key(self.cell), self._on_set),
             s.declare_queryable(flags_key(self.cell, name, "*"), self._on_flags_query),
-            s.declare_queryable(arm_key(self.cell, name, "request"), self._requests.put),
+            s.declare_queryable(arm_key(self.cell, name, "request"), self._offer_request),
             s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
             s.declare_subscriber(planner_key(self.cell, "*", "alive"), self._on_planner_alive),
         ]
@@ -352,6 +361,13 @@ class ArmServer:
                              f"{silences[p]} s: it is stopped, hung or cut off)", tell=True)
 
     # -- requests -------------------------------------------------------------------------------
+    def _offer_request(self, query) -> None:
+        """On a Zenoh thread: queue a request for the serving thread, or drop it (counted)."""
+        try:
+            self._requests.put_nowait(query)
+        except queue.Full:
+            self.requests_dropped += 1
+
     def _answer(self, query) -> None:
         try:
             request = decode(query.payload.to_bytes()) if query.payload is not None else {}
@@ -424,10 +440,17 @@ class ArmServer:
     def serve(self) -> None:
         """Answer requests until ``close`` (or ``stop()``); raise the arm's fault after publishing it."""
         while not self._stop.is_set():
-            try:
-                query = self._requests.get(timeout=POLL_S)
-            except queue.Empty:
-                query = None
+            query = None
+            if self._request_bucket.take():
+                try:
+                    query = self._requests.get(timeout=POLL_S)
+                except queue.Empty:
+                    pass                     # the token is spent unused: at most one per POLL_S
+            else:
+                time.sleep(min(POLL_S, self._request_bucket.wait_time()))
+            line = self._flood.poll()
+            if line is not None:
+                print(line, flush=True)
             if query is not None:
                 self._answer(query)
                 del query                                  # the query is finished when dropped
@@ -452,12 +475,14 @@ class ArmServer:
 
 
 def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
-        lease_ms: int | None = None, timeout: float | None = None, lose_sets: int = 0, lose_acks: int = 0) -> int:
+        lease_ms: int | None = None, timeout: float | None = None, lose_sets: int = 0, lose_acks: int = 0,
+        zenoh_config: str | None = None) -> int:
     """The arm process: open the arm, serve it until told to stop, release it. ``timeout``: the
     control's wait for a HOW (s; None: two periods, rci.Session's default); ``lose_sets`` /
     ``lose_acks``: ArmServer's test hook."""
     import rccl
-    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY) as bus, \
+    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY,
+             config=zenoh_config) as bus, \
             rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
                       on_error="raise") as arm:
         server = ArmServer(arm, bus, name, priority=BUS_PRIORITY, lose_sets=lose_sets, lose_acks=lose_acks)
@@ -480,11 +505,11 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
 def spawn(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
           lease_ms: int | None = None, how_timeout: float | None = None, timeout: float = 30.0,
           extra: tuple[str, ...] = ()) -> subprocess.Popen:
-    """Start an arm process (``python -m rccl.bus_arm``) and wait until it serves (at most
+    """Start an arm process (``python -m rccl.bus.arm``) and wait until it serves (at most
     ``timeout`` s); the caller ends it (``close`` request, or terminate/kill the Popen).
     ``extra``: more of its options (``--lose-sets N``). Its stdout stays a pipe: after the
     ``serving`` line it tells what it aborted and why (``_hold``)."""
-    argv = [sys.executable, "-m", "rccl.bus_arm", name, url, robot, "--cell", cell, "--rate", str(rate_hz)]
+    argv = [sys.executable, "-m", "rccl.bus.arm", name, url, robot, "--cell", cell, "--rate", str(rate_hz)]
     argv += [x for e in bus_endpoints for x in ("--bus", e)]
     argv += ["--lease", str(lease_ms)] if lease_ms is not None else []
     argv += ["--timeout", str(how_timeout)] if how_timeout is not None else []
@@ -509,7 +534,7 @@ def spawn(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, 
 
 
 def _cli(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m rccl.bus_arm", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m rccl.bus.arm", description=__doc__.split("\n\n")[0])
     ap.add_argument("name", help="the name the arm is served under (the planning level's BusEvents.arm(name))")
     ap.add_argument("url", help="the arm's link (zenoh/KEY?connect=..., socket://..., a device)")
     ap.add_argument("robot", help="the robot's model (puma260, microbo)")
@@ -517,6 +542,9 @@ def _cli(argv: list[str] | None = None) -> int:
     ap.add_argument("--bus", action="append", default=[], help="Zenoh endpoint of the workcell's bus (repeatable)")
     ap.add_argument("--rate", type=int, default=50, help="the arm's sample rate (Hz)")
     ap.add_argument("--lease", type=int, default=None, help="the bus's lease (ms): how soon a lost peer is noticed")
+    ap.add_argument("--zenoh-config", metavar="FILE", default=None,
+                    help="the bus's Zenoh configuration file (TLS, authentication, access control; default "
+                         "$RCI_ZENOH_CONFIG; docs/security.md); the arm's zenoh/ link takes its own ?config=")
     ap.add_argument("--timeout", type=float, default=None,
                     help="the control's wait for the robot's HOW (s; default two periods)")
     ap.add_argument("--lose-sets", type=int, default=0, metavar="N",
@@ -527,7 +555,8 @@ def _cli(argv: list[str] | None = None) -> int:
     for opt in ("lose_sets", "lose_acks"):
         if getattr(a, opt) < 0:
             ap.error(f"--{opt.replace('_', '-')} must be >= 0, got {getattr(a, opt)}")
-    return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout, a.lose_sets, a.lose_acks)
+    return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout, a.lose_sets, a.lose_acks,
+               a.zenoh_config)
 
 
 if __name__ == "__main__":

@@ -2,11 +2,11 @@
 
 The thesis's planning level issues motions with event flags to the trajectory levels of
 several arms. When each arm's control task runs in its own process (or on its own host),
-each arm process serves its RCCL arm on the bus (``rccl.bus_arm``), and the planning
+each arm process serves its RCCL arm on the bus (``rccl.bus.arm``), and the planning
 process drives them through :class:`BusEvents`, which has the API of ``rccl.events``:
 
     from rci.bus import Bus
-    from rccl.bus_events import BusEvents
+    from rccl.bus.planning import BusEvents
     with Bus("lab", tasks=("planning",), listen=("tcp/0.0.0.0:7447",)) as bus:
         ev = BusEvents(bus)
         puma, mic = ev.arm("puma"), ev.arm("microbo")        # served by their processes
@@ -56,7 +56,7 @@ that planning level gets ``PlannerLost`` (an ``ArmLost``) naming why from every 
 the arm. An arm process that was itself stalled longer than a planning level's silence
 aborts that planning level's motions too (docs/zenoh.md, "Faults").
 
-Key expressions and what crosses the bus: ``rccl.bus_wire``.
+Key expressions and what crosses the bus: ``rccl.bus.wire``.
 """
 from __future__ import annotations
 
@@ -65,15 +65,15 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
-from rci.zenoh_bus import undeclare
+from rci.bus.link import undeclare
 
-from .bus_heartbeat import HEARTBEAT_S, Heartbeat
-from .bus_remote import RemoteArm, RemoteEFT
-from .bus_wire import (KNOWN_ERRORS, ArmLost, PlannerLost, RemoteFault, arm_key, check_name, flags_key, planner_key,
+from .heartbeat import HEARTBEAT_S, Heartbeat
+from .remote import RemoteArm, RemoteEFT
+from .wire import (KNOWN_ERRORS, ArmLost, PlannerLost, RemoteFault, arm_key, check_name, flags_key, planner_key,
                        position_to_wire, set_key)
-from .bus_wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
-from .events import ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
-from .position import Position
+from .wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
+from ..events import ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
+from ..position import Position
 
 REQUEST_TIMEOUT_S = 5.0
 REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
@@ -310,7 +310,7 @@ class BusEvents:
                 self._cond.wait_for(lambda: name in self._present, min(0.5, max(0.0, deadline - time.monotonic())))
         if not self._is_present(name):
             raise ArmLost(f"no process serves arm {name!r} on {arm_key(self.cell, name)} within {timeout} s "
-                          "(is its arm process (python -m rccl.bus_arm) running and connected to this bus?)")
+                          "(is its arm process (python -m rccl.bus.arm) running and connected to this bus?)")
         with self._cond:
             self._alive.setdefault(name, time.monotonic())
         info = self.request(name, {"op": "info"}, "arm")
