@@ -1,4 +1,4 @@
-"""Authenticated frames on the Zenoh link: a key agreed per connection, a MAC on every publication.
+"""Sealed frames on the Zenoh link: a key agreed per connection, each publication encrypted and authenticated (MAC).
 
 Zenoh's TLS and access control (docs/security.md) decide which processes may join the bus
 and which keys each may publish on. This module is the defence behind them: on a
@@ -12,16 +12,18 @@ the robot answers with its own; both derive, with HKDF-SHA256 over the shared se
 id), one 32-byte key per direction. Nobody who only reads the hello (or every later
 publication) learns them.
 
-A sealed publication: ``counter (8 bytes, big endian) + frame bytes + tag (16 bytes)``,
-the tag the first 16 bytes of HMAC-SHA256(direction key, counter + frame bytes). The
-receiver drops (and counts, by reason) one that is too short, too long, has a wrong tag,
-or a counter not above the last accepted (a replay or a reordering): a dropped
-publication never reaches the link's frame decoder, so it can neither move the arm nor
-end the owner's control.
+A sealed publication: ``counter (8 bytes, big endian) + ChaCha20-Poly1305(frame bytes)``
+under the direction's key, the nonce made of the counter (never reused: the counter only
+rises, and each direction has its own key), the counter authenticated as associated data:
+the frame is encrypted (another process holding the same certificate reads nothing) and
+carries a 16-byte message authentication code (Poly1305). The receiver drops (and counts,
+by reason) a publication that is too short, too long, fails the code ("bad MAC"), or has
+a counter not above the last accepted (a replay or a reordering): a dropped publication
+never reaches the link's frame decoder, so it can neither move the arm nor end the
+owner's control.
 """
 from __future__ import annotations
 
-import hmac
 import threading
 from dataclasses import dataclass, field
 
@@ -34,6 +36,19 @@ KEY_BYTES = 32
 
 class KeyAgreementError(ValueError):
     """The other end's public key or hello cannot be used (says why)."""
+
+
+def _aead(key: bytes):
+    try:
+        from cryptography.hazmat.primitives.ciphers.aead import ChaCha20Poly1305
+    except ImportError:
+        _crypto()
+        raise
+    return ChaCha20Poly1305(key)
+
+
+def _nonce(counter: bytes) -> bytes:
+    return b"\0\0\0\0" + counter
 
 
 def _crypto():
@@ -71,23 +86,19 @@ class Handshake:
         return okm[:KEY_BYTES], okm[KEY_BYTES:]
 
 
-def _tag(key: bytes, counter_and_frame: bytes) -> bytes:
-    return hmac.digest(key, counter_and_frame, "sha256")[:TAG_BYTES]
-
-
 class Sealer:
     """Seals what one end publishes on its direction of a connection (counter + MAC)."""
 
     def __init__(self, key: bytes) -> None:
-        self._key = key
+        self._aead = _aead(key)
         self._counter = 0
         self._lock = threading.Lock()
 
     def seal(self, frame: bytes) -> bytes:
         with self._lock:
             self._counter += 1
-            body = self._counter.to_bytes(COUNTER_BYTES, "big") + frame
-        return body + _tag(self._key, body)
+            counter = self._counter.to_bytes(COUNTER_BYTES, "big")
+        return counter + self._aead.encrypt(_nonce(counter), frame, counter)
 
 
 @dataclass
@@ -107,11 +118,17 @@ class Rejections:
         return ", ".join(f"{n} {why}" for why, n in sorted(self.counts.items())) or "none"
 
 
+def _invalid_tag():
+    from cryptography.exceptions import InvalidTag
+    return InvalidTag
+
+
 class Opener:
     """Checks what arrives on one direction of a connection; returns the frame bytes or None."""
 
     def __init__(self, key: bytes) -> None:
-        self._key = key
+        self._aead = _aead(key)
+        self._invalid = _invalid_tag()
         self._last = 0
         self.rejected = Rejections()
 
@@ -123,13 +140,15 @@ class Opener:
         if n > MAX_SEALED:
             self.rejected.add("oversized")
             return None
-        body, tag = sealed[:-TAG_BYTES], sealed[-TAG_BYTES:]
-        if not hmac.compare_digest(_tag(self._key, body), tag):
+        head = sealed[:COUNTER_BYTES]
+        try:
+            frame = self._aead.decrypt(_nonce(head), sealed[COUNTER_BYTES:], head)
+        except self._invalid:
             self.rejected.add("bad MAC")
             return None
-        counter = int.from_bytes(body[:COUNTER_BYTES], "big")
+        counter = int.from_bytes(head, "big")
         if counter <= self._last:
             self.rejected.add("replayed")
             return None
         self._last = counter
-        return body[COUNTER_BYTES:]
+        return frame

@@ -29,7 +29,7 @@ below sets it) the other side reads end of file: the controller's control ends w
 link fault, the robot holds the arm as for a dropped socket. A controller that stops
 sending while alive is caught by the robot's watchdog, as on every link.
 
-Every publication of a connection is sealed with a MAC under a key agreed at its hello
+Every publication of a connection is encrypted and carries a MAC under a key agreed at its hello
 (rci.bus.frames): one not made by that connection's end (a forgery, garbage, a truncated,
 oversized or replayed frame, from any process on the bus) is dropped before the frame
 decoder, counted, and reported once per flood; it ends no control and is blamed on no one.
@@ -301,8 +301,12 @@ class ControllerPort:
                     return
         raise ZenohLinkError(f"{self.portstr}: no robot answers on rcci/{a.key} within {timeout} s "
                              f"(is `simula --zenoh {a.key}` running, and reachable at "
-                             f"{', '.join(a.connect or (DEFAULT_ENDPOINT,))}"
+                             f"{', '.join(self._endpoints())}"
                              f"{' with the configuration ' + repr(a.config) if a.config else ''}?)")
+
+    def _endpoints(self) -> tuple[str, ...]:
+        a = self.address
+        return a.connect or configured_endpoints(load_config(a.config), "connect") or (DEFAULT_ENDPOINT,)
 
     def _agree(self, answer: bytes) -> None:
         try:
@@ -396,11 +400,11 @@ class RobotEndpoint:
         self.hello = self.session.declare_queryable(a.keyexpr("hello"), self._hellos.offer)
 
     def url(self) -> str:
-        """The address a controller on this host uses."""
+        """The address a controller on this host uses (with a configuration file of its own
+        identity added as ``&config=``: the robot's is not for controllers)."""
         listen = self.address.listen or configured_endpoints(load_config(self.address.config), "listen") \
             or (DEFAULT_ENDPOINT,)
-        return ZenohAddress(self.address.key, connect=(listen[0],), lease_ms=self.address.lease_ms,
-                            config=self.address.config).url()
+        return ZenohAddress(self.address.key, connect=(listen[0],), lease_ms=self.address.lease_ms).url()
 
     # --- on Zenoh's threads: bounded work ------------------------------------------------------
     def _on_down(self, sample) -> None:
@@ -490,6 +494,13 @@ class RobotEndpoint:
         if self.stray:
             r.counts["for no connection"] = self.stray
         return r.describe()
+
+    def info(self) -> dict:
+        """What the endpoint dropped, by kind, and the lines it reported (the control channel's ``events``)."""
+        return {"rejected": self._rejected_total(), "rejected_why": self._rejected_describe(),
+                "hello_asked": self._hellos.offered, "hello_dropped": self._hellos.dropped,
+                "hello_refused": self.refused.total, "connections": len(self._live),
+                "reports": [line for e in self.episodes for line in e.lines]}
 
     def report(self) -> list[str]:
         """Lines that say, once per flood, what was dropped and why (the server logs them);

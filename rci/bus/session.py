@@ -13,7 +13,9 @@ On top of the file the project sets what its sessions must agree on: the mode (p
 or the workcell's router and clients), multicast scouting off (endpoints are explicit,
 so a session meets no stranger), Zenoh's low-latency transport without QoS lanes, and
 the lease when one is asked for. Endpoints given by the caller replace the file's; without
-either, a session listens or connects on loopback only (``DEFAULT_ENDPOINT``).
+either, a session listens or connects on loopback only (``DEFAULT_ENDPOINT``), or not at
+all (a controller listens nowhere: Zenoh's own default would listen on every interface,
+unauthenticated, and other peers told of it by gossip would connect to it directly).
 """
 from __future__ import annotations
 
@@ -61,11 +63,19 @@ def load_config(config: str | os.PathLike | None = None):
         raise ZenohLinkError(f"Zenoh configuration file {path!r} cannot be used: {exc}") from None
 
 
+# Zenoh's own default for listen: every interface (a peer on a random port, a router on 7447):
+# never the project's default, a session listens on loopback only or where it is told
+_ZENOH_DEFAULT_LISTEN = {"router": ["tcp/[::]:7447"], "peer": ["tcp/[::]:0"]}
+
+
 def configured_endpoints(conf, which: str) -> tuple[str, ...]:
-    """The ``listen`` or ``connect`` endpoints a configuration gives (empty if none)."""
+    """The ``listen`` or ``connect`` endpoints a configuration file gives (empty if none;
+    Zenoh's built-in default, every interface, does not count)."""
     try:
         value = json.loads(conf.get_json(f"{which}/endpoints"))
     except Exception:
+        return ()
+    if value == _ZENOH_DEFAULT_LISTEN:
         return ()
     if isinstance(value, dict):       # per-mode endpoints: {"router": [...], "peer": [...]}
         value = [e for v in value.values() for e in (v or [])]
@@ -128,9 +138,10 @@ def open_session(connect: tuple[str, ...] = (), listen: tuple[str, ...] = (), le
     conf.insert_json5("mode", '"router"' if router else ('"client"' if client else '"peer"'))
     conf.insert_json5("scouting/multicast/enabled", "false")
     for which, given, default in (("connect", connect, default_connect), ("listen", listen, default_listen)):
-        endpoints = given or (() if configured_endpoints(conf, which) else default)
-        if endpoints:
-            conf.insert_json5(f"{which}/endpoints", _json_list(endpoints))
+        # always set: what the caller gives, else the file's, else the default (loopback, or
+        # none: a controller listens nowhere, where Zenoh's default listens on every interface)
+        endpoints = given or configured_endpoints(conf, which) or default
+        conf.insert_json5(f"{which}/endpoints", _json_list(endpoints))
     # the low-latency transport (no batching, no QoS lanes): about 30 % less round trip for the
     # link's small frames (measured: Python ping-pong between two processes on loopback, p50
     # 256 -> 181 us); every session of the link uses it, so peers agree

@@ -234,7 +234,8 @@ class Server:
         """The control endings remembered and the latest HOWs (seq, wall time sent, q in rad)."""
         ticks = [[seq, t, [float(x) for x in q]] for seq, t, q in list(self.ticks)[-64:]]
         return {"events": list(self.events), "ticks": ticks, "stale_chg": self.stale,
-                "duplicate_chg": self.duplicates, "now": time.monotonic()}
+                "duplicate_chg": self.duplicates, "now": time.monotonic(),
+                "bus": self.zenoh.info() if self.zenoh is not None else None}
 
     # --- frames --------------------------------------------------------------------------
     def _send(self, ftype: int, seq: int, payload: bytes = b"", client: Client | None = None) -> None:
