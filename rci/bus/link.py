@@ -63,6 +63,7 @@ log = logging.getLogger(__name__)
 PREFIX = "zenoh/"
 HELLO_TIMEOUT_S = 5.0
 HELLO_RETRY_S = 0.5       # a controller asks again after this long without an answer
+HELLO_PAUSE_S = 0.05      # ... and pauses this long after a query that ended unanswered
 HELLO_QUEUE = 16          # hellos waiting for the robot's hello worker; more are dropped
 HELLO_RATE = 100.0        # hellos the robot answers a second at most (a key agreement each)
 MAX_OFFERS = 16           # connections answered that have not sent a frame yet
@@ -299,6 +300,9 @@ class ControllerPort:
                 if reply.ok is not None:
                     self._agree(reply.ok.payload.to_bytes())
                     return
+            # no answer: nobody serves the key yet (the query ends at once) or the robot dropped
+            # it; ask again a little later, not in a busy loop
+            time.sleep(max(0.0, min(HELLO_PAUSE_S, deadline - time.monotonic())))
         raise ZenohLinkError(f"{self.portstr}: no robot answers on rcci/{a.key} within {timeout} s "
                              f"(is `simula --zenoh {a.key}` running, and reachable at "
                              f"{', '.join(self._endpoints())}"
