@@ -19,7 +19,9 @@ to ``rccl.events`` under its name, and then:
   it has not been heard for its silence (it is stopped, hung or cut off), it gives that
   planning level up: it aborts the motions that planning level queued (the arm holds),
   says why (``rcci/CELL/arm/ARM/held``, and a line on stdout) and refuses what that
-  planning level asks afterwards (``PlannerLost``); when this process finds itself stalled
+  planning level asks afterwards (``PlannerLost``); obeys only the planning level that
+  holds the arm (``rccl.bus.hold``: sealed requests, start_ev / stop_ev with a MAC; anything
+  else refused, counted and reported once per flood); when this process finds itself stalled
   longer than a planning level's silence, it aborts that planning level's motions too;
 * publishes ``rcci/CELL/arm/ARM/fault`` and ends (exit status 1) when its arm's control
   ends with a fault.
@@ -51,6 +53,7 @@ from rci.bus.link import undeclare
 
 from .. import events as ev
 from .heartbeat import HEARTBEAT_S, Heartbeat
+from .hold import ArmHold
 from .wire import (PlannerLost, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
                        position_from_wire, set_key)
 from ..events import ABORTED, FAULT, EventError
@@ -58,6 +61,7 @@ from ..events import ABORTED, FAULT, EventError
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
 REQUEST_QUEUE = 32     # requests waiting for the serving thread; more are dropped (counted, reported once)
 REQUEST_RATE = 200.0   # requests answered a second at most
+REQUEST_POLL_S = 0.002  # the serving thread looks for a request this often (s)
 GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
@@ -100,13 +104,19 @@ class ArmServer:
         self._remote: dict[tuple[str, int], dict] = {}      # other arms' EFTs' flags, latest seen
         self._waiting: dict[tuple[str, int], list[tuple[ev.EFT, int]]] = {}
         self._out: queue.Queue = queue.Queue()
-        # a bounded hand-over: a flood of requests costs a Zenoh thread one put each and this
-        # process's serving thread at most REQUEST_RATE answers a second (the control thread none)
-        self._requests: queue.Queue = queue.Queue(maxsize=REQUEST_QUEUE)
+        # requests wait in Zenoh's own ring buffer (REQUEST_QUEUE, the oldest dropped): a flood runs
+        # no Python code here until the serving thread takes a request, at most REQUEST_RATE a
+        # second (a Python callback per query, even one that only queued it, starved the control
+        # thread of the interpreter: 20,000 queries ended the control with R_OVERRUN, 96 ms cycles)
         self._request_bucket = TokenBucket(REQUEST_RATE, REQUEST_QUEUE)
-        self.requests_dropped = 0
-        self._flood = Episodes(f"{name}: requests dropped (more than {REQUEST_QUEUE} waiting, at most "
-                               f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_dropped, lambda: "dropped")
+        self.requests_backlogged = 0                      # requests taken while others waited (a flood)
+        self.hold = ArmHold(self.cell, self.name)         # the planning level that holds this arm, its keys
+        self._floods = [Episodes(f"{name}: a flood of requests (at most {REQUEST_QUEUE} waiting, at most "
+                                 f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_backlogged,
+                                 lambda: "answered at the rate limit while more waited; the rest were dropped "
+                                         "uncounted by the bus's ring buffer"),
+                        Episodes(f"{name}: requests and start_ev/stop_ev messages not from the planning level that "
+                                 "holds the arm", lambda: self.hold.refused, lambda: "refused")]
         self._stop = threading.Event()
         self._block = zenoh.CongestionControl.BLOCK
         self._kind_delete = zenoh.SampleKind.DELETE
@@ -128,10 +138,12 @@ class ArmServer:
             s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
             s.declare_subscriber(set_key(self.cell), self._on_set),
             s.declare_queryable(flags_key(self.cell, name, "*"), self._on_flags_query),
-            s.declare_queryable(arm_key(self.cell, name, "request"), self._offer_request),
             s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
             s.declare_subscriber(planner_key(self.cell, "*", "alive"), self._on_planner_alive),
         ]
+        self._requests = s.declare_queryable(arm_key(self.cell, name, "request"),
+                                             zenoh.handlers.RingChannel(REQUEST_QUEUE))
+        self._declared.append(self._requests)
         self._token = s.liveliness().declare_token(arm_key(self.cell, name))
         self._heart.start()
 
@@ -252,6 +264,8 @@ class ArmServer:
             ack = {"planner": msg_id[0], "seq": msg_id[1], "arm": self.name, "flags": [], "refused": refused}
             self._out.put((arm_key(self.cell, self.name, "ack"), encode(ack)))
             return
+        if not self.hold.set_ok(m):    # not from the planning level that holds the arm: dropped, counted
+            return
         with self._lock:
             if self.lose_sets > 0:                # the test hook: as if the bus lost it
                 self.lose_sets -= 1
@@ -361,13 +375,6 @@ class ArmServer:
                              f"{silences[p]} s: it is stopped, hung or cut off)", tell=True)
 
     # -- requests -------------------------------------------------------------------------------
-    def _offer_request(self, query) -> None:
-        """On a Zenoh thread: queue a request for the serving thread, or drop it (counted)."""
-        try:
-            self._requests.put_nowait(query)
-        except queue.Full:
-            self.requests_dropped += 1
-
     def _answer(self, query) -> None:
         try:
             request = decode(query.payload.to_bytes()) if query.payload is not None else {}
@@ -392,6 +399,13 @@ class ArmServer:
                                   "drives it")
         if op == "info":
             return {"robot": self.arm.robot, "rate_hz": self.arm.rate_hz, "q": self.arm.q}
+        if op == "hold":
+            return self.hold.take(r, lambda p: p in self._planners_gone)
+        r = self.hold.open(r)                         # the holder's own request, or ArmHeld
+        op = r.get("op")
+        if op == "release":
+            self.hold.release(str(planner))
+            return {"released": True}
         if op == "move":
             return self._move(r)
         if op == "free":
@@ -439,17 +453,19 @@ class ArmServer:
     # -- the serving loop -------------------------------------------------------------------------
     def serve(self) -> None:
         """Answer requests until ``close`` (or ``stop()``); raise the arm's fault after publishing it."""
+        backlog = False
         while not self._stop.is_set():
-            query = None
-            if self._request_bucket.take():
-                try:
-                    query = self._requests.get(timeout=POLL_S)
-                except queue.Empty:
-                    pass                     # the token is spent unused: at most one per POLL_S
+            query = self._requests.try_recv()
+            if query is None:
+                backlog = False
+                time.sleep(REQUEST_POLL_S)
             else:
-                time.sleep(min(POLL_S, self._request_bucket.wait_time()))
-            line = self._flood.poll()
-            if line is not None:
+                self.requests_backlogged += backlog
+                backlog = True
+                if not self._request_bucket.take():
+                    time.sleep(self._request_bucket.wait_time())
+                    self._request_bucket.take()
+            for line in filter(None, (e.poll() for e in self._floods)):
                 print(line, flush=True)
             if query is not None:
                 self._answer(query)
@@ -481,7 +497,10 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
     control's wait for a HOW (s; None: two periods, rci.Session's default); ``lose_sets`` /
     ``lose_acks``: ArmServer's test hook."""
     import rccl
-    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY,
+    # the bus's Zenoh threads at normal priority: at real-time priority a flood of queries (20,000
+    # info requests) kept them busy past the kernel's real-time budget, which then stopped the
+    # control thread with them (50 ms stalls, R_OVERRUN); the flags' threads stay real time
+    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=0,
              config=zenoh_config) as bus, \
             rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
                       on_error="raise") as arm:

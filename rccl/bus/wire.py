@@ -105,12 +105,17 @@ class PlannerLost(ArmLost):
     (a new ``BusEvents``) drives that arm again."""
 
 
+class ArmHeld(EventError):
+    """An arm process refused a request: another planning level holds the arm, or the
+    request was not sealed by the planning level that holds it (``rccl.bus.hold``)."""
+
+
 class RemoteFault(EventError):
     """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
 
 
 #: error classes an arm process's reply may name (anything else arrives as RemoteFault)
-KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock, PlannerLost)}
+KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock, PlannerLost, ArmHeld)}
 KNOWN_ERRORS.update({name: cls for name, cls in vars(rccl_exceptions).items()
                       if isinstance(cls, type) and issubclass(cls, Exception)})
 
