@@ -305,9 +305,9 @@ def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_c
     source = None
     if isinstance(start, EFT):
         source = _check_live(start, "move_ev(start=...)")
-        _check_start_code(after_code, "move_ev(after_code=...)")
+        check_start_code(after_code, "move_ev(after_code=...)")
     elif start is not None:
-        _check_start_code(start, "move_ev(start=...)")
+        check_start_code(start, "move_ev(start=...)")
     q = ae.gate
     eft = EFT(next(_serial), ae.name, None)         # its request is bound in EventGate.queued
     if source is not None:
@@ -345,7 +345,7 @@ def start_after(target: EFT, source: EFT, code: int = START) -> None:
     with _lock:
         target = _check_live(target, "start_after(target)")
         source = _check_live(source, "start_after(source)")
-        _check_start_code(code, "start_after(code)")
+        check_start_code(code, "start_after(code)")
         if target._start != NULL or target.after is not None:
             raise EventError(f"start_after: {target.describe()} already has a start condition "
                              f"(start {code_name(target._start)})")
@@ -362,7 +362,7 @@ def start_after(target: EFT, source: EFT, code: int = START) -> None:
 
 def start_ev(code: int, *efts: EFT) -> None:
     """Set the start flag of every EFT given to ``code`` (> 0), all at once."""
-    _check_start_code(code, "start_ev")
+    check_start_code(code, "start_ev")
     with _lock:
         checked = [_check_live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
@@ -375,8 +375,7 @@ def start_ev(code: int, *efts: EFT) -> None:
 def stop_ev(code: int, *efts: EFT) -> None:
     """Set the stop flag of every EFT given to ``code`` (< 0), all at once: each motion halts at its
     arm's next sample (or, not yet started, is deleted from the queue)."""
-    if not isinstance(code, int) or code >= 0:
-        raise EventError(f"stop_ev: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
+    check_stop_code(code, "stop_ev")
     with _lock:
         checked = [_check_live(e, f"stop_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
@@ -451,9 +450,16 @@ def wait_ev(eft: EFT, *, started: bool = False, timeout: float | None = None, po
 
 
 # --- internals ---------------------------------------------------------------------------------
-def _check_start_code(code: Any, where: str) -> None:
+def check_start_code(code: Any, where: str) -> None:
+    """Rule 4 for every form of the API (rccl.event_flags): a start code is an int > 0."""
     if not isinstance(code, int) or isinstance(code, bool) or code <= 0:
         raise EventError(f"{where}: start codes are positive integers (rule 4; NULL = 0 is reserved), got {code!r}")
+
+
+def check_stop_code(code: Any, where: str) -> None:
+    """Rule 4 for every form of the API (rccl.event_flags): a stop code is an int < 0."""
+    if not isinstance(code, int) or isinstance(code, bool) or code >= 0:
+        raise EventError(f"{where}: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
 
 
 def _arm_named(name: str):

@@ -61,7 +61,8 @@ from .remote import RemoteArm, RemoteEFT
 from .wire import (KNOWN_ERRORS, ArmLost, PlannerLost, RemoteFault, arm_key, check_name, flags_key, planner_key,
                        position_to_wire, set_key)
 from .wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
-from ..events import ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
+from ..events import (ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, check_start_code, check_stop_code,
+                      code_name, never_starts)
 from ..position import Position
 
 REQUEST_TIMEOUT_S = 5.0
@@ -377,12 +378,12 @@ class BusEvents:
         source = None
         if isinstance(start, RemoteEFT):
             source = self._live(start, "move_ev(start=...)")
-            _check_start_code(after_code, "move_ev(after_code=...)")
+            check_start_code(after_code, "move_ev(after_code=...)")
             wire_start = {"after": [source.arm, source.serial], "code": after_code,
                           "flags": self.flags(source.arm, source.serial) or None}
         else:
             if start is not None:
-                _check_start_code(start, "move_ev(start=...)")
+                check_start_code(start, "move_ev(start=...)")
             wire_start = start
         answer = self.request(arm.name, {"op": "move", "position": position_to_wire(position), "start": wire_start},
                               "move_ev")
@@ -395,7 +396,7 @@ class BusEvents:
 
     def start_ev(self, code: int, *efts: RemoteEFT) -> None:
         """Set the start flag of every EFT given (of any arms) to ``code`` (> 0), in one publication."""
-        _check_start_code(code, "start_ev")
+        check_start_code(code, "start_ev")
         checked = [self._live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
             e.start_sent = int(code)
@@ -404,8 +405,7 @@ class BusEvents:
     def stop_ev(self, code: int, *efts: RemoteEFT) -> None:
         """Set the stop flag of every EFT given to ``code`` (< 0), in one publication: each motion
         halts at its arm's next sample (or, not started, is deleted from its queue)."""
-        if not isinstance(code, int) or isinstance(code, bool) or code >= 0:
-            raise EventError(f"stop_ev: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
+        check_stop_code(code, "stop_ev")
         checked = [self._live(e, f"stop_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
             if e.status >= 0:
@@ -590,8 +590,3 @@ class BusEvents:
             if p.status >= 0:
                 return p
         return None
-
-
-def _check_start_code(code: Any, where: str) -> None:
-    if not isinstance(code, int) or isinstance(code, bool) or code <= 0:
-        raise EventError(f"{where}: start codes are positive integers (rule 4; NULL = 0 is reserved), got {code!r}")
