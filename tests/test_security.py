@@ -42,16 +42,19 @@ def test_a_sealed_frame_opens_once_and_anything_else_is_dropped_and_counted():
     sealed = [sealer.seal(f) for f in frames]
     assert all(f not in s for f, s in zip(frames, sealed))       # encrypted, not only signed
     assert [opener.open(s) for s in sealed] == frames
-    assert opener.open(sealed[2]) is None                        # replayed
-    tampered = bytearray(sealer.seal(b"\xA5\x5A a CHG"))
+    assert opener.open(sealed[2]) is None                        # replayed: out of sequence
+    assert opener.open(b"\xA5\x5A" + bytes(40)) is None          # garbage, a bare forged frame: out of sequence
+    nxt = sealer.seal(b"\xA5\x5A a CHG")                         # the owner's next frame (counter 6) ...
+    tampered = bytearray(nxt)
     tampered[12] ^= 1
-    assert opener.open(bytes(tampered)) is None                  # one bit changed: bad MAC
-    assert opener.open(b"\xA5\x5A" + bytes(40)) is None          # a frame not sealed (garbage, a forgery)
-    assert opener.open(sealer.seal(b"x")[:OVERHEAD]) is None     # truncated
+    assert opener.open(bytes(tampered)) is None                  # ... one bit changed: bad MAC
+    forged = (6).to_bytes(8, "big") + Sealer(os.urandom(32)).seal(b"x")[8:]
+    assert opener.open(forged) is None                           # the right counter, another key: bad MAC
+    assert opener.open(nxt[:OVERHEAD]) is None                   # truncated
     assert opener.open(bytes(5000)) is None                      # oversized
-    assert opener.open(Sealer(os.urandom(32)).seal(b"x")) is None     # another key
-    assert opener.rejected.counts == {"replayed": 1, "bad MAC": 3, "too short": 1, "oversized": 1}
-    assert opener.open(sealer.seal(b"still")) == b"still"         # the owner's frames go on
+    assert opener.rejected.counts == {"out of sequence": 2, "bad MAC": 2, "too short": 1, "oversized": 1}
+    assert opener.open(nxt) == b"\xA5\x5A a CHG"                  # the owner's frames go on
+    assert opener.open(sealer.seal(b"still")) == b"still"
 
 
 def test_a_token_bucket_allows_its_rate():

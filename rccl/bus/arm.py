@@ -492,7 +492,7 @@ class ArmServer:
 
 def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
         lease_ms: int | None = None, timeout: float | None = None, lose_sets: int = 0, lose_acks: int = 0,
-        zenoh_config: str | None = None) -> int:
+        zenoh_config: str | None = None, late_limit: int | None = None) -> int:
     """The arm process: open the arm, serve it until told to stop, release it. ``timeout``: the
     control's wait for a HOW (s; None: two periods, rci.Session's default); ``lose_sets`` /
     ``lose_acks``: ArmServer's test hook."""
@@ -503,7 +503,7 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
     with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=0,
              config=zenoh_config) as bus, \
             rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
-                      on_error="raise") as arm:
+                      on_error="raise", late_limit=late_limit) as arm:
         server = ArmServer(arm, bus, name, priority=BUS_PRIORITY, lose_sets=lose_sets, lose_acks=lose_acks)
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, lambda *_: server.stop())
@@ -566,6 +566,8 @@ def _cli(argv: list[str] | None = None) -> int:
                          "$RCI_ZENOH_CONFIG; docs/security.md); the arm's zenoh/ link takes its own ?config=")
     ap.add_argument("--timeout", type=float, default=None,
                     help="the control's wait for the robot's HOW (s; default two periods)")
+    ap.add_argument("--late-limit", type=int, default=None, metavar="N",
+                    help="late cycles in a row that end the control (default: the session's, 3)")
     ap.add_argument("--lose-sets", type=int, default=0, metavar="N",
                     help="test hook: drop the first N start_ev/stop_ev messages, as if the bus lost them")
     ap.add_argument("--lose-acks", type=int, default=0, metavar="N",
@@ -575,7 +577,7 @@ def _cli(argv: list[str] | None = None) -> int:
         if getattr(a, opt) < 0:
             ap.error(f"--{opt.replace('_', '-')} must be >= 0, got {getattr(a, opt)}")
     return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout, a.lose_sets, a.lose_acks,
-               a.zenoh_config)
+               a.zenoh_config, a.late_limit)
 
 
 if __name__ == "__main__":

@@ -17,8 +17,9 @@ under the direction's key, the nonce made of the counter (never reused: the coun
 rises, and each direction has its own key), the counter authenticated as associated data:
 the frame is encrypted (another process holding the same certificate reads nothing) and
 carries a 16-byte message authentication code (Poly1305). The receiver drops (and counts,
-by reason) a publication that is too short, too long, fails the code ("bad MAC"), or has
-a counter not above the last accepted (a replay or a reordering): a dropped publication
+by reason) a publication that is too short, too long, has a counter other than the next
+one ("out of sequence": a replay, or garbage; checked first, so a flood of garbage costs
+no decryption), or fails the code ("bad MAC"): a dropped publication
 never reaches the link's frame decoder, so it can neither move the arm nor end the
 owner's control.
 """
@@ -141,14 +142,14 @@ class Opener:
             self.rejected.add("oversized")
             return None
         head = sealed[:COUNTER_BYTES]
+        counter = int.from_bytes(head, "big")
+        if counter != self._last + 1:      # the sealer counts 1, 2, 3 ... and Zenoh delivers in order:
+            self.rejected.add("out of sequence")     # garbage and replays cost no decryption
+            return None
         try:
             frame = self._aead.decrypt(_nonce(head), sealed[COUNTER_BYTES:], head)
         except self._invalid:
             self.rejected.add("bad MAC")
-            return None
-        counter = int.from_bytes(head, "big")
-        if counter <= self._last:
-            self.rejected.add("replayed")
             return None
         self._last = counter
         return frame

@@ -418,10 +418,12 @@ class RobotEndpoint:
             self.stray += 1
             return
         if conn.received(sample.payload.to_bytes()) and not conn.announced:
-            conn.announced = True
-            with self._lock:
-                self._new.append(conn)
-            self._wake.push(b"n")
+            with self._lock:              # once, whichever Zenoh thread delivers the first frame
+                first, conn.announced = not conn.announced, True
+                if first:
+                    self._new.append(conn)
+            if first:
+                self._wake.push(b"n")
 
     def _controller_liveliness(self, sample) -> None:
         import zenoh
