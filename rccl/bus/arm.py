@@ -61,7 +61,8 @@ from ..events import ABORTED, FAULT, EventError
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
 REQUEST_QUEUE = 32     # requests waiting for the serving thread; more are dropped (counted, reported once)
 REQUEST_RATE = 200.0   # requests answered a second at most
-REQUEST_POLL_S = 0.002  # the serving thread looks for a request this often (s)
+REQUEST_POLL_S = 0.01   # the serving thread looks for a request this often when idle (s): rarely enough
+                       # that its wake-ups do not compete with the control thread for the interpreter
 GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
