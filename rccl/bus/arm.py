@@ -61,8 +61,6 @@ from ..events import ABORTED, FAULT, EventError
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
 REQUEST_QUEUE = 32     # requests waiting for the serving thread; more are dropped (counted, reported once)
 REQUEST_RATE = 200.0   # requests answered a second at most
-REQUEST_POLL_S = 0.01   # the serving thread looks for a request this often when idle (s): rarely enough
-                       # that its wake-ups do not compete with the control thread for the interpreter
 GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
@@ -105,17 +103,14 @@ class ArmServer:
         self._remote: dict[tuple[str, int], dict] = {}      # other arms' EFTs' flags, latest seen
         self._waiting: dict[tuple[str, int], list[tuple[ev.EFT, int]]] = {}
         self._out: queue.Queue = queue.Queue()
-        # requests wait in Zenoh's own ring buffer (REQUEST_QUEUE, the oldest dropped): a flood runs
-        # no Python code here until the serving thread takes a request, at most REQUEST_RATE a
-        # second (a Python callback per query, even one that only queued it, starved the control
-        # thread of the interpreter: 20,000 queries ended the control with R_OVERRUN, 96 ms cycles)
+        # a bounded hand-over: a flood of requests costs a Zenoh thread (normal priority: see run())
+        # one put each and this process's serving thread at most REQUEST_RATE answers a second
+        self._requests: queue.Queue = queue.Queue(maxsize=REQUEST_QUEUE)
         self._request_bucket = TokenBucket(REQUEST_RATE, REQUEST_QUEUE)
-        self.requests_backlogged = 0                      # requests taken while others waited (a flood)
+        self.requests_dropped = 0
         self.hold = ArmHold(self.cell, self.name)         # the planning level that holds this arm, its keys
-        self._floods = [Episodes(f"{name}: a flood of requests (at most {REQUEST_QUEUE} waiting, at most "
-                                 f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_backlogged,
-                                 lambda: "answered at the rate limit while more waited; the rest were dropped "
-                                         "uncounted by the bus's ring buffer"),
+        self._floods = [Episodes(f"{name}: a flood of requests (more than {REQUEST_QUEUE} waiting, at most "
+                                 f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_dropped, lambda: "dropped"),
                         Episodes(f"{name}: requests and start_ev/stop_ev messages not from the planning level that "
                                  "holds the arm", lambda: self.hold.refused, lambda: "refused")]
         self._stop = threading.Event()
@@ -142,9 +137,7 @@ class ArmServer:
             s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
             s.declare_subscriber(planner_key(self.cell, "*", "alive"), self._on_planner_alive),
         ]
-        self._requests = s.declare_queryable(arm_key(self.cell, name, "request"),
-                                             zenoh.handlers.RingChannel(REQUEST_QUEUE))
-        self._declared.append(self._requests)
+        self._declared.append(s.declare_queryable(arm_key(self.cell, name, "request"), self._offer_request))
         self._token = s.liveliness().declare_token(arm_key(self.cell, name))
         self._heart.start()
 
@@ -376,6 +369,13 @@ class ArmServer:
                              f"{silences[p]} s: it is stopped, hung or cut off)", tell=True)
 
     # -- requests -------------------------------------------------------------------------------
+    def _offer_request(self, query) -> None:
+        """On a Zenoh thread: queue a request for the serving thread, or drop it (counted)."""
+        try:
+            self._requests.put_nowait(query)
+        except queue.Full:
+            self.requests_dropped += 1
+
     def _answer(self, query) -> None:
         try:
             request = decode(query.payload.to_bytes()) if query.payload is not None else {}
@@ -454,18 +454,14 @@ class ArmServer:
     # -- the serving loop -------------------------------------------------------------------------
     def serve(self) -> None:
         """Answer requests until ``close`` (or ``stop()``); raise the arm's fault after publishing it."""
-        backlog = False
         while not self._stop.is_set():
-            query = self._requests.try_recv()
-            if query is None:
-                backlog = False
-                time.sleep(REQUEST_POLL_S)
-            else:
-                self.requests_backlogged += backlog
-                backlog = True
-                if not self._request_bucket.take():
-                    time.sleep(self._request_bucket.wait_time())
-                    self._request_bucket.take()
+            try:
+                query = self._requests.get(timeout=POLL_S)
+            except queue.Empty:
+                query = None
+            if query is not None and not self._request_bucket.take():
+                time.sleep(self._request_bucket.wait_time())
+                self._request_bucket.take()
             for line in filter(None, (e.poll() for e in self._floods)):
                 print(line, flush=True)
             if query is not None:
@@ -498,9 +494,10 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
     control's wait for a HOW (s; None: two periods, rci.Session's default); ``lose_sets`` /
     ``lose_acks``: ArmServer's test hook."""
     import rccl
-    # the bus's Zenoh threads at normal priority: at real-time priority a flood of queries (20,000
-    # info requests) kept them busy past the kernel's real-time budget, which then stopped the
-    # control thread with them (50 ms stalls, R_OVERRUN); the flags' threads stay real time
+    # the bus's Zenoh threads at normal priority: at real-time priority (BUS_PRIORITY) a flood of
+    # queries (20,000 info requests from another process) kept them busy past the kernel's
+    # real-time budget, which then stopped the control thread with them (50 ms stalls,
+    # R_OVERRUN; measured again 2026-11-27 18:39); the flags' own threads stay real time
     with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=0,
              config=zenoh_config) as bus, \
             rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
