@@ -12,7 +12,7 @@ against its own lockstep simula, and this process counts what crosses between it
 - c1, planning -> control: every motion request put on the motion queue
   (``rccl.queue.MotionQueue.put``, counted by wrapping it in this process only), sized as the
   JSON that carries the same request over the Zenoh bus when the levels are two processes
-  (``rccl.bus_wire.position_to_wire``: joint angles or the T6, plus the motion parameters);
+  (``rccl.bus.wire.position_to_wire``: joint angles or the T6, plus the motion parameters);
 - c3, control -> planning: one completion flag per request (the event flag the trajectory
   level sets when the request ends), sized as the JSON of its serial, status and time.
 
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.output import emit
-from rccl.bus_wire import position_to_wire
+from rccl.bus.wire import position_to_wire
 from rccl.queue import MotionQueue
 from rci.bus import encode
 

@@ -26,7 +26,9 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -92,12 +94,20 @@ def hold_program(s: Session, conv: Conversions):
     return f1
 
 
-def _link_args(link: str) -> tuple[str, ...]:
-    """simula's options for the link under test: TCP (default) or the Zenoh bus on loopback."""
+def _link_args(link: str, keys_dir: str) -> tuple[tuple[str, ...], str]:
+    """simula's options for the link under test and what the controller adds to simula's address:
+    TCP (default), the Zenoh bus on loopback, or the Zenoh bus with the security of docs/security.md
+    (``zenoh-secure``: mutual TLS, access control, a cell made by ``python -m rci.bus.keys`` in
+    ``keys_dir``; the link's frames are encrypted and authenticated on every Zenoh link)."""
     if link == "socket":
-        return ()
-    from rci.zenoh_bus import free_endpoint
-    return ("--zenoh", "bench/puma260", "--zenoh-listen", free_endpoint())
+        return (), ""
+    from rci.bus.link import free_endpoint
+    if link == "zenoh":
+        return ("--zenoh", "bench/puma260", "--zenoh-listen", free_endpoint()), ""
+    from rci.bus.keys import make_cell
+    port = int(free_endpoint().rsplit(":", 1)[1])
+    keys = make_cell(keys_dir, ["bench/puma260"], ["127.0.0.1"], port)
+    return ("--zenoh", "bench/puma260", "--zenoh-config", str(keys["robot"])), f"&config={keys['controller']}"
 
 
 def _pin_threads(pid: int, cpu: int) -> None:
@@ -113,15 +123,18 @@ def _pin_threads(pid: int, cpu: int) -> None:
 def run_rate(rate: int, seconds: float, cpu: int | None = None, link: str = "socket") -> dict:
     conv = Conversions.for_robot("puma260")
     load0, steal0 = os.getloadavg()[0], _steal_ticks()
-    with SimulaProcess("-p", "--power-on", "--rate", str(rate), *_link_args(link), lockstep=False) as sim:
+    keys_dir = tempfile.mkdtemp(prefix="rcci-bench-cell-")
+    simula_args, url_tail = _link_args(link, keys_dir)
+    with SimulaProcess("-p", "--power-on", "--rate", str(rate), *simula_args, lockstep=False) as sim:
         pinned: bool | str = "no"
         if cpu is not None:
             pinned = pin_to_cpus({cpu}, sim.proc.pid)          # simula's thread (over the socket, its only one)
-            if link == "zenoh" and pinned is True:
+            if link.startswith("zenoh") and pinned is True:
                 _pin_threads(sim.proc.pid, cpu)                # simula's Zenoh threads with it
             if pinned is True:
                 pinned = pin_to_cpus({cpu})                    # this thread: the control thread inherits it
-        with Session(sim.url, "puma260", rate_hz=rate, overrun="count", timeout=0.5, on_error="raise") as s:
+        with Session(sim.url + url_tail, "puma260", rate_hz=rate, overrun="count", timeout=0.5,
+                     on_error="raise") as s:
             s.control(hold_program(s, conv))
             s.wait(0.5)                                      # warm-up (first calls, caches)
             warm_missed = s.timing.missed
@@ -133,6 +146,7 @@ def run_rate(rate: int, seconds: float, cpu: int | None = None, link: str = "soc
             arrivals = s.timing.arrival[:n][rate // 2:] if s.timing.count <= s.timing.capacity else np.array([])
             long_gaps = int(np.sum(np.diff(arrivals) > 2.0 / rate)) if len(arrivals) > 1 else 0
             rt = s.rt_status.summary()
+    shutil.rmtree(keys_dir, ignore_errors=True)
     if cpu is not None and pinned is True:
         pin_to_cpus(set(range(os.cpu_count() or 1)))        # give this process all CPUs back
     steal1 = _steal_ticks()
@@ -162,7 +176,7 @@ def bus_round_trip(n: int = 2000) -> dict:
     """Round trip of a channel message between two processes over the Zenoh bus (rci.bus):
     planning -> echo process -> planning, one message in flight, a 6-float payload."""
     from rci.bus import Bus
-    from rci.zenoh_bus import free_endpoint
+    from rci.bus.link import free_endpoint
 
     endpoint = free_endpoint()
     with Bus("bench-echo", tasks=("planning",), listen=(endpoint,)) as bus:
@@ -320,11 +334,14 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None, 
         "  simula's own timing error, the link and the controller's wake-up latency.",
         "- *link*: `socket` is TCP on loopback (`socket://127.0.0.1:PORT`); `zenoh` is the Zenoh bus",
         "  (`simula --zenoh KEY`, link address `zenoh/KEY?connect=tcp/127.0.0.1:PORT`, peer to peer over TCP on",
-        "  loopback, rci/zenoh_bus.py): each frame is a publication, handed to the reader by the Zenoh thread",
+        "  loopback, rci/bus/link.py): each frame is a publication, handed to the reader by the Zenoh thread",
         "  that received it; in a pinned run both processes' Zenoh threads share their CPU (real time, priority + 1).",
         "  At 1 kHz that CPU is then busy with real-time work about 95 % of each second, and the kernel's",
         "  real-time throttling (sched_rt_runtime_us) stops its real-time threads ~50 ms once a second",
         "  (HOW gaps, jitter max; docs/zenoh.md \"Speed\").",
+        "- *zenoh-secure*: the same with the security of docs/security.md on: mutual TLS (`tls/127.0.0.1:PORT`),",
+        "  Zenoh's access control on simula's session, a cell made by `python -m rci.bus.keys`. Every Zenoh row",
+        "  has the link's own frame security (each frame encrypted and authenticated, ChaCha20-Poly1305).",
         "- *RCI work*: the control task's own time per cycle (decode, checks, encode, send), user functions excluded;",
         "  *period left to user code* = 1 - RCI work / period.",
         f"- Real-time set-up achieved: {results[0]['realtime'] if results else 'n/a'}.",
@@ -334,7 +351,7 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None, 
         "- Target (issue 4): 1 kHz with zero missed cycles and p99 jitter <= 200 us.",
         "",
     ]
-    if any(r.get("link") == "zenoh" for r in results):
+    if any(r.get("link", "").startswith("zenoh") for r in results):
         lines += _zenoh_ratios(results)
     if bus:
         lines += ["## A channel message between two processes over the bus", "",
@@ -350,17 +367,18 @@ def render(results: list[dict], command: str, stress: list[dict] | None = None, 
 def _zenoh_ratios(results: list[dict]) -> list[str]:
     """Zenoh against the socket at the same rate, same run."""
     out = ["## The link over Zenoh against the socket (same run)", "",
-           "| rate (Hz) | missed after warm-up socket / zenoh | jitter p50 zenoh / socket | jitter p99 zenoh / socket "
-           "| RCI work p99 zenoh / socket |", "|---|---|---|---|---|"]
+           "| link | rate (Hz) | missed after warm-up socket / zenoh | jitter p50 zenoh / socket | jitter p99 zenoh / socket "
+           "| RCI work p99 zenoh / socket |", "|---|---|---|---|---|---|"]
     sock = {r["rate"]: r for r in results if r.get("link", "socket") == "socket"}
-    for z in (r for r in results if r.get("link") == "zenoh"):
+    for z in (r for r in results if r.get("link", "").startswith("zenoh")):
         s = sock.get(z["rate"])
         if s is None:
             continue
         ratio = lambda k: z[k] / s[k] if s[k] > 0 else float("nan")      # noqa: E731
-        out.append(f"| {z['rate']} | {s['steady_missed']} / {z['steady_missed']} | {ratio('jitter_p50'):.1f}x "
+        out.append(f"| {z['link']} | {z['rate']} | {s['steady_missed']} / {z['steady_missed']} | {ratio('jitter_p50'):.1f}x "
                    f"| {ratio('jitter_p99'):.1f}x ({z['jitter_p99'] * 1e6:.0f} us) | {ratio('overhead_p99'):.2f}x |")
-    return out + ["", "Goal (issue 17): 1 kHz over Zenoh on loopback with 0 missed cycles and p99 jitter <= 200 us.", ""]
+    return out + ["", "Goal (issues 17 and 26): 1 kHz over Zenoh on loopback, with and without the security on, "
+                  "with 0 missed cycles and p99 jitter <= 200 us on a quiet machine.", ""]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -375,7 +393,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hogs", type=int, default=2, help="CPU hogs during the stress run")
     ap.add_argument("--only-stress", action="store_true", help="skip the per-rate runs")
     ap.add_argument("--zenoh-rates", type=int, nargs="*", default=[250, 1000],
-                    help="rates run once more over the Zenoh link (rci/zenoh_bus.py), for the comparison")
+                    help="rates run once more over the Zenoh link (rci/bus/link.py), for the comparison")
+    ap.add_argument("--secure-rates", type=int, nargs="*", default=[1000],
+                    help="rates run once more over the Zenoh link with TLS + access control (docs/security.md)")
     ap.add_argument("--unpinned-too", action="store_true",
                     help="after the pinned runs, run the highest rate once more without pinning (for comparison)")
     args = ap.parse_args(argv)
@@ -394,9 +414,10 @@ def main(argv: list[str] | None = None) -> int:
                   f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
                   f"load {r['load0']:.1f} -> {r['load']:.1f}", flush=True)
             results.append(r)
-    for rate in ([] if args.only_stress else args.zenoh_rates):
-        r = run_rate(rate, args.seconds, None if args.cpu < 0 else args.cpu, link="zenoh")
-        print(f"{rate:5d} Hz over Zenoh: cycles {r['cycles']}, missed {r['warm_missed']} (warm-up) + {r['steady_missed']}, "
+    runs = [(rate, "zenoh") for rate in args.zenoh_rates] + [(rate, "zenoh-secure") for rate in args.secure_rates]
+    for rate, link in ([] if args.only_stress else runs):
+        r = run_rate(rate, args.seconds, None if args.cpu < 0 else args.cpu, link=link)
+        print(f"{rate:5d} Hz over {link}: cycles {r['cycles']}, missed {r['warm_missed']} (warm-up) + {r['steady_missed']}, "
               f"jitter p50/p99/max {r['jitter_p50'] * 1e6:.0f}/{r['jitter_p99'] * 1e6:.0f}/{r['jitter_max'] * 1e6:.0f} us, "
               f"RCI work p99 {r['overhead_p99'] * 1e6:.0f} us, HOW gaps > 2 periods {r['long_gaps']}, "
               f"load {r['load0']:.1f} -> {r['load']:.1f}, steal {r['steal_ms']:.0f} ms, {r['pinned']}", flush=True)

@@ -5,7 +5,7 @@
 
 Real processes on loopback, as ``tests/test_zenoh_flags.py`` and
 ``tests/test_zenoh_flag_faults.py`` run them: two real-time simulas (``-p --power-on``,
-a PUMA 260 and a Microbo), two arm processes (``python -m rccl.bus_arm``) driving them over
+a PUMA 260 and a Microbo), two arm processes (``python -m rccl.bus.arm``) driving them over
 sockets, and the planning level in this process, the bus's hub. The plan is
 ``examples/two_arm_flags.py``'s ``plan`` (a; b starts when a ends; c and d held, then
 started together by one ``start_ev``) with small moves (a few hundredths of a radian),
@@ -17,7 +17,7 @@ one clock on one host:
 - *A ended -> B began*: the hop plus the wait for B's next sample;
 - *start_ev spread*: c and d (two arms, two independent sample clocks) began apart;
 - *start_ev round trip*: ``start_ev(7, c, d)`` returned: its message out, both arms'
-  acknowledgements back (rccl.bus_events re-sends until they come).
+  acknowledgements back (rccl.bus.planning re-sends until they come).
 
 Faults (``--fault-runs`` each, fresh processes each time):
 
@@ -26,9 +26,9 @@ Faults (``--fault-runs`` each, fresh processes each time):
 - *planning process stopped*: ``tests/bus_planner.py`` (a client of the bench's hub)
   SIGSTOPped while its motion runs -> the arm process prints that it gave that planner up
   and aborted its motions (its own clock; the planner's heartbeat's silence,
-  ``rccl.bus_events.SILENCE_S``);
+  ``rccl.bus.planning.SILENCE_S``);
 - *arm process stopped*: SIGSTOP while the plan waits on its motion -> ``wait_ev`` raises
-  ``ArmLost`` (the heartbeat's silence, ``rccl.bus_events.SILENCE_S``).
+  ``ArmLost`` (the heartbeat's silence, ``rccl.bus.planning.SILENCE_S``).
 """
 from __future__ import annotations
 
@@ -49,11 +49,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bench.output import emit, progress  # noqa: E402
-from rccl import bus_arm  # noqa: E402
-from rccl.bus_events import HEARTBEAT_S, RESEND_S, SILENCE_S, ArmLost, BusEvents  # noqa: E402
+from rccl.bus import arm as bus_arm  # noqa: E402
+from rccl.bus.planning import HEARTBEAT_S, RESEND_S, SILENCE_S, ArmLost, BusEvents  # noqa: E402
 from rccl.position import joint_position  # noqa: E402
 from rci.bus import Bus  # noqa: E402
-from rci.zenoh_bus import free_endpoint  # noqa: E402
+from rci.bus.link import free_endpoint  # noqa: E402
 from rci.simula.process import SimulaProcess  # noqa: E402
 
 COMMAND = "make bench  (python -m bench.zenoh_flags)"
@@ -227,7 +227,7 @@ def render(lat: dict[str, list[float]], faults: dict[str, list[float]], rate_hz:
         f"{load[1]:.1f} at the end (the machine is shared).",
         "",
         f"Real processes on loopback: two real-time simulas (PUMA 260, Microbo), two arm processes "
-        f"(`python -m rccl.bus_arm`, {rate_hz} Hz: one sample is {sample_ms:.0f} ms) linked to them by sockets, the "
+        f"(`python -m rccl.bus.arm`, {rate_hz} Hz: one sample is {sample_ms:.0f} ms) linked to them by sockets, the "
         "planning level in the bench's process (the bus's hub). The plan is `examples/two_arm_flags.py`'s `plan` with "
         "small moves, run on the same processes each time. Times are the processes' `time.monotonic()` (one host, "
         "one clock). See the module's docstring (`bench/zenoh_flags.py`) for each row's definition.",
@@ -252,7 +252,7 @@ def render(lat: dict[str, list[float]], faults: dict[str, list[float]], rate_hz:
         "## A peer lost",
         "",
         f"Heartbeats (arm processes and planning levels) every {HEARTBEAT_S * 1e3:.0f} ms, silence "
-        f"{SILENCE_S * 1e3:.0f} ms both ways (`rccl.bus_events`), a "
+        f"{SILENCE_S * 1e3:.0f} ms both ways (`rccl.bus.planning`), a "
         f"start_ev / stop_ev re-sent after {RESEND_S * 1e3:.0f} ms without acknowledgement; simula's watchdog "
         f"{WATCHDOG_S * 1e3:.0f} ms. Fresh processes for each run.",
         "",

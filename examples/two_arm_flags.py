@@ -14,9 +14,9 @@ free of deadlocks before anything moves.
     python -m rccl.petri examples/two_arm_flags.py:plan puma microbo     # the same check, from the shell
 
 With ``--bus`` the same ``plan`` runs in this (planning) process against arms served by two
-arm processes (``python -m rccl.bus_arm``), each driving its robot over its own link
+arm processes (``python -m rccl.bus.arm``), each driving its robot over its own link
 (``--simula``: two real-time simulas -p --power-on serving on the bus, ``zenoh/KEY``): the
-flags cross the bus (rccl.bus_events), each arm process reports the end of each motion to
+flags cross the bus (rccl.bus.planning), each arm process reports the end of each motion to
 the planning level on a channel, and the planning process is the bus's hub the arm
 processes connect to (``--listen ENDPOINT``, by default a free loopback port).
 """
@@ -27,7 +27,7 @@ import sys
 from contextlib import ExitStack
 
 from rccl import petri
-from rci.zenoh_bus import free_endpoint
+from rci.bus.link import free_endpoint
 
 
 def plan(ev, puma, mic, pos=None) -> dict:
@@ -86,8 +86,8 @@ def run_bus(urls: dict[str, str], listen: str, rate_hz: int = 50, how_timeout: f
     Returns ``{"efts": {name: RemoteEFT}, "reports": [(arm, report), ...], "targets": {name: q}}``:
     the EFTs (ended and freed), what the arm processes reported on their channels, and the
     joint angles each motion aimed at."""
-    from rccl import bus_arm
-    from rccl.bus_events import BusEvents
+    from rccl.bus import arm as bus_arm
+    from rccl.bus.planning import BusEvents
     from rci.bus import Bus
     petri.check(plan, "puma", "microbo")            # raises Deadlock before anything moves
     with Bus(CELL, tasks=("planning",), listen=(listen,), priority=bus_arm.BUS_PRIORITY) as bus, \

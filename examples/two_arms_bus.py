@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rci.bus import Bus
-from rci.zenoh_bus import free_endpoint
+from rci.bus.link import free_endpoint
 from rci.chg import POS
 from rci.conversions import Conversions
 from rci.session import Session

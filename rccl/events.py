@@ -28,7 +28,7 @@ monitor does on an adaptive arm. Misuse is refused at once: an object that is no
 (``Deadlock``, naming the motions in the cycle), bad codes.
 
 Across processes and hosts (each arm served by its own process, the planning level in
-another), ``rccl.bus_events`` offers the same primitives over the Zenoh bus; the arm's
+another), ``rccl.bus.planning`` offers the same primitives over the Zenoh bus; the arm's
 process learns of each flag change through ``add_listener`` and publishes it.
 
 Thesis -> Python: ``move_ev(robot, position, params)`` -> ``move_ev(arm, position, start=START)``;
@@ -49,7 +49,7 @@ from .exceptions import MotionError, RCCLError
 from .motion import Request
 from .queue import HOLD, TAKE, QueuePolicy
 from .position import Position
-from .trajectory import TrajectoryGenerator
+from .generator import MotionGenerator
 
 # --- codes (rule 4: start codes > 0, stop codes < 0; rule 5: NULL is reserved) ------------
 NULL = 0
@@ -143,7 +143,7 @@ def add_listener(listener: Callable[[EFT], None]) -> None:
     """Call ``listener(eft)`` each time a flag of an EFT of this process changes (the motion is
     queued, a start or stop flag is set, it begins, it ends). Called under the flags' lock, from
     the planning level or the arm's control level: it must return at once and never wait (copy
-    what it needs and hand it to a thread, as ``rccl.bus_arm`` does to publish the flags)."""
+    what it needs and hand it to a thread, as ``rccl.bus.arm`` does to publish the flags)."""
     with _lock:
         _listeners.append(listener)
 
@@ -243,7 +243,7 @@ class _ArmEvents:
 
     def __init__(self, arm, name: str) -> None:
         gen = getattr(arm, "gen", None)
-        if not isinstance(gen, TrajectoryGenerator):
+        if not isinstance(gen, MotionGenerator):
             raise EventError(f"arm {name!r}: event flag triples need an arm whose RCCL control is running "
                              "(from rccl.open or rccl.adaptive.open, inside its with block)")
         self.arm = arm
@@ -305,9 +305,9 @@ def move_ev(arm, position: Position, *, start: int | EFT | None = START, after_c
     source = None
     if isinstance(start, EFT):
         source = _check_live(start, "move_ev(start=...)")
-        _check_start_code(after_code, "move_ev(after_code=...)")
+        check_start_code(after_code, "move_ev(after_code=...)")
     elif start is not None:
-        _check_start_code(start, "move_ev(start=...)")
+        check_start_code(start, "move_ev(start=...)")
     q = ae.gate
     eft = EFT(next(_serial), ae.name, None)         # its request is bound in EventGate.queued
     if source is not None:
@@ -345,7 +345,7 @@ def start_after(target: EFT, source: EFT, code: int = START) -> None:
     with _lock:
         target = _check_live(target, "start_after(target)")
         source = _check_live(source, "start_after(source)")
-        _check_start_code(code, "start_after(code)")
+        check_start_code(code, "start_after(code)")
         if target._start != NULL or target.after is not None:
             raise EventError(f"start_after: {target.describe()} already has a start condition "
                              f"(start {code_name(target._start)})")
@@ -362,7 +362,7 @@ def start_after(target: EFT, source: EFT, code: int = START) -> None:
 
 def start_ev(code: int, *efts: EFT) -> None:
     """Set the start flag of every EFT given to ``code`` (> 0), all at once."""
-    _check_start_code(code, "start_ev")
+    check_start_code(code, "start_ev")
     with _lock:
         checked = [_check_live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
@@ -375,8 +375,7 @@ def start_ev(code: int, *efts: EFT) -> None:
 def stop_ev(code: int, *efts: EFT) -> None:
     """Set the stop flag of every EFT given to ``code`` (< 0), all at once: each motion halts at its
     arm's next sample (or, not yet started, is deleted from the queue)."""
-    if not isinstance(code, int) or code >= 0:
-        raise EventError(f"stop_ev: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
+    check_stop_code(code, "stop_ev")
     with _lock:
         checked = [_check_live(e, f"stop_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
@@ -451,9 +450,16 @@ def wait_ev(eft: EFT, *, started: bool = False, timeout: float | None = None, po
 
 
 # --- internals ---------------------------------------------------------------------------------
-def _check_start_code(code: Any, where: str) -> None:
+def check_start_code(code: Any, where: str) -> None:
+    """Rule 4 for every form of the API (rccl.event_flags): a start code is an int > 0."""
     if not isinstance(code, int) or isinstance(code, bool) or code <= 0:
         raise EventError(f"{where}: start codes are positive integers (rule 4; NULL = 0 is reserved), got {code!r}")
+
+
+def check_stop_code(code: Any, where: str) -> None:
+    """Rule 4 for every form of the API (rccl.event_flags): a stop code is an int < 0."""
+    if not isinstance(code, int) or isinstance(code, bool) or code >= 0:
+        raise EventError(f"{where}: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
 
 
 def _arm_named(name: str):
@@ -550,7 +556,7 @@ def never_starts(e, predecessor: Callable = None, seen: set | None = None) -> st
     """Why the motion of EFT ``e`` can never start (or end), or None if it can.
 
     Reads only the public flags (``start``, ``stop``, ``status``, ``after``, ``describe()``),
-    so it serves local EFTs and rccl.bus_events' remote ones alike; ``predecessor(e)``: the
+    so it serves local EFTs and rccl.bus.planning' remote ones alike; ``predecessor(e)``: the
     motion queued before ``e`` on its arm that has not ended (default: this process's queues)."""
     predecessor = predecessor or _predecessor
     if e.status != NULL or e.stop != NULL:      # started, or stopped: it will end

@@ -46,7 +46,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from .events import START, Deadlock, EventError
+from .events import START, Deadlock, EventError, check_start_code, check_stop_code
 
 OMEGA = math.inf           # "as many tokens as you like" in a coverability marking
 
@@ -444,7 +444,8 @@ def _arm_name(arm: Any) -> str:
 
 
 class FlagProgram:
-    """Records a planning level's event-flag calls (same names and arguments as ``rccl.events``).
+    """Records a planning level's event-flag calls: the recording form of ``rccl.event_flags.EventFlags``
+    (same names, arguments and code rules as ``rccl.events``).
 
     Arms may be names (``"puma"``) or any object (its ``name`` or ``robot`` names it);
     positions may be names or anything with a ``name``.
@@ -479,6 +480,10 @@ class FlagProgram:
     def move_ev(self, arm: Any, position: Any, *, start: int | RecordedEFT | None = START,
                 after_code: int = START) -> RecordedEFT:
         source = self._own(start, "move_ev(start=...)") if isinstance(start, RecordedEFT) else None
+        if source is not None:
+            check_start_code(after_code, "move_ev(after_code=...)")
+        elif start is not None:
+            check_start_code(start, "move_ev(start=...)")
         e = self._new(arm, position, plain=False)
         self.statements.append(Statement("move_ev", (e,), None if start is None or source else start, source))
         return e
@@ -489,13 +494,16 @@ class FlagProgram:
         self.statements.append(Statement("move", (e,), START))
 
     def start_after(self, target: RecordedEFT, source: RecordedEFT, code: int = START) -> None:
+        check_start_code(code, "start_after(code)")
         self.statements.append(Statement("start_after", (self._own(target, "start_after(target)"),), code,
                                          self._own(source, "start_after(source)")))
 
     def start_ev(self, code: int, *efts: RecordedEFT) -> None:
+        check_start_code(code, "start_ev")
         self.statements.append(Statement("start_ev", tuple(self._own(e, "start_ev") for e in efts), code))
 
     def stop_ev(self, code: int, *efts: RecordedEFT) -> None:
+        check_stop_code(code, "stop_ev")
         self.statements.append(Statement("stop_ev", tuple(self._own(e, "stop_ev") for e in efts), code))
 
     def wait_ev(self, eft: RecordedEFT, *, started: bool = False, timeout: float | None = None,

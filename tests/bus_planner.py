@@ -10,13 +10,13 @@ has begun, and waits for it: the test kills or stops it there. Stopped (SIGSTOP)
 continued, it finds itself given up: it prints ``given up: PlannerLost: ...`` (what
 ``wait_ev`` raised) and ``refused: ...`` (what a request to the arm raised after it) and
 ends with status 0. ``--silence S``: its BusEvents' silence (the arm gives it up after S s
-without a heartbeat of it; default rccl.bus_events.SILENCE_S).
+without a heartbeat of it; default rccl.bus.planning.SILENCE_S).
 """
 from __future__ import annotations
 
 import sys
 
-from rccl.bus_events import SILENCE_S, BusEvents, PlannerLost
+from rccl.bus.planning import SILENCE_S, BusEvents, PlannerLost
 from rccl.position import joint_position
 from rci.bus import Bus
 

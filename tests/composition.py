@@ -83,7 +83,7 @@ def simula(robot: str, link: str) -> Iterator:
     # tests: simula waits 10 s for a CHG before ending the control (its default is 3 s)
     args = ["-p", "--power-on", "--lockstep-watchdog", "10"]
     if link == "zenoh":
-        from rci.zenoh_bus import free_endpoint
+        from rci.bus.link import free_endpoint
         args += ["--zenoh", f"matrix/{robot}", "--zenoh-listen", free_endpoint()]
     elif link != "socket":
         raise ValueError(f"link {link!r} is not one of {LINKS}")

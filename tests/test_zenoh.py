@@ -1,4 +1,4 @@
-"""The robot link over Zenoh (rci.zenoh_bus, `simula --zenoh KEY`), against real processes.
+"""The robot link over Zenoh (rci.bus.link, `simula --zenoh KEY`), against real processes.
 
 Each test starts a simula process serving its arm on the bus (peer to peer over TCP on
 loopback, its own port) and controllers in this process or in others; faults are real:
@@ -22,9 +22,9 @@ from rci import codes
 from rci.chg import POS
 from rci.exceptions import ControlTerminated, DeviceError, RobotBusy
 from rci.session import Session
-from rci.zenoh_bus import free_endpoint
+from rci.bus.link import free_endpoint
 from rci.simula.process import SimulaProcess
-from rci.zenoh_bus import ZenohAddress, ZenohLinkError
+from rci.bus.link import ZenohAddress, ZenohLinkError
 
 ROOT = Path(__file__).resolve().parent.parent
 WAIT = 10.0
@@ -79,7 +79,7 @@ def test_a_frame_reaches_the_reader_on_zenohs_own_thread():
     thread of zenoh-python's (an ordinary thread that waited whole periods under load)."""
     import threading
 
-    from rci.zenoh_bus import _declare_publisher, _on_zenoh_thread, _Pipe, open_session
+    from rci.bus.link import _declare_publisher, _on_zenoh_thread, _Pipe, open_session
 
     endpoint = free_endpoint()
     robot, controller = open_session(listen=(endpoint,)), open_session(connect=(endpoint,))
@@ -109,7 +109,7 @@ def test_a_frame_reaches_the_reader_on_zenohs_own_thread():
 
 
 def test_a_reader_that_stops_reading_ends_its_pipe_and_zenohs_thread_never_waits():
-    from rci.zenoh_bus import _Pipe
+    from rci.bus.link import _Pipe
 
     pipe = _Pipe()
     t0 = time.monotonic()

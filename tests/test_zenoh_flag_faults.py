@@ -1,7 +1,7 @@
 """Event flags across processes when a peer dies, stalls, comes back or loses a message (issue 17, item 2).
 
 Real OS processes on loopback: a real-time simula (-p --power-on), an arm process
-(``python -m rccl.bus_arm``) driving it over a socket, and a planning level (this test's
+(``python -m rccl.bus.arm``) driving it over a socket, and a planning level (this test's
 process, or ``tests/bus_planner.py`` when it is the one killed). The faults are real: a
 process killed (SIGKILL) or stopped (SIGSTOP) and continued (SIGCONT); a start_ev message
 and an acknowledgement dropped by the arm process's test hook (``--lose-sets``,
@@ -22,13 +22,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rccl import bus_arm
-from rccl.bus_events import HEARTBEAT_S, SILENCE_S, ArmLost, BusEvents
-from rccl.bus_wire import arm_key, set_key
+from rccl.bus import arm as bus_arm
+from rccl.bus.planning import HEARTBEAT_S, SILENCE_S, ArmLost, BusEvents
+from rccl.bus.wire import arm_key, set_key
 from rccl.events import DONE, EventError
 from rccl.position import joint_position
 from rci.bus import Bus, decode, encode
-from rci.zenoh_bus import free_endpoint
+from rci.bus.link import free_endpoint
 from rci.simula.process import SimulaProcess
 
 HERE = Path(__file__).resolve().parent

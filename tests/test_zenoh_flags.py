@@ -1,6 +1,6 @@
-"""Event flag triples across processes on the Zenoh bus (rccl.bus_events, rccl.bus_arm), with real OS processes.
+"""Event flag triples across processes on the Zenoh bus (rccl.bus.planning, rccl.bus.arm), with real OS processes.
 
-Two real-time simula processes (-p --power-on), two arm processes (``python -m rccl.bus_arm``)
+Two real-time simula processes (-p --power-on), two arm processes (``python -m rccl.bus.arm``)
 each driving one of them, and the planning level in this test's process (the bus's hub,
 on loopback). The arms' links to their simulas are sockets here (they are robust on a
 loaded machine; docs/zenoh.md has the Zenoh link's own tests); the flags, requests and
@@ -18,14 +18,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rccl import bus_arm
-from rccl.bus_events import (ArmLost, BusEvents, arm_key, flags_key, position_from_wire, position_to_wire, set_key)
+from rccl.bus import arm as bus_arm
+from rccl.bus.planning import (ArmLost, BusEvents, arm_key, flags_key, position_from_wire, position_to_wire, set_key)
 from rccl.events import DONE, Deadlock, EventError, UnknownEvent
 from rccl.exceptions import MotionError
 from rccl.position import joint_position
 from rccl.session import load_kinematics
 from rci.bus import Bus
-from rci.zenoh_bus import free_endpoint
+from rci.bus.link import free_endpoint
 from rci.simula.process import SimulaProcess
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"

@@ -1,7 +1,7 @@
 """A planning process cut off by the network mid-plan, and the network back (issue 17, item 2).
 
 Two network namespaces joined by a veth pair (``tests/test_zenoh_netns.py``'s helpers):
-in A a real-time simula and the arm process (``python -m rccl.bus_arm``) driving it over
+in A a real-time simula and the arm process (``python -m rccl.bus.arm``) driving it over
 a socket on A's loopback; in B the planning process, the bus's hub, listening on B's
 address. The planning process queues a long motion of the waist and a held one behind
 it; the test then cuts the network between A and B, two ways: B's end of the veth down
@@ -37,7 +37,7 @@ import uuid
 import numpy as np
 import pytest
 
-from rccl.bus_events import HEARTBEAT_S, SILENCE_S
+from rccl.bus.planning import HEARTBEAT_S, SILENCE_S
 from rci import codes
 from rci.simula.process import ToolProcess
 from tests.test_zenoh_flag_faults import _line, held_where_it_is, waist_on_its_way
@@ -49,7 +49,7 @@ CLONE_NEWNET = 0x40000000
 
 PLANNER = textwrap.dedent("""
     import sys, time
-    from rccl.bus_events import ArmLost, BusEvents, PlannerLost
+    from rccl.bus.planning import ArmLost, BusEvents, PlannerLost
     from rccl.events import DONE
     from rccl.position import joint_position
     from rci.bus import Bus
@@ -177,7 +177,7 @@ def test_a_planning_process_cut_off_by_the_network_is_given_up_and_told_when_it_
         planner = subprocess.Popen(["ip", "netns", "exec", ns_b, sys.executable, "-c", PLANNER, f"cut-{tag}", endpoint],
                                    stdout=subprocess.PIPE, stdin=subprocess.PIPE, cwd=os.getcwd())
         _line(planner, 30.0, "listening")
-        arm = subprocess.Popen(["ip", "netns", "exec", ns_a, sys.executable, "-m", "rccl.bus_arm", "puma", sim.url,
+        arm = subprocess.Popen(["ip", "netns", "exec", ns_a, sys.executable, "-m", "rccl.bus.arm", "puma", sim.url,
                                 "puma260", "--cell", f"cut-{tag}", "--rate", str(RATE_HZ), "--bus", endpoint,
                                 "--timeout", "0.25"], stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, cwd=os.getcwd())
         _line(arm, 30.0, "puma: serving")

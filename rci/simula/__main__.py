@@ -91,10 +91,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="serve the arm on the Zenoh bus under rcci/KEY instead of TCP (link address "
                         "zenoh/KEY?connect=... on line 1; docs/zenoh.md)")
     p.add_argument("--zenoh-listen", metavar="ENDPOINT", action="append", default=[],
-                   help="Zenoh endpoint to listen on (default tcp/127.0.0.1:7447; repeatable; "
-                        "tcp/0.0.0.0:7447 for other hosts)")
+                   help="Zenoh endpoint to listen on (default tcp/127.0.0.1:7447; repeatable; another host's "
+                        "controllers need an address they reach, and TLS with access control: docs/security.md)")
     p.add_argument("--zenoh-connect", metavar="ENDPOINT", action="append", default=[],
                    help="Zenoh endpoint (a router or a peer) to connect to (repeatable)")
+    p.add_argument("--zenoh-config", metavar="FILE", default=None,
+                   help="Zenoh configuration file (JSON5: TLS, authentication, access control; default "
+                        "$RCI_ZENOH_CONFIG; `python -m rci.bus.keys` writes one per cell: docs/security.md)")
     p.add_argument("--control-port", type=_integer(*PORT_RANGE), default=0, help="control-channel port on loopback (0: any free)")
     p.add_argument("--no-control", action="store_true", help="no control channel")
     p.add_argument("--test-channel", action="store_true",
@@ -175,9 +178,9 @@ def main(argv: list[str] | None = None) -> int:
                         watchdog=args.watchdog, watchdog_time=args.watchdog_time,
                         lockstep_watchdog=args.lockstep_watchdog)
         if args.zenoh:
-            from rci.zenoh_bus import ZenohAddress
+            from rci.bus.link import ZenohAddress
             url = server.serve_zenoh(ZenohAddress(args.zenoh.strip("/"), tuple(args.zenoh_connect),
-                                                  tuple(args.zenoh_listen)),
+                                                  tuple(args.zenoh_listen), config=args.zenoh_config),
                                      # real time: Zenoh's threads just above the serving loop
                                      priority=0 if args.lockstep or args.priority <= 0 else args.priority + 1)
         elif args.pty:

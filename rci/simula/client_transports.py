@@ -2,7 +2,7 @@
 
 ``ClientTransport`` (``fileno``, ``read``, ``write``, ``flush``, ``close``) with a TCP
 connection (``SocketTransport``, a bounded queue of unsent bytes) and a pseudo-terminal
-(``PtyTransport``); the Zenoh bus's connections (rci.zenoh_bus.Connection) have the same
+(``PtyTransport``); the Zenoh bus's connections (rci.bus.link.Connection) have the same
 shape. rci.simula.server serves controllers through them.
 """
 from __future__ import annotations

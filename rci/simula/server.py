@@ -137,7 +137,7 @@ class Server:
         self.err = err or sys.stderr
         self.listener: socket.socket | None = None
         self.pty: PtyTransport | None = None
-        self.zenoh = None                       # rci.zenoh_bus.RobotEndpoint with --zenoh
+        self.zenoh = None                       # rci.bus.link.RobotEndpoint with --zenoh
         self.session: Client | None = None      # the owner (or, on a pty, the line's one client)
         self.pending: list[Client] = []         # TCP connections not welcomed (yet)
         self.control: ControlChannel | None = None
@@ -182,8 +182,8 @@ class Server:
         return f"socket://{host}:{s.getsockname()[1]}"
 
     def serve_zenoh(self, address, priority: int = 0) -> str:
-        """Serve controllers on the Zenoh bus (rci.zenoh_bus); returns the ``zenoh/KEY?...`` address."""
-        from rci.zenoh_bus import RobotEndpoint
+        """Serve controllers on the Zenoh bus (rci.bus.link); returns the ``zenoh/KEY?...`` address."""
+        from rci.bus.link import RobotEndpoint
 
         # Zenoh hands every frame to Python on its own threads, which need the GIL this loop
         # holds while it computes or spins before a tick: hand it over often (the default
@@ -236,7 +236,8 @@ class Server:
         """The control endings remembered and the latest HOWs (seq, wall time sent, q in rad)."""
         ticks = [[seq, t, [float(x) for x in q]] for seq, t, q in list(self.ticks)[-64:]]
         return {"events": list(self.events), "ticks": ticks, "stale_chg": self.stale,
-                "duplicate_chg": self.duplicates, "now": time.monotonic()}
+                "duplicate_chg": self.duplicates, "now": time.monotonic(),
+                "bus": self.zenoh.info() if self.zenoh is not None else None}
 
     # --- frames --------------------------------------------------------------------------
     def _send(self, ftype: int, seq: int, payload: bytes = b"", client: Client | None = None) -> None:
@@ -856,6 +857,9 @@ class Server:
             if control is not None and control.pending():
                 self._control_work(control)
             self._expire_pending()
+            if self.zenoh is not None:       # floods on the bus: one line each, with its count
+                for line in self.zenoh.report():
+                    self.log(line)
             if self.lockstep:
                 self._lockstep_watchdog()
             else:

@@ -1,13 +1,13 @@
 """``zenoh/KEY?connect=...``: the robot link over the Zenoh bus (docs/zenoh.md).
 
-The controller's end of a connection (rci.zenoh_bus.ControllerPort): frames go out as
+The controller's end of a connection (rci.bus.link.ControllerPort): frames go out as
 publications, what the robot publishes is read from a local socket pair the link can
 ``select`` on.
 """
 from __future__ import annotations
 
 from ..exceptions import DeviceError, LinkClosed
-from ..zenoh_bus import PREFIX, ControllerPort, ZenohLinkError
+from ..bus.link import PREFIX, ControllerPort, ZenohLinkError
 
 SCHEME = PREFIX
 

@@ -1,6 +1,6 @@
 """An arm process: one RCCL arm served on the Zenoh bus, for a planning level in another process.
 
-The other half of ``rccl.bus_events`` (key expressions and semantics there). The arm's
+The other half of ``rccl.bus.planning`` (key expressions and semantics there). The arm's
 process opens its RCCL arm (its control task runs here, at the arm's rate), attaches it
 to ``rccl.events`` under its name, and then:
 
@@ -19,7 +19,9 @@ to ``rccl.events`` under its name, and then:
   it has not been heard for its silence (it is stopped, hung or cut off), it gives that
   planning level up: it aborts the motions that planning level queued (the arm holds),
   says why (``rcci/CELL/arm/ARM/held``, and a line on stdout) and refuses what that
-  planning level asks afterwards (``PlannerLost``); when this process finds itself stalled
+  planning level asks afterwards (``PlannerLost``); obeys only the planning level that
+  holds the arm (``rccl.bus.hold``: sealed requests, start_ev / stop_ev with a MAC; anything
+  else refused, counted and reported once per flood); when this process finds itself stalled
   longer than a planning level's silence, it aborts that planning level's motions too;
 * publishes ``rcci/CELL/arm/ARM/fault`` and ends (exit status 1) when its arm's control
   ends with a fault.
@@ -27,7 +29,7 @@ to ``rccl.events`` under its name, and then:
 Its liveliness token ``rcci/CELL/arm/ARM`` is declared once it serves and ends with the
 process. Run it from the shell:
 
-    python -m rccl.bus_arm --cell lab --bus tcp/10.0.0.1:7447 puma 'zenoh/lab/puma260?connect=...' puma260
+    python -m rccl.bus.arm --cell lab --bus tcp/10.0.0.1:7447 puma 'zenoh/lab/puma260?connect=...' puma260
 
 It prints ``ARM: serving`` when ready and serves until the planning level sends ``close``,
 its arm faults, or it gets SIGTERM/SIGINT (then it releases the arm).
@@ -46,15 +48,19 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
-from rci.zenoh_bus import undeclare
+from rci.bus.guard import Episodes, TokenBucket
+from rci.bus.link import undeclare
 
-from . import events as ev
-from .bus_heartbeat import HEARTBEAT_S, Heartbeat
-from .bus_wire import (PlannerLost, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
+from .. import events as ev
+from .heartbeat import HEARTBEAT_S, Heartbeat
+from .hold import ArmHold
+from .wire import (PlannerLost, arm_key, check_name, error_reply, flags_key, flags_of, planner_key,
                        position_from_wire, set_key)
-from .events import ABORTED, FAULT, EventError
+from ..events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
+REQUEST_QUEUE = 32     # requests waiting for the serving thread; more are dropped (counted, reported once)
+REQUEST_RATE = 200.0   # requests answered a second at most
 GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
 
@@ -97,7 +103,16 @@ class ArmServer:
         self._remote: dict[tuple[str, int], dict] = {}      # other arms' EFTs' flags, latest seen
         self._waiting: dict[tuple[str, int], list[tuple[ev.EFT, int]]] = {}
         self._out: queue.Queue = queue.Queue()
-        self._requests: queue.Queue = queue.Queue()
+        # a bounded hand-over: a flood of requests costs a Zenoh thread (normal priority: see run())
+        # one put each and this process's serving thread at most REQUEST_RATE answers a second
+        self._requests: queue.Queue = queue.Queue(maxsize=REQUEST_QUEUE)
+        self._request_bucket = TokenBucket(REQUEST_RATE, REQUEST_QUEUE)
+        self.requests_dropped = 0
+        self.hold = ArmHold(self.cell, self.name)         # the planning level that holds this arm, its keys
+        self._floods = [Episodes(f"{name}: a flood of requests (more than {REQUEST_QUEUE} waiting, at most "
+                                 f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_dropped, lambda: "dropped"),
+                        Episodes(f"{name}: requests and start_ev/stop_ev messages not from the planning level that "
+                                 "holds the arm", lambda: self.hold.refused, lambda: "refused")]
         self._stop = threading.Event()
         self._block = zenoh.CongestionControl.BLOCK
         self._kind_delete = zenoh.SampleKind.DELETE
@@ -119,10 +134,10 @@ class ArmServer:
             s.declare_subscriber(f"rcci/{self.cell}/flags/*/*", self._on_flags),
             s.declare_subscriber(set_key(self.cell), self._on_set),
             s.declare_queryable(flags_key(self.cell, name, "*"), self._on_flags_query),
-            s.declare_queryable(arm_key(self.cell, name, "request"), self._requests.put),
             s.liveliness().declare_subscriber(planner_key(self.cell, "*"), self._on_planner, history=True),
             s.declare_subscriber(planner_key(self.cell, "*", "alive"), self._on_planner_alive),
         ]
+        self._declared.append(s.declare_queryable(arm_key(self.cell, name, "request"), self._offer_request))
         self._token = s.liveliness().declare_token(arm_key(self.cell, name))
         self._heart.start()
 
@@ -243,6 +258,8 @@ class ArmServer:
             ack = {"planner": msg_id[0], "seq": msg_id[1], "arm": self.name, "flags": [], "refused": refused}
             self._out.put((arm_key(self.cell, self.name, "ack"), encode(ack)))
             return
+        if not self.hold.set_ok(m):    # not from the planning level that holds the arm: dropped, counted
+            return
         with self._lock:
             if self.lose_sets > 0:                # the test hook: as if the bus lost it
                 self.lose_sets -= 1
@@ -352,6 +369,13 @@ class ArmServer:
                              f"{silences[p]} s: it is stopped, hung or cut off)", tell=True)
 
     # -- requests -------------------------------------------------------------------------------
+    def _offer_request(self, query) -> None:
+        """On a Zenoh thread: queue a request for the serving thread, or drop it (counted)."""
+        try:
+            self._requests.put_nowait(query)
+        except queue.Full:
+            self.requests_dropped += 1
+
     def _answer(self, query) -> None:
         try:
             request = decode(query.payload.to_bytes()) if query.payload is not None else {}
@@ -376,6 +400,13 @@ class ArmServer:
                                   "drives it")
         if op == "info":
             return {"robot": self.arm.robot, "rate_hz": self.arm.rate_hz, "q": self.arm.q}
+        if op == "hold":
+            return self.hold.take(r, lambda p: p in self._planners_gone)
+        r = self.hold.open(r)                         # the holder's own request, or ArmHeld
+        op = r.get("op")
+        if op == "release":
+            self.hold.release(str(planner))
+            return {"released": True}
         if op == "move":
             return self._move(r)
         if op == "free":
@@ -428,6 +459,11 @@ class ArmServer:
                 query = self._requests.get(timeout=POLL_S)
             except queue.Empty:
                 query = None
+            if query is not None and not self._request_bucket.take():
+                time.sleep(self._request_bucket.wait_time())
+                self._request_bucket.take()
+            for line in filter(None, (e.poll() for e in self._floods)):
+                print(line, flush=True)
             if query is not None:
                 self._answer(query)
                 del query                                  # the query is finished when dropped
@@ -452,14 +488,20 @@ class ArmServer:
 
 
 def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
-        lease_ms: int | None = None, timeout: float | None = None, lose_sets: int = 0, lose_acks: int = 0) -> int:
+        lease_ms: int | None = None, timeout: float | None = None, lose_sets: int = 0, lose_acks: int = 0,
+        zenoh_config: str | None = None, late_limit: int | None = None) -> int:
     """The arm process: open the arm, serve it until told to stop, release it. ``timeout``: the
     control's wait for a HOW (s; None: two periods, rci.Session's default); ``lose_sets`` /
     ``lose_acks``: ArmServer's test hook."""
     import rccl
-    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=BUS_PRIORITY) as bus, \
+    # the bus's Zenoh threads at normal priority: at real-time priority (BUS_PRIORITY) a flood of
+    # queries (20,000 info requests from another process) kept them busy past the kernel's
+    # real-time budget, which then stopped the control thread with them (50 ms stalls,
+    # R_OVERRUN; measured again 2026-11-27 18:39); the flags' own threads stay real time
+    with Bus(cell, tasks=(name,), connect=bus_endpoints, lease_ms=lease_ms, priority=0,
+             config=zenoh_config) as bus, \
             rccl.open(url, robot, rate_hz=rate_hz, signals=False, lock_memory=False, timeout=timeout,
-                      on_error="raise") as arm:
+                      on_error="raise", late_limit=late_limit) as arm:
         server = ArmServer(arm, bus, name, priority=BUS_PRIORITY, lose_sets=lose_sets, lose_acks=lose_acks)
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, lambda *_: server.stop())
@@ -480,11 +522,11 @@ def run(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ..
 def spawn(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, ...], rate_hz: int = 50,
           lease_ms: int | None = None, how_timeout: float | None = None, timeout: float = 30.0,
           extra: tuple[str, ...] = ()) -> subprocess.Popen:
-    """Start an arm process (``python -m rccl.bus_arm``) and wait until it serves (at most
+    """Start an arm process (``python -m rccl.bus.arm``) and wait until it serves (at most
     ``timeout`` s); the caller ends it (``close`` request, or terminate/kill the Popen).
     ``extra``: more of its options (``--lose-sets N``). Its stdout stays a pipe: after the
     ``serving`` line it tells what it aborted and why (``_hold``)."""
-    argv = [sys.executable, "-m", "rccl.bus_arm", name, url, robot, "--cell", cell, "--rate", str(rate_hz)]
+    argv = [sys.executable, "-m", "rccl.bus.arm", name, url, robot, "--cell", cell, "--rate", str(rate_hz)]
     argv += [x for e in bus_endpoints for x in ("--bus", e)]
     argv += ["--lease", str(lease_ms)] if lease_ms is not None else []
     argv += ["--timeout", str(how_timeout)] if how_timeout is not None else []
@@ -509,7 +551,7 @@ def spawn(name: str, url: str, robot: str, cell: str, bus_endpoints: tuple[str, 
 
 
 def _cli(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m rccl.bus_arm", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m rccl.bus.arm", description=__doc__.split("\n\n")[0])
     ap.add_argument("name", help="the name the arm is served under (the planning level's BusEvents.arm(name))")
     ap.add_argument("url", help="the arm's link (zenoh/KEY?connect=..., socket://..., a device)")
     ap.add_argument("robot", help="the robot's model (puma260, microbo)")
@@ -517,8 +559,13 @@ def _cli(argv: list[str] | None = None) -> int:
     ap.add_argument("--bus", action="append", default=[], help="Zenoh endpoint of the workcell's bus (repeatable)")
     ap.add_argument("--rate", type=int, default=50, help="the arm's sample rate (Hz)")
     ap.add_argument("--lease", type=int, default=None, help="the bus's lease (ms): how soon a lost peer is noticed")
+    ap.add_argument("--zenoh-config", metavar="FILE", default=None,
+                    help="the bus's Zenoh configuration file (TLS, authentication, access control; default "
+                         "$RCI_ZENOH_CONFIG; docs/security.md); the arm's zenoh/ link takes its own ?config=")
     ap.add_argument("--timeout", type=float, default=None,
                     help="the control's wait for the robot's HOW (s; default two periods)")
+    ap.add_argument("--late-limit", type=int, default=None, metavar="N",
+                    help="late cycles in a row that end the control (default: the session's, 3)")
     ap.add_argument("--lose-sets", type=int, default=0, metavar="N",
                     help="test hook: drop the first N start_ev/stop_ev messages, as if the bus lost them")
     ap.add_argument("--lose-acks", type=int, default=0, metavar="N",
@@ -527,7 +574,8 @@ def _cli(argv: list[str] | None = None) -> int:
     for opt in ("lose_sets", "lose_acks"):
         if getattr(a, opt) < 0:
             ap.error(f"--{opt.replace('_', '-')} must be >= 0, got {getattr(a, opt)}")
-    return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout, a.lose_sets, a.lose_acks)
+    return run(a.name, a.url, a.robot, a.cell, tuple(a.bus), a.rate, a.lease, a.timeout, a.lose_sets, a.lose_acks,
+               a.zenoh_config, a.late_limit)
 
 
 if __name__ == "__main__":

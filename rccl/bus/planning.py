@@ -2,12 +2,12 @@
 
 The thesis's planning level issues motions with event flags to the trajectory levels of
 several arms. When each arm's control task runs in its own process (or on its own host),
-each arm process serves its RCCL arm on the bus (``rccl.bus_arm``), and the planning
+each arm process serves its RCCL arm on the bus (``rccl.bus.arm``), and the planning
 process drives them through :class:`BusEvents`, which has the API of ``rccl.events``:
 
     from rci.bus import Bus
-    from rccl.bus_events import BusEvents
-    with Bus("lab", tasks=("planning",), listen=("tcp/0.0.0.0:7447",)) as bus:
+    from rccl.bus.planning import BusEvents
+    with Bus("lab", tasks=("planning",), listen=("tls/10.0.0.1:7447",), config="cell.json5") as bus:
         ev = BusEvents(bus)
         puma, mic = ev.arm("puma"), ev.arm("microbo")        # served by their processes
         a = ev.move_ev(puma, p1)                              # starts when ready
@@ -33,30 +33,18 @@ every copy with the flags of its EFTs named; ``start_ev`` / ``stop_ev`` send it 
 ``RESEND_S`` until every arm addressed has acknowledged it (a lost message or a lost
 acknowledgement costs ``RESEND_S``, nothing is applied twice) or is lost (``ArmLost``).
 
-**Faults.** The planning process watches each arm process's liveliness token and its
-heartbeat (every ``HEARTBEAT_S``). A process that dies (killed, crashed) ends its token at
-once (its TCP link closes); one that stops (SIGSTOP, hung) or is cut off goes silent: after
-``silence`` s (``SILENCE_S`` by default) without a heartbeat it is lost, and stays lost for
-this planning level even if it speaks again (only a new process, a new token, is heard).
-Every ``wait_ev`` on a lost arm's motions, or on motions that wait for them, raises
-``ArmLost``; so do requests to it, at once. The robot holds that arm (its watchdog, or the
-end of the link). An arm whose control ends with a fault publishes it: ``wait_ev`` raises
-``RemoteFault`` with the arm process's message. A request no arm process answers within
-``request_timeout`` raises ``ArmLost``; nothing waits without a bound except ``wait_ev``
-with ``timeout=None`` on a motion that is still running.
+**Faults** (docs/zenoh.md, "Faults"): each side watches the other's liveliness token and
+heartbeat (every ``HEARTBEAT_S``); a dead or silent arm process (``silence`` s) is lost
+(``ArmLost`` from every request and wait on it, the robot holds the arm), a fault ends in
+``RemoteFault``; an arm process gives up a dead or silent planning level (it aborts the
+motions it queued, the arm holds) and refuses it from then on (``PlannerLost``).
 
-The arm processes watch the planning level in turn: its liveliness token
-(``rcci/CELL/planner/ID``) and its heartbeat (``.../alive``, every ``HEARTBEAT_S``). When the
-token ends, or the heartbeat has not come for ``silence`` (the same bound both ways: the
-planning process is stopped, hung or cut off), an arm process gives that planning level up:
-it aborts the motions it queued there (ABORTED; the arm holds, under its process's control),
-says why (stdout, ``rcci/CELL/arm/ARM/held``) and refuses it from then on. Speaking again,
-that planning level gets ``PlannerLost`` (an ``ArmLost``) naming why from every request,
-``start_ev`` / ``stop_ev`` and ``wait_ev`` on that arm's motions; a new ``BusEvents`` drives
-the arm. An arm process that was itself stalled longer than a planning level's silence
-aborts that planning level's motions too (docs/zenoh.md, "Faults").
+**Holding an arm** (``rccl.bus.hold``): the first request that is not ``info`` takes the arm
+with a key agreed with its process; every later request is sealed under it and each
+start_ev / stop_ev message carries a MAC per arm: an arm process obeys the planning level
+that holds it and nobody else; ``close()`` releases the arms.
 
-Key expressions and what crosses the bus: ``rccl.bus_wire``.
+Key expressions and what crosses the bus: ``rccl.bus.wire``.
 """
 from __future__ import annotations
 
@@ -65,15 +53,17 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
-from rci.zenoh_bus import undeclare
+from rci.bus.link import undeclare
 
-from .bus_heartbeat import HEARTBEAT_S, Heartbeat
-from .bus_remote import RemoteArm, RemoteEFT
-from .bus_wire import (KNOWN_ERRORS, ArmLost, PlannerLost, RemoteFault, arm_key, check_name, flags_key, planner_key,
+from .heartbeat import HEARTBEAT_S, Heartbeat
+from .hold import PlannerHolds
+from .remote import RemoteArm, RemoteEFT
+from .wire import (KNOWN_ERRORS, ArmLost, PlannerLost, RemoteFault, arm_key, check_name, flags_key, planner_key,
                        position_to_wire, set_key)
-from .bus_wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
-from .events import ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, code_name, never_starts
-from .position import Position
+from .wire import position_from_wire  # noqa: F401 - part of this module's API, as before the split
+from ..events import (ABORTED, NULL, START, Deadlock, EventError, UnknownEvent, check_start_code, check_stop_code,
+                      code_name, never_starts)
+from ..position import Position
 
 REQUEST_TIMEOUT_S = 5.0
 REFRESH_S = 1.0          # a wait that hears nothing for this long asks the arms for the latest flags (s)
@@ -124,6 +114,7 @@ class BusEvents:
         self._heard = 0                                     # counts flag changes heard (a wait's sign of life)
         self._mute: dict[str, int] = {}                     # arm -> refreshes in a row it did not answer
         self._given_up: dict[str, str] = {}                 # arm -> why its process gave this planning level up
+        self.holds = PlannerHolds(self.cell, self.id, lambda arm, r: self._ask(arm, r, "hold"))
         s = bus.session
         self._kind_delete = zenoh.SampleKind.DELETE
         self._declared = [
@@ -310,7 +301,7 @@ class BusEvents:
                 self._cond.wait_for(lambda: name in self._present, min(0.5, max(0.0, deadline - time.monotonic())))
         if not self._is_present(name):
             raise ArmLost(f"no process serves arm {name!r} on {arm_key(self.cell, name)} within {timeout} s "
-                          "(is its arm process (python -m rccl.bus_arm) running and connected to this bus?)")
+                          "(is its arm process (python -m rccl.bus.arm) running and connected to this bus?)")
         with self._cond:
             self._alive.setdefault(name, time.monotonic())
         info = self.request(name, {"op": "info"}, "arm")
@@ -344,7 +335,9 @@ class BusEvents:
             lost, why = self._lost.get(arm), self._why_lost.get(arm, "left the bus")
         if lost is not None:
             raise ArmLost(f"{where}: arm {arm!r} is lost: its process {why}, {time.monotonic() - lost:.3f} s ago")
-        wire = {**payload, "planner": self.id, "silence": self.silence}
+        return self._ask(arm, self.holds.wire(arm, {**payload, "planner": self.id, "silence": self.silence}), where)
+
+    def _ask(self, arm: str, wire: dict, where: str) -> dict:
         replies = self.bus.session.get(arm_key(self.cell, arm, "request"), payload=encode(wire),
                                        timeout=self.request_timeout)
         for reply in replies:
@@ -385,12 +378,12 @@ class BusEvents:
         source = None
         if isinstance(start, RemoteEFT):
             source = self._live(start, "move_ev(start=...)")
-            _check_start_code(after_code, "move_ev(after_code=...)")
+            check_start_code(after_code, "move_ev(after_code=...)")
             wire_start = {"after": [source.arm, source.serial], "code": after_code,
                           "flags": self.flags(source.arm, source.serial) or None}
         else:
             if start is not None:
-                _check_start_code(start, "move_ev(start=...)")
+                check_start_code(start, "move_ev(start=...)")
             wire_start = start
         answer = self.request(arm.name, {"op": "move", "position": position_to_wire(position), "start": wire_start},
                               "move_ev")
@@ -403,7 +396,7 @@ class BusEvents:
 
     def start_ev(self, code: int, *efts: RemoteEFT) -> None:
         """Set the start flag of every EFT given (of any arms) to ``code`` (> 0), in one publication."""
-        _check_start_code(code, "start_ev")
+        check_start_code(code, "start_ev")
         checked = [self._live(e, f"start_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
             e.start_sent = int(code)
@@ -412,8 +405,7 @@ class BusEvents:
     def stop_ev(self, code: int, *efts: RemoteEFT) -> None:
         """Set the stop flag of every EFT given to ``code`` (< 0), in one publication: each motion
         halts at its arm's next sample (or, not started, is deleted from its queue)."""
-        if not isinstance(code, int) or isinstance(code, bool) or code >= 0:
-            raise EventError(f"stop_ev: stop codes are negative integers (rule 4; NULL = 0 is reserved), got {code!r}")
+        check_stop_code(code, "stop_ev")
         checked = [self._live(e, f"stop_ev(argument {i + 2})") for i, e in enumerate(efts)]
         for e in checked:
             if e.status >= 0:
@@ -437,7 +429,8 @@ class BusEvents:
             self._acks[seq] = set()
         message = {"flag": flag, "code": int(code), "efts": [[e.arm, e.serial] for e in efts],
                    "planner": self.id, "seq": seq}
-        data, addressed = encode(message), {e.arm for e in efts}
+        addressed = {e.arm for e in efts}
+        data = encode({**message, "mac": self.holds.macs(message, addressed)})
         sends = 0
         try:
             while True:
@@ -553,7 +546,11 @@ class BusEvents:
 
     def close(self) -> None:
         """Leave the bus: the token ends (the arm processes abort what this planning level
-        queued and has not ended), then the heartbeat stops."""
+        queued and has not ended), then the heartbeat stops; the arms it holds are released
+        (without waiting: a released arm is also freed by the end of the token)."""
+        for arm in self.holds.held():
+            self.bus.session.get(arm_key(self.cell, arm, "request"), lambda _: None, timeout=1.0, payload=encode(
+                self.holds.wire(arm, {"op": "release", "planner": self.id, "silence": self.silence})))
         undeclare(*self._declared)
         self._heart.stop()
 
@@ -593,8 +590,3 @@ class BusEvents:
             if p.status >= 0:
                 return p
         return None
-
-
-def _check_start_code(code: Any, where: str) -> None:
-    if not isinstance(code, int) or isinstance(code, bool) or code <= 0:
-        raise EventError(f"{where}: start codes are positive integers (rule 4; NULL = 0 is reserved), got {code!r}")

@@ -1,4 +1,4 @@
-"""What crosses the Zenoh bus between a planning process and its arm processes (``rccl.bus_events``, ``rccl.bus_arm``).
+"""What crosses the Zenoh bus between a planning process and its arm processes (``rccl.bus.planning``, ``rccl.bus.arm``).
 
 Key expressions (``CELL``: the workcell's name; ``ARM``: the name an arm is served under):
 
@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from . import exceptions as rccl_exceptions
-from .events import EFT, Deadlock, EventError, UnknownEvent
-from .position import EQ, TL, Position, joint_position, makeposition
-from .transform import T6, Trsf
+from .. import exceptions as rccl_exceptions
+from ..events import EFT, Deadlock, EventError, UnknownEvent
+from ..position import EQ, TL, Position, joint_position, makeposition
+from ..transform import T6, Trsf
 
 
 # --- key expressions ------------------------------------------------------------------------
@@ -93,7 +93,7 @@ def position_from_wire(data: Any, kinematics) -> Position:
     return makeposition(data["name"], T6, EQ, Trsf(data["name"].upper(), t6), TL, T6)
 
 
-# --- the errors (raised in the planning process, ``rccl.bus_events``) ---------------------------
+# --- the errors (raised in the planning process, ``rccl.bus.planning``) ---------------------------
 class ArmLost(EventError):
     """The process serving an arm left the bus (died, or is unreachable), or does not answer."""
 
@@ -105,12 +105,17 @@ class PlannerLost(ArmLost):
     (a new ``BusEvents``) drives that arm again."""
 
 
+class ArmHeld(EventError):
+    """An arm process refused a request: another planning level holds the arm, or the
+    request was not sealed by the planning level that holds it (``rccl.bus.hold``)."""
+
+
 class RemoteFault(EventError):
     """An arm process's control ended with a fault, or it refused a request for a reason of its own."""
 
 
 #: error classes an arm process's reply may name (anything else arrives as RemoteFault)
-KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock, PlannerLost)}
+KNOWN_ERRORS = {cls.__name__: cls for cls in (EventError, UnknownEvent, Deadlock, PlannerLost, ArmHeld)}
 KNOWN_ERRORS.update({name: cls for name, cls in vars(rccl_exceptions).items()
                       if isinstance(cls, type) and issubclass(cls, Exception)})
 

@@ -1,4 +1,4 @@
-"""A process's heartbeat on the Zenoh bus (``rccl.bus_arm``'s arm processes, ``rccl.bus_events``'s planning levels).
+"""A process's heartbeat on the Zenoh bus (``rccl.bus.arm``'s arm processes, ``rccl.bus.planning``'s planning levels).
 
 A thread of its own says the process is alive every ``HEARTBEAT_S``: it publishes a small
 JSON payload on a key (``rcci/CELL/arm/ARM/alive``, ``rcci/CELL/planner/ID/alive``) and,

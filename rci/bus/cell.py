@@ -40,8 +40,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .workcell_data import OVERFLOW, ChannelFull, MultiError
-from .zenoh_bus import ZenohLinkError, open_session, undeclare
+from ..workcell_data import OVERFLOW, ChannelFull, MultiError
+from .session import ZenohLinkError, configured_endpoints, load_config, open_session, undeclare
 
 
 # --- the codec -------------------------------------------------------------------------
@@ -281,20 +281,26 @@ class Bus:
     bus that only listens (the process the others connect to) routes between the others
     (a Zenoh router), unless ``router`` says otherwise. ``priority`` > 0: Zenoh's threads
     run under SCHED_FIFO at that priority where the OS allows (what crosses the bus then
-    keeps moving on a loaded machine; arm processes use it for their event flags)."""
+    keeps moving on a loaded machine; arm processes use it for their event flags).
+    ``config``: a Zenoh configuration file (TLS, authentication, access control, endpoints;
+    default ``$RCI_ZENOH_CONFIG``: rci.bus.session); ``connect`` / ``listen`` replace its
+    endpoints."""
 
     def __init__(self, cell: str, tasks: tuple[str, ...] | list[str], connect: tuple[str, ...] = (),
                  listen: tuple[str, ...] = (), join_timeout: float = 0.5, lease_ms: int | None = None,
-                 router: bool | None = None, priority: int = 0) -> None:
+                 router: bool | None = None, priority: int = 0, config: str | None = None) -> None:
         if not cell or any(c in cell for c in "*$#? "):
             raise MultiError(f"bus: the workcell's name must be a plain key expression, not {cell!r}")
         if isinstance(tasks, str) or not tasks:
             raise MultiError("bus: tasks must name the tasks of this process, e.g. ('puma',) or ('planning',)")
         self.cell = cell.strip("/")
         self.tasks = frozenset(tasks)
-        self.priority = int(priority)    # SCHED_FIFO asked for Zenoh's threads (and the heartbeats of rccl.bus_events)
+        self.priority = int(priority)    # SCHED_FIFO asked for Zenoh's threads (and the heartbeats of rccl.bus.planning)
         self.join_timeout = join_timeout
         try:
+            if not connect and not listen:       # the endpoints of the user's configuration file
+                conf = load_config(config)
+                connect, listen = configured_endpoints(conf, "connect"), configured_endpoints(conf, "listen")
             # the process the others connect to (it listens and connects nowhere) routes between
             # them: two arm processes connected to the planning process reach each other through it
             hub = bool(listen) and not connect if router is None else router
@@ -303,7 +309,8 @@ class Bus:
             # reachable directly, the hub would stop forwarding between them (seen: an arm
             # process unreachable through the hub while its TCP link stayed up)
             spoke = bool(connect) and not listen and not hub
-            self.session = open_session(tuple(connect), tuple(listen), lease_ms, priority, router=hub, client=spoke)
+            self.session = open_session(tuple(connect), tuple(listen), lease_ms, priority, router=hub, client=spoke,
+                                        config=config)
         except ZenohLinkError as exc:
             raise MultiError(f"bus {cell!r}: {exc}") from None
         self.shared = BusShared(self)

@@ -1,15 +1,15 @@
 """The planning process's view of an arm served by another process, and of the EFTs of the
-motions queued there (what ``rccl.bus_events.BusEvents.arm`` and ``move_ev`` return)."""
+motions queued there (what ``rccl.bus.planning.BusEvents.arm`` and ``move_ev`` return)."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .events import NULL, code_name
+from ..events import NULL, code_name
 
 if TYPE_CHECKING:
-    from .bus_events import BusEvents
+    from .planning import BusEvents
 
 
 class RemoteArm:
@@ -18,7 +18,7 @@ class RemoteArm:
     positions) and ``q`` (the arm's last commanded joint angles, rad, asked for each time)."""
 
     def __init__(self, events: "BusEvents", name: str, info: dict) -> None:
-        from .session import load_kinematics
+        from ..session import load_kinematics
         self.events = events
         self.name = name
         self.robot = str(info["robot"])
