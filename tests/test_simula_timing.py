@@ -39,7 +39,7 @@ def running(monkeypatch, tmp_path):
     arm = SimulatedArm(model, truth_from_model(model), seed=0, start="ready")
     arm.power = True
     srv = server_mod.Server(arm, model.name, lockstep=False, rate_hz=RATE)
-    url = srv.listen_tcp("127.0.0.1", 0)
+    url = srv.listen("tcp", host="127.0.0.1", port=0)
     th = threading.Thread(target=srv.serve_forever, daemon=True)
     th.start()
     link = open_link(url)

@@ -179,15 +179,15 @@ def main(argv: list[str] | None = None) -> int:
                         lockstep_watchdog=args.lockstep_watchdog)
         if args.zenoh:
             from rci.bus.link import ZenohAddress
-            url = server.serve_zenoh(ZenohAddress(args.zenoh.strip("/"), tuple(args.zenoh_connect),
-                                                  tuple(args.zenoh_listen), config=args.zenoh_config),
-                                     # real time: Zenoh's threads just above the serving loop
-                                     priority=0 if args.lockstep or args.priority <= 0 else args.priority + 1)
+            url = server.listen("zenoh", address=ZenohAddress(args.zenoh.strip("/"), tuple(args.zenoh_connect),
+                                                              tuple(args.zenoh_listen), config=args.zenoh_config),
+                                # real time: Zenoh's threads just above the serving loop
+                                priority=0 if args.lockstep or args.priority <= 0 else args.priority + 1)
         elif args.pty:
-            url = server.open_pty()
+            url = server.listen("pty")
         else:
             with _naming_the_port("--port", args.host, args.port):
-                url = server.listen_tcp(args.host, args.port)
+                url = server.listen("tcp", host=args.host, port=args.port)
         control = None
         if not args.no_control:
             with _naming_the_port("--control-port", "127.0.0.1", args.control_port):

@@ -1,4 +1,4 @@
-"""simula's robot side of the RCI link: sessions over TCP or a pty, real-time and lockstep cycles.
+"""simula's robot side of the RCI link: sessions over TCP, a pty or the Zenoh bus, real-time and lockstep cycles.
 
 One controller at a time owns the arm (docs/protocol.md, "Ownership"): another one is
 refused with a BUSY error naming the owner, and the running control is not disturbed; a
@@ -18,8 +18,8 @@ connection closing, or the watchdog end the control with the arm held and power 
 Why this module is long: it is one state machine, the robot side of docs/protocol.md:
 who owns the arm, when a tick happens, and which frame ends a control are decided
 together, under one set of invariants (release flags obeyed whatever the sequence, the
-watchdog, lockstep pacing); the byte pipes are in client_transports.py and the control
-channel in control.py.
+watchdog, lockstep pacing); the endpoints (TCP, pty, Zenoh) and their byte pipes are in
+listeners/ and the control channel in control.py.
 """
 from __future__ import annotations
 
@@ -27,7 +27,6 @@ import gc
 from collections import deque
 import os
 import select
-import socket
 import sys
 import time
 from dataclasses import dataclass, field
@@ -40,7 +39,7 @@ from ..rate import RateChange, check_rate_hz
 from ..exceptions import ProtocolError, VersionError
 from ..how import How
 from .arm import N_ADC, SimulatedArm
-from .client_transports import ClientTransport, PtyTransport, SocketTransport
+from .listeners import ClientTransport, Listener, open_listener
 from .control import ControlChannel
 
 SERVER_NAME = "simula 2"
@@ -135,11 +134,9 @@ class Server:
         self.lockstep_watchdog = lockstep_watchdog
         self.out = out or sys.stdout
         self.err = err or sys.stderr
-        self.listener: socket.socket | None = None
-        self.pty: PtyTransport | None = None
-        self.zenoh = None                       # rci.bus.link.RobotEndpoint with --zenoh
+        self.listener: Listener | None = None   # where controllers connect (rci.simula.listeners)
         self.session: Client | None = None      # the owner (or, on a pty, the line's one client)
-        self.pending: list[Client] = []         # TCP connections not welcomed (yet)
+        self.pending: list[Client] = []         # connections not welcomed (yet)
         self.control: ControlChannel | None = None
         self.seq = 0                  # HOW cycle counter, never restarts (docs/protocol.md)
         self.overruns = 0             # cycles of this control whose CHG was late or missing
@@ -170,33 +167,14 @@ class Server:
         trace = os.environ.get("RCI_SIMULA_TRACE")
         self.trace: TickTrace | None = TickTrace(trace) if trace and not lockstep else None
 
-    # --- endpoints ----------------------------------------------------------------------
-    def listen_tcp(self, host: str, port: int) -> str:
-        """Listen for controllers; returns the ``socket://host:port`` URL."""
-        s = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        s.bind((host, port))
-        s.listen(8)
-        s.setblocking(False)
-        self.listener = s
-        return f"socket://{host}:{s.getsockname()[1]}"
-
-    def serve_zenoh(self, address, priority: int = 0) -> str:
-        """Serve controllers on the Zenoh bus (rci.bus.link); returns the ``zenoh/KEY?...`` address."""
-        from rci.bus.link import RobotEndpoint
-
-        # Zenoh hands every frame to Python on its own threads, which need the GIL this loop
-        # holds while it computes or spins before a tick: hand it over often (the default
-        # 5 ms switch interval would delay a CHG by up to 5 ms)
-        sys.setswitchinterval(5e-5)
-        self.zenoh = RobotEndpoint(address, priority)
-        return self.zenoh.url()
-
-    def open_pty(self) -> str:
-        """Serve a pseudo-terminal; returns the device path a controller opens."""
-        self.pty = PtyTransport()
-        self.session = Client(self.pty)
-        return self.pty.path
+    # --- endpoint ----------------------------------------------------------------------
+    def listen(self, kind: str, **options) -> str:
+        """Serve controllers at an endpoint of ``kind`` (``tcp``: host, port; ``pty``; ``zenoh``:
+        address, priority; rci.simula.listeners); returns the address a controller opens."""
+        self.listener = open_listener(kind, **options)
+        if self.listener.line is not None:      # a point-to-point line: its one client is there already
+            self.session = Client(self.listener.line)
+        return self.listener.url
 
     # --- output --------------------------------------------------------------------------
     def log(self, text: str) -> None:
@@ -237,7 +215,7 @@ class Server:
         ticks = [[seq, t, [float(x) for x in q]] for seq, t, q in list(self.ticks)[-64:]]
         return {"events": list(self.events), "ticks": ticks, "stale_chg": self.stale,
                 "duplicate_chg": self.duplicates, "now": time.monotonic(),
-                "bus": self.zenoh.info() if self.zenoh is not None else None}
+                "bus": self.listener.info() if self.listener is not None else None}
 
     # --- frames --------------------------------------------------------------------------
     def _send(self, ftype: int, seq: int, payload: bytes = b"", client: Client | None = None) -> None:
@@ -436,7 +414,7 @@ class Server:
             self.log(f"session ended during a control: {why}: arm held, power off")
         elif self.verbose:
             self.log(f"session ended: {why}")
-        if isinstance(s.transport, PtyTransport):
+        if self._is_line(s):
             self.session = Client(s.transport)
         else:
             s.transport.close()
@@ -532,7 +510,7 @@ class Server:
                 self.arm.hold_all()
             self._send_msg(protocol.BYE, bye.encode(), c)
             c.welcomed = False                   # no longer the owner
-            if not isinstance(c.transport, PtyTransport):
+            if not self._is_line(c):
                 self.session = None
                 self.pending.append(c)
         else:
@@ -642,6 +620,10 @@ class Server:
             if f is None:
                 break
             self._handle(c, f)
+
+    def _is_line(self, c: Client) -> bool:
+        """True for a point-to-point line's client (a pty): it outlives each program on the line."""
+        return self.listener is not None and c.transport is self.listener.line
 
     def _connected(self, c: Client) -> bool:
         return c is self.session or c in self.pending
@@ -768,22 +750,9 @@ class Server:
                 gc.set_threshold(*saved_gc)
 
     def _accept(self) -> None:
-        try:
-            conn, addr = self.listener.accept()
-        except (BlockingIOError, InterruptedError, OSError):
-            return
-        address = f"{addr[0]}:{addr[1]}" if isinstance(addr, tuple) else str(addr)
-        if len(self.pending) >= MAX_PENDING:
-            self.log_limited("too many connections", f"connection from {address} refused: "
-                                                     f"{MAX_PENDING} connections already wait for a HELLO")
-            conn.close()
-            return
-        self.pending.append(Client(SocketTransport(conn, address)))
-
-    def _accept_zenoh(self) -> None:
-        for conn in self.zenoh.accept():
+        for conn in self.listener.accept():
             if len(self.pending) >= MAX_PENDING:
-                self.log_limited("too many connections", f"Zenoh connection {conn.address} refused: "
+                self.log_limited("too many connections", f"connection from {conn.address} refused: "
                                                          f"{MAX_PENDING} connections already wait for a HELLO")
                 conn.close()
                 continue
@@ -812,10 +781,8 @@ class Server:
         while not self.stopping:
             clients = ([self.session] if self.session is not None else []) + self.pending
             rfds: list = [c.transport for c in clients]
-            if self.listener is not None:
+            if self.listener is not None and self.listener.fileno() is not None:
                 rfds.append(self.listener)
-            if self.zenoh is not None:
-                rfds.append(self.zenoh)
             wfds: list = [c.transport for c in clients if c.transport.wants_write()]
             if control is not None:
                 rfds.extend(control.fds())
@@ -844,8 +811,6 @@ class Server:
             for r in ready:
                 if r is self.listener:
                     self._accept()
-                elif r is self.zenoh:
-                    self._accept_zenoh()
                 elif self.session is not None and r is self.session.transport:
                     continue
                 else:
@@ -857,8 +822,8 @@ class Server:
             if control is not None and control.pending():
                 self._control_work(control)
             self._expire_pending()
-            if self.zenoh is not None:       # floods on the bus: one line each, with its count
-                for line in self.zenoh.report():
+            if self.listener is not None:    # what the endpoint refused (floods on the bus): one line each
+                for line in self.listener.report():
                     self.log(line)
             if self.lockstep:
                 self._lockstep_watchdog()
@@ -883,11 +848,7 @@ class Server:
             c.transport.close()
         if self.session is not None:
             self.session.transport.close()
-        if self.pty is not None:
-            self.pty.close()
         if self.listener is not None:
             self.listener.close()
-        if self.zenoh is not None:
-            self.zenoh.close()
         if self.control is not None:
             self.control.close()
