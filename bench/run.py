@@ -370,7 +370,8 @@ def write_report(path: Path, benches: list[RobotBench], sizes: list[int], n_pin:
     if "_cpp" in shared:
         runs = shared["_cpp"]
         L += [f"- generated C vs Pinocchio's C++, one thread, one configuration per call / batched (goal >= "
-              f"{cpp_pinocchio.GOAL:g}x for FK and the Jacobian): "
+              f"{cpp_pinocchio.GOAL:g}x for FK and the Jacobian, issue 27: >= 3x / 10x for inverse dynamics and "
+              "the inertia matrix): "
               + "; ".join(cpp_pinocchio.summary(r) for r in runs) + "."]
     for b in benches:
         L += floor_summary(b.robot, b.ops, sizes, bw)

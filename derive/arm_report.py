@@ -100,7 +100,9 @@ def arm_report(d: Derivation) -> str:
 
 
 def write_arm_report(d: Derivation, path: Path) -> Path:
-    text = arm_report(d)
+    from derive.dynamics_report import dynamics_section
+
+    text = arm_report(d) + "\n" + "\n".join(dynamics_section(d.spec))
     path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists() or path.read_text() != text:
         path.write_text(text)

@@ -284,10 +284,15 @@ def rows(derivations) -> list:
         "calib.work.window_work integrates torque over angle (trapezoid), verified in tests/test_calib_fits.py::test_window_work_of_linear_torque_is_exact_off_sample",
         "W = sigma int i_a dtheta_s")
     add("4.6", "dynamics: D thdd + c + t_g + f + t_a = t_j", "D(theta) thd + ...", "OCR",
-        "the inertia term multiplies the acceleration (thdd), as 'acceleration' in the text says; a model "
-        "statement, simula's world side integrates it with Pinocchio", "D(theta) thdd + c + t_g + f + t_a = t_j")
+        "the inertia term multiplies the acceleration (thdd), as 'acceleration' in the text says; derived in full "
+        "by derive/dynamics.py: each arm's generated inertia_matrix (D), coriolis (c), coriolis_matrix and "
+        "inverse_dynamics (D thdd + c + t_g) equal Pinocchio's crba, rnea and computeCoriolisMatrix "
+        "(tests/test_dynamics.py); f (4.27) and t_a stay separate terms; simula's world side integrates it with "
+        "Pinocchio", "D(theta) thdd + c + t_g + f + t_a = t_j")
     add("4.7", "static: t_g + f + t_a = t_j", "as printed", "definition",
-        "the static force control model (D and c dropped); rci.conversions.net_torques solves it for t_a (4.37)")
+        "the static force control model (D and c dropped); rci.conversions.net_torques solves it for t_a (4.37); "
+        "its t_g is inverse_dynamics(q, 0, 0), equal to the gravity kernels of 4.20/4.24 "
+        "(tests/test_dynamics.py::test_gravity_is_the_static_case)")
     add("4.8", "tau_gi = sum_k -m_k g^T dT_k/dtheta_i r_k", "as printed", "derived",
         "the gradient of the links' potential energy; with 4.16 (checked below) it becomes 4.20, which equals "
         "Pinocchio's generalised gravity for random masses (first section, reports/crosscheck.md)")

@@ -303,6 +303,84 @@ def check_inverse(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
         res.record("batched ik = scalar ik", e_b, len(same))
 
 
+def _rel(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
+
+
+def check_dynamics(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult, seed: int = 3) -> None:
+    """The whole dynamics (4.6, derive.dynamics) against Pinocchio's rnea, crba,
+    computeCoriolisMatrix, computeGeneralizedGravity and computeJointTorqueRegressor; errors
+    relative to max(1, largest entry of Pinocchio's answer)."""
+    from models import load_robot
+
+    rng = np.random.default_rng(seed)
+    model = load_robot(mod.ROBOT)
+    masses = np.array([li.mass for li in model.links])
+    coms = np.array([li.com for li in model.links])
+    inertia = np.array([[i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+                        for i in (np.asarray(li.inertia) for li in model.links)])
+    beta = mod.base_parameters(masses, coms, inertia, np.zeros(6))
+    # a second model: random physical inertials (DH frame k) and rotor inertias
+    other = arm.model.copy()
+    m_r, c_r = rng.uniform(0.5, 5.0, 6), rng.uniform(-0.2, 0.2, (6, 3))
+    i_r = []
+    for k in range(6):
+        a = rng.normal(size=(3, 3))
+        ic = a @ a.T * 1e-2 + np.eye(3) * 1e-3
+        i_r.append([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])
+        f = other.frames[arm.frame[k + 1]]
+        other.inertias[f.parentJoint] = f.placement.act(pin.Inertia(float(m_r[k]), c_r[k], ic))
+    rotor = rng.uniform(0.0, 0.1, 6)
+    other.armature = rotor
+    od = other.createData()
+    beta_r = mod.base_parameters(m_r, c_r, np.array(i_r), rotor)
+    pi = np.concatenate([other.inertias[j].toDynamicParameters() for j in range(1, other.njoints)])
+    m, d = arm.model, arm.data
+    e = dict.fromkeys(("id", "D", "c", "C", "tg", "tg4", "yb", "yr", "pinreg", "skew"), 0.0)
+    eig = np.inf
+    h = 1e-6
+    for q in qs:
+        qd, qdd = rng.uniform(-2, 2, 6), rng.uniform(-5, 5, 6)
+        tau = pin.rnea(m, d, q, qd, qdd).copy()
+        grav = pin.computeGeneralizedGravity(m, d, q).copy()
+        e["id"] = max(e["id"], _rel(mod.inverse_dynamics(q, qd, qdd), tau))
+        dm = mod.inertia_matrix(q)
+        e["D"] = max(e["D"], _rel(dm, np.triu(pin.crba(m, d, q)) + np.triu(d.M, 1).T))
+        e["c"] = max(e["c"], _rel(mod.coriolis(q, qd), pin.rnea(m, d, q, qd, np.zeros(6)) - grav))
+        cm = mod.coriolis_matrix(q, qd)
+        e["C"] = max(e["C"], _rel(cm, pin.computeCoriolisMatrix(m, d, q, qd)))
+        tg = mod.inverse_dynamics(q, np.zeros(6), np.zeros(6))
+        e["tg"] = max(e["tg"], _rel(tg, grav))
+        e["tg4"] = max(e["tg4"], _rel(tg, mod.gravity_links(q, masses, coms)))
+        y = mod.base_regressor(q, qd, qdd)
+        e["yb"] = max(e["yb"], _rel(y @ beta, tau))
+        tau_r = pin.rnea(other, od, q, qd, qdd)
+        e["yr"] = max(e["yr"], _rel(y @ beta_r, tau_r))
+        e["pinreg"] = max(e["pinreg"], _rel(pin.computeJointTorqueRegressor(other, od, q, qd, qdd) @ pi + rotor * qdd,
+                                            y @ beta_r))
+        eig = min(eig, float(np.linalg.eigvalsh(dm).min()))
+        ddot = (mod.inertia_matrix(q + h * qd) - mod.inertia_matrix(q - h * qd)) / (2 * h)
+        n_ = ddot - 2 * cm
+        e["skew"] = max(e["skew"], float(np.abs(n_ + n_.T).max() / max(1.0, np.abs(ddot).max())))
+    n = len(qs)
+    res.record("inverse_dynamics vs rnea (relative)", e["id"], n,
+               "qd uniform in +-2, qdd in +-5 (rad/s, rad/s^2; m/s, m/s^2 on prismatic joints)")
+    res.record("inertia_matrix D vs crba (relative)", e["D"], n)
+    res.record("coriolis c vs rnea(q, qd, 0) - gravity (relative)", e["c"], n)
+    res.record("coriolis_matrix C vs computeCoriolisMatrix (relative)", e["C"], n)
+    res.record("t_g = inverse_dynamics(q, 0, 0) vs computeGeneralizedGravity (relative)", e["tg"], n)
+    res.record("t_g vs the gravity kernel 4.20 (relative)", e["tg4"], n)
+    res.record("base_regressor x base_parameters(data file) vs rnea (relative)", e["yb"], n)
+    res.record("base_regressor x base_parameters, random inertials and rotors, vs rnea (relative)", e["yr"], n,
+               "one random model per arm: masses 0.5-5 kg, centres of mass within 0.2 m, random SPD inertias, "
+               "rotor inertias 0-0.1 (Pinocchio's armature)")
+    res.record("computeJointTorqueRegressor x parameters + rotor vs base_regressor x base_parameters (relative)",
+               e["pinreg"], n)
+    res.record("smallest eigenvalue of D over the samples (kg m^2; > 0: positive definite)", eig, n)
+    res.record("D' - 2C skew: |N + N^T| / |D'|, D' by central differences (h = 1e-6)", e["skew"], n)
+
+
 def run(n: int, seed: int = 0) -> list[CrossCheckResult]:
     results = []
     for name, mod in MODULES.items():
@@ -314,13 +392,14 @@ def run(n: int, seed: int = 0) -> list[CrossCheckResult]:
         check_jacobian_computations(mod, arm, qs, res)
         check_gravity(mod, arm, qs, res)
         check_inverse(mod, qs, res)
+        check_dynamics(mod, arm, qs, res)
         results.append(res)
     return results
 
 
 def report(results: list[CrossCheckResult], n: int, seed: int, seconds: float) -> str:
     lines = [
-        "# Cross-check: generated kinematics vs Pinocchio",
+        "# Cross-check: generated kinematics and dynamics vs Pinocchio",
         "",
         f"Written by `python -m derive.crosscheck --samples {n} --seed {seed}` "
         f"(`make demo` runs it with 2000 samples).",

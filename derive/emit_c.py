@@ -178,6 +178,9 @@ def kernel_body(prog: LoweredKernel) -> str:
 #: tried (the rewrites that expand or factor sums cost too much on large kernels)
 LARGE_KERNEL = 1500
 LARGE_TREE = 20000
+#: the greedy sign flip reprints the kernel once per temporary: skipped above this many
+#: (the dynamics programs, thousands of assignments, where it would take minutes)
+FLIP_SIGNS_MAX_TEMPS = 400
 
 
 def best_program(kernel: Kernel) -> tuple[LoweredKernel, str]:
@@ -188,9 +191,9 @@ def best_program(kernel: Kernel) -> tuple[LoweredKernel, str]:
         cross_choices += [{cols[0]: c} for c in range(3)]
     _, exprs = outputs_of(kernel)
     large = dag_size(exprs) > LARGE_KERNEL or tree_size(exprs) > LARGE_TREE
-    collapses = (False,) if large else (False, True)
-    factors = ("",) if large else ("", "count", "base", "tip")
-    stagings = (False, True) if kernel.stages else (False,)
+    collapses = (False,) if large or kernel.program else (False, True)
+    factors = ("",) if large else ("", "count") if kernel.program else ("", "count", "base", "tip")
+    stagings = (True,) if kernel.program else (False, True) if kernel.stages else (False,)
     best_per_cross: list[tuple[tuple[int, int, int], LoweredKernel]] = []
     for cross in cross_choices:
         best = None
@@ -210,7 +213,8 @@ def best_program(kernel: Kernel) -> tuple[LoweredKernel, str]:
             if best is None or key < best[0]:
                 best = (key, prog)
         assert best is not None
-        prog = _shared_reciprocal(_flip_signs(best[1]))
+        prog = best[1]
+        prog = _shared_reciprocal(_flip_signs(prog) if len(prog.temps) <= FLIP_SIGNS_MAX_TEMPS else prog)
         c = opcount.count_ops(kernel_body(prog))
         best_per_cross.append(((c["mul_div"] + c["add_sub"], c["trig"], c["mul_div"]), prog))
     key, prog = min(best_per_cross, key=lambda kp: kp[0])

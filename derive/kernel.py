@@ -73,6 +73,10 @@ class Kernel:
     #: (e.g. a frame-4 computation, then one map of 3.79); same values as ``outputs``
     stages: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
     staged: tuple[sp.Matrix, ...] = ()
+    #: True when the stages are the definition, not a hint: the outputs are written in the
+    #: stage symbols (a recursion such as Newton-Euler, whose outputs written out in the
+    #: inputs would be trees of 10^9 nodes); back ends then print the stages as assignments
+    program: bool = False
 
     def __post_init__(self) -> None:
         names = [a.name for a in self.inputs] + [a.name for a in self.outputs]

@@ -160,6 +160,11 @@ def build_kernels(d: Derivation) -> list[Kernel]:
             Arg("load", load, "(m_t kg, d_t m)")],
            [Arg("c_loaded", c + sp.Matrix(gm.tool_update), "coefficients with the tool")],
            source="4.26")
+    # -- the whole equation 4.6 (derive.dynamics): D, c, C, inverse dynamics, base regressor
+    from derive.dynamics_kernels import dynamics_kernels
+    from models import load_robot
+
+    ks += dynamics_kernels(spec, load_robot(robot).links)[0]
     return ks
 
 

@@ -262,6 +262,7 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
     in_names, sym_names = _input_symbols(kernel)
     out_names, exprs = outputs_of(kernel)
     n_stage = 0
+    staged = staged or kernel.program  # a program's outputs exist only in its stage symbols
     if staged:
         # the kernel's structure hint: stage definitions first, then the main outputs in
         # terms of the stage symbols (guards unchanged)
@@ -322,19 +323,30 @@ def lower(kernel: Kernel, factor: str = "count", cross: dict[int, int] | None = 
 
 
 def in_dependency_order(defs: list[tuple[sp.Symbol, sp.Expr]]) -> list[tuple[sp.Symbol, sp.Expr]]:
-    """Order assignments so each comes after the ones it uses (stable otherwise)."""
-    defined = {s for s, _ in defs}
-    deps = {s: v.free_symbols & defined for s, v in defs}
-    done: set[sp.Symbol] = set()
+    """Order assignments so each comes after the ones it uses (stable otherwise: among the
+    assignments ready at a step, the earliest in ``defs`` goes first)."""
+    import heapq
+
+    defined = {s: i for i, (s, _) in enumerate(defs)}
+    waiting = {}
+    users: dict[int, list[int]] = {}
+    for i, (s, v) in enumerate(defs):
+        deps = {defined[x] for x in v.free_symbols if x in defined and defined[x] != i}
+        waiting[i] = len(deps)
+        for d in deps:
+            users.setdefault(d, []).append(i)
+    ready = [i for i, n in waiting.items() if n == 0]
+    heapq.heapify(ready)
     out: list[tuple[sp.Symbol, sp.Expr]] = []
-    pending = list(defs)
-    while pending:
-        i = next((i for i, (s, _) in enumerate(pending) if deps[s] <= done), None)
-        if i is None:
-            raise ValueError(f"circular definitions among {[str(s) for s, _ in pending]}")
-        s, v = pending.pop(i)
-        out.append((s, v))
-        done.add(s)
+    while ready:
+        i = heapq.heappop(ready)
+        out.append(defs[i])
+        for u in users.get(i, ()):
+            waiting[u] -= 1
+            if waiting[u] == 0:
+                heapq.heappush(ready, u)
+    if len(out) != len(defs):
+        raise ValueError(f"circular definitions among {[str(s) for s, _ in defs if (s, _) not in out]}")
     return out
 
 

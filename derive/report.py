@@ -502,6 +502,16 @@ def write_report(derivations: dict[str, Derivation], path: Path) -> Path:
                      f"`{r.corrected}`" if r.corrected else ""]
             lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
         lines.append("")
+    from derive.dynamics_report import dynamics_section
+
+    lines += ["## The whole dynamics (4.6-4.7) of the thesis arms", "",
+              "4.6 is derived in full (derive/dynamics.py) and 4.7 and 4.8-4.26 are its static special case: the "
+              "inverse dynamics at qd = qdd = 0 is t_g, equal to the gravity kernels built from 4.20 and grouped as "
+              "4.24 (tests/test_dynamics.py::test_gravity_is_the_static_case, every arm); D, c, C and the inverse "
+              "dynamics equal Pinocchio's crba, computeCoriolisMatrix and rnea on the URDFs "
+              "(tests/test_dynamics.py, reports/crosscheck.md).", ""]
+    for d in derivations.values():
+        lines += [f"### {d.spec.name}", ""] + dynamics_section(d.spec, level="####")[2:]
     path.parent.mkdir(parents=True, exist_ok=True)
     text = "\n".join(lines)
     if not path.exists() or path.read_text() != text:

@@ -34,6 +34,17 @@ FUNCTIONS: Mapping[str, tuple[str, str]] = {
 #: the public function names, in binding order
 PUBLIC: tuple[str, ...] = tuple(FUNCTIONS)
 
+#: the dynamics (thesis eq. 4.6, ``derive.dynamics``) of a generated module, bound after the
+#: functions above; ``b`` is the robot's number of base parameters (``BASE_PARAMETERS``)
+DYNAMICS: Mapping[str, tuple[str, str]] = {
+    "inverse_dynamics": ("q (n,), qd (n,), qdd (n,)", "(n,) t_j = D qdd + c + t_g, data-file inertials"),
+    "inertia_matrix": ("q (n,)", "(n, n) D, symmetric positive definite"),
+    "coriolis": ("q (n,), qd (n,)", "(n,) c, Coriolis and centrifugal torques"),
+    "coriolis_matrix": ("q (n,), qd (n,)", "(n, n) C, c = C qd, D' - 2C skew-symmetric"),
+    "base_regressor": ("q (n,), qd (n,), qdd (n,)", "(n, b) Y, t_j = Y beta (rotor inertias included)"),
+    "base_parameters": ("m (n,), com (n, 3), inertia (n, 6), rotor (n,)", "(b,) beta"),
+}
+
 
 class KinematicsError(ValueError):
     """Base class: the input lies outside the domain of a kinematic function."""

@@ -55,3 +55,23 @@ void rccl_fk_rows(long n, const double *q, double *T) { rows("fk", n, q, NULL, T
 void rccl_jacobian6_rows(long n, const double *q, double *J) { rows("jacobian6", n, q, NULL, J); }
 void rccl_jacobian4_rows(long n, const double *q, double *J) { rows("jacobian4", n, q, NULL, J); }
 void rccl_gravity_rows(long n, const double *q, const double *c, double *tau) { rows("gravity", n, q, c, tau); }
+
+void rccl_inverse_dynamics_one(const double *q, const double *qd, const double *qdd, double *tau)
+{
+    batch_inverse_dynamics(1, (const double *const[]){q, qd, qdd}, (const Py_ssize_t[]){6, 6, 6},
+                           (double *const[]){tau}, (const Py_ssize_t[]){6});
+}
+void rccl_inertia_matrix_one(const double *q, double *D)
+{
+    batch_inertia_matrix(1, (const double *const[]){q}, (const Py_ssize_t[]){6}, (double *const[]){D}, (const Py_ssize_t[]){36});
+}
+void rccl_inverse_dynamics_rows(long n, const double *q, const double *qd, const double *qdd, double *tau)
+{
+    const kernel_entry *k = find("inverse_dynamics");
+    const double *in[3] = {q, qd, qdd};
+    const Py_ssize_t is[3] = {6, 6, 6};
+    double *outs[1] = {tau};
+    const Py_ssize_t os[1] = {6};
+    k->fn((Py_ssize_t)n, in, is, outs, os);
+}
+void rccl_inertia_matrix_rows(long n, const double *q, double *D) { rows("inertia_matrix", n, q, NULL, D); }

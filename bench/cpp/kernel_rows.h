@@ -31,6 +31,13 @@ void rccl_jacobian6_rows(long n, const double *q, double *J);
 void rccl_jacobian4_rows(long n, const double *q, double *J);
 void rccl_gravity_rows(long n, const double *q, const double *c, double *tau);
 
+/* The dynamics (thesis eq. 4.6): qd[6], qdd[6] joint rates and accelerations, tau[6] the
+ * rigid-body joint torques of the data file's inertials, D[36] the inertia matrix. */
+void rccl_inverse_dynamics_one(const double *q, const double *qd, const double *qdd, double *tau);
+void rccl_inertia_matrix_one(const double *q, double *D);
+void rccl_inverse_dynamics_rows(long n, const double *q, const double *qd, const double *qdd, double *tau);
+void rccl_inertia_matrix_rows(long n, const double *q, double *D);
+
 #ifdef __cplusplus
 }
 #endif

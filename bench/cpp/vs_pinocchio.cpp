@@ -23,6 +23,10 @@
 //             frame 4 (R46 = oMf[link4].R^T oMf[link6].R; updateFramePlacement of link4
 //             and link6 after the Jacobian pass)
 //   gravity   computeGeneralizedGravity(q)
+//   inverse_dynamics  rnea(q, qd, qdd); inertia_matrix  crba(q) (its upper triangle, which
+//             is what Pinocchio fills; the generated kernel writes all 36 entries)
+//   (qd, qdd: fixed functions of q, the same for both sides)
+#include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
@@ -30,6 +34,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -276,6 +281,44 @@ int main(int argc, char **argv)
                    sink += out[1];
                }});
 
+        // ---- dynamics (eq. 4.6): rates and accelerations, fixed functions of q
+        std::vector<double> qd(q.size()), qdd(q.size());
+        for (std::size_t i = 0; i < q.size(); ++i) {
+            qd[i] = std::sin(q[i] + 1.0);
+            qdd[i] = 2.0 * std::cos(1.5 * q[i]);
+        }
+        auto vi = [&](const std::vector<double> &v, long i) {
+            return QArg(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(v.data() + 6 * i));
+        };
+        passes.push_back({"inverse_dynamics", "pinocchio", [&] {
+                   for (long i = 0; i < n; ++i)
+                       sink += pinocchio::rnea(model, data, qi(i), vi(qd, i), vi(qdd, i))[1];
+               }});
+        passes.push_back({"inverse_dynamics", "c_one", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       rccl_inverse_dynamics_one(q.data() + 6 * i, qd.data() + 6 * i, qdd.data() + 6 * i, row);
+                       sink += row[1];
+                   }
+               }});
+        passes.push_back({"inverse_dynamics", "c_rows", [&] {
+                   rccl_inverse_dynamics_rows(n, q.data(), qd.data(), qdd.data(), out.data());
+                   sink += out[1];
+               }});
+        passes.push_back({"inertia_matrix", "pinocchio", [&] {
+                   for (long i = 0; i < n; ++i)
+                       sink += pinocchio::crba(model, data, qi(i))(0, 1);
+               }});
+        passes.push_back({"inertia_matrix", "c_one", [&] {
+                   for (long i = 0; i < n; ++i) {
+                       rccl_inertia_matrix_one(q.data() + 6 * i, row);
+                       sink += row[1];
+                   }
+               }});
+        passes.push_back({"inertia_matrix", "c_rows", [&] {
+                   rccl_inertia_matrix_rows(n, q.data(), out.data());
+                   sink += out[1];
+               }});
+
         const std::vector<double> best = best_per_config(repeats, n, passes);
         for (std::size_t i = 0; i < passes.size(); ++i)
             std::printf("%s %s %.6g\n", passes[i].what, passes[i].who, best[i] * 1e9);
@@ -304,6 +347,16 @@ int main(int argc, char **argv)
                 put(g.data(), 6);
                 rccl_gravity_one(q.data() + 6 * i, c.data(), row);
                 put(row, 6);
+                const Eigen::Matrix<double, 6, 1> torques = pinocchio::rnea(model, data, qi(i), vi(qd, i), vi(qdd, i));
+                put(torques.data(), 6);
+                rccl_inverse_dynamics_one(q.data() + 6 * i, qd.data() + 6 * i, qdd.data() + 6 * i, row);
+                put(row, 6);
+                Eigen::Matrix<double, 6, 6> mm = pinocchio::crba(model, data, qi(i));
+                mm.triangularView<Eigen::StrictlyLower>() = mm.transpose();
+                const RowMajor6 md = mm;
+                put(md.data(), 36);
+                rccl_inertia_matrix_one(q.data() + 6 * i, row);
+                put(row, 36);
             }
             if (!res) throw std::runtime_error(std::string("cannot write ") + argv[5]);
         }

@@ -6,7 +6,7 @@
  * threads and the public fast entries.
  */
 #define RCCL_ROBOT "microbo"
-#define MAXIO 3
+#define MAXIO 4
 #include "kin_prelude.h"
 
 /* microbo.fk: T6: link 6 in the base frame (4x4 homogeneous transform, m) (thesis 3.16-3.18; lowering: cse, staged (the kernel's structure hint), o=cross; columns tried (mul/add): none rebuilt 26/12, n rebuilt 24/12, o rebuilt 25/10, a rebuilt 27/13) */
@@ -2387,6 +2387,3304 @@ static void batch_tool_load(Py_ssize_t n, const double *const *in, const Py_ssiz
         k_tool_load(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
 }
 
+/* microbo.inverse_dynamics: t_j = D(q) qdd + c(q, qd) + t_g(q): rigid-body joint torques of the data file's inertials (recursive Newton-Euler; no friction, no rotor) (thesis 4.6; lowering: cse, staged (the kernel's structure hint)) */
+static inline void k_inverse_dynamics(const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict out0)
+{
+/* BEGIN KERNEL microbo.inverse_dynamics */
+    const double s_0 = sin(in0[0]);
+    const double c_1 = cos(in0[0]);
+    const double s_2 = sin(in0[3]);
+    const double c_3 = cos(in0[3]);
+    const double s_4 = sin(in0[4]);
+    const double c_5 = cos(in0[4]);
+    const double s_6 = sin(in0[5]);
+    const double c_7 = cos(in0[5]);
+    const double t0 = in1[0]*in1[0];
+    const double v4 = 9.81 + in2[1];
+    const double v5 = in0[2]*in2[0];
+    const double v6_n = t0*in0[2];
+    const double v7 = v5 + 2.0*in1[0]*in1[2];
+    const double v8 = in2[2] - v6_n;
+    const double v10_n = s_2;
+    const double v11 = s_2;
+    const double v12 = c_3;
+    const double v13 = v11*v4 + v12*v7;
+    const double v14 = v12*v4 - v10_n*v7;
+    const double v15 = in1[0]*v11;
+    const double t2 = in1[3]*v15;
+    const double v16 = in1[0]*v12;
+    const double t1 = in1[3]*v16;
+    const double v17 = in2[0]*v11;
+    const double v18 = in2[0]*v12;
+    const double v19 = t1 + v17;
+    const double v20 = v18 - t2;
+    const double v22_n = s_4;
+    const double v23 = s_4;
+    const double v24 = c_5;
+    const double v25 = v13*v24 + v23*v8;
+    const double v26_n = v22_n*v13 - v24*v8;
+    const double v27 = in1[3]*v23 + v15*v24;
+    const double v28 = in1[3]*v24 - v22_n*v15;
+    const double t5 = 0.006999999999999999*v28;
+    const double t6 = 0.00019*v28;
+    const double v29 = in2[3]*v23 + v19*v24;
+    const double v30 = in2[3]*v24 - v22_n*v19;
+    const double v31 = in1[4] - v16;
+    const double v32 = v29 + in1[4]*v28;
+    const double v33 = v30 - in1[4]*v27;
+    const double v34 = in2[4] - v20;
+    const double v36 = -s_6;
+    const double v37 = s_6;
+    const double v38 = c_7;
+    const double v39 = v25*v38 - v14*v37;
+    const double v40 = v25*v36 - v14*v38;
+    const double v41 = v27*v38 + v31*v37;
+    const double v42 = v27*v36 + v31*v38;
+    const double v43 = v32*v38 + v34*v37;
+    const double v44 = v32*v36 + v34*v38;
+    const double v45 = in1[5] - v28;
+    const double t3 = 0.018*v45;
+    const double t4 = 0.00138*v45;
+    const double v46 = v43 + in1[5]*v42;
+    const double v47 = v44 - in1[5]*v41;
+    const double v48 = in2[5] - v33;
+    const double v49 = 0.3*v39 + 0.018*v47 + t3*v41;
+    const double v50 = 0.3*v40 + t3*v42 - 0.018*v46;
+    const double v51 = 0.3*v26_n - 0.018*v41*v41 - 0.018*v42*v42;
+    const double v52 = 0.00148*v46 - 0.018*v40 - t4*v42;
+    const double v53 = 0.018*v39 + 0.00148*v47 + t4*v41;
+    const double v54 = v36*v50 + v38*v49;
+    const double v55 = v37*v49 + v38*v50;
+    const double v56 = v36*v53 + v38*v52;
+    const double v57 = v37*v52 + v38*v53;
+    const double v58 = 0.35*v25 + 0.006999999999999999*v34 + v54 - t5*v27;
+    const double v59 = 0.006999999999999999*v27*v27 + 0.006999999999999999*v31*v31 - 0.35*v26_n - v51;
+    const double v60 = v55 - 0.35*v14 - 0.006999999999999999*v32 - t5*v31;
+    const double v61 = 0.006999999999999999*v14 + 0.00029*v32 + v56 + t6*v31;
+    const double v62 = 0.0001*(v33 - v48);
+    const double v63 = 0.006999999999999999*v25 + 0.00029*v34 + v57 - t6*v27;
+    const double v64 = v24*v58 - v22_n*v59;
+    const double v65 = v23*v58 + v24*v59;
+    const double v66 = v24*v61 - v22_n*v62;
+    const double v67 = v23*v61 + v24*v62;
+    const double v68 = 0.01*t2 + 0.5*v13 + 0.01*v20 + v64;
+    const double v69 = 0.01*t1 + 0.5*v14 - 0.01*v19 - v60;
+    const double v70 = v65 + 0.5*v8 - 0.01*v15*v15 - 0.01*v16*v16;
+    const double v71 = 0.0005*v19 + v66 - 0.00030000000000000003*t1 - 0.01*v14;
+    const double v72 = 0.00030000000000000003*t2 + 0.01*v13 + 0.0005*v20 - v63;
+    const double v73 = 0.0002*in2[3] + v67;
+    const double v74 = v12*v68 - v10_n*v69;
+    const double v75 = v11*v68 + v12*v69;
+    const double v77 = v11*v71 + v12*v72;
+    const double v78 = 2.5*v7 + v74 - 0.625*in2[0];
+    const double v79 = 2.5*v4 + v75;
+    const double v80 = 0.625*t0 + v70 + 2.5*v8;
+    const double v82 = 0.20875*in2[0] + v77 - 0.625*v7;
+    const double v84 = v82 + in0[2]*v78;
+    const double v87 = 4.0*v4 + v79;
+    const double v89 = 0.020000000000000004*in2[0] + v84;
+    const double v93 = 0.016*in2[0] + v89;
+    out0[0] = v93;
+    out0[1] = v87;
+    out0[2] = v80;
+    out0[3] = v73;
+    out0[4] = v63;
+    out0[5] = 0.0001*v48;
+/* END KERNEL microbo.inverse_dynamics */
+}
+
+#ifdef RCCL_VECTOR_TRIG
+/* inverse_dynamics for batches: the row above with its sines and cosines precomputed */
+static inline void kv_inverse_dynamics(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double t0 = in1[0]*in1[0];
+    const double v4 = 9.81 + in2[1];
+    const double v5 = in0[2]*in2[0];
+    const double v6_n = t0*in0[2];
+    const double v7 = v5 + 2.0*in1[0]*in1[2];
+    const double v8 = in2[2] - v6_n;
+    const double v10_n = s_2;
+    const double v11 = s_2;
+    const double v12 = c_3;
+    const double v13 = v11*v4 + v12*v7;
+    const double v14 = v12*v4 - v10_n*v7;
+    const double v15 = in1[0]*v11;
+    const double t2 = in1[3]*v15;
+    const double v16 = in1[0]*v12;
+    const double t1 = in1[3]*v16;
+    const double v17 = in2[0]*v11;
+    const double v18 = in2[0]*v12;
+    const double v19 = t1 + v17;
+    const double v20 = v18 - t2;
+    const double v22_n = s_4;
+    const double v23 = s_4;
+    const double v24 = c_5;
+    const double v25 = v13*v24 + v23*v8;
+    const double v26_n = v22_n*v13 - v24*v8;
+    const double v27 = in1[3]*v23 + v15*v24;
+    const double v28 = in1[3]*v24 - v22_n*v15;
+    const double t5 = 0.006999999999999999*v28;
+    const double t6 = 0.00019*v28;
+    const double v29 = in2[3]*v23 + v19*v24;
+    const double v30 = in2[3]*v24 - v22_n*v19;
+    const double v31 = in1[4] - v16;
+    const double v32 = v29 + in1[4]*v28;
+    const double v33 = v30 - in1[4]*v27;
+    const double v34 = in2[4] - v20;
+    const double v36 = -s_6;
+    const double v37 = s_6;
+    const double v38 = c_7;
+    const double v39 = v25*v38 - v14*v37;
+    const double v40 = v25*v36 - v14*v38;
+    const double v41 = v27*v38 + v31*v37;
+    const double v42 = v27*v36 + v31*v38;
+    const double v43 = v32*v38 + v34*v37;
+    const double v44 = v32*v36 + v34*v38;
+    const double v45 = in1[5] - v28;
+    const double t3 = 0.018*v45;
+    const double t4 = 0.00138*v45;
+    const double v46 = v43 + in1[5]*v42;
+    const double v47 = v44 - in1[5]*v41;
+    const double v48 = in2[5] - v33;
+    const double v49 = 0.3*v39 + 0.018*v47 + t3*v41;
+    const double v50 = 0.3*v40 + t3*v42 - 0.018*v46;
+    const double v51 = 0.3*v26_n - 0.018*v41*v41 - 0.018*v42*v42;
+    const double v52 = 0.00148*v46 - 0.018*v40 - t4*v42;
+    const double v53 = 0.018*v39 + 0.00148*v47 + t4*v41;
+    const double v54 = v36*v50 + v38*v49;
+    const double v55 = v37*v49 + v38*v50;
+    const double v56 = v36*v53 + v38*v52;
+    const double v57 = v37*v52 + v38*v53;
+    const double v58 = 0.35*v25 + 0.006999999999999999*v34 + v54 - t5*v27;
+    const double v59 = 0.006999999999999999*v27*v27 + 0.006999999999999999*v31*v31 - 0.35*v26_n - v51;
+    const double v60 = v55 - 0.35*v14 - 0.006999999999999999*v32 - t5*v31;
+    const double v61 = 0.006999999999999999*v14 + 0.00029*v32 + v56 + t6*v31;
+    const double v62 = 0.0001*(v33 - v48);
+    const double v63 = 0.006999999999999999*v25 + 0.00029*v34 + v57 - t6*v27;
+    const double v64 = v24*v58 - v22_n*v59;
+    const double v65 = v23*v58 + v24*v59;
+    const double v66 = v24*v61 - v22_n*v62;
+    const double v67 = v23*v61 + v24*v62;
+    const double v68 = 0.01*t2 + 0.5*v13 + 0.01*v20 + v64;
+    const double v69 = 0.01*t1 + 0.5*v14 - 0.01*v19 - v60;
+    const double v70 = v65 + 0.5*v8 - 0.01*v15*v15 - 0.01*v16*v16;
+    const double v71 = 0.0005*v19 + v66 - 0.00030000000000000003*t1 - 0.01*v14;
+    const double v72 = 0.00030000000000000003*t2 + 0.01*v13 + 0.0005*v20 - v63;
+    const double v73 = 0.0002*in2[3] + v67;
+    const double v74 = v12*v68 - v10_n*v69;
+    const double v75 = v11*v68 + v12*v69;
+    const double v77 = v11*v71 + v12*v72;
+    const double v78 = 2.5*v7 + v74 - 0.625*in2[0];
+    const double v79 = 2.5*v4 + v75;
+    const double v80 = 0.625*t0 + v70 + 2.5*v8;
+    const double v82 = 0.20875*in2[0] + v77 - 0.625*v7;
+    const double v84 = v82 + in0[2]*v78;
+    const double v87 = 4.0*v4 + v79;
+    const double v89 = 0.020000000000000004*in2[0] + v84;
+    const double v93 = 0.016*in2[0] + v89;
+    out0[0] = v93;
+    out0[1] = v87;
+    out0[2] = v80;
+    out0[3] = v73;
+    out0[4] = v63;
+    out0[5] = 0.0001*v48;
+}
+
+/* inverse_dynamics for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_inverse_dynamics(const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[0], in0[3], in0[4], in0[5])};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+    return 1;
+}
+
+/* inverse_dynamics's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
+ * 12 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((always_inline)) static inline void kl_rows_inverse_dynamics(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t0 = ti[1][r]*ti[1][r];
+        const double v4 = 9.81 + ti[7][r];
+        const double v5 = ti[0][r]*ti[6][r];
+        const double v6_n = t0*ti[0][r];
+        const double v7 = v5 + 2.0*ti[1][r]*ti[2][r];
+        const double v8 = ti[8][r] - v6_n;
+        const double v10_n = s_2;
+        const double v11 = s_2;
+        const double v12 = c_3;
+        const double v13 = v11*v4 + v12*v7;
+        const double v14 = v12*v4 - v10_n*v7;
+        const double v15 = ti[1][r]*v11;
+        const double t2 = ti[3][r]*v15;
+        const double v16 = ti[1][r]*v12;
+        const double t1 = ti[3][r]*v16;
+        const double v17 = ti[6][r]*v11;
+        const double v18 = ti[6][r]*v12;
+        const double v19 = t1 + v17;
+        const double v20 = v18 - t2;
+        const double v22_n = s_4;
+        const double v23 = s_4;
+        const double v24 = c_5;
+        const double v25 = v13*v24 + v23*v8;
+        const double v26_n = v22_n*v13 - v24*v8;
+        const double v27 = ti[3][r]*v23 + v15*v24;
+        const double v28 = ti[3][r]*v24 - v22_n*v15;
+        const double t5 = 0.006999999999999999*v28;
+        const double t6 = 0.00019*v28;
+        const double v29 = ti[9][r]*v23 + v19*v24;
+        const double v30 = ti[9][r]*v24 - v22_n*v19;
+        const double v31 = ti[4][r] - v16;
+        const double v32 = v29 + ti[4][r]*v28;
+        const double v33 = v30 - ti[4][r]*v27;
+        const double v34 = ti[10][r] - v20;
+        const double v36 = -s_6;
+        const double v37 = s_6;
+        const double v38 = c_7;
+        const double v39 = v25*v38 - v14*v37;
+        const double v40 = v25*v36 - v14*v38;
+        const double v41 = v27*v38 + v31*v37;
+        const double v42 = v27*v36 + v31*v38;
+        const double v43 = v32*v38 + v34*v37;
+        const double v44 = v32*v36 + v34*v38;
+        const double v45 = ti[5][r] - v28;
+        const double t3 = 0.018*v45;
+        const double t4 = 0.00138*v45;
+        const double v46 = v43 + ti[5][r]*v42;
+        const double v47 = v44 - ti[5][r]*v41;
+        const double v48 = ti[11][r] - v33;
+        const double v49 = 0.3*v39 + 0.018*v47 + t3*v41;
+        const double v50 = 0.3*v40 + t3*v42 - 0.018*v46;
+        const double v51 = 0.3*v26_n - 0.018*v41*v41 - 0.018*v42*v42;
+        const double v52 = 0.00148*v46 - 0.018*v40 - t4*v42;
+        const double v53 = 0.018*v39 + 0.00148*v47 + t4*v41;
+        const double v54 = v36*v50 + v38*v49;
+        const double v55 = v37*v49 + v38*v50;
+        const double v56 = v36*v53 + v38*v52;
+        const double v57 = v37*v52 + v38*v53;
+        const double v58 = 0.35*v25 + 0.006999999999999999*v34 + v54 - t5*v27;
+        const double v59 = 0.006999999999999999*v27*v27 + 0.006999999999999999*v31*v31 - 0.35*v26_n - v51;
+        const double v60 = v55 - 0.35*v14 - 0.006999999999999999*v32 - t5*v31;
+        const double v61 = 0.006999999999999999*v14 + 0.00029*v32 + v56 + t6*v31;
+        const double v62 = 0.0001*(v33 - v48);
+        const double v63 = 0.006999999999999999*v25 + 0.00029*v34 + v57 - t6*v27;
+        const double v64 = v24*v58 - v22_n*v59;
+        const double v65 = v23*v58 + v24*v59;
+        const double v66 = v24*v61 - v22_n*v62;
+        const double v67 = v23*v61 + v24*v62;
+        const double v68 = 0.01*t2 + 0.5*v13 + 0.01*v20 + v64;
+        const double v69 = 0.01*t1 + 0.5*v14 - 0.01*v19 - v60;
+        const double v70 = v65 + 0.5*v8 - 0.01*v15*v15 - 0.01*v16*v16;
+        const double v71 = 0.0005*v19 + v66 - 0.00030000000000000003*t1 - 0.01*v14;
+        const double v72 = 0.00030000000000000003*t2 + 0.01*v13 + 0.0005*v20 - v63;
+        const double v73 = 0.0002*ti[9][r] + v67;
+        const double v74 = v12*v68 - v10_n*v69;
+        const double v75 = v11*v68 + v12*v69;
+        const double v77 = v11*v71 + v12*v72;
+        const double v78 = 2.5*v7 + v74 - 0.625*ti[6][r];
+        const double v79 = 2.5*v4 + v75;
+        const double v80 = 0.625*t0 + v70 + 2.5*v8;
+        const double v82 = 0.20875*ti[6][r] + v77 - 0.625*v7;
+        const double v84 = v82 + ti[0][r]*v78;
+        const double v87 = 4.0*v4 + v79;
+        const double v89 = 0.020000000000000004*ti[6][r] + v84;
+        const double v93 = 0.016*ti[6][r] + v89;
+        to[0][r] = v93;
+        to[1][r] = v87;
+        to[2][r] = v80;
+        to[3][r] = v73;
+        to[4][r] = v63;
+        to[5][r] = 0.0001*v48;
+    }
+}
+__attribute__((target("avx2"))) static void kl_inverse_dynamics(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_inverse_dynamics(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_inverse_dynamics(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_inverse_dynamics(m, tv, ti, to); }
+
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
+static int batch_vector_inverse_dynamics(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[8];
+        if (kv1_inverse_dynamics((const double *)in[0], (const double *)in[1], (const double *)in[2], t1)) {
+            kv_inverse_dynamics(t1, 1, (const double *)in[0], (const double *)in[1], (const double *)in[2], (double *)out[0]);
+            return 1;
+        }
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
+    double *outb0 = out[0];
+    double ta[4][32], tv[8][32], ti[12][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; ti[6][r] = in2[0]; ti[7][r] = in2[1]; ti[8][r] = in2[2]; ti[9][r] = in2[3]; ti[10][r] = in2[4]; ti[11][r] = in2[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
+        }
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        if (have_vector_trig512) kl_512_inverse_dynamics(m, tv, ti, to);
+        else kl_inverse_dynamics(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
+    }
+    return 1;
+}
+#endif
+
+static void batch_inverse_dynamics(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_inverse_dynamics(n, in, is, out, os)) return;
+#endif
+    const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1]; const double *in2 = (const double *)in[2];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_inverse_dynamics(in0 + r * is[0], in1 + r * is[1], in2 + r * is[2], out0 + r * os[0]);
+}
+
+/* microbo.inertia_matrix: D(q): the joint-space inertia matrix (composite rigid bodies) (thesis 4.6; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
+static inline void k_inertia_matrix(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL microbo.inertia_matrix */
+    const double s_0 = sin(in0[0]);
+    const double c_1 = cos(in0[0]);
+    const double s_2 = sin(in0[3]);
+    const double c_3 = cos(in0[3]);
+    const double s_4 = sin(in0[4]);
+    const double c_5 = cos(in0[4]);
+    const double s_6 = sin(in0[5]);
+    const double c_7 = cos(in0[5]);
+    const double t14 = 3.65*in0[2];
+    const double v5_n = s_2;
+    const double v6 = s_2;
+    const double v7 = c_3;
+    const double t7 = v7*v7;
+    const double v9 = -s_4;
+    const double t5 = 0.024999999999999998*v9;
+    const double t6 = -t5*v7;
+    const double t19 = 0.0001*v9;
+    const double v10 = s_4;
+    const double t18 = 0.024999999999999998*v10;
+    const double v11 = c_5;
+    const double t1 = v11*v11;
+    const double t4 = 0.024999999999999998*v11;
+    const double t21 = -0.0001*v11;
+    const double v13_n = s_6;
+    const double v14 = s_6;
+    const double v15 = c_7;
+    const double t0 = 0.00029 + 0.00148*v15*v15;
+    const double v16 = t0 + 0.00148*v13_n*v13_n;
+    const double v17 = 0.00148*v15*(v14 - v13_n);
+    const double t2 = v11*v17;
+    const double t3 = v10*v17;
+    const double v18 = t0 + 0.00148*v14*v14;
+    const double v19 = 0.0005 + 0.0002*v9*v9 + t1*v16;
+    const double t11 = v19*v6;
+    const double v20 = -t2;
+    const double t9 = v20*v7;
+    const double t10 = 2.0*t9;
+    const double v21 = v11*(0.0002*v9 + v10*v16);
+    const double v22 = 0.0005 + v18;
+    const double v23_n = t3;
+    const double t13 = v21*v6 - v23_n*v7;
+    const double v24 = 0.0002 + 0.0002*t1 + v16*v10*v10;
+    const double v25 = 0.01 - t4;
+    const double v26 = t6;
+    const double t20 = -v26;
+    const double v31 = 0.20875 + t7*v22 + v6*(t10 + t11);
+    const double v34 = v25 - 0.625;
+    const double t15 = 0.020000000000000004 + in0[2]*(t14 + 2.0*v34);
+    const double v39 = t15 + v31;
+    const double v45 = 0.016 + v39;
+    const double v48 = t5*v5_n;
+    const double v49 = t6;
+    const double v51 = t13;
+    const double v53 = v51 + in0[2]*v48;
+    const double v55 = t2;
+    const double v56 = t3;
+    const double v57 = t4*v7;
+    const double v58 = t4*v6;
+    const double v60 = v55*v6 - v18*v7;
+    const double v62 = v60 + in0[2]*v57;
+    const double v66 = -t19*v6;
+    out0[0] = v45;
+    out0[1] = 0.0;
+    out0[2] = t20;
+    out0[3] = v53;
+    out0[4] = v62;
+    out0[5] = v66;
+    out0[6] = 0.0;
+    out0[7] = 7.65;
+    out0[8] = 0.0;
+    out0[9] = v49;
+    out0[10] = v58;
+    out0[11] = 0.0;
+    out0[12] = t20;
+    out0[13] = 0.0;
+    out0[14] = 3.65;
+    out0[15] = 0.0;
+    out0[16] = t18;
+    out0[17] = 0.0;
+    out0[18] = v53;
+    out0[19] = v49;
+    out0[20] = 0.0;
+    out0[21] = v24;
+    out0[22] = v56;
+    out0[23] = t21;
+    out0[24] = v62;
+    out0[25] = v58;
+    out0[26] = t18;
+    out0[27] = v56;
+    out0[28] = v18;
+    out0[29] = 0.0;
+    out0[30] = v66;
+    out0[31] = 0.0;
+    out0[32] = 0.0;
+    out0[33] = t21;
+    out0[34] = 0.0;
+    out0[35] = 0.0001;
+/* END KERNEL microbo.inertia_matrix */
+}
+
+#ifdef RCCL_VECTOR_TRIG
+/* inertia_matrix for batches: the row above with its sines and cosines precomputed */
+static inline void kv_inertia_matrix(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double t14 = 3.65*in0[2];
+    const double v5_n = s_2;
+    const double v6 = s_2;
+    const double v7 = c_3;
+    const double t7 = v7*v7;
+    const double v9 = -s_4;
+    const double t5 = 0.024999999999999998*v9;
+    const double t6 = -t5*v7;
+    const double t19 = 0.0001*v9;
+    const double v10 = s_4;
+    const double t18 = 0.024999999999999998*v10;
+    const double v11 = c_5;
+    const double t1 = v11*v11;
+    const double t4 = 0.024999999999999998*v11;
+    const double t21 = -0.0001*v11;
+    const double v13_n = s_6;
+    const double v14 = s_6;
+    const double v15 = c_7;
+    const double t0 = 0.00029 + 0.00148*v15*v15;
+    const double v16 = t0 + 0.00148*v13_n*v13_n;
+    const double v17 = 0.00148*v15*(v14 - v13_n);
+    const double t2 = v11*v17;
+    const double t3 = v10*v17;
+    const double v18 = t0 + 0.00148*v14*v14;
+    const double v19 = 0.0005 + 0.0002*v9*v9 + t1*v16;
+    const double t11 = v19*v6;
+    const double v20 = -t2;
+    const double t9 = v20*v7;
+    const double t10 = 2.0*t9;
+    const double v21 = v11*(0.0002*v9 + v10*v16);
+    const double v22 = 0.0005 + v18;
+    const double v23_n = t3;
+    const double t13 = v21*v6 - v23_n*v7;
+    const double v24 = 0.0002 + 0.0002*t1 + v16*v10*v10;
+    const double v25 = 0.01 - t4;
+    const double v26 = t6;
+    const double t20 = -v26;
+    const double v31 = 0.20875 + t7*v22 + v6*(t10 + t11);
+    const double v34 = v25 - 0.625;
+    const double t15 = 0.020000000000000004 + in0[2]*(t14 + 2.0*v34);
+    const double v39 = t15 + v31;
+    const double v45 = 0.016 + v39;
+    const double v48 = t5*v5_n;
+    const double v49 = t6;
+    const double v51 = t13;
+    const double v53 = v51 + in0[2]*v48;
+    const double v55 = t2;
+    const double v56 = t3;
+    const double v57 = t4*v7;
+    const double v58 = t4*v6;
+    const double v60 = v55*v6 - v18*v7;
+    const double v62 = v60 + in0[2]*v57;
+    const double v66 = -t19*v6;
+    out0[0] = v45;
+    out0[1] = 0.0;
+    out0[2] = t20;
+    out0[3] = v53;
+    out0[4] = v62;
+    out0[5] = v66;
+    out0[6] = 0.0;
+    out0[7] = 7.65;
+    out0[8] = 0.0;
+    out0[9] = v49;
+    out0[10] = v58;
+    out0[11] = 0.0;
+    out0[12] = t20;
+    out0[13] = 0.0;
+    out0[14] = 3.65;
+    out0[15] = 0.0;
+    out0[16] = t18;
+    out0[17] = 0.0;
+    out0[18] = v53;
+    out0[19] = v49;
+    out0[20] = 0.0;
+    out0[21] = v24;
+    out0[22] = v56;
+    out0[23] = t21;
+    out0[24] = v62;
+    out0[25] = v58;
+    out0[26] = t18;
+    out0[27] = v56;
+    out0[28] = v18;
+    out0[29] = 0.0;
+    out0[30] = v66;
+    out0[31] = 0.0;
+    out0[32] = 0.0;
+    out0[33] = t21;
+    out0[34] = 0.0;
+    out0[35] = 0.0001;
+}
+
+/* inertia_matrix for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_inertia_matrix(const double *restrict in0, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[0], in0[3], in0[4], in0[5])};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+    return 1;
+}
+
+/* inertia_matrix's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
+ * 1 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
+__attribute__((always_inline)) static inline void kl_rows_inertia_matrix(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t14 = 3.65*ti[0][r];
+        const double v5_n = s_2;
+        const double v6 = s_2;
+        const double v7 = c_3;
+        const double t7 = v7*v7;
+        const double v9 = -s_4;
+        const double t5 = 0.024999999999999998*v9;
+        const double t6 = -t5*v7;
+        const double t19 = 0.0001*v9;
+        const double v10 = s_4;
+        const double t18 = 0.024999999999999998*v10;
+        const double v11 = c_5;
+        const double t1 = v11*v11;
+        const double t4 = 0.024999999999999998*v11;
+        const double t21 = -0.0001*v11;
+        const double v13_n = s_6;
+        const double v14 = s_6;
+        const double v15 = c_7;
+        const double t0 = 0.00029 + 0.00148*v15*v15;
+        const double v16 = t0 + 0.00148*v13_n*v13_n;
+        const double v17 = 0.00148*v15*(v14 - v13_n);
+        const double t2 = v11*v17;
+        const double t3 = v10*v17;
+        const double v18 = t0 + 0.00148*v14*v14;
+        const double v19 = 0.0005 + 0.0002*v9*v9 + t1*v16;
+        const double t11 = v19*v6;
+        const double v20 = -t2;
+        const double t9 = v20*v7;
+        const double t10 = 2.0*t9;
+        const double v21 = v11*(0.0002*v9 + v10*v16);
+        const double v22 = 0.0005 + v18;
+        const double v23_n = t3;
+        const double t13 = v21*v6 - v23_n*v7;
+        const double v24 = 0.0002 + 0.0002*t1 + v16*v10*v10;
+        const double v25 = 0.01 - t4;
+        const double v26 = t6;
+        const double t20 = -v26;
+        const double v31 = 0.20875 + t7*v22 + v6*(t10 + t11);
+        const double v34 = v25 - 0.625;
+        const double t15 = 0.020000000000000004 + ti[0][r]*(t14 + 2.0*v34);
+        const double v39 = t15 + v31;
+        const double v45 = 0.016 + v39;
+        const double v48 = t5*v5_n;
+        const double v49 = t6;
+        const double v51 = t13;
+        const double v53 = v51 + ti[0][r]*v48;
+        const double v55 = t2;
+        const double v56 = t3;
+        const double v57 = t4*v7;
+        const double v58 = t4*v6;
+        const double v60 = v55*v6 - v18*v7;
+        const double v62 = v60 + ti[0][r]*v57;
+        const double v66 = -t19*v6;
+        to[0][r] = v45;
+        to[1][r] = 0.0;
+        to[2][r] = t20;
+        to[3][r] = v53;
+        to[4][r] = v62;
+        to[5][r] = v66;
+        to[6][r] = 0.0;
+        to[7][r] = 7.65;
+        to[8][r] = 0.0;
+        to[9][r] = v49;
+        to[10][r] = v58;
+        to[11][r] = 0.0;
+        to[12][r] = t20;
+        to[13][r] = 0.0;
+        to[14][r] = 3.65;
+        to[15][r] = 0.0;
+        to[16][r] = t18;
+        to[17][r] = 0.0;
+        to[18][r] = v53;
+        to[19][r] = v49;
+        to[20][r] = 0.0;
+        to[21][r] = v24;
+        to[22][r] = v56;
+        to[23][r] = t21;
+        to[24][r] = v62;
+        to[25][r] = v58;
+        to[26][r] = t18;
+        to[27][r] = v56;
+        to[28][r] = v18;
+        to[29][r] = 0.0;
+        to[30][r] = v66;
+        to[31][r] = 0.0;
+        to[32][r] = 0.0;
+        to[33][r] = t21;
+        to[34][r] = 0.0;
+        to[35][r] = 0.0001;
+    }
+}
+__attribute__((target("avx2"))) static void kl_inertia_matrix(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_inertia_matrix(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_inertia_matrix(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_inertia_matrix(m, tv, ti, to); }
+
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
+static int batch_vector_inertia_matrix(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[8];
+        if (kv1_inertia_matrix((const double *)in[0], t1)) {
+            kv_inertia_matrix(t1, 1, (const double *)in[0], (double *)out[0]);
+            return 1;
+        }
+    }
+    const double *inb0 = (const double *)in[0];
+    double *outb0 = out[0];
+    double ta[4][32], tv[8][32], ti[1][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
+        }
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        if (have_vector_trig512) kl_512_inertia_matrix(m, tv, ti, to);
+        else kl_inertia_matrix(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o0[6] = to[6][r]; o0[7] = to[7][r]; o0[8] = to[8][r]; o0[9] = to[9][r]; o0[10] = to[10][r]; o0[11] = to[11][r]; o0[12] = to[12][r]; o0[13] = to[13][r]; o0[14] = to[14][r]; o0[15] = to[15][r]; o0[16] = to[16][r]; o0[17] = to[17][r]; o0[18] = to[18][r]; o0[19] = to[19][r]; o0[20] = to[20][r]; o0[21] = to[21][r]; o0[22] = to[22][r]; o0[23] = to[23][r]; o0[24] = to[24][r]; o0[25] = to[25][r]; o0[26] = to[26][r]; o0[27] = to[27][r]; o0[28] = to[28][r]; o0[29] = to[29][r]; o0[30] = to[30][r]; o0[31] = to[31][r]; o0[32] = to[32][r]; o0[33] = to[33][r]; o0[34] = to[34][r]; o0[35] = to[35][r];
+        }
+    }
+    return 1;
+}
+#endif
+
+static void batch_inertia_matrix(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_inertia_matrix(n, in, is, out, os)) return;
+#endif
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_inertia_matrix(in0 + r * is[0], out0 + r * os[0]);
+}
+
+/* microbo.coriolis: c(q, qd): Coriolis and centrifugal torques (Newton-Euler, qdd = 0, no gravity) (thesis 4.6; lowering: cse, staged (the kernel's structure hint)) */
+static inline void k_coriolis(const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+/* BEGIN KERNEL microbo.coriolis */
+    const double s_0 = sin(in0[0]);
+    const double c_1 = cos(in0[0]);
+    const double s_2 = sin(in0[3]);
+    const double c_3 = cos(in0[3]);
+    const double s_4 = sin(in0[4]);
+    const double c_5 = cos(in0[4]);
+    const double s_6 = sin(in0[5]);
+    const double c_7 = cos(in0[5]);
+    const double t0 = in1[0]*in1[0];
+    const double v4_n = t0*in0[2];
+    const double v5 = 2.0*in1[0]*in1[2];
+    const double v7 = -s_2;
+    const double v8 = s_2;
+    const double v9 = c_3;
+    const double v10 = v5*v9;
+    const double v11 = v5*v7;
+    const double v12 = in1[0]*v8;
+    const double t2 = in1[3]*v12;
+    const double v13 = in1[0]*v9;
+    const double t1 = in1[3]*v13;
+    const double v14 = t1;
+    const double v15_n = t2;
+    const double v17 = -s_4;
+    const double v18 = s_4;
+    const double v19 = c_5;
+    const double v20 = v10*v19 - v4_n*v18;
+    const double v21_n = v4_n*v19 - v10*v17;
+    const double v22 = in1[3]*v18 + v12*v19;
+    const double v23 = in1[3]*v19 + v12*v17;
+    const double t5 = 0.006999999999999999*v23;
+    const double t6 = 0.00019*v23;
+    const double v24 = v14*v19;
+    const double v25 = v14*v17;
+    const double v26 = in1[4] - v13;
+    const double v27 = v24 + in1[4]*v23;
+    const double v28 = v25 - in1[4]*v22;
+    const double t7 = 0.0002*v28;
+    const double v30 = -s_6;
+    const double v31 = s_6;
+    const double v32 = c_7;
+    const double v33 = v20*v32 - v11*v31;
+    const double v34 = v20*v30 - v11*v32;
+    const double v35 = v22*v32 + v26*v31;
+    const double v36 = v22*v30 + v26*v32;
+    const double v37 = v15_n*v31 + v27*v32;
+    const double v38 = v15_n*v32 + v27*v30;
+    const double v39 = in1[5] - v23;
+    const double t3 = 0.018*v39;
+    const double t4 = 0.00138*v39;
+    const double v40 = v37 + in1[5]*v36;
+    const double v41 = v38 - in1[5]*v35;
+    const double v42 = 0.3*v33 + 0.018*v41 + t3*v35;
+    const double v43 = 0.3*v34 + t3*v36 - 0.018*v40;
+    const double v44 = 0.3*v21_n - 0.018*v35*v35 - 0.018*v36*v36;
+    const double v45 = 0.00148*v40 - 0.018*v34 - t4*v36;
+    const double v46 = 0.018*v33 + 0.00148*v41 + t4*v35;
+    const double v47 = v30*v43 + v32*v42;
+    const double v48 = v31*v42 + v32*v43;
+    const double v49 = v30*v46 + v32*v45;
+    const double v50 = v31*v45 + v32*v46;
+    const double v51 = 0.006999999999999999*v15_n + 0.35*v20 + v47 - t5*v22;
+    const double v52 = 0.006999999999999999*v22*v22 + 0.006999999999999999*v26*v26 - 0.35*v21_n - v44;
+    const double v53 = v48 - 0.35*v11 - 0.006999999999999999*v27 - t5*v26;
+    const double v54 = 0.006999999999999999*v11 + 0.00029*v27 + v49 + t6*v26;
+    const double v55 = 0.00029*v15_n + 0.006999999999999999*v20 + v50 - t6*v22;
+    const double v56 = v17*v52 + v19*v51;
+    const double v57 = v18*v51 + v19*v52;
+    const double v58 = t7*v17 + v19*v54;
+    const double v59 = t7*v19 + v18*v54;
+    const double v60 = 0.01*t2 + 0.5*v10 + v56 - 0.01*v15_n;
+    const double v61 = 0.01*t1 + 0.5*v11 - 0.01*v14 - v53;
+    const double v62 = v57 - 0.01*v12*v12 - 0.01*v13*v13 - 0.5*v4_n;
+    const double v63 = 0.0005*v14 + v58 - 0.00030000000000000003*t1 - 0.01*v11;
+    const double v64 = 0.00030000000000000003*t2 + 0.01*v10 - 0.0005*v15_n - v55;
+    const double v65 = v60*v9 + v61*v7;
+    const double v66 = v60*v8 + v61*v9;
+    const double v68 = v63*v8 + v64*v9;
+    const double v69 = 2.5*v5 + v65;
+    const double v70 = 0.625*t0 + v62 - 2.5*v4_n;
+    const double v71 = v68 - 0.625*v5;
+    const double v73 = v71 + in0[2]*v69;
+    out0[0] = v73;
+    out0[1] = v66;
+    out0[2] = v70;
+    out0[3] = v59;
+    out0[4] = v55;
+    out0[5] = -0.0001*v28;
+/* END KERNEL microbo.coriolis */
+}
+
+#ifdef RCCL_VECTOR_TRIG
+/* coriolis for batches: the row above with its sines and cosines precomputed */
+static inline void kv_coriolis(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double t0 = in1[0]*in1[0];
+    const double v4_n = t0*in0[2];
+    const double v5 = 2.0*in1[0]*in1[2];
+    const double v7 = -s_2;
+    const double v8 = s_2;
+    const double v9 = c_3;
+    const double v10 = v5*v9;
+    const double v11 = v5*v7;
+    const double v12 = in1[0]*v8;
+    const double t2 = in1[3]*v12;
+    const double v13 = in1[0]*v9;
+    const double t1 = in1[3]*v13;
+    const double v14 = t1;
+    const double v15_n = t2;
+    const double v17 = -s_4;
+    const double v18 = s_4;
+    const double v19 = c_5;
+    const double v20 = v10*v19 - v4_n*v18;
+    const double v21_n = v4_n*v19 - v10*v17;
+    const double v22 = in1[3]*v18 + v12*v19;
+    const double v23 = in1[3]*v19 + v12*v17;
+    const double t5 = 0.006999999999999999*v23;
+    const double t6 = 0.00019*v23;
+    const double v24 = v14*v19;
+    const double v25 = v14*v17;
+    const double v26 = in1[4] - v13;
+    const double v27 = v24 + in1[4]*v23;
+    const double v28 = v25 - in1[4]*v22;
+    const double t7 = 0.0002*v28;
+    const double v30 = -s_6;
+    const double v31 = s_6;
+    const double v32 = c_7;
+    const double v33 = v20*v32 - v11*v31;
+    const double v34 = v20*v30 - v11*v32;
+    const double v35 = v22*v32 + v26*v31;
+    const double v36 = v22*v30 + v26*v32;
+    const double v37 = v15_n*v31 + v27*v32;
+    const double v38 = v15_n*v32 + v27*v30;
+    const double v39 = in1[5] - v23;
+    const double t3 = 0.018*v39;
+    const double t4 = 0.00138*v39;
+    const double v40 = v37 + in1[5]*v36;
+    const double v41 = v38 - in1[5]*v35;
+    const double v42 = 0.3*v33 + 0.018*v41 + t3*v35;
+    const double v43 = 0.3*v34 + t3*v36 - 0.018*v40;
+    const double v44 = 0.3*v21_n - 0.018*v35*v35 - 0.018*v36*v36;
+    const double v45 = 0.00148*v40 - 0.018*v34 - t4*v36;
+    const double v46 = 0.018*v33 + 0.00148*v41 + t4*v35;
+    const double v47 = v30*v43 + v32*v42;
+    const double v48 = v31*v42 + v32*v43;
+    const double v49 = v30*v46 + v32*v45;
+    const double v50 = v31*v45 + v32*v46;
+    const double v51 = 0.006999999999999999*v15_n + 0.35*v20 + v47 - t5*v22;
+    const double v52 = 0.006999999999999999*v22*v22 + 0.006999999999999999*v26*v26 - 0.35*v21_n - v44;
+    const double v53 = v48 - 0.35*v11 - 0.006999999999999999*v27 - t5*v26;
+    const double v54 = 0.006999999999999999*v11 + 0.00029*v27 + v49 + t6*v26;
+    const double v55 = 0.00029*v15_n + 0.006999999999999999*v20 + v50 - t6*v22;
+    const double v56 = v17*v52 + v19*v51;
+    const double v57 = v18*v51 + v19*v52;
+    const double v58 = t7*v17 + v19*v54;
+    const double v59 = t7*v19 + v18*v54;
+    const double v60 = 0.01*t2 + 0.5*v10 + v56 - 0.01*v15_n;
+    const double v61 = 0.01*t1 + 0.5*v11 - 0.01*v14 - v53;
+    const double v62 = v57 - 0.01*v12*v12 - 0.01*v13*v13 - 0.5*v4_n;
+    const double v63 = 0.0005*v14 + v58 - 0.00030000000000000003*t1 - 0.01*v11;
+    const double v64 = 0.00030000000000000003*t2 + 0.01*v10 - 0.0005*v15_n - v55;
+    const double v65 = v60*v9 + v61*v7;
+    const double v66 = v60*v8 + v61*v9;
+    const double v68 = v63*v8 + v64*v9;
+    const double v69 = 2.5*v5 + v65;
+    const double v70 = 0.625*t0 + v62 - 2.5*v4_n;
+    const double v71 = v68 - 0.625*v5;
+    const double v73 = v71 + in0[2]*v69;
+    out0[0] = v73;
+    out0[1] = v66;
+    out0[2] = v70;
+    out0[3] = v59;
+    out0[4] = v55;
+    out0[5] = -0.0001*v28;
+}
+
+/* coriolis for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_coriolis(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[0], in0[3], in0[4], in0[5])};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+    return 1;
+}
+
+/* coriolis's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
+ * 6 input elements in ti, its 6 results to (derive/emit_c_lanes.py) */
+__attribute__((always_inline)) static inline void kl_rows_coriolis(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t0 = ti[1][r]*ti[1][r];
+        const double v4_n = t0*ti[0][r];
+        const double v5 = 2.0*ti[1][r]*ti[2][r];
+        const double v7 = -s_2;
+        const double v8 = s_2;
+        const double v9 = c_3;
+        const double v10 = v5*v9;
+        const double v11 = v5*v7;
+        const double v12 = ti[1][r]*v8;
+        const double t2 = ti[3][r]*v12;
+        const double v13 = ti[1][r]*v9;
+        const double t1 = ti[3][r]*v13;
+        const double v14 = t1;
+        const double v15_n = t2;
+        const double v17 = -s_4;
+        const double v18 = s_4;
+        const double v19 = c_5;
+        const double v20 = v10*v19 - v4_n*v18;
+        const double v21_n = v4_n*v19 - v10*v17;
+        const double v22 = ti[3][r]*v18 + v12*v19;
+        const double v23 = ti[3][r]*v19 + v12*v17;
+        const double t5 = 0.006999999999999999*v23;
+        const double t6 = 0.00019*v23;
+        const double v24 = v14*v19;
+        const double v25 = v14*v17;
+        const double v26 = ti[4][r] - v13;
+        const double v27 = v24 + ti[4][r]*v23;
+        const double v28 = v25 - ti[4][r]*v22;
+        const double t7 = 0.0002*v28;
+        const double v30 = -s_6;
+        const double v31 = s_6;
+        const double v32 = c_7;
+        const double v33 = v20*v32 - v11*v31;
+        const double v34 = v20*v30 - v11*v32;
+        const double v35 = v22*v32 + v26*v31;
+        const double v36 = v22*v30 + v26*v32;
+        const double v37 = v15_n*v31 + v27*v32;
+        const double v38 = v15_n*v32 + v27*v30;
+        const double v39 = ti[5][r] - v23;
+        const double t3 = 0.018*v39;
+        const double t4 = 0.00138*v39;
+        const double v40 = v37 + ti[5][r]*v36;
+        const double v41 = v38 - ti[5][r]*v35;
+        const double v42 = 0.3*v33 + 0.018*v41 + t3*v35;
+        const double v43 = 0.3*v34 + t3*v36 - 0.018*v40;
+        const double v44 = 0.3*v21_n - 0.018*v35*v35 - 0.018*v36*v36;
+        const double v45 = 0.00148*v40 - 0.018*v34 - t4*v36;
+        const double v46 = 0.018*v33 + 0.00148*v41 + t4*v35;
+        const double v47 = v30*v43 + v32*v42;
+        const double v48 = v31*v42 + v32*v43;
+        const double v49 = v30*v46 + v32*v45;
+        const double v50 = v31*v45 + v32*v46;
+        const double v51 = 0.006999999999999999*v15_n + 0.35*v20 + v47 - t5*v22;
+        const double v52 = 0.006999999999999999*v22*v22 + 0.006999999999999999*v26*v26 - 0.35*v21_n - v44;
+        const double v53 = v48 - 0.35*v11 - 0.006999999999999999*v27 - t5*v26;
+        const double v54 = 0.006999999999999999*v11 + 0.00029*v27 + v49 + t6*v26;
+        const double v55 = 0.00029*v15_n + 0.006999999999999999*v20 + v50 - t6*v22;
+        const double v56 = v17*v52 + v19*v51;
+        const double v57 = v18*v51 + v19*v52;
+        const double v58 = t7*v17 + v19*v54;
+        const double v59 = t7*v19 + v18*v54;
+        const double v60 = 0.01*t2 + 0.5*v10 + v56 - 0.01*v15_n;
+        const double v61 = 0.01*t1 + 0.5*v11 - 0.01*v14 - v53;
+        const double v62 = v57 - 0.01*v12*v12 - 0.01*v13*v13 - 0.5*v4_n;
+        const double v63 = 0.0005*v14 + v58 - 0.00030000000000000003*t1 - 0.01*v11;
+        const double v64 = 0.00030000000000000003*t2 + 0.01*v10 - 0.0005*v15_n - v55;
+        const double v65 = v60*v9 + v61*v7;
+        const double v66 = v60*v8 + v61*v9;
+        const double v68 = v63*v8 + v64*v9;
+        const double v69 = 2.5*v5 + v65;
+        const double v70 = 0.625*t0 + v62 - 2.5*v4_n;
+        const double v71 = v68 - 0.625*v5;
+        const double v73 = v71 + ti[0][r]*v69;
+        to[0][r] = v73;
+        to[1][r] = v66;
+        to[2][r] = v70;
+        to[3][r] = v59;
+        to[4][r] = v55;
+        to[5][r] = -0.0001*v28;
+    }
+}
+__attribute__((target("avx2"))) static void kl_coriolis(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_coriolis(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_coriolis(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_coriolis(m, tv, ti, to); }
+
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
+static int batch_vector_coriolis(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[8];
+        if (kv1_coriolis((const double *)in[0], (const double *)in[1], t1)) {
+            kv_coriolis(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[4][32], tv[8][32], ti[6][32], to[6][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 5, 1);
+        }
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        if (have_vector_trig512) kl_512_coriolis(m, tv, ti, to);
+        else kl_coriolis(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r];
+        }
+    }
+    return 1;
+}
+#endif
+
+static void batch_coriolis(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_coriolis(n, in, is, out, os)) return;
+#endif
+    const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_coriolis(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
+}
+
+/* microbo.coriolis_matrix: C(q, qd) with c = C qd and D' - 2C skew-symmetric (Christoffel symbols of D) (thesis 4.6; lowering: horner[count]+cse, staged (the kernel's structure hint)) */
+static inline void k_coriolis_matrix(const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+/* BEGIN KERNEL microbo.coriolis_matrix */
+    const double s_0 = sin(in0[0]);
+    const double c_1 = cos(in0[0]);
+    const double s_2 = sin(in0[3]);
+    const double c_3 = cos(in0[3]);
+    const double s_4 = sin(in0[4]);
+    const double c_5 = cos(in0[4]);
+    const double s_6 = sin(in0[5]);
+    const double c_7 = cos(in0[5]);
+    const double t1 = -s_2;
+    const double t2 = -s_4;
+    const double t3 = -s_6;
+    const double v5_n = -t1;
+    const double v6 = s_2;
+    const double v7 = c_3;
+    const double t47 = v7*v7;
+    const double v9 = t2;
+    const double t13 = 0.024999999999999998*v9;
+    const double t32 = 0.0001*v9;
+    const double v10 = s_4;
+    const double t11 = v10*v10;
+    const double v11 = c_5;
+    const double t6 = v11*v11;
+    const double t12 = 0.024999999999999998*v11;
+    const double v13 = t3;
+    const double v14 = s_6;
+    const double t5 = v13 + v14;
+    const double v15 = c_7;
+    const double t4 = 0.00029 + 0.00148*v15*v15;
+    const double v16 = t4 + 0.00148*v13*v13;
+    const double t8 = v10*v16;
+    const double t9 = t8 + 0.0002*v9;
+    const double v17 = 0.00148*t5*v15;
+    const double t7 = v11*v17;
+    const double t10 = v10*v17;
+    const double v18 = t4 + 0.00148*v14*v14;
+    const double v19 = 0.0005 + 0.0002*v9*v9 + t6*v16;
+    const double t20 = v19*v6;
+    const double v20 = -t7;
+    const double t15 = v20*v7;
+    const double t21 = t15 + t20;
+    const double v21 = t9*v11;
+    const double v22 = 0.0005 + v18;
+    const double t22 = v20*v6 + v22*v7;
+    const double v23_n = t10;
+    const double v25 = 0.01 - t12;
+    const double v34 = v25 - 0.625;
+    const double t25 = 2.0*v34;
+    const double t34 = 7.3*in0[2] + t25;
+    const double v48 = t13*v5_n;
+    const double v55 = t7;
+    const double v57 = t12*v7;
+    const double v74 = t34;
+    const double v77_n = c_3;
+    const double v78 = c_3;
+    const double v79 = t1;
+    const double t35 = -t13*v79;
+    const double t37 = v21*v78 - v23_n*v79;
+    const double v80_n = -t35;
+    const double v85 = 2.0*t21*v78 + 2.0*t22*v79;
+    const double v92 = t13*v77_n;
+    const double v93 = t35;
+    const double t69 = in1[3]*v93;
+    const double v95 = t37;
+    const double v97 = v95 + in0[2]*v92;
+    const double t64 = in1[3]*v97;
+    const double v99 = t12*v79;
+    const double v100 = t12*v78;
+    const double v102 = v55*v78 - v18*v79;
+    const double v104 = v102 + in0[2]*v99;
+    const double v107 = -t32*v78;
+    const double v109 = -c_5;
+    const double t43 = 0.024999999999999998*v109;
+    const double t44 = -t43*v7;
+    const double t54 = 0.0001*v109;
+    const double v110 = c_5;
+    const double t42 = v110*v17;
+    const double t73 = 0.024999999999999998*v110;
+    const double t74 = t73*in1[4];
+    const double v111 = t2;
+    const double t40 = v11*v111;
+    const double t41 = v111*v17;
+    const double t51 = 0.049999999999999996*in0[2]*v111;
+    const double t53 = 0.024999999999999998*v111;
+    const double t77 = 0.0001*v111;
+    const double t78 = -t77*in1[4];
+    const double v112 = 2.0*t40*v16 + 0.0004*v109*v9;
+    const double v113 = -t41;
+    const double t46 = 2.0*v113;
+    const double v114 = t9*v111 + v11*(0.0002*v109 + v110*v16);
+    const double v115_n = t42;
+    const double t50 = v114*v6 - v115_n*v7;
+    const double v116 = 0.0004*t40 + 2.0*t8*v110;
+    const double v117 = t44;
+    const double t63 = v80_n*in1[3] - in1[4]*v117;
+    const double v122 = v6*(t46*v7 + v112*v6);
+    const double v127 = v122 - t51;
+    const double v132 = t43*v5_n;
+    const double v133 = t44;
+    const double t70 = t69 + in1[4]*v133;
+    const double v135 = t50;
+    const double v137 = v135 + in0[2]*v132;
+    const double v139 = t41;
+    const double v140 = t42;
+    const double t75 = in1[4]*v140;
+    const double v141 = t53*v7;
+    const double v142 = t53*v6;
+    const double t71 = in1[4]*v142;
+    const double t72 = t71 + in1[3]*v100;
+    const double v144 = v139*v6;
+    const double v146 = v144 + in0[2]*v141;
+    const double t66 = in1[4]*v146;
+    const double v150 = -t54*v6;
+    const double t68 = in1[3]*v107 + in1[4]*v150;
+    const double v152_n = c_7;
+    const double v153 = c_7;
+    const double v154 = t3;
+    const double t55 = v15*v154;
+    const double v155 = 0.00296*t55 - 0.00296*v152_n*v13;
+    const double v156 = 0.00148*t5*v154 + 0.00148*v15*(v153 - v152_n);
+    const double t56 = v11*v156;
+    const double t57 = v10*v156;
+    const double v157 = 0.00296*t55 + 0.00296*v14*v153;
+    const double v158 = t6*v155;
+    const double t60 = v158*v6;
+    const double v159 = -t56;
+    const double t59 = 2.0*v159*v7;
+    const double v160 = v10*v11*v155;
+    const double v161_n = t57;
+    const double t62 = v160*v6 - v161_n*v7;
+    const double v162 = t11*v155;
+    const double v166 = t47*v157 + v6*(t59 + t60);
+    const double v169 = t62;
+    const double t65 = t64 + in1[2]*v48 + in1[4]*v137 + in1[5]*v169;
+    const double v170 = t56;
+    const double v171 = t57;
+    const double t76 = t75 + in1[5]*v171;
+    const double v173 = v170*v6 - v157*v7;
+    const double t67 = t66 + in1[2]*v57 + in1[3]*v104 + in1[5]*v173;
+    const double v174 = in1[2]*v74 + in1[3]*v85 + in1[4]*v127 + in1[5]*v166;
+    const double v175 = t63;
+    const double v176 = t65;
+    const double v177 = t67;
+    const double v178 = t68;
+    const double v179 = t70;
+    const double v180 = t72;
+    const double v181 = t63;
+    const double v182 = t74;
+    const double v183 = t65;
+    const double v184 = t70;
+    const double v185 = in1[4]*v116 + in1[5]*v162;
+    const double v186 = t76;
+    const double v187 = t78;
+    const double v188 = t67;
+    const double v189 = t72;
+    const double v190 = t74;
+    const double v191 = t76;
+    const double v192 = in1[5]*v157;
+    const double v193 = t68;
+    const double v194 = t78;
+    const double v195 = in1[0]*v74 + in1[3]*v48 + in1[4]*v57;
+    const double v196 = t64 + in1[0]*v85 + v80_n*in1[2] + in1[4]*v104 + in1[5]*v107;
+    const double v197 = t66 + in1[0]*v127 + in1[3]*v137 + in1[5]*v150 - in1[2]*v117;
+    const double v198 = in1[0]*v166 + in1[3]*v169 + in1[4]*v173;
+    const double v199 = t69 + in1[4]*v100;
+    const double v200 = t71 + in1[3]*v133;
+    const double v201 = v80_n*in1[0];
+    const double v202 = 0.024999999999999998*in1[4]*v110 - in1[0]*v117;
+    const double v203 = in1[0]*v48;
+    const double t79 = v201 - v203;
+    const double v205 = t75 + in1[0]*v137 + in1[1]*v133 + in1[3]*v116 - t77*in1[5];
+    const double v206 = in1[0]*v169 + in1[3]*v162 + in1[4]*v171;
+    const double v207 = in1[0]*v57;
+    const double v208 = in1[0]*v104 + in1[1]*v100;
+    const double v210 = in1[0]*v173 + in1[3]*v171 + in1[4]*v157;
+    const double v211 = in1[0]*v107;
+    const double v212 = in1[0]*v150 - t77*in1[3];
+    const double t80 = v210 - v212;
+    const double v213 = 0.5*(v175 + v195);
+    const double v214 = 0.5*(v176 + v196);
+    const double v215 = 0.5*(v177 + v197);
+    const double v216 = 0.5*(v178 + v198);
+    const double v217 = 0.5*(v179 + v199);
+    const double v218 = 0.5*(v180 + v200);
+    const double v219 = 0.5*(v181 - v195);
+    const double v220 = 0.5*t79;
+    const double v221 = 0.5*(v182 + v202 - v207);
+    const double v222 = 0.5*(v183 - v196);
+    const double v223 = 0.5*(v184 - v199);
+    const double v224 = -0.5*t79;
+    const double v225 = 0.5*(v186 + v205 - v208);
+    const double v226 = 0.5*(v187 + v206 - v211);
+    const double v227 = 0.5*(v188 - v197);
+    const double v228 = 0.5*(v189 - v200);
+    const double v229 = 0.5*(v190 + v207 - v202);
+    const double v230 = 0.5*(v191 + v208 - v205);
+    const double v231 = 0.5*t80;
+    const double v232 = 0.5*(v193 - v198);
+    const double v233 = 0.5*(v194 + v211 - v206);
+    const double v234 = -0.5*t80;
+    out0[0] = 0.5*v174;
+    out0[1] = 0.0;
+    out0[2] = v213;
+    out0[3] = v214;
+    out0[4] = v215;
+    out0[5] = v216;
+    out0[6] = 0.0;
+    out0[7] = 0.0;
+    out0[8] = 0.0;
+    out0[9] = v217;
+    out0[10] = v218;
+    out0[11] = 0.0;
+    out0[12] = v219;
+    out0[13] = 0.0;
+    out0[14] = 0.0;
+    out0[15] = v220;
+    out0[16] = v221;
+    out0[17] = 0.0;
+    out0[18] = v222;
+    out0[19] = v223;
+    out0[20] = v224;
+    out0[21] = 0.5*v185;
+    out0[22] = v225;
+    out0[23] = v226;
+    out0[24] = v227;
+    out0[25] = v228;
+    out0[26] = v229;
+    out0[27] = v230;
+    out0[28] = 0.5*v192;
+    out0[29] = v231;
+    out0[30] = v232;
+    out0[31] = 0.0;
+    out0[32] = 0.0;
+    out0[33] = v233;
+    out0[34] = v234;
+    out0[35] = 0.0;
+/* END KERNEL microbo.coriolis_matrix */
+}
+
+#ifdef RCCL_VECTOR_TRIG
+/* coriolis_matrix for batches: the row above with its sines and cosines precomputed */
+static inline void kv_coriolis_matrix(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double t1 = -s_2;
+    const double t2 = -s_4;
+    const double t3 = -s_6;
+    const double v5_n = -t1;
+    const double v6 = s_2;
+    const double v7 = c_3;
+    const double t47 = v7*v7;
+    const double v9 = t2;
+    const double t13 = 0.024999999999999998*v9;
+    const double t32 = 0.0001*v9;
+    const double v10 = s_4;
+    const double t11 = v10*v10;
+    const double v11 = c_5;
+    const double t6 = v11*v11;
+    const double t12 = 0.024999999999999998*v11;
+    const double v13 = t3;
+    const double v14 = s_6;
+    const double t5 = v13 + v14;
+    const double v15 = c_7;
+    const double t4 = 0.00029 + 0.00148*v15*v15;
+    const double v16 = t4 + 0.00148*v13*v13;
+    const double t8 = v10*v16;
+    const double t9 = t8 + 0.0002*v9;
+    const double v17 = 0.00148*t5*v15;
+    const double t7 = v11*v17;
+    const double t10 = v10*v17;
+    const double v18 = t4 + 0.00148*v14*v14;
+    const double v19 = 0.0005 + 0.0002*v9*v9 + t6*v16;
+    const double t20 = v19*v6;
+    const double v20 = -t7;
+    const double t15 = v20*v7;
+    const double t21 = t15 + t20;
+    const double v21 = t9*v11;
+    const double v22 = 0.0005 + v18;
+    const double t22 = v20*v6 + v22*v7;
+    const double v23_n = t10;
+    const double v25 = 0.01 - t12;
+    const double v34 = v25 - 0.625;
+    const double t25 = 2.0*v34;
+    const double t34 = 7.3*in0[2] + t25;
+    const double v48 = t13*v5_n;
+    const double v55 = t7;
+    const double v57 = t12*v7;
+    const double v74 = t34;
+    const double v77_n = c_3;
+    const double v78 = c_3;
+    const double v79 = t1;
+    const double t35 = -t13*v79;
+    const double t37 = v21*v78 - v23_n*v79;
+    const double v80_n = -t35;
+    const double v85 = 2.0*t21*v78 + 2.0*t22*v79;
+    const double v92 = t13*v77_n;
+    const double v93 = t35;
+    const double t69 = in1[3]*v93;
+    const double v95 = t37;
+    const double v97 = v95 + in0[2]*v92;
+    const double t64 = in1[3]*v97;
+    const double v99 = t12*v79;
+    const double v100 = t12*v78;
+    const double v102 = v55*v78 - v18*v79;
+    const double v104 = v102 + in0[2]*v99;
+    const double v107 = -t32*v78;
+    const double v109 = -c_5;
+    const double t43 = 0.024999999999999998*v109;
+    const double t44 = -t43*v7;
+    const double t54 = 0.0001*v109;
+    const double v110 = c_5;
+    const double t42 = v110*v17;
+    const double t73 = 0.024999999999999998*v110;
+    const double t74 = t73*in1[4];
+    const double v111 = t2;
+    const double t40 = v11*v111;
+    const double t41 = v111*v17;
+    const double t51 = 0.049999999999999996*in0[2]*v111;
+    const double t53 = 0.024999999999999998*v111;
+    const double t77 = 0.0001*v111;
+    const double t78 = -t77*in1[4];
+    const double v112 = 2.0*t40*v16 + 0.0004*v109*v9;
+    const double v113 = -t41;
+    const double t46 = 2.0*v113;
+    const double v114 = t9*v111 + v11*(0.0002*v109 + v110*v16);
+    const double v115_n = t42;
+    const double t50 = v114*v6 - v115_n*v7;
+    const double v116 = 0.0004*t40 + 2.0*t8*v110;
+    const double v117 = t44;
+    const double t63 = v80_n*in1[3] - in1[4]*v117;
+    const double v122 = v6*(t46*v7 + v112*v6);
+    const double v127 = v122 - t51;
+    const double v132 = t43*v5_n;
+    const double v133 = t44;
+    const double t70 = t69 + in1[4]*v133;
+    const double v135 = t50;
+    const double v137 = v135 + in0[2]*v132;
+    const double v139 = t41;
+    const double v140 = t42;
+    const double t75 = in1[4]*v140;
+    const double v141 = t53*v7;
+    const double v142 = t53*v6;
+    const double t71 = in1[4]*v142;
+    const double t72 = t71 + in1[3]*v100;
+    const double v144 = v139*v6;
+    const double v146 = v144 + in0[2]*v141;
+    const double t66 = in1[4]*v146;
+    const double v150 = -t54*v6;
+    const double t68 = in1[3]*v107 + in1[4]*v150;
+    const double v152_n = c_7;
+    const double v153 = c_7;
+    const double v154 = t3;
+    const double t55 = v15*v154;
+    const double v155 = 0.00296*t55 - 0.00296*v152_n*v13;
+    const double v156 = 0.00148*t5*v154 + 0.00148*v15*(v153 - v152_n);
+    const double t56 = v11*v156;
+    const double t57 = v10*v156;
+    const double v157 = 0.00296*t55 + 0.00296*v14*v153;
+    const double v158 = t6*v155;
+    const double t60 = v158*v6;
+    const double v159 = -t56;
+    const double t59 = 2.0*v159*v7;
+    const double v160 = v10*v11*v155;
+    const double v161_n = t57;
+    const double t62 = v160*v6 - v161_n*v7;
+    const double v162 = t11*v155;
+    const double v166 = t47*v157 + v6*(t59 + t60);
+    const double v169 = t62;
+    const double t65 = t64 + in1[2]*v48 + in1[4]*v137 + in1[5]*v169;
+    const double v170 = t56;
+    const double v171 = t57;
+    const double t76 = t75 + in1[5]*v171;
+    const double v173 = v170*v6 - v157*v7;
+    const double t67 = t66 + in1[2]*v57 + in1[3]*v104 + in1[5]*v173;
+    const double v174 = in1[2]*v74 + in1[3]*v85 + in1[4]*v127 + in1[5]*v166;
+    const double v175 = t63;
+    const double v176 = t65;
+    const double v177 = t67;
+    const double v178 = t68;
+    const double v179 = t70;
+    const double v180 = t72;
+    const double v181 = t63;
+    const double v182 = t74;
+    const double v183 = t65;
+    const double v184 = t70;
+    const double v185 = in1[4]*v116 + in1[5]*v162;
+    const double v186 = t76;
+    const double v187 = t78;
+    const double v188 = t67;
+    const double v189 = t72;
+    const double v190 = t74;
+    const double v191 = t76;
+    const double v192 = in1[5]*v157;
+    const double v193 = t68;
+    const double v194 = t78;
+    const double v195 = in1[0]*v74 + in1[3]*v48 + in1[4]*v57;
+    const double v196 = t64 + in1[0]*v85 + v80_n*in1[2] + in1[4]*v104 + in1[5]*v107;
+    const double v197 = t66 + in1[0]*v127 + in1[3]*v137 + in1[5]*v150 - in1[2]*v117;
+    const double v198 = in1[0]*v166 + in1[3]*v169 + in1[4]*v173;
+    const double v199 = t69 + in1[4]*v100;
+    const double v200 = t71 + in1[3]*v133;
+    const double v201 = v80_n*in1[0];
+    const double v202 = 0.024999999999999998*in1[4]*v110 - in1[0]*v117;
+    const double v203 = in1[0]*v48;
+    const double t79 = v201 - v203;
+    const double v205 = t75 + in1[0]*v137 + in1[1]*v133 + in1[3]*v116 - t77*in1[5];
+    const double v206 = in1[0]*v169 + in1[3]*v162 + in1[4]*v171;
+    const double v207 = in1[0]*v57;
+    const double v208 = in1[0]*v104 + in1[1]*v100;
+    const double v210 = in1[0]*v173 + in1[3]*v171 + in1[4]*v157;
+    const double v211 = in1[0]*v107;
+    const double v212 = in1[0]*v150 - t77*in1[3];
+    const double t80 = v210 - v212;
+    const double v213 = 0.5*(v175 + v195);
+    const double v214 = 0.5*(v176 + v196);
+    const double v215 = 0.5*(v177 + v197);
+    const double v216 = 0.5*(v178 + v198);
+    const double v217 = 0.5*(v179 + v199);
+    const double v218 = 0.5*(v180 + v200);
+    const double v219 = 0.5*(v181 - v195);
+    const double v220 = 0.5*t79;
+    const double v221 = 0.5*(v182 + v202 - v207);
+    const double v222 = 0.5*(v183 - v196);
+    const double v223 = 0.5*(v184 - v199);
+    const double v224 = -0.5*t79;
+    const double v225 = 0.5*(v186 + v205 - v208);
+    const double v226 = 0.5*(v187 + v206 - v211);
+    const double v227 = 0.5*(v188 - v197);
+    const double v228 = 0.5*(v189 - v200);
+    const double v229 = 0.5*(v190 + v207 - v202);
+    const double v230 = 0.5*(v191 + v208 - v205);
+    const double v231 = 0.5*t80;
+    const double v232 = 0.5*(v193 - v198);
+    const double v233 = 0.5*(v194 + v211 - v206);
+    const double v234 = -0.5*t80;
+    out0[0] = 0.5*v174;
+    out0[1] = 0.0;
+    out0[2] = v213;
+    out0[3] = v214;
+    out0[4] = v215;
+    out0[5] = v216;
+    out0[6] = 0.0;
+    out0[7] = 0.0;
+    out0[8] = 0.0;
+    out0[9] = v217;
+    out0[10] = v218;
+    out0[11] = 0.0;
+    out0[12] = v219;
+    out0[13] = 0.0;
+    out0[14] = 0.0;
+    out0[15] = v220;
+    out0[16] = v221;
+    out0[17] = 0.0;
+    out0[18] = v222;
+    out0[19] = v223;
+    out0[20] = v224;
+    out0[21] = 0.5*v185;
+    out0[22] = v225;
+    out0[23] = v226;
+    out0[24] = v227;
+    out0[25] = v228;
+    out0[26] = v229;
+    out0[27] = v230;
+    out0[28] = 0.5*v192;
+    out0[29] = v231;
+    out0[30] = v232;
+    out0[31] = 0.0;
+    out0[32] = 0.0;
+    out0[33] = v233;
+    out0[34] = v234;
+    out0[35] = 0.0;
+}
+
+/* coriolis_matrix for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_coriolis_matrix(const double *restrict in0, const double *restrict in1, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[0], in0[3], in0[4], in0[5])};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+    return 1;
+}
+
+/* coriolis_matrix's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
+ * 7 input elements in ti, its 36 results to (derive/emit_c_lanes.py) */
+__attribute__((always_inline)) static inline void kl_rows_coriolis_matrix(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t1 = -s_2;
+        const double t2 = -s_4;
+        const double t3 = -s_6;
+        const double v5_n = -t1;
+        const double v6 = s_2;
+        const double v7 = c_3;
+        const double t47 = v7*v7;
+        const double v9 = t2;
+        const double t13 = 0.024999999999999998*v9;
+        const double t32 = 0.0001*v9;
+        const double v10 = s_4;
+        const double t11 = v10*v10;
+        const double v11 = c_5;
+        const double t6 = v11*v11;
+        const double t12 = 0.024999999999999998*v11;
+        const double v13 = t3;
+        const double v14 = s_6;
+        const double t5 = v13 + v14;
+        const double v15 = c_7;
+        const double t4 = 0.00029 + 0.00148*v15*v15;
+        const double v16 = t4 + 0.00148*v13*v13;
+        const double t8 = v10*v16;
+        const double t9 = t8 + 0.0002*v9;
+        const double v17 = 0.00148*t5*v15;
+        const double t7 = v11*v17;
+        const double t10 = v10*v17;
+        const double v18 = t4 + 0.00148*v14*v14;
+        const double v19 = 0.0005 + 0.0002*v9*v9 + t6*v16;
+        const double t20 = v19*v6;
+        const double v20 = -t7;
+        const double t15 = v20*v7;
+        const double t21 = t15 + t20;
+        const double v21 = t9*v11;
+        const double v22 = 0.0005 + v18;
+        const double t22 = v20*v6 + v22*v7;
+        const double v23_n = t10;
+        const double v25 = 0.01 - t12;
+        const double v34 = v25 - 0.625;
+        const double t25 = 2.0*v34;
+        const double t34 = 7.3*ti[0][r] + t25;
+        const double v48 = t13*v5_n;
+        const double v55 = t7;
+        const double v57 = t12*v7;
+        const double v74 = t34;
+        const double v77_n = c_3;
+        const double v78 = c_3;
+        const double v79 = t1;
+        const double t35 = -t13*v79;
+        const double t37 = v21*v78 - v23_n*v79;
+        const double v80_n = -t35;
+        const double v85 = 2.0*t21*v78 + 2.0*t22*v79;
+        const double v92 = t13*v77_n;
+        const double v93 = t35;
+        const double t69 = ti[4][r]*v93;
+        const double v95 = t37;
+        const double v97 = v95 + ti[0][r]*v92;
+        const double t64 = ti[4][r]*v97;
+        const double v99 = t12*v79;
+        const double v100 = t12*v78;
+        const double v102 = v55*v78 - v18*v79;
+        const double v104 = v102 + ti[0][r]*v99;
+        const double v107 = -t32*v78;
+        const double v109 = -c_5;
+        const double t43 = 0.024999999999999998*v109;
+        const double t44 = -t43*v7;
+        const double t54 = 0.0001*v109;
+        const double v110 = c_5;
+        const double t42 = v110*v17;
+        const double t73 = 0.024999999999999998*v110;
+        const double t74 = t73*ti[5][r];
+        const double v111 = t2;
+        const double t40 = v11*v111;
+        const double t41 = v111*v17;
+        const double t51 = 0.049999999999999996*ti[0][r]*v111;
+        const double t53 = 0.024999999999999998*v111;
+        const double t77 = 0.0001*v111;
+        const double t78 = -t77*ti[5][r];
+        const double v112 = 2.0*t40*v16 + 0.0004*v109*v9;
+        const double v113 = -t41;
+        const double t46 = 2.0*v113;
+        const double v114 = t9*v111 + v11*(0.0002*v109 + v110*v16);
+        const double v115_n = t42;
+        const double t50 = v114*v6 - v115_n*v7;
+        const double v116 = 0.0004*t40 + 2.0*t8*v110;
+        const double v117 = t44;
+        const double t63 = v80_n*ti[4][r] - ti[5][r]*v117;
+        const double v122 = v6*(t46*v7 + v112*v6);
+        const double v127 = v122 - t51;
+        const double v132 = t43*v5_n;
+        const double v133 = t44;
+        const double t70 = t69 + ti[5][r]*v133;
+        const double v135 = t50;
+        const double v137 = v135 + ti[0][r]*v132;
+        const double v139 = t41;
+        const double v140 = t42;
+        const double t75 = ti[5][r]*v140;
+        const double v141 = t53*v7;
+        const double v142 = t53*v6;
+        const double t71 = ti[5][r]*v142;
+        const double t72 = t71 + ti[4][r]*v100;
+        const double v144 = v139*v6;
+        const double v146 = v144 + ti[0][r]*v141;
+        const double t66 = ti[5][r]*v146;
+        const double v150 = -t54*v6;
+        const double t68 = ti[4][r]*v107 + ti[5][r]*v150;
+        const double v152_n = c_7;
+        const double v153 = c_7;
+        const double v154 = t3;
+        const double t55 = v15*v154;
+        const double v155 = 0.00296*t55 - 0.00296*v152_n*v13;
+        const double v156 = 0.00148*t5*v154 + 0.00148*v15*(v153 - v152_n);
+        const double t56 = v11*v156;
+        const double t57 = v10*v156;
+        const double v157 = 0.00296*t55 + 0.00296*v14*v153;
+        const double v158 = t6*v155;
+        const double t60 = v158*v6;
+        const double v159 = -t56;
+        const double t59 = 2.0*v159*v7;
+        const double v160 = v10*v11*v155;
+        const double v161_n = t57;
+        const double t62 = v160*v6 - v161_n*v7;
+        const double v162 = t11*v155;
+        const double v166 = t47*v157 + v6*(t59 + t60);
+        const double v169 = t62;
+        const double t65 = t64 + ti[3][r]*v48 + ti[5][r]*v137 + ti[6][r]*v169;
+        const double v170 = t56;
+        const double v171 = t57;
+        const double t76 = t75 + ti[6][r]*v171;
+        const double v173 = v170*v6 - v157*v7;
+        const double t67 = t66 + ti[3][r]*v57 + ti[4][r]*v104 + ti[6][r]*v173;
+        const double v174 = ti[3][r]*v74 + ti[4][r]*v85 + ti[5][r]*v127 + ti[6][r]*v166;
+        const double v175 = t63;
+        const double v176 = t65;
+        const double v177 = t67;
+        const double v178 = t68;
+        const double v179 = t70;
+        const double v180 = t72;
+        const double v181 = t63;
+        const double v182 = t74;
+        const double v183 = t65;
+        const double v184 = t70;
+        const double v185 = ti[5][r]*v116 + ti[6][r]*v162;
+        const double v186 = t76;
+        const double v187 = t78;
+        const double v188 = t67;
+        const double v189 = t72;
+        const double v190 = t74;
+        const double v191 = t76;
+        const double v192 = ti[6][r]*v157;
+        const double v193 = t68;
+        const double v194 = t78;
+        const double v195 = ti[1][r]*v74 + ti[4][r]*v48 + ti[5][r]*v57;
+        const double v196 = t64 + ti[1][r]*v85 + v80_n*ti[3][r] + ti[5][r]*v104 + ti[6][r]*v107;
+        const double v197 = t66 + ti[1][r]*v127 + ti[4][r]*v137 + ti[6][r]*v150 - ti[3][r]*v117;
+        const double v198 = ti[1][r]*v166 + ti[4][r]*v169 + ti[5][r]*v173;
+        const double v199 = t69 + ti[5][r]*v100;
+        const double v200 = t71 + ti[4][r]*v133;
+        const double v201 = v80_n*ti[1][r];
+        const double v202 = 0.024999999999999998*ti[5][r]*v110 - ti[1][r]*v117;
+        const double v203 = ti[1][r]*v48;
+        const double t79 = v201 - v203;
+        const double v205 = t75 + ti[1][r]*v137 + ti[2][r]*v133 + ti[4][r]*v116 - t77*ti[6][r];
+        const double v206 = ti[1][r]*v169 + ti[4][r]*v162 + ti[5][r]*v171;
+        const double v207 = ti[1][r]*v57;
+        const double v208 = ti[1][r]*v104 + ti[2][r]*v100;
+        const double v210 = ti[1][r]*v173 + ti[4][r]*v171 + ti[5][r]*v157;
+        const double v211 = ti[1][r]*v107;
+        const double v212 = ti[1][r]*v150 - t77*ti[4][r];
+        const double t80 = v210 - v212;
+        const double v213 = 0.5*(v175 + v195);
+        const double v214 = 0.5*(v176 + v196);
+        const double v215 = 0.5*(v177 + v197);
+        const double v216 = 0.5*(v178 + v198);
+        const double v217 = 0.5*(v179 + v199);
+        const double v218 = 0.5*(v180 + v200);
+        const double v219 = 0.5*(v181 - v195);
+        const double v220 = 0.5*t79;
+        const double v221 = 0.5*(v182 + v202 - v207);
+        const double v222 = 0.5*(v183 - v196);
+        const double v223 = 0.5*(v184 - v199);
+        const double v224 = -0.5*t79;
+        const double v225 = 0.5*(v186 + v205 - v208);
+        const double v226 = 0.5*(v187 + v206 - v211);
+        const double v227 = 0.5*(v188 - v197);
+        const double v228 = 0.5*(v189 - v200);
+        const double v229 = 0.5*(v190 + v207 - v202);
+        const double v230 = 0.5*(v191 + v208 - v205);
+        const double v231 = 0.5*t80;
+        const double v232 = 0.5*(v193 - v198);
+        const double v233 = 0.5*(v194 + v211 - v206);
+        const double v234 = -0.5*t80;
+        to[0][r] = 0.5*v174;
+        to[1][r] = 0.0;
+        to[2][r] = v213;
+        to[3][r] = v214;
+        to[4][r] = v215;
+        to[5][r] = v216;
+        to[6][r] = 0.0;
+        to[7][r] = 0.0;
+        to[8][r] = 0.0;
+        to[9][r] = v217;
+        to[10][r] = v218;
+        to[11][r] = 0.0;
+        to[12][r] = v219;
+        to[13][r] = 0.0;
+        to[14][r] = 0.0;
+        to[15][r] = v220;
+        to[16][r] = v221;
+        to[17][r] = 0.0;
+        to[18][r] = v222;
+        to[19][r] = v223;
+        to[20][r] = v224;
+        to[21][r] = 0.5*v185;
+        to[22][r] = v225;
+        to[23][r] = v226;
+        to[24][r] = v227;
+        to[25][r] = v228;
+        to[26][r] = v229;
+        to[27][r] = v230;
+        to[28][r] = 0.5*v192;
+        to[29][r] = v231;
+        to[30][r] = v232;
+        to[31][r] = 0.0;
+        to[32][r] = 0.0;
+        to[33][r] = v233;
+        to[34][r] = v234;
+        to[35][r] = 0.0;
+    }
+}
+__attribute__((target("avx2"))) static void kl_coriolis_matrix(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_coriolis_matrix(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_coriolis_matrix(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_coriolis_matrix(m, tv, ti, to); }
+
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
+static int batch_vector_coriolis_matrix(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[8];
+        if (kv1_coriolis_matrix((const double *)in[0], (const double *)in[1], t1)) {
+            kv_coriolis_matrix(t1, 1, (const double *)in[0], (const double *)in[1], (double *)out[0]);
+            return 1;
+        }
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1];
+    double *outb0 = out[0];
+    double ta[4][32], tv[8][32], ti[7][32], to[36][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[1]; ti[3][r] = in1[2]; ti[4][r] = in1[3]; ti[5][r] = in1[4]; ti[6][r] = in1[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 35, 1);
+        }
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        if (have_vector_trig512) kl_512_coriolis_matrix(m, tv, ti, to);
+        else kl_coriolis_matrix(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o0[6] = to[6][r]; o0[7] = to[7][r]; o0[8] = to[8][r]; o0[9] = to[9][r]; o0[10] = to[10][r]; o0[11] = to[11][r]; o0[12] = to[12][r]; o0[13] = to[13][r]; o0[14] = to[14][r]; o0[15] = to[15][r]; o0[16] = to[16][r]; o0[17] = to[17][r]; o0[18] = to[18][r]; o0[19] = to[19][r]; o0[20] = to[20][r]; o0[21] = to[21][r]; o0[22] = to[22][r]; o0[23] = to[23][r]; o0[24] = to[24][r]; o0[25] = to[25][r]; o0[26] = to[26][r]; o0[27] = to[27][r]; o0[28] = to[28][r]; o0[29] = to[29][r]; o0[30] = to[30][r]; o0[31] = to[31][r]; o0[32] = to[32][r]; o0[33] = to[33][r]; o0[34] = to[34][r]; o0[35] = to[35][r];
+        }
+    }
+    return 1;
+}
+#endif
+
+static void batch_coriolis_matrix(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_coriolis_matrix(n, in, is, out, os)) return;
+#endif
+    const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_coriolis_matrix(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0]);
+}
+
+/* microbo.base_regressor: Y(q, qd, qdd) with t_j = Y beta (rigid body, gravity and rotor inertias; beta: the base parameters) (thesis 4.6; lowering: cse, staged (the kernel's structure hint)) */
+static inline void k_base_regressor(const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict out0)
+{
+/* BEGIN KERNEL microbo.base_regressor */
+    const double s_0 = sin(in0[0]);
+    const double c_1 = cos(in0[0]);
+    const double s_2 = sin(in0[3]);
+    const double c_3 = cos(in0[3]);
+    const double s_4 = sin(in0[4]);
+    const double c_5 = cos(in0[4]);
+    const double s_6 = sin(in0[5]);
+    const double c_7 = cos(in0[5]);
+    const double t0 = in0[2]*in2[0];
+    const double t1_n = -in1[0]*in1[0];
+    const double t6 = t1_n;
+    const double t17_n = -in1[3]*in1[3];
+    const double v4 = 9.81 + in2[1];
+    const double v5 = t0;
+    const double v6 = t1_n*in0[2];
+    const double v7 = v5 + 2.0*in1[0]*in1[2];
+    const double v8 = in2[2] + v6;
+    const double v10_n = s_2;
+    const double v11 = s_2;
+    const double v12 = c_3;
+    const double t19 = v12*v8;
+    const double v13 = v11*v4 + v12*v7;
+    const double v14 = v12*v4 - v10_n*v7;
+    const double v15 = in1[0]*v11;
+    const double t3 = in1[3]*v15;
+    const double t13 = v15*v15;
+    const double v16 = in1[0]*v12;
+    const double t2 = in1[3]*v16;
+    const double t9 = v15*v16;
+    const double t10 = -t9;
+    const double t14 = v16*v16;
+    const double t15_n = t14;
+    const double t16 = in2[3] + t9;
+    const double t18 = in2[3] + t10;
+    const double v17 = in2[0]*v11;
+    const double v18 = in2[0]*v12;
+    const double v19 = t2 + v17;
+    const double t12 = t2 + v19;
+    const double v20_n = t3 - v18;
+    const double t4 = v20_n;
+    const double t11 = t3 + t4;
+    const double v22 = -s_4;
+    const double v23 = s_4;
+    const double v24 = c_5;
+    const double t31 = v14*v24;
+    const double v25 = v13*v24 + v23*v8;
+    const double v26 = v13*v22 + v24*v8;
+    const double v27 = in1[3]*v23 + v15*v24;
+    const double t25 = v27*v27;
+    const double v28 = in1[3]*v24 + v15*v22;
+    const double t21 = v27*v28;
+    const double t26 = v28*v28;
+    const double v29 = in2[3]*v23 + v19*v24;
+    const double v30 = in2[3]*v24 + v19*v22;
+    const double v31 = in1[4] - v16;
+    const double t20 = v27*v31;
+    const double t23 = v28*v31;
+    const double t28_n = -v31*v31;
+    const double t29 = t28_n;
+    const double v32 = v29 + in1[4]*v28;
+    const double t24 = t23 + v32;
+    const double v33_n = in1[4]*v27 - v30;
+    const double t5 = v33_n;
+    const double t22 = t20 + t5;
+    const double v34 = in2[4] + t4;
+    const double t27 = t21 + v34;
+    const double t30 = t21 - v34;
+    const double v36 = -s_6;
+    const double v37 = s_6;
+    const double v38 = c_7;
+    const double t43 = v26*v38;
+    const double v39_n = v14*v37 - v25*v38;
+    const double v40 = v25*v36 - v14*v38;
+    const double v41 = v27*v38 + v31*v37;
+    const double t37 = v41*v41;
+    const double v42 = v27*v36 + v31*v38;
+    const double t33 = v41*v42;
+    const double t38 = v42*v42;
+    const double v43 = v32*v38 + v34*v37;
+    const double v44 = v32*v36 + v34*v38;
+    const double v45 = in1[5] - v28;
+    const double t32 = v41*v45;
+    const double t35 = v42*v45;
+    const double t40_n = -v45*v45;
+    const double t41 = t40_n;
+    const double v46 = v43 + in1[5]*v42;
+    const double t36 = t35 + v46;
+    const double v47 = v44 - in1[5]*v41;
+    const double t34 = t32 - v47;
+    const double v48 = in2[5] + t5;
+    const double t39 = t33 + v48;
+    const double t42 = t33 - v48;
+    const double v49 = t6;
+    const double v50 = in0[2]*v49 - v8;
+    const double v53 = t6;
+    const double v54 = t0 + v7;
+    const double v58 = in0[2]*v7;
+    const double v61 = t3;
+    const double v62 = t10;
+    const double v64 = v11*v19 + v12*v61;
+    const double v65_n = t11;
+    const double v66 = t12;
+    const double v67 = t13 - t15_n;
+    const double v69 = v12*v66 - v65_n*v11;
+    const double v70 = t16;
+    const double v71_n = t13 + t17_n;
+    const double v72 = v19 - t2;
+    const double v74 = v11*v70 - v71_n*v12;
+    const double v75 = t15_n + t17_n;
+    const double v76 = t18;
+    const double v77 = t3 - v20_n;
+    const double v79 = v11*v75 + v12*v76;
+    const double v80 = t2;
+    const double v81_n = t3;
+    const double v83 = v11*v80 - v81_n*v12;
+    const double v84 = t17_n - t14;
+    const double v85 = t16;
+    const double v86 = t11;
+    const double v87 = v12*v84 - v10_n*v85;
+    const double v88 = v11*v84 + v12*v85;
+    const double v90_n = t19;
+    const double v92 = in0[2]*v87 - v90_n;
+    const double v95 = -t18;
+    const double v96 = t17_n - t13;
+    const double v97 = t12;
+    const double v98 = v12*v95 - v10_n*v96;
+    const double v99 = v11*v95 + v12*v96;
+    const double v101 = v11*v8;
+    const double v103 = v101 + in0[2]*v98;
+    const double v106 = t20;
+    const double v107 = -t21;
+    const double v108 = v106*v22 + v24*v32;
+    const double v109 = v106*v24 + v23*v32;
+    const double v111 = v108*v11 - v107*v12;
+    const double v112_n = t22;
+    const double v113 = t24;
+    const double v114 = t25 - t26;
+    const double v115 = v113*v22 - v112_n*v24;
+    const double v116 = v113*v24 - v112_n*v23;
+    const double v118 = v11*v115 - v114*v12;
+    const double v119 = t27;
+    const double v120_n = t25 + t29;
+    const double v121 = v32 - t23;
+    const double v122 = v119*v24 - v120_n*v22;
+    const double v123 = v119*v23 - v120_n*v24;
+    const double v125 = v11*v122 - v12*v121;
+    const double v126 = t26 + t29;
+    const double v127_n = t30;
+    const double v128 = t20 - v33_n;
+    const double v129 = v126*v24 - v127_n*v22;
+    const double v130 = v126*v23 - v127_n*v24;
+    const double v132 = v11*v129 - v12*v128;
+    const double v133 = t23;
+    const double v134_n = t20;
+    const double v135 = v133*v24 - v134_n*v22;
+    const double v136 = v133*v23 - v134_n*v24;
+    const double v138 = v11*v135 - v12*v34;
+    const double v139 = t28_n - t26;
+    const double v140 = t27;
+    const double v141 = t22;
+    const double v142 = v139*v24 + v140*v22;
+    const double v143 = v139*v23 + v140*v24;
+    const double v144 = v14*v22;
+    const double v145 = t31;
+    const double v146 = v10_n*v141 + v12*v142;
+    const double v147 = v11*v142 - v12*v141;
+    const double v149 = v11*v144 - v12*v26;
+    const double v151 = v149 + in0[2]*v146;
+    const double v154 = t30;
+    const double v155 = t28_n - t25;
+    const double v156 = t24;
+    const double v157 = v154*v24 + v155*v22;
+    const double v158 = v154*v23 + v155*v24;
+    const double v159_n = t31;
+    const double v160 = -v14*v23;
+    const double v161 = v10_n*v156 + v12*v157;
+    const double v162 = v11*v157 - v12*v156;
+    const double v164 = v12*v25 - v159_n*v11;
+    const double v166 = v164 + in0[2]*v161;
+    const double v169 = t32;
+    const double v170 = -t33;
+    const double v171 = v169*v36 + v38*v46;
+    const double v172 = v169*v38 + v37*v46;
+    const double v173 = v171*v24 - v170*v22;
+    const double v174 = v171*v23 - v170*v24;
+    const double v176 = v11*v173 - v12*v172;
+    const double v177_n = t34;
+    const double v178 = t36;
+    const double v179 = t37 - t38;
+    const double v180 = v178*v36 - v177_n*v38;
+    const double v181 = v178*v38 - v177_n*v37;
+    const double v182 = v180*v24 - v179*v22;
+    const double v183 = v180*v23 - v179*v24;
+    const double v185 = v11*v182 - v12*v181;
+    const double v186 = t39;
+    const double v187_n = t37 + t41;
+    const double v188 = v46 - t35;
+    const double v189 = v186*v38 - v187_n*v36;
+    const double v190 = v186*v37 - v187_n*v38;
+    const double v191 = v189*v24 - v188*v22;
+    const double v192 = v189*v23 - v188*v24;
+    const double v194 = v11*v191 - v12*v190;
+    const double v195 = t38 + t41;
+    const double v196_n = t42;
+    const double v197 = t32 + v47;
+    const double v198 = v195*v38 - v196_n*v36;
+    const double v199 = v195*v37 - v196_n*v38;
+    const double v200 = v198*v24 - v197*v22;
+    const double v201 = v198*v23 - v197*v24;
+    const double v203 = v11*v200 - v12*v199;
+    const double v204 = t35;
+    const double v205_n = t32;
+    const double v206 = v204*v38 - v205_n*v36;
+    const double v207 = v204*v37 - v205_n*v38;
+    const double v208 = v206*v24 - v22*v48;
+    const double v209 = v206*v23 - v24*v48;
+    const double v211 = v11*v208 - v12*v207;
+    const double v212 = t40_n - t38;
+    const double v213 = t39;
+    const double v214 = t34;
+    const double v215 = v212*v38 + v213*v36;
+    const double v216 = v212*v37 + v213*v38;
+    const double v217 = v26*v36;
+    const double v218 = t43;
+    const double v219 = v215*v24 - v214*v22;
+    const double v220 = v215*v23 - v214*v24;
+    const double v221 = v217*v24 - v22*v40;
+    const double v222 = v217*v23 - v24*v40;
+    const double v223 = v10_n*v216 + v12*v219;
+    const double v224 = v11*v219 - v12*v216;
+    const double v226 = v11*v221 - v12*v218;
+    const double v228 = v226 + in0[2]*v223;
+    const double v231 = t42;
+    const double v232 = t40_n - t37;
+    const double v233 = t36;
+    const double v234 = v231*v38 + v232*v36;
+    const double v235 = v231*v37 + v232*v38;
+    const double v236 = -t43;
+    const double v237 = -v26*v37;
+    const double v238 = v234*v24 - v22*v233;
+    const double v239 = v23*v234 - v233*v24;
+    const double v240 = v236*v24 - v39_n*v22;
+    const double v241 = v23*v236 - v39_n*v24;
+    const double v242 = v10_n*v235 + v12*v238;
+    const double v243 = v11*v238 - v12*v235;
+    const double v245 = v11*v240 - v12*v237;
+    const double v247 = v245 + in0[2]*v242;
+    out0[0] = in2[0];
+    out0[1] = 0.0;
+    out0[2] = v50;
+    out0[3] = v54;
+    out0[4] = v58;
+    out0[5] = v64;
+    out0[6] = v69;
+    out0[7] = v74;
+    out0[8] = v79;
+    out0[9] = v83;
+    out0[10] = v92;
+    out0[11] = v103;
+    out0[12] = v111;
+    out0[13] = v118;
+    out0[14] = v125;
+    out0[15] = v132;
+    out0[16] = v138;
+    out0[17] = v151;
+    out0[18] = v166;
+    out0[19] = v176;
+    out0[20] = v185;
+    out0[21] = v194;
+    out0[22] = v203;
+    out0[23] = v211;
+    out0[24] = v228;
+    out0[25] = v247;
+    out0[26] = 0.0;
+    out0[27] = 0.0;
+    out0[28] = 0.0;
+    out0[29] = 0.0;
+    out0[30] = 0.0;
+    out0[31] = v4;
+    out0[32] = 0.0;
+    out0[33] = 0.0;
+    out0[34] = v4;
+    out0[35] = 0.0;
+    out0[36] = 0.0;
+    out0[37] = 0.0;
+    out0[38] = 0.0;
+    out0[39] = 0.0;
+    out0[40] = v88;
+    out0[41] = v99;
+    out0[42] = 0.0;
+    out0[43] = 0.0;
+    out0[44] = 0.0;
+    out0[45] = 0.0;
+    out0[46] = 0.0;
+    out0[47] = v147;
+    out0[48] = v162;
+    out0[49] = 0.0;
+    out0[50] = 0.0;
+    out0[51] = 0.0;
+    out0[52] = 0.0;
+    out0[53] = 0.0;
+    out0[54] = v224;
+    out0[55] = v243;
+    out0[56] = in2[1];
+    out0[57] = 0.0;
+    out0[58] = 0.0;
+    out0[59] = 0.0;
+    out0[60] = 0.0;
+    out0[61] = 0.0;
+    out0[62] = -in2[0];
+    out0[63] = v53;
+    out0[64] = v8;
+    out0[65] = 0.0;
+    out0[66] = 0.0;
+    out0[67] = 0.0;
+    out0[68] = 0.0;
+    out0[69] = 0.0;
+    out0[70] = v86;
+    out0[71] = v97;
+    out0[72] = 0.0;
+    out0[73] = 0.0;
+    out0[74] = 0.0;
+    out0[75] = 0.0;
+    out0[76] = 0.0;
+    out0[77] = v143;
+    out0[78] = v158;
+    out0[79] = 0.0;
+    out0[80] = 0.0;
+    out0[81] = 0.0;
+    out0[82] = 0.0;
+    out0[83] = 0.0;
+    out0[84] = v220;
+    out0[85] = v239;
+    out0[86] = 0.0;
+    out0[87] = in2[2];
+    out0[88] = 0.0;
+    out0[89] = 0.0;
+    out0[90] = 0.0;
+    out0[91] = 0.0;
+    out0[92] = 0.0;
+    out0[93] = 0.0;
+    out0[94] = 0.0;
+    out0[95] = v62;
+    out0[96] = v67;
+    out0[97] = v72;
+    out0[98] = v77;
+    out0[99] = in2[3];
+    out0[100] = v14;
+    out0[101] = -v13;
+    out0[102] = v109;
+    out0[103] = v116;
+    out0[104] = v123;
+    out0[105] = v130;
+    out0[106] = v136;
+    out0[107] = v145;
+    out0[108] = v160;
+    out0[109] = v174;
+    out0[110] = v183;
+    out0[111] = v192;
+    out0[112] = v201;
+    out0[113] = v209;
+    out0[114] = v222;
+    out0[115] = v241;
+    out0[116] = 0.0;
+    out0[117] = 0.0;
+    out0[118] = 0.0;
+    out0[119] = 0.0;
+    out0[120] = 0.0;
+    out0[121] = 0.0;
+    out0[122] = 0.0;
+    out0[123] = 0.0;
+    out0[124] = 0.0;
+    out0[125] = 0.0;
+    out0[126] = 0.0;
+    out0[127] = 0.0;
+    out0[128] = 0.0;
+    out0[129] = 0.0;
+    out0[130] = 0.0;
+    out0[131] = 0.0;
+    out0[132] = v107;
+    out0[133] = v114;
+    out0[134] = v121;
+    out0[135] = v128;
+    out0[136] = v34;
+    out0[137] = v26;
+    out0[138] = -v25;
+    out0[139] = v172;
+    out0[140] = v181;
+    out0[141] = v190;
+    out0[142] = v199;
+    out0[143] = v207;
+    out0[144] = v218;
+    out0[145] = v237;
+    out0[146] = 0.0;
+    out0[147] = 0.0;
+    out0[148] = in2[4];
+    out0[149] = 0.0;
+    out0[150] = 0.0;
+    out0[151] = 0.0;
+    out0[152] = 0.0;
+    out0[153] = 0.0;
+    out0[154] = 0.0;
+    out0[155] = 0.0;
+    out0[156] = 0.0;
+    out0[157] = 0.0;
+    out0[158] = 0.0;
+    out0[159] = 0.0;
+    out0[160] = 0.0;
+    out0[161] = 0.0;
+    out0[162] = 0.0;
+    out0[163] = 0.0;
+    out0[164] = 0.0;
+    out0[165] = 0.0;
+    out0[166] = 0.0;
+    out0[167] = 0.0;
+    out0[168] = 0.0;
+    out0[169] = v170;
+    out0[170] = v179;
+    out0[171] = v188;
+    out0[172] = v197;
+    out0[173] = v48;
+    out0[174] = v40;
+    out0[175] = v39_n;
+    out0[176] = 0.0;
+    out0[177] = 0.0;
+    out0[178] = 0.0;
+    out0[179] = in2[5];
+/* END KERNEL microbo.base_regressor */
+}
+
+#ifdef RCCL_VECTOR_TRIG
+/* base_regressor for batches: the row above with its sines and cosines precomputed */
+static inline void kv_base_regressor(const double *restrict tv, Py_ssize_t ts, const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict out0)
+{
+    const double s_0 = tv[0 * ts];
+    const double c_1 = tv[1 * ts];
+    const double s_2 = tv[2 * ts];
+    const double c_3 = tv[3 * ts];
+    const double s_4 = tv[4 * ts];
+    const double c_5 = tv[5 * ts];
+    const double s_6 = tv[6 * ts];
+    const double c_7 = tv[7 * ts];
+    const double t0 = in0[2]*in2[0];
+    const double t1_n = -in1[0]*in1[0];
+    const double t6 = t1_n;
+    const double t17_n = -in1[3]*in1[3];
+    const double v4 = 9.81 + in2[1];
+    const double v5 = t0;
+    const double v6 = t1_n*in0[2];
+    const double v7 = v5 + 2.0*in1[0]*in1[2];
+    const double v8 = in2[2] + v6;
+    const double v10_n = s_2;
+    const double v11 = s_2;
+    const double v12 = c_3;
+    const double t19 = v12*v8;
+    const double v13 = v11*v4 + v12*v7;
+    const double v14 = v12*v4 - v10_n*v7;
+    const double v15 = in1[0]*v11;
+    const double t3 = in1[3]*v15;
+    const double t13 = v15*v15;
+    const double v16 = in1[0]*v12;
+    const double t2 = in1[3]*v16;
+    const double t9 = v15*v16;
+    const double t10 = -t9;
+    const double t14 = v16*v16;
+    const double t15_n = t14;
+    const double t16 = in2[3] + t9;
+    const double t18 = in2[3] + t10;
+    const double v17 = in2[0]*v11;
+    const double v18 = in2[0]*v12;
+    const double v19 = t2 + v17;
+    const double t12 = t2 + v19;
+    const double v20_n = t3 - v18;
+    const double t4 = v20_n;
+    const double t11 = t3 + t4;
+    const double v22 = -s_4;
+    const double v23 = s_4;
+    const double v24 = c_5;
+    const double t31 = v14*v24;
+    const double v25 = v13*v24 + v23*v8;
+    const double v26 = v13*v22 + v24*v8;
+    const double v27 = in1[3]*v23 + v15*v24;
+    const double t25 = v27*v27;
+    const double v28 = in1[3]*v24 + v15*v22;
+    const double t21 = v27*v28;
+    const double t26 = v28*v28;
+    const double v29 = in2[3]*v23 + v19*v24;
+    const double v30 = in2[3]*v24 + v19*v22;
+    const double v31 = in1[4] - v16;
+    const double t20 = v27*v31;
+    const double t23 = v28*v31;
+    const double t28_n = -v31*v31;
+    const double t29 = t28_n;
+    const double v32 = v29 + in1[4]*v28;
+    const double t24 = t23 + v32;
+    const double v33_n = in1[4]*v27 - v30;
+    const double t5 = v33_n;
+    const double t22 = t20 + t5;
+    const double v34 = in2[4] + t4;
+    const double t27 = t21 + v34;
+    const double t30 = t21 - v34;
+    const double v36 = -s_6;
+    const double v37 = s_6;
+    const double v38 = c_7;
+    const double t43 = v26*v38;
+    const double v39_n = v14*v37 - v25*v38;
+    const double v40 = v25*v36 - v14*v38;
+    const double v41 = v27*v38 + v31*v37;
+    const double t37 = v41*v41;
+    const double v42 = v27*v36 + v31*v38;
+    const double t33 = v41*v42;
+    const double t38 = v42*v42;
+    const double v43 = v32*v38 + v34*v37;
+    const double v44 = v32*v36 + v34*v38;
+    const double v45 = in1[5] - v28;
+    const double t32 = v41*v45;
+    const double t35 = v42*v45;
+    const double t40_n = -v45*v45;
+    const double t41 = t40_n;
+    const double v46 = v43 + in1[5]*v42;
+    const double t36 = t35 + v46;
+    const double v47 = v44 - in1[5]*v41;
+    const double t34 = t32 - v47;
+    const double v48 = in2[5] + t5;
+    const double t39 = t33 + v48;
+    const double t42 = t33 - v48;
+    const double v49 = t6;
+    const double v50 = in0[2]*v49 - v8;
+    const double v53 = t6;
+    const double v54 = t0 + v7;
+    const double v58 = in0[2]*v7;
+    const double v61 = t3;
+    const double v62 = t10;
+    const double v64 = v11*v19 + v12*v61;
+    const double v65_n = t11;
+    const double v66 = t12;
+    const double v67 = t13 - t15_n;
+    const double v69 = v12*v66 - v65_n*v11;
+    const double v70 = t16;
+    const double v71_n = t13 + t17_n;
+    const double v72 = v19 - t2;
+    const double v74 = v11*v70 - v71_n*v12;
+    const double v75 = t15_n + t17_n;
+    const double v76 = t18;
+    const double v77 = t3 - v20_n;
+    const double v79 = v11*v75 + v12*v76;
+    const double v80 = t2;
+    const double v81_n = t3;
+    const double v83 = v11*v80 - v81_n*v12;
+    const double v84 = t17_n - t14;
+    const double v85 = t16;
+    const double v86 = t11;
+    const double v87 = v12*v84 - v10_n*v85;
+    const double v88 = v11*v84 + v12*v85;
+    const double v90_n = t19;
+    const double v92 = in0[2]*v87 - v90_n;
+    const double v95 = -t18;
+    const double v96 = t17_n - t13;
+    const double v97 = t12;
+    const double v98 = v12*v95 - v10_n*v96;
+    const double v99 = v11*v95 + v12*v96;
+    const double v101 = v11*v8;
+    const double v103 = v101 + in0[2]*v98;
+    const double v106 = t20;
+    const double v107 = -t21;
+    const double v108 = v106*v22 + v24*v32;
+    const double v109 = v106*v24 + v23*v32;
+    const double v111 = v108*v11 - v107*v12;
+    const double v112_n = t22;
+    const double v113 = t24;
+    const double v114 = t25 - t26;
+    const double v115 = v113*v22 - v112_n*v24;
+    const double v116 = v113*v24 - v112_n*v23;
+    const double v118 = v11*v115 - v114*v12;
+    const double v119 = t27;
+    const double v120_n = t25 + t29;
+    const double v121 = v32 - t23;
+    const double v122 = v119*v24 - v120_n*v22;
+    const double v123 = v119*v23 - v120_n*v24;
+    const double v125 = v11*v122 - v12*v121;
+    const double v126 = t26 + t29;
+    const double v127_n = t30;
+    const double v128 = t20 - v33_n;
+    const double v129 = v126*v24 - v127_n*v22;
+    const double v130 = v126*v23 - v127_n*v24;
+    const double v132 = v11*v129 - v12*v128;
+    const double v133 = t23;
+    const double v134_n = t20;
+    const double v135 = v133*v24 - v134_n*v22;
+    const double v136 = v133*v23 - v134_n*v24;
+    const double v138 = v11*v135 - v12*v34;
+    const double v139 = t28_n - t26;
+    const double v140 = t27;
+    const double v141 = t22;
+    const double v142 = v139*v24 + v140*v22;
+    const double v143 = v139*v23 + v140*v24;
+    const double v144 = v14*v22;
+    const double v145 = t31;
+    const double v146 = v10_n*v141 + v12*v142;
+    const double v147 = v11*v142 - v12*v141;
+    const double v149 = v11*v144 - v12*v26;
+    const double v151 = v149 + in0[2]*v146;
+    const double v154 = t30;
+    const double v155 = t28_n - t25;
+    const double v156 = t24;
+    const double v157 = v154*v24 + v155*v22;
+    const double v158 = v154*v23 + v155*v24;
+    const double v159_n = t31;
+    const double v160 = -v14*v23;
+    const double v161 = v10_n*v156 + v12*v157;
+    const double v162 = v11*v157 - v12*v156;
+    const double v164 = v12*v25 - v159_n*v11;
+    const double v166 = v164 + in0[2]*v161;
+    const double v169 = t32;
+    const double v170 = -t33;
+    const double v171 = v169*v36 + v38*v46;
+    const double v172 = v169*v38 + v37*v46;
+    const double v173 = v171*v24 - v170*v22;
+    const double v174 = v171*v23 - v170*v24;
+    const double v176 = v11*v173 - v12*v172;
+    const double v177_n = t34;
+    const double v178 = t36;
+    const double v179 = t37 - t38;
+    const double v180 = v178*v36 - v177_n*v38;
+    const double v181 = v178*v38 - v177_n*v37;
+    const double v182 = v180*v24 - v179*v22;
+    const double v183 = v180*v23 - v179*v24;
+    const double v185 = v11*v182 - v12*v181;
+    const double v186 = t39;
+    const double v187_n = t37 + t41;
+    const double v188 = v46 - t35;
+    const double v189 = v186*v38 - v187_n*v36;
+    const double v190 = v186*v37 - v187_n*v38;
+    const double v191 = v189*v24 - v188*v22;
+    const double v192 = v189*v23 - v188*v24;
+    const double v194 = v11*v191 - v12*v190;
+    const double v195 = t38 + t41;
+    const double v196_n = t42;
+    const double v197 = t32 + v47;
+    const double v198 = v195*v38 - v196_n*v36;
+    const double v199 = v195*v37 - v196_n*v38;
+    const double v200 = v198*v24 - v197*v22;
+    const double v201 = v198*v23 - v197*v24;
+    const double v203 = v11*v200 - v12*v199;
+    const double v204 = t35;
+    const double v205_n = t32;
+    const double v206 = v204*v38 - v205_n*v36;
+    const double v207 = v204*v37 - v205_n*v38;
+    const double v208 = v206*v24 - v22*v48;
+    const double v209 = v206*v23 - v24*v48;
+    const double v211 = v11*v208 - v12*v207;
+    const double v212 = t40_n - t38;
+    const double v213 = t39;
+    const double v214 = t34;
+    const double v215 = v212*v38 + v213*v36;
+    const double v216 = v212*v37 + v213*v38;
+    const double v217 = v26*v36;
+    const double v218 = t43;
+    const double v219 = v215*v24 - v214*v22;
+    const double v220 = v215*v23 - v214*v24;
+    const double v221 = v217*v24 - v22*v40;
+    const double v222 = v217*v23 - v24*v40;
+    const double v223 = v10_n*v216 + v12*v219;
+    const double v224 = v11*v219 - v12*v216;
+    const double v226 = v11*v221 - v12*v218;
+    const double v228 = v226 + in0[2]*v223;
+    const double v231 = t42;
+    const double v232 = t40_n - t37;
+    const double v233 = t36;
+    const double v234 = v231*v38 + v232*v36;
+    const double v235 = v231*v37 + v232*v38;
+    const double v236 = -t43;
+    const double v237 = -v26*v37;
+    const double v238 = v234*v24 - v22*v233;
+    const double v239 = v23*v234 - v233*v24;
+    const double v240 = v236*v24 - v39_n*v22;
+    const double v241 = v23*v236 - v39_n*v24;
+    const double v242 = v10_n*v235 + v12*v238;
+    const double v243 = v11*v238 - v12*v235;
+    const double v245 = v11*v240 - v12*v237;
+    const double v247 = v245 + in0[2]*v242;
+    out0[0] = in2[0];
+    out0[1] = 0.0;
+    out0[2] = v50;
+    out0[3] = v54;
+    out0[4] = v58;
+    out0[5] = v64;
+    out0[6] = v69;
+    out0[7] = v74;
+    out0[8] = v79;
+    out0[9] = v83;
+    out0[10] = v92;
+    out0[11] = v103;
+    out0[12] = v111;
+    out0[13] = v118;
+    out0[14] = v125;
+    out0[15] = v132;
+    out0[16] = v138;
+    out0[17] = v151;
+    out0[18] = v166;
+    out0[19] = v176;
+    out0[20] = v185;
+    out0[21] = v194;
+    out0[22] = v203;
+    out0[23] = v211;
+    out0[24] = v228;
+    out0[25] = v247;
+    out0[26] = 0.0;
+    out0[27] = 0.0;
+    out0[28] = 0.0;
+    out0[29] = 0.0;
+    out0[30] = 0.0;
+    out0[31] = v4;
+    out0[32] = 0.0;
+    out0[33] = 0.0;
+    out0[34] = v4;
+    out0[35] = 0.0;
+    out0[36] = 0.0;
+    out0[37] = 0.0;
+    out0[38] = 0.0;
+    out0[39] = 0.0;
+    out0[40] = v88;
+    out0[41] = v99;
+    out0[42] = 0.0;
+    out0[43] = 0.0;
+    out0[44] = 0.0;
+    out0[45] = 0.0;
+    out0[46] = 0.0;
+    out0[47] = v147;
+    out0[48] = v162;
+    out0[49] = 0.0;
+    out0[50] = 0.0;
+    out0[51] = 0.0;
+    out0[52] = 0.0;
+    out0[53] = 0.0;
+    out0[54] = v224;
+    out0[55] = v243;
+    out0[56] = in2[1];
+    out0[57] = 0.0;
+    out0[58] = 0.0;
+    out0[59] = 0.0;
+    out0[60] = 0.0;
+    out0[61] = 0.0;
+    out0[62] = -in2[0];
+    out0[63] = v53;
+    out0[64] = v8;
+    out0[65] = 0.0;
+    out0[66] = 0.0;
+    out0[67] = 0.0;
+    out0[68] = 0.0;
+    out0[69] = 0.0;
+    out0[70] = v86;
+    out0[71] = v97;
+    out0[72] = 0.0;
+    out0[73] = 0.0;
+    out0[74] = 0.0;
+    out0[75] = 0.0;
+    out0[76] = 0.0;
+    out0[77] = v143;
+    out0[78] = v158;
+    out0[79] = 0.0;
+    out0[80] = 0.0;
+    out0[81] = 0.0;
+    out0[82] = 0.0;
+    out0[83] = 0.0;
+    out0[84] = v220;
+    out0[85] = v239;
+    out0[86] = 0.0;
+    out0[87] = in2[2];
+    out0[88] = 0.0;
+    out0[89] = 0.0;
+    out0[90] = 0.0;
+    out0[91] = 0.0;
+    out0[92] = 0.0;
+    out0[93] = 0.0;
+    out0[94] = 0.0;
+    out0[95] = v62;
+    out0[96] = v67;
+    out0[97] = v72;
+    out0[98] = v77;
+    out0[99] = in2[3];
+    out0[100] = v14;
+    out0[101] = -v13;
+    out0[102] = v109;
+    out0[103] = v116;
+    out0[104] = v123;
+    out0[105] = v130;
+    out0[106] = v136;
+    out0[107] = v145;
+    out0[108] = v160;
+    out0[109] = v174;
+    out0[110] = v183;
+    out0[111] = v192;
+    out0[112] = v201;
+    out0[113] = v209;
+    out0[114] = v222;
+    out0[115] = v241;
+    out0[116] = 0.0;
+    out0[117] = 0.0;
+    out0[118] = 0.0;
+    out0[119] = 0.0;
+    out0[120] = 0.0;
+    out0[121] = 0.0;
+    out0[122] = 0.0;
+    out0[123] = 0.0;
+    out0[124] = 0.0;
+    out0[125] = 0.0;
+    out0[126] = 0.0;
+    out0[127] = 0.0;
+    out0[128] = 0.0;
+    out0[129] = 0.0;
+    out0[130] = 0.0;
+    out0[131] = 0.0;
+    out0[132] = v107;
+    out0[133] = v114;
+    out0[134] = v121;
+    out0[135] = v128;
+    out0[136] = v34;
+    out0[137] = v26;
+    out0[138] = -v25;
+    out0[139] = v172;
+    out0[140] = v181;
+    out0[141] = v190;
+    out0[142] = v199;
+    out0[143] = v207;
+    out0[144] = v218;
+    out0[145] = v237;
+    out0[146] = 0.0;
+    out0[147] = 0.0;
+    out0[148] = in2[4];
+    out0[149] = 0.0;
+    out0[150] = 0.0;
+    out0[151] = 0.0;
+    out0[152] = 0.0;
+    out0[153] = 0.0;
+    out0[154] = 0.0;
+    out0[155] = 0.0;
+    out0[156] = 0.0;
+    out0[157] = 0.0;
+    out0[158] = 0.0;
+    out0[159] = 0.0;
+    out0[160] = 0.0;
+    out0[161] = 0.0;
+    out0[162] = 0.0;
+    out0[163] = 0.0;
+    out0[164] = 0.0;
+    out0[165] = 0.0;
+    out0[166] = 0.0;
+    out0[167] = 0.0;
+    out0[168] = 0.0;
+    out0[169] = v170;
+    out0[170] = v179;
+    out0[171] = v188;
+    out0[172] = v197;
+    out0[173] = v48;
+    out0[174] = v40;
+    out0[175] = v39_n;
+    out0[176] = 0.0;
+    out0[177] = 0.0;
+    out0[178] = 0.0;
+    out0[179] = in2[5];
+}
+
+/* base_regressor for one row: its sine/cosine arguments side by side in vector lanes, their
+ * values into tv; 0 when one is beyond VTRIG_BIG (then the block path below, which sends
+ * it to libm) */
+VTRIG_TARGET static int kv1_base_regressor(const double *restrict in0, const double *restrict in1, const double *restrict in2, double *restrict tv)
+{
+    const __m256d x[1] = {_mm256_setr_pd(in0[0], in0[3], in0[4], in0[5])};
+    double sv[4], cv[4];
+    if (!vtrig_row(x, sv, cv, 1)) return 0;
+    tv[0] = sv[0]; tv[1] = cv[0]; tv[2] = sv[1]; tv[3] = cv[1]; tv[4] = sv[2]; tv[5] = cv[2]; tv[6] = sv[3]; tv[7] = cv[3];
+    return 1;
+}
+
+/* base_regressor's rows side by side in vector lanes: the block's 8 sines/cosines in tv, its
+ * 12 input elements in ti, its 180 results to (derive/emit_c_lanes.py) */
+__attribute__((always_inline)) static inline void kl_rows_base_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32])
+{
+    for (int r = 0; r < m; ++r) {
+        const double s_2 = tv[2][r];
+        const double c_3 = tv[3][r];
+        const double s_4 = tv[4][r];
+        const double c_5 = tv[5][r];
+        const double s_6 = tv[6][r];
+        const double c_7 = tv[7][r];
+        const double t0 = ti[0][r]*ti[6][r];
+        const double t1_n = -ti[1][r]*ti[1][r];
+        const double t6 = t1_n;
+        const double t17_n = -ti[3][r]*ti[3][r];
+        const double v4 = 9.81 + ti[7][r];
+        const double v5 = t0;
+        const double v6 = t1_n*ti[0][r];
+        const double v7 = v5 + 2.0*ti[1][r]*ti[2][r];
+        const double v8 = ti[8][r] + v6;
+        const double v10_n = s_2;
+        const double v11 = s_2;
+        const double v12 = c_3;
+        const double t19 = v12*v8;
+        const double v13 = v11*v4 + v12*v7;
+        const double v14 = v12*v4 - v10_n*v7;
+        const double v15 = ti[1][r]*v11;
+        const double t3 = ti[3][r]*v15;
+        const double t13 = v15*v15;
+        const double v16 = ti[1][r]*v12;
+        const double t2 = ti[3][r]*v16;
+        const double t9 = v15*v16;
+        const double t10 = -t9;
+        const double t14 = v16*v16;
+        const double t15_n = t14;
+        const double t16 = ti[9][r] + t9;
+        const double t18 = ti[9][r] + t10;
+        const double v17 = ti[6][r]*v11;
+        const double v18 = ti[6][r]*v12;
+        const double v19 = t2 + v17;
+        const double t12 = t2 + v19;
+        const double v20_n = t3 - v18;
+        const double t4 = v20_n;
+        const double t11 = t3 + t4;
+        const double v22 = -s_4;
+        const double v23 = s_4;
+        const double v24 = c_5;
+        const double t31 = v14*v24;
+        const double v25 = v13*v24 + v23*v8;
+        const double v26 = v13*v22 + v24*v8;
+        const double v27 = ti[3][r]*v23 + v15*v24;
+        const double t25 = v27*v27;
+        const double v28 = ti[3][r]*v24 + v15*v22;
+        const double t21 = v27*v28;
+        const double t26 = v28*v28;
+        const double v29 = ti[9][r]*v23 + v19*v24;
+        const double v30 = ti[9][r]*v24 + v19*v22;
+        const double v31 = ti[4][r] - v16;
+        const double t20 = v27*v31;
+        const double t23 = v28*v31;
+        const double t28_n = -v31*v31;
+        const double t29 = t28_n;
+        const double v32 = v29 + ti[4][r]*v28;
+        const double t24 = t23 + v32;
+        const double v33_n = ti[4][r]*v27 - v30;
+        const double t5 = v33_n;
+        const double t22 = t20 + t5;
+        const double v34 = ti[10][r] + t4;
+        const double t27 = t21 + v34;
+        const double t30 = t21 - v34;
+        const double v36 = -s_6;
+        const double v37 = s_6;
+        const double v38 = c_7;
+        const double t43 = v26*v38;
+        const double v39_n = v14*v37 - v25*v38;
+        const double v40 = v25*v36 - v14*v38;
+        const double v41 = v27*v38 + v31*v37;
+        const double t37 = v41*v41;
+        const double v42 = v27*v36 + v31*v38;
+        const double t33 = v41*v42;
+        const double t38 = v42*v42;
+        const double v43 = v32*v38 + v34*v37;
+        const double v44 = v32*v36 + v34*v38;
+        const double v45 = ti[5][r] - v28;
+        const double t32 = v41*v45;
+        const double t35 = v42*v45;
+        const double t40_n = -v45*v45;
+        const double t41 = t40_n;
+        const double v46 = v43 + ti[5][r]*v42;
+        const double t36 = t35 + v46;
+        const double v47 = v44 - ti[5][r]*v41;
+        const double t34 = t32 - v47;
+        const double v48 = ti[11][r] + t5;
+        const double t39 = t33 + v48;
+        const double t42 = t33 - v48;
+        const double v49 = t6;
+        const double v50 = ti[0][r]*v49 - v8;
+        const double v53 = t6;
+        const double v54 = t0 + v7;
+        const double v58 = ti[0][r]*v7;
+        const double v61 = t3;
+        const double v62 = t10;
+        const double v64 = v11*v19 + v12*v61;
+        const double v65_n = t11;
+        const double v66 = t12;
+        const double v67 = t13 - t15_n;
+        const double v69 = v12*v66 - v65_n*v11;
+        const double v70 = t16;
+        const double v71_n = t13 + t17_n;
+        const double v72 = v19 - t2;
+        const double v74 = v11*v70 - v71_n*v12;
+        const double v75 = t15_n + t17_n;
+        const double v76 = t18;
+        const double v77 = t3 - v20_n;
+        const double v79 = v11*v75 + v12*v76;
+        const double v80 = t2;
+        const double v81_n = t3;
+        const double v83 = v11*v80 - v81_n*v12;
+        const double v84 = t17_n - t14;
+        const double v85 = t16;
+        const double v86 = t11;
+        const double v87 = v12*v84 - v10_n*v85;
+        const double v88 = v11*v84 + v12*v85;
+        const double v90_n = t19;
+        const double v92 = ti[0][r]*v87 - v90_n;
+        const double v95 = -t18;
+        const double v96 = t17_n - t13;
+        const double v97 = t12;
+        const double v98 = v12*v95 - v10_n*v96;
+        const double v99 = v11*v95 + v12*v96;
+        const double v101 = v11*v8;
+        const double v103 = v101 + ti[0][r]*v98;
+        const double v106 = t20;
+        const double v107 = -t21;
+        const double v108 = v106*v22 + v24*v32;
+        const double v109 = v106*v24 + v23*v32;
+        const double v111 = v108*v11 - v107*v12;
+        const double v112_n = t22;
+        const double v113 = t24;
+        const double v114 = t25 - t26;
+        const double v115 = v113*v22 - v112_n*v24;
+        const double v116 = v113*v24 - v112_n*v23;
+        const double v118 = v11*v115 - v114*v12;
+        const double v119 = t27;
+        const double v120_n = t25 + t29;
+        const double v121 = v32 - t23;
+        const double v122 = v119*v24 - v120_n*v22;
+        const double v123 = v119*v23 - v120_n*v24;
+        const double v125 = v11*v122 - v12*v121;
+        const double v126 = t26 + t29;
+        const double v127_n = t30;
+        const double v128 = t20 - v33_n;
+        const double v129 = v126*v24 - v127_n*v22;
+        const double v130 = v126*v23 - v127_n*v24;
+        const double v132 = v11*v129 - v12*v128;
+        const double v133 = t23;
+        const double v134_n = t20;
+        const double v135 = v133*v24 - v134_n*v22;
+        const double v136 = v133*v23 - v134_n*v24;
+        const double v138 = v11*v135 - v12*v34;
+        const double v139 = t28_n - t26;
+        const double v140 = t27;
+        const double v141 = t22;
+        const double v142 = v139*v24 + v140*v22;
+        const double v143 = v139*v23 + v140*v24;
+        const double v144 = v14*v22;
+        const double v145 = t31;
+        const double v146 = v10_n*v141 + v12*v142;
+        const double v147 = v11*v142 - v12*v141;
+        const double v149 = v11*v144 - v12*v26;
+        const double v151 = v149 + ti[0][r]*v146;
+        const double v154 = t30;
+        const double v155 = t28_n - t25;
+        const double v156 = t24;
+        const double v157 = v154*v24 + v155*v22;
+        const double v158 = v154*v23 + v155*v24;
+        const double v159_n = t31;
+        const double v160 = -v14*v23;
+        const double v161 = v10_n*v156 + v12*v157;
+        const double v162 = v11*v157 - v12*v156;
+        const double v164 = v12*v25 - v159_n*v11;
+        const double v166 = v164 + ti[0][r]*v161;
+        const double v169 = t32;
+        const double v170 = -t33;
+        const double v171 = v169*v36 + v38*v46;
+        const double v172 = v169*v38 + v37*v46;
+        const double v173 = v171*v24 - v170*v22;
+        const double v174 = v171*v23 - v170*v24;
+        const double v176 = v11*v173 - v12*v172;
+        const double v177_n = t34;
+        const double v178 = t36;
+        const double v179 = t37 - t38;
+        const double v180 = v178*v36 - v177_n*v38;
+        const double v181 = v178*v38 - v177_n*v37;
+        const double v182 = v180*v24 - v179*v22;
+        const double v183 = v180*v23 - v179*v24;
+        const double v185 = v11*v182 - v12*v181;
+        const double v186 = t39;
+        const double v187_n = t37 + t41;
+        const double v188 = v46 - t35;
+        const double v189 = v186*v38 - v187_n*v36;
+        const double v190 = v186*v37 - v187_n*v38;
+        const double v191 = v189*v24 - v188*v22;
+        const double v192 = v189*v23 - v188*v24;
+        const double v194 = v11*v191 - v12*v190;
+        const double v195 = t38 + t41;
+        const double v196_n = t42;
+        const double v197 = t32 + v47;
+        const double v198 = v195*v38 - v196_n*v36;
+        const double v199 = v195*v37 - v196_n*v38;
+        const double v200 = v198*v24 - v197*v22;
+        const double v201 = v198*v23 - v197*v24;
+        const double v203 = v11*v200 - v12*v199;
+        const double v204 = t35;
+        const double v205_n = t32;
+        const double v206 = v204*v38 - v205_n*v36;
+        const double v207 = v204*v37 - v205_n*v38;
+        const double v208 = v206*v24 - v22*v48;
+        const double v209 = v206*v23 - v24*v48;
+        const double v211 = v11*v208 - v12*v207;
+        const double v212 = t40_n - t38;
+        const double v213 = t39;
+        const double v214 = t34;
+        const double v215 = v212*v38 + v213*v36;
+        const double v216 = v212*v37 + v213*v38;
+        const double v217 = v26*v36;
+        const double v218 = t43;
+        const double v219 = v215*v24 - v214*v22;
+        const double v220 = v215*v23 - v214*v24;
+        const double v221 = v217*v24 - v22*v40;
+        const double v222 = v217*v23 - v24*v40;
+        const double v223 = v10_n*v216 + v12*v219;
+        const double v224 = v11*v219 - v12*v216;
+        const double v226 = v11*v221 - v12*v218;
+        const double v228 = v226 + ti[0][r]*v223;
+        const double v231 = t42;
+        const double v232 = t40_n - t37;
+        const double v233 = t36;
+        const double v234 = v231*v38 + v232*v36;
+        const double v235 = v231*v37 + v232*v38;
+        const double v236 = -t43;
+        const double v237 = -v26*v37;
+        const double v238 = v234*v24 - v22*v233;
+        const double v239 = v23*v234 - v233*v24;
+        const double v240 = v236*v24 - v39_n*v22;
+        const double v241 = v23*v236 - v39_n*v24;
+        const double v242 = v10_n*v235 + v12*v238;
+        const double v243 = v11*v238 - v12*v235;
+        const double v245 = v11*v240 - v12*v237;
+        const double v247 = v245 + ti[0][r]*v242;
+        to[0][r] = ti[6][r];
+        to[1][r] = 0.0;
+        to[2][r] = v50;
+        to[3][r] = v54;
+        to[4][r] = v58;
+        to[5][r] = v64;
+        to[6][r] = v69;
+        to[7][r] = v74;
+        to[8][r] = v79;
+        to[9][r] = v83;
+        to[10][r] = v92;
+        to[11][r] = v103;
+        to[12][r] = v111;
+        to[13][r] = v118;
+        to[14][r] = v125;
+        to[15][r] = v132;
+        to[16][r] = v138;
+        to[17][r] = v151;
+        to[18][r] = v166;
+        to[19][r] = v176;
+        to[20][r] = v185;
+        to[21][r] = v194;
+        to[22][r] = v203;
+        to[23][r] = v211;
+        to[24][r] = v228;
+        to[25][r] = v247;
+        to[26][r] = 0.0;
+        to[27][r] = 0.0;
+        to[28][r] = 0.0;
+        to[29][r] = 0.0;
+        to[30][r] = 0.0;
+        to[31][r] = v4;
+        to[32][r] = 0.0;
+        to[33][r] = 0.0;
+        to[34][r] = v4;
+        to[35][r] = 0.0;
+        to[36][r] = 0.0;
+        to[37][r] = 0.0;
+        to[38][r] = 0.0;
+        to[39][r] = 0.0;
+        to[40][r] = v88;
+        to[41][r] = v99;
+        to[42][r] = 0.0;
+        to[43][r] = 0.0;
+        to[44][r] = 0.0;
+        to[45][r] = 0.0;
+        to[46][r] = 0.0;
+        to[47][r] = v147;
+        to[48][r] = v162;
+        to[49][r] = 0.0;
+        to[50][r] = 0.0;
+        to[51][r] = 0.0;
+        to[52][r] = 0.0;
+        to[53][r] = 0.0;
+        to[54][r] = v224;
+        to[55][r] = v243;
+        to[56][r] = ti[7][r];
+        to[57][r] = 0.0;
+        to[58][r] = 0.0;
+        to[59][r] = 0.0;
+        to[60][r] = 0.0;
+        to[61][r] = 0.0;
+        to[62][r] = -ti[6][r];
+        to[63][r] = v53;
+        to[64][r] = v8;
+        to[65][r] = 0.0;
+        to[66][r] = 0.0;
+        to[67][r] = 0.0;
+        to[68][r] = 0.0;
+        to[69][r] = 0.0;
+        to[70][r] = v86;
+        to[71][r] = v97;
+        to[72][r] = 0.0;
+        to[73][r] = 0.0;
+        to[74][r] = 0.0;
+        to[75][r] = 0.0;
+        to[76][r] = 0.0;
+        to[77][r] = v143;
+        to[78][r] = v158;
+        to[79][r] = 0.0;
+        to[80][r] = 0.0;
+        to[81][r] = 0.0;
+        to[82][r] = 0.0;
+        to[83][r] = 0.0;
+        to[84][r] = v220;
+        to[85][r] = v239;
+        to[86][r] = 0.0;
+        to[87][r] = ti[8][r];
+        to[88][r] = 0.0;
+        to[89][r] = 0.0;
+        to[90][r] = 0.0;
+        to[91][r] = 0.0;
+        to[92][r] = 0.0;
+        to[93][r] = 0.0;
+        to[94][r] = 0.0;
+        to[95][r] = v62;
+        to[96][r] = v67;
+        to[97][r] = v72;
+        to[98][r] = v77;
+        to[99][r] = ti[9][r];
+        to[100][r] = v14;
+        to[101][r] = -v13;
+        to[102][r] = v109;
+        to[103][r] = v116;
+        to[104][r] = v123;
+        to[105][r] = v130;
+        to[106][r] = v136;
+        to[107][r] = v145;
+        to[108][r] = v160;
+        to[109][r] = v174;
+        to[110][r] = v183;
+        to[111][r] = v192;
+        to[112][r] = v201;
+        to[113][r] = v209;
+        to[114][r] = v222;
+        to[115][r] = v241;
+        to[116][r] = 0.0;
+        to[117][r] = 0.0;
+        to[118][r] = 0.0;
+        to[119][r] = 0.0;
+        to[120][r] = 0.0;
+        to[121][r] = 0.0;
+        to[122][r] = 0.0;
+        to[123][r] = 0.0;
+        to[124][r] = 0.0;
+        to[125][r] = 0.0;
+        to[126][r] = 0.0;
+        to[127][r] = 0.0;
+        to[128][r] = 0.0;
+        to[129][r] = 0.0;
+        to[130][r] = 0.0;
+        to[131][r] = 0.0;
+        to[132][r] = v107;
+        to[133][r] = v114;
+        to[134][r] = v121;
+        to[135][r] = v128;
+        to[136][r] = v34;
+        to[137][r] = v26;
+        to[138][r] = -v25;
+        to[139][r] = v172;
+        to[140][r] = v181;
+        to[141][r] = v190;
+        to[142][r] = v199;
+        to[143][r] = v207;
+        to[144][r] = v218;
+        to[145][r] = v237;
+        to[146][r] = 0.0;
+        to[147][r] = 0.0;
+        to[148][r] = ti[10][r];
+        to[149][r] = 0.0;
+        to[150][r] = 0.0;
+        to[151][r] = 0.0;
+        to[152][r] = 0.0;
+        to[153][r] = 0.0;
+        to[154][r] = 0.0;
+        to[155][r] = 0.0;
+        to[156][r] = 0.0;
+        to[157][r] = 0.0;
+        to[158][r] = 0.0;
+        to[159][r] = 0.0;
+        to[160][r] = 0.0;
+        to[161][r] = 0.0;
+        to[162][r] = 0.0;
+        to[163][r] = 0.0;
+        to[164][r] = 0.0;
+        to[165][r] = 0.0;
+        to[166][r] = 0.0;
+        to[167][r] = 0.0;
+        to[168][r] = 0.0;
+        to[169][r] = v170;
+        to[170][r] = v179;
+        to[171][r] = v188;
+        to[172][r] = v197;
+        to[173][r] = v48;
+        to[174][r] = v40;
+        to[175][r] = v39_n;
+        to[176][r] = 0.0;
+        to[177][r] = 0.0;
+        to[178][r] = 0.0;
+        to[179][r] = ti[11][r];
+    }
+}
+__attribute__((target("avx2"))) static void kl_base_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_base_regressor(m, tv, ti, to); }
+__attribute__((target("avx512f"))) static void kl_512_base_regressor(int m, const double (*restrict tv)[32], const double (*restrict ti)[32], double (*restrict to)[32]) { kl_rows_base_regressor(m, tv, ti, to); }
+
+/* blocks of 32 rows: arguments, then every sine/cosine over the block (vector
+ * lanes, kin_prelude.h), then the straight-line rows (side by side in vector lanes) */
+static int batch_vector_base_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    if (!have_vector_trig) return 0;
+    if (n == 1) {  /* one row: its sines and cosines side by side in vector lanes */
+        double t1[8];
+        if (kv1_base_regressor((const double *)in[0], (const double *)in[1], (const double *)in[2], t1)) {
+            kv_base_regressor(t1, 1, (const double *)in[0], (const double *)in[1], (const double *)in[2], (double *)out[0]);
+            return 1;
+        }
+    }
+    const double *inb0 = (const double *)in[0]; const double *inb1 = (const double *)in[1]; const double *inb2 = (const double *)in[2];
+    double *outb0 = out[0];
+    double ta[4][32], tv[8][32], ti[12][32], to[180][32];
+    for (Py_ssize_t r0 = 0; r0 < n; r0 += 32) {
+        const int m = n - r0 < 32 ? (int)(n - r0) : 32;
+        for (int r = 0; r < m; ++r) {
+            const double *restrict in0 = inb0 + (r0 + r) * is[0]; const double *restrict in1 = inb1 + (r0 + r) * is[1]; const double *restrict in2 = inb2 + (r0 + r) * is[2];
+            ta[0][r] = in0[0]; ta[1][r] = in0[3]; ta[2][r] = in0[4]; ta[3][r] = in0[5]; ti[0][r] = in0[2]; ti[1][r] = in1[0]; ti[2][r] = in1[2]; ti[3][r] = in1[3]; ti[4][r] = in1[4]; ti[5][r] = in1[5]; ti[6][r] = in2[0]; ti[7][r] = in2[1]; ti[8][r] = in2[2]; ti[9][r] = in2[3]; ti[10][r] = in2[4]; ti[11][r] = in2[5]; double *p0 = outb0 + (r0 + r) * os[0]; __builtin_prefetch(p0 + 0, 1); __builtin_prefetch(p0 + 8, 1); __builtin_prefetch(p0 + 16, 1); __builtin_prefetch(p0 + 24, 1); __builtin_prefetch(p0 + 32, 1); __builtin_prefetch(p0 + 40, 1); __builtin_prefetch(p0 + 48, 1); __builtin_prefetch(p0 + 56, 1); __builtin_prefetch(p0 + 64, 1); __builtin_prefetch(p0 + 72, 1); __builtin_prefetch(p0 + 80, 1); __builtin_prefetch(p0 + 88, 1); __builtin_prefetch(p0 + 96, 1); __builtin_prefetch(p0 + 104, 1); __builtin_prefetch(p0 + 112, 1); __builtin_prefetch(p0 + 120, 1); __builtin_prefetch(p0 + 128, 1); __builtin_prefetch(p0 + 136, 1); __builtin_prefetch(p0 + 144, 1); __builtin_prefetch(p0 + 152, 1); __builtin_prefetch(p0 + 160, 1); __builtin_prefetch(p0 + 168, 1); __builtin_prefetch(p0 + 176, 1); __builtin_prefetch(p0 + 179, 1);
+        }
+        vtrig_sincos(ta[0], tv[0], tv[1], m);
+        vtrig_sincos(ta[1], tv[2], tv[3], m);
+        vtrig_sincos(ta[2], tv[4], tv[5], m);
+        vtrig_sincos(ta[3], tv[6], tv[7], m);
+        if (have_vector_trig512) kl_512_base_regressor(m, tv, ti, to);
+        else kl_base_regressor(m, tv, ti, to);
+        for (int r = 0; r < m; ++r) {
+            double *restrict o0 = outb0 + (r0 + r) * os[0];
+            o0[0] = to[0][r]; o0[1] = to[1][r]; o0[2] = to[2][r]; o0[3] = to[3][r]; o0[4] = to[4][r]; o0[5] = to[5][r]; o0[6] = to[6][r]; o0[7] = to[7][r]; o0[8] = to[8][r]; o0[9] = to[9][r]; o0[10] = to[10][r]; o0[11] = to[11][r]; o0[12] = to[12][r]; o0[13] = to[13][r]; o0[14] = to[14][r]; o0[15] = to[15][r]; o0[16] = to[16][r]; o0[17] = to[17][r]; o0[18] = to[18][r]; o0[19] = to[19][r]; o0[20] = to[20][r]; o0[21] = to[21][r]; o0[22] = to[22][r]; o0[23] = to[23][r]; o0[24] = to[24][r]; o0[25] = to[25][r]; o0[26] = to[26][r]; o0[27] = to[27][r]; o0[28] = to[28][r]; o0[29] = to[29][r]; o0[30] = to[30][r]; o0[31] = to[31][r]; o0[32] = to[32][r]; o0[33] = to[33][r]; o0[34] = to[34][r]; o0[35] = to[35][r]; o0[36] = to[36][r]; o0[37] = to[37][r]; o0[38] = to[38][r]; o0[39] = to[39][r]; o0[40] = to[40][r]; o0[41] = to[41][r]; o0[42] = to[42][r]; o0[43] = to[43][r]; o0[44] = to[44][r]; o0[45] = to[45][r]; o0[46] = to[46][r]; o0[47] = to[47][r]; o0[48] = to[48][r]; o0[49] = to[49][r]; o0[50] = to[50][r]; o0[51] = to[51][r]; o0[52] = to[52][r]; o0[53] = to[53][r]; o0[54] = to[54][r]; o0[55] = to[55][r]; o0[56] = to[56][r]; o0[57] = to[57][r]; o0[58] = to[58][r]; o0[59] = to[59][r]; o0[60] = to[60][r]; o0[61] = to[61][r]; o0[62] = to[62][r]; o0[63] = to[63][r]; o0[64] = to[64][r]; o0[65] = to[65][r]; o0[66] = to[66][r]; o0[67] = to[67][r]; o0[68] = to[68][r]; o0[69] = to[69][r]; o0[70] = to[70][r]; o0[71] = to[71][r]; o0[72] = to[72][r]; o0[73] = to[73][r]; o0[74] = to[74][r]; o0[75] = to[75][r]; o0[76] = to[76][r]; o0[77] = to[77][r]; o0[78] = to[78][r]; o0[79] = to[79][r]; o0[80] = to[80][r]; o0[81] = to[81][r]; o0[82] = to[82][r]; o0[83] = to[83][r]; o0[84] = to[84][r]; o0[85] = to[85][r]; o0[86] = to[86][r]; o0[87] = to[87][r]; o0[88] = to[88][r]; o0[89] = to[89][r]; o0[90] = to[90][r]; o0[91] = to[91][r]; o0[92] = to[92][r]; o0[93] = to[93][r]; o0[94] = to[94][r]; o0[95] = to[95][r]; o0[96] = to[96][r]; o0[97] = to[97][r]; o0[98] = to[98][r]; o0[99] = to[99][r]; o0[100] = to[100][r]; o0[101] = to[101][r]; o0[102] = to[102][r]; o0[103] = to[103][r]; o0[104] = to[104][r]; o0[105] = to[105][r]; o0[106] = to[106][r]; o0[107] = to[107][r]; o0[108] = to[108][r]; o0[109] = to[109][r]; o0[110] = to[110][r]; o0[111] = to[111][r]; o0[112] = to[112][r]; o0[113] = to[113][r]; o0[114] = to[114][r]; o0[115] = to[115][r]; o0[116] = to[116][r]; o0[117] = to[117][r]; o0[118] = to[118][r]; o0[119] = to[119][r]; o0[120] = to[120][r]; o0[121] = to[121][r]; o0[122] = to[122][r]; o0[123] = to[123][r]; o0[124] = to[124][r]; o0[125] = to[125][r]; o0[126] = to[126][r]; o0[127] = to[127][r]; o0[128] = to[128][r]; o0[129] = to[129][r]; o0[130] = to[130][r]; o0[131] = to[131][r]; o0[132] = to[132][r]; o0[133] = to[133][r]; o0[134] = to[134][r]; o0[135] = to[135][r]; o0[136] = to[136][r]; o0[137] = to[137][r]; o0[138] = to[138][r]; o0[139] = to[139][r]; o0[140] = to[140][r]; o0[141] = to[141][r]; o0[142] = to[142][r]; o0[143] = to[143][r]; o0[144] = to[144][r]; o0[145] = to[145][r]; o0[146] = to[146][r]; o0[147] = to[147][r]; o0[148] = to[148][r]; o0[149] = to[149][r]; o0[150] = to[150][r]; o0[151] = to[151][r]; o0[152] = to[152][r]; o0[153] = to[153][r]; o0[154] = to[154][r]; o0[155] = to[155][r]; o0[156] = to[156][r]; o0[157] = to[157][r]; o0[158] = to[158][r]; o0[159] = to[159][r]; o0[160] = to[160][r]; o0[161] = to[161][r]; o0[162] = to[162][r]; o0[163] = to[163][r]; o0[164] = to[164][r]; o0[165] = to[165][r]; o0[166] = to[166][r]; o0[167] = to[167][r]; o0[168] = to[168][r]; o0[169] = to[169][r]; o0[170] = to[170][r]; o0[171] = to[171][r]; o0[172] = to[172][r]; o0[173] = to[173][r]; o0[174] = to[174][r]; o0[175] = to[175][r]; o0[176] = to[176][r]; o0[177] = to[177][r]; o0[178] = to[178][r]; o0[179] = to[179][r];
+        }
+    }
+    return 1;
+}
+#endif
+
+static void batch_base_regressor(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+#ifdef RCCL_VECTOR_TRIG
+    if (batch_vector_base_regressor(n, in, is, out, os)) return;
+#endif
+    const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1]; const double *in2 = (const double *)in[2];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_base_regressor(in0 + r * is[0], in1 + r * is[1], in2 + r * is[2], out0 + r * os[0]);
+}
+
+/* microbo.base_parameters: the base parameters of link inertials: masses (6,) kg, centres of mass (6, 3) m and inertias about them (6, 6: ixx iyy izz ixy ixz iyz) kg m^2 in DH frames 1..6, rotor inertias (6,) at the joints (thesis 4.6; lowering: expand+horner[count]+cse, staged (the kernel's structure hint)) */
+static inline void k_base_parameters(const double *restrict in0, const double *restrict in1, const double *restrict in2, const double *restrict in3, double *restrict out0)
+{
+/* BEGIN KERNEL microbo.base_parameters */
+    const double t0 = in1[9]*in1[9];
+    const double t1 = in1[10]*in0[3];
+    const double t2 = in1[11]*in1[11];
+    const double t3 = in1[12]*in1[12];
+    const double t4 = in2[26] + in0[4]*(t3 + in1[13]*in1[13]);
+    const double t5 = in1[13]*in0[4];
+    const double t6 = in1[14]*in1[14];
+    const double t7 = in1[15]*in1[15];
+    const double t8 = in2[31] + in0[5]*(t7 + in1[17]*in1[17]);
+    const double t9 = in1[17]*in0[5];
+    const double t10 = in1[16]*in1[16];
+    const double t11 = in1[15]*in0[5];
+    out0[0] = in2[7] + in2[13] + in2[2] + in2[20] + in3[0] + in0[0]*(in1[0]*in1[0] + in1[1]*in1[1]) + in0[1]*(in1[3]*in1[3] + in1[5]*in1[5]) + in0[2]*(in1[6]*in1[6] + in1[8]*in1[8]) + in0[3]*(t0 + in1[10]*in1[10]);
+    out0[1] = in0[1];
+    out0[2] = in1[6]*in0[2];
+    out0[3] = t1 + in1[8]*in0[2];
+    out0[4] = in0[2] + in0[3] + in0[4] + in0[5];
+    out0[5] = in2[18] + t4 + in0[3]*(t2 - t0) - in2[20];
+    out0[6] = in1[9]*in1[11]*in0[3] - in2[22];
+    out0[7] = in2[21] - t1*in1[9];
+    out0[8] = in1[10]*in1[11]*in0[3] - in2[23];
+    out0[9] = in2[19] + in3[3] + t4 + in0[3]*(t0 + t2);
+    out0[10] = in1[9]*in0[3];
+    out0[11] = -t5 - in1[11]*in0[3];
+    out0[12] = in2[24] + t8 + in0[4]*(t6 - t3) - in2[26];
+    out0[13] = in1[12]*in1[14]*in0[4] - in2[28];
+    out0[14] = in2[27] - t5*in1[12];
+    out0[15] = in1[13]*in1[14]*in0[4] - in2[29];
+    out0[16] = in2[25] + t8 + in0[4]*(t3 + t6);
+    out0[17] = in1[12]*in0[4];
+    out0[18] = -t9 - in1[14]*in0[4];
+    out0[19] = in2[30] + in0[5]*(t10 - t7) - in2[31];
+    out0[20] = in2[33] - t11*in1[16];
+    out0[21] = in2[34] - t9*in1[15];
+    out0[22] = in2[35] - t9*in1[16];
+    out0[23] = in2[32] + in0[5]*(t10 + t7);
+    out0[24] = t11;
+    out0[25] = in1[16]*in0[5];
+    out0[26] = in3[1];
+    out0[27] = in3[2];
+    out0[28] = in3[4];
+    out0[29] = in3[5];
+/* END KERNEL microbo.base_parameters */
+}
+
+static void batch_base_parameters(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0]; const double *in1 = (const double *)in[1]; const double *in2 = (const double *)in[2]; const double *in3 = (const double *)in[3];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_base_parameters(in0 + r * is[0], in1 + r * is[1], in2 + r * is[2], in3 + r * is[3], out0 + r * os[0]);
+}
+
 /* microbo.ik_all: every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 (thesis 3.19-3.53; lowering: expand+horner[count]+cse) */
 static inline void k_ik_all(const double *restrict in0, double *restrict out0, double *restrict out1)
 {
@@ -2441,7 +5739,7 @@ static void batch_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t
         k_ik_all(in0 + r * is[0], out0 + r * os[0], out1 + r * os[1]);
 }
 
-static const kernel_entry KERNELS[20] = {
+static const kernel_entry KERNELS[26] = {
     {"fk", batch_fk, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {4, 4}, 16}},
@@ -2556,6 +5854,42 @@ static const kernel_entry KERNELS[20] = {
      {"c", "load"},
      {"c_loaded"},
      "tool_load(c[2], load[2]) -> (c_loaded[2]): coefficients with a tool of mass m_t at d_t along z6 (4.26) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"inverse_dynamics", batch_inverse_dynamics, 3, 1, 0,
+     {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {1, {6, 0}, 6}},
+     {{1, {6, 0}, 6}},
+     {"q", "qd", "qdd"},
+     {"tau"},
+     "inverse_dynamics(q[6], qd[6], qdd[6]) -> (tau[6]): t_j = D(q) qdd + c(q, qd) + t_g(q): rigid-body joint torques of the data file's inertials (recursive Newton-Euler; no friction, no rotor) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"inertia_matrix", batch_inertia_matrix, 1, 1, 0,
+     {{1, {6, 0}, 6}},
+     {{2, {6, 6}, 36}},
+     {"q"},
+     {"D"},
+     "inertia_matrix(q[6]) -> (D[6, 6]): D(q): the joint-space inertia matrix (composite rigid bodies) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"coriolis", batch_coriolis, 2, 1, 0,
+     {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
+     {{1, {6, 0}, 6}},
+     {"q", "qd"},
+     {"c"},
+     "coriolis(q[6], qd[6]) -> (c[6]): c(q, qd): Coriolis and centrifugal torques (Newton-Euler, qdd = 0, no gravity) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"coriolis_matrix", batch_coriolis_matrix, 2, 1, 0,
+     {{1, {6, 0}, 6}, {1, {6, 0}, 6}},
+     {{2, {6, 6}, 36}},
+     {"q", "qd"},
+     {"C"},
+     "coriolis_matrix(q[6], qd[6]) -> (C[6, 6]): C(q, qd) with c = C qd and D' - 2C skew-symmetric (Christoffel symbols of D) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"base_regressor", batch_base_regressor, 3, 1, 0,
+     {{1, {6, 0}, 6}, {1, {6, 0}, 6}, {1, {6, 0}, 6}},
+     {{2, {6, 30}, 180}},
+     {"q", "qd", "qdd"},
+     {"Y"},
+     "base_regressor(q[6], qd[6], qdd[6]) -> (Y[6, 30]): Y(q, qd, qdd) with t_j = Y beta (rigid body, gravity and rotor inertias; beta: the base parameters) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"base_parameters", batch_base_parameters, 4, 1, 0,
+     {{1, {6, 0}, 6}, {2, {6, 3}, 18}, {2, {6, 6}, 36}, {1, {6, 0}, 6}},
+     {{1, {30, 0}, 30}},
+     {"m", "com", "inertia", "rotor"},
+     {"beta"},
+     "base_parameters(m[6], com[6, 3], inertia[6, 6], rotor[6]) -> (beta[30]): the base parameters of link inertials: masses (6,) kg, centres of mass (6, 3) m and inertias about them (6, 6: ixx iyy izz ixy ixz iyz) kg m^2 in DH frames 1..6, rotor inertias (6,) at the joints Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {2, 6}, 12}, {2, {2, 2}, 4}},

@@ -1,0 +1,154 @@
+"""The generated dynamics (thesis eq. 4.6, derive.dynamics) against Pinocchio on the URDFs:
+rnea, crba, computeCoriolisMatrix, computeGeneralizedGravity, computeJointTorqueRegressor,
+on random states of every arm; D symmetric positive definite, D' - 2C skew-symmetric, the
+base regressor times the base parameters equal to rnea, and t_g equal to the gravity kernels."""
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from models import available_robots, load_robot
+
+ROBOTS = tuple(available_robots())
+REL = 1e-10
+
+
+def _arm(name: str):
+    mod = importlib.import_module(f"rccl.kinematics.{name}")
+    model = pin.buildModelFromUrdf(f"models/urdf/{name}.urdf")
+    return mod, model
+
+
+ARMS = {name: _arm(name) for name in ROBOTS}
+
+
+def _state(mod, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A state from 18 numbers in [0, 1]: q in the joint ranges, qd in +-2, qdd in +-5."""
+    lo, hi = np.asarray(mod.LOWER), np.asarray(mod.UPPER)
+    return lo + (hi - lo) * u[:6], 4.0 * u[6:12] - 2.0, 10.0 * u[12:] - 5.0
+
+
+def _close(a, b, rel: float = REL) -> None:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(1.0, float(np.abs(b).max()))
+    assert np.abs(a - b).max() <= rel * scale, (np.abs(a - b).max(), scale)
+
+
+def _full(m: np.ndarray) -> np.ndarray:
+    """Pinocchio fills the upper triangle of M."""
+    return np.triu(m) + np.triu(m, 1).T
+
+
+UNIT = st.lists(st.floats(0.0, 1.0), min_size=18, max_size=18).map(np.array)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+@settings(max_examples=40, deadline=None)
+@given(u=UNIT)
+def test_against_pinocchio(robot: str, u: np.ndarray) -> None:
+    mod, model = ARMS[robot]
+    data = model.createData()
+    q, qd, qdd = _state(mod, u)
+    _close(mod.inverse_dynamics(q, qd, qdd), pin.rnea(model, data, q, qd, qdd))
+    d = mod.inertia_matrix(q)
+    _close(d, _full(pin.crba(model, data, q)))
+    grav = pin.computeGeneralizedGravity(model, data, q)
+    _close(mod.inverse_dynamics(q, np.zeros(6), np.zeros(6)), grav)
+    _close(mod.coriolis(q, qd), pin.rnea(model, data, q, qd, np.zeros(6)) - grav)
+    c = mod.coriolis_matrix(q, qd)
+    _close(c, pin.computeCoriolisMatrix(model, data, q, qd))
+    _close(c @ qd, mod.coriolis(q, qd))
+    # D symmetric positive definite
+    assert np.array_equal(d, d.T)
+    assert np.linalg.eigvalsh(d).min() > 0.0
+    # D' - 2C skew: D' by central differences of the generated D along qd
+    h = 1e-6
+    ddot = (mod.inertia_matrix(q + h * qd) - mod.inertia_matrix(q - h * qd)) / (2 * h)
+    n = ddot - 2 * c
+    assert np.abs(n + n.T).max() <= 1e-6 * max(1.0, np.abs(ddot).max())
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+@settings(max_examples=25, deadline=None)
+@given(u=UNIT)
+def test_base_regressor_reproduces_rnea(robot: str, u: np.ndarray) -> None:
+    """Y beta = rnea for the data file's inertials, and for random physical inertials and
+    rotor inertias set in Pinocchio (whose own torque regressor must agree as well)."""
+    mod, model = ARMS[robot]
+    q, qd, qdd = _state(mod, u)
+    rm = load_robot(robot)
+    masses = np.array([li.mass for li in rm.links])
+    coms = np.array([li.com for li in rm.links])
+    inertia = np.array([[i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+                        for i in (np.asarray(li.inertia) for li in rm.links)])
+    y = mod.base_regressor(q, qd, qdd)
+    assert y.shape == (6, len(mod.BASE_PARAMETERS))
+    beta = mod.base_parameters(masses, coms, inertia, np.zeros(6))
+    _close(y @ beta, mod.inverse_dynamics(q, qd, qdd))
+    # random inertials (DH frame k), moved into Pinocchio's joint frames
+    rng = np.random.default_rng(int(u[0] * 2**31))
+    other = model.copy()
+    m2 = rng.uniform(0.5, 5.0, 6)
+    c2 = rng.uniform(-0.2, 0.2, (6, 3))
+    rows = []
+    for k in range(6):
+        a = rng.normal(size=(3, 3))
+        ic = a @ a.T * 1e-2 + np.eye(3) * 1e-3
+        rows.append([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])
+        f = other.frames[other.getFrameId(f"link{k + 1}")]
+        other.inertias[f.parentJoint] = f.placement.act(pin.Inertia(float(m2[k]), c2[k], ic))
+    rotor = rng.uniform(0.0, 0.1, 6)
+    other.armature = rotor
+    data = other.createData()
+    tau = pin.rnea(other, data, q, qd, qdd)
+    beta2 = mod.base_parameters(m2, c2, np.array(rows), rotor)
+    _close(y @ beta2, tau)
+    reg = pin.computeJointTorqueRegressor(other, data, q, qd, qdd)
+    pi = np.concatenate([other.inertias[j].toDynamicParameters() for j in range(1, other.njoints)])
+    _close(reg @ pi + rotor * qdd, tau)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_gravity_is_the_static_case(robot: str) -> None:
+    """t_g of the new model (inverse dynamics at rest) equals the existing gravity kernels
+    (4.20 from the link masses and centres of mass, and 4.24 with their coefficients)."""
+    mod, _ = ARMS[robot]
+    rm = load_robot(robot)
+    masses = np.array([li.mass for li in rm.links])
+    coms = np.array([li.com for li in rm.links])
+    coeffs = mod.coefficients_from_links(masses, coms)
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        q = rng.uniform(mod.LOWER, mod.UPPER)
+        tg = mod.inverse_dynamics(q, np.zeros(6), np.zeros(6))
+        _close(tg, mod.gravity_links(q, masses, coms))
+        _close(tg, mod.gravity(q, coeffs))
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_batched_equals_single(robot: str) -> None:
+    mod, _ = ARMS[robot]
+    rng = np.random.default_rng(1)
+    n = 33
+    q = rng.uniform(mod.LOWER, mod.UPPER, (n, 6))
+    qd, qdd = rng.uniform(-2, 2, (n, 6)), rng.uniform(-5, 5, (n, 6))
+    tau = mod.inverse_dynamics(q, qd, qdd)
+    d = mod.inertia_matrix(q)
+    assert tau.shape == (n, 6) and d.shape == (n, 6, 6)
+    for i in (0, 17, 32):
+        np.testing.assert_array_equal(tau[i], mod.inverse_dynamics(q[i], qd[i], qdd[i]))
+        np.testing.assert_array_equal(d[i], mod.inertia_matrix(q[i]))
+
+
+def test_bad_input_is_named() -> None:
+    from models.kinematics import InvalidInput
+
+    mod, _ = ARMS[ROBOTS[0]]
+    with pytest.raises(InvalidInput, match="qd"):
+        mod.inverse_dynamics(np.zeros(6), np.zeros(5), np.zeros(6))
+    with pytest.raises(InvalidInput, match="not finite"):
+        mod.inertia_matrix(np.array([0.0, np.nan, 0, 0, 0, 0]))
