@@ -190,16 +190,19 @@ def measure_teach(keys: str = TEACH_KEYS, rate_hz: int = 36) -> Traffic:
     return Traffic(c1, c3, seconds)
 
 
-def gravity_plan(warmup: bool = True):
-    """calib's first gravity plan for the PUMA 260 (a Table 4.7 sweep), with or without its warm-up."""
+def gravity_plan(warmup: bool = True, segments: int | None = None):
+    """calib's first gravity plan for the PUMA 260 (a Table 4.7 sweep), with or without its warm-up;
+    ``segments``: only the sweep's first so many segments (a shorter run, for tests)."""
     from calib.experiments import gravity_plans
     from calib.robot import robot_info
     info = robot_info("puma260")
     plan = gravity_plans(info.regressor, info.lower, info.upper)[0]
+    if segments is not None:
+        plan = dataclasses.replace(plan, path=dataclasses.replace(plan.path, segments=plan.path.segments[:segments]))
     return plan if warmup else dataclasses.replace(plan, warmup=None)
 
 
-def measure_gravity(warmup: bool = True) -> Traffic:
+def measure_gravity(warmup: bool = True, segments: int | None = None) -> Traffic:
     """calib.program.run_plan (the measurement program) for one gravity sweep on a lockstep simula.
     c1: the plan, handed to the control function once (its path segments, warm-up and notes);
     c3: the end of the run the planning level waits for (one flag, with the records and cycles
@@ -207,7 +210,7 @@ def measure_gravity(warmup: bool = True) -> Traffic:
     that does not cross to the planning level, so not counted."""
     from calib.program import run_plan
     from rci.simula.process import SimulaProcess
-    plan = gravity_plan(warmup)
+    plan = gravity_plan(warmup, segments)
     c1 = [len(encode({"op": "plan", "name": plan.name, "path": jsonable(plan.path), "warmup": jsonable(plan.warmup),
                       "via": jsonable(plan.via), "meta": jsonable(plan.meta)}))]
     with tempfile.TemporaryDirectory() as tmp, SimulaProcess("-p", "--warm", lockstep=True, seed=7) as sim:

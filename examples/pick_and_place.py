@@ -2,6 +2,7 @@
 
     .venv/bin/python examples/pick_and_place.py                  # starts its own simula (lockstep)
     .venv/bin/python examples/pick_and_place.py socket://127.0.0.1:7600   # a running simula -p --power-on
+    .venv/bin/python examples/pick_and_place.py --parts 1         # one part only
 
 Parts lie at a feeder; the arm takes ``PARTS`` of them, one by one, to places in a row.
 Each part: a joint-mode move to the approach point above the feeder, a straight
@@ -38,13 +39,13 @@ def station(name: str, x0: np.ndarray, offset, up: float = 0.0):
     return makeposition(name, T6, EQ, Trsf(name, x), TL, T6)
 
 
-def main(url: str, record: bool = False):
+def main(url: str, record: bool = False, parts: int = PARTS):
     """Run the program on the powered arm at ``url``; returns the (closed) Arm and the parts placed."""
     with rccl.open(url, robot="puma260", record=record, timeout=2.0) as arm:
         x0 = arm.t6
         pick, pick_above = station("PICK", x0, FEEDER), station("PICK_UP", x0, FEEDER, CLEARANCE)
         placed = 0
-        for k, where in enumerate(PLACES):
+        for k, where in enumerate(PLACES[:parts]):
             place = station(f"PLACE{k}", x0, where)
             place_above = station(f"PLACE{k}_UP", x0, where, CLEARANCE)
             for above, at in ((pick_above, pick), (place_above, place)):
@@ -71,16 +72,17 @@ def _cli(argv: list[str]) -> int:
     ap.add_argument("url", nargs="?", default=None,
                     help="robot link of a powered arm (e.g. socket://127.0.0.1:7600 of `simula -p --power-on`); "
                          "default: start a lockstep simula for the run")
+    ap.add_argument("--parts", type=int, default=PARTS, choices=range(1, PARTS + 1), help="how many parts to move")
     a = ap.parse_args(argv)
     if a.url:
-        arm, placed = main(a.url)
+        arm, placed = main(a.url, parts=a.parts)
     else:
         from rci.simula.process import SimulaProcess
         with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
-            arm, placed = main(sim.url)
+            arm, placed = main(sim.url, parts=a.parts)
     print(f"{placed} parts placed; final joint angles (deg):",
           [round(math.degrees(float(x)), 2) for x in arm.measured_q()])
-    return 0 if placed == PARTS else 1
+    return 0 if placed == a.parts else 1
 
 
 if __name__ == "__main__":
