@@ -131,6 +131,13 @@ def test_no_import_circles():
         " <-> ".join(c) for c in cycles)
 
 
+def test_an_annotation_only_import_counts(tmp_path):
+    """``if TYPE_CHECKING:`` imports are edges: a circle through one is still a circle."""
+    path = tmp_path / "probe.py"
+    path.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from rccl.session import Arm\n")
+    assert "rccl.session" in _imported_names("calib.probe", path)
+
+
 def test_the_circle_finder_finds_a_circle():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _cycles({"a": {"b"}, "b": set()}) == []
