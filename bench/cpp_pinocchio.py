@@ -238,7 +238,8 @@ def gravity_coefficients(robot: str) -> np.ndarray:
     """The generated gravity kernel's coefficients for the model file's link masses and
     centres of mass (those of the URDF inertials), so both sides compute the same torques."""
     from models import load_robot
-    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    from rccl.kinematics import load
+    mod = load(robot)
     model = load_robot(robot)
     masses = np.array([link.mass for link in model.links])
     coms = np.array([link.com for link in model.links])
@@ -309,7 +310,8 @@ def robots() -> list[str]:
 
 
 def random_q(robot: str, n: int, rng: np.random.Generator) -> np.ndarray:
-    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    from rccl.kinematics import load
+    mod = load(robot)
     return rng.uniform(np.asarray(mod.LOWER), np.asarray(mod.UPPER), size=(n, 6))
 
 

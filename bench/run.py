@@ -30,6 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench import cpp_pinocchio  # noqa: E402
 from bench.output import progress  # noqa: E402
+import rccl.kinematics  # noqa: E402
 from rccl.kinematics import backend  # noqa: E402
 
 COMMAND = "make bench  (python -m bench.run)"
@@ -88,7 +89,7 @@ def pin_model(robot: str):
 
 
 def build_ops(robot: str, rng: np.random.Generator) -> tuple[list[Op], object]:
-    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    mod = rccl.kinematics.load(robot)
     cm = backend.c_module(robot)
     if cm is None:
         raise SystemExit("bench: the C kernels are not compiled; run `pip install -e .` first")

@@ -49,9 +49,9 @@ class Accuracy:
 def targets(n: int, seed: int = 7, robot: str = "puma260") -> list[np.ndarray]:
     """``n`` T6 targets (nominal fk of joint angles around CENTRE, one configuration, away
     from the wrist singularity)."""
-    import importlib
+    from rccl.kinematics import load
 
-    kin = importlib.import_module(f"rccl.kinematics.{robot}")
+    kin = load(robot)
     rng = np.random.default_rng(seed)
     want = kin.config_of(CENTRE)
     out = []

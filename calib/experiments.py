@@ -10,13 +10,12 @@ does no net work (4.5.4), the sensitivity arcs are swept with and without the pu
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from calib.friction_poses import check_friction_pose, friction_pose
 from calib.paths import Path, PathSegment, sweep_path
+from calib.plan import MeasurementPlan
 from calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
                          table_4_7_identifies)
 
@@ -69,21 +68,6 @@ SERVO_RATE_JOINTS = {2: (40.0, (1, 2, 2, 3)), 3: (40.0, (1, 1, 2, 2, 3, 3)),
 FRICTION_WARMUP_S = 200.0  # s: 10 e-foldings of simula's warm-up (a cold joint +20 %, 4.5.3);
 # after 100 s a joint is still 0.13 % over its warm friction, which fades during the first
 # (slow) passes and biases the slope by -0.05e-3 N m s/rad on joint 5
-
-
-@dataclass
-class MeasurementPlan:
-    """One measurement run: where to go, what to log with it, and the log's name."""
-
-    name: str
-    path: Path
-    meta: dict[str, Any]
-    simula_args: list[str] = field(default_factory=list)
-    warmup: Path | None = None
-    rate_hz: int = 36
-    # poses the approach passes through on its way to the first setpoint (calib.headroom
-    # chooses them where the straight joint move would ask a motor for too much current)
-    via: tuple[np.ndarray, ...] = ()
 
 
 WARMUP_S = 100.0  # s of motion before recording: 5 e-foldings of a cold joint's warm-up (4.5.3)

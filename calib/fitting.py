@@ -15,34 +15,18 @@ as missing.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from calib import registry
 from calib.exceptions import CalibError
 from calib.logs import motors_of
+from calib.outcome import FitOutcome
 from calib.robot import RobotInfo
 from calib.trace import Trace
 
 # what fits each input, for the refusal's message
 PROVIDER = {"sigma": "sensitivity", "gravity": "gravity"}
-
-
-@dataclass
-class FitOutcome:
-    """What a fit produced: the printed table, TOML sections, the raw results, and notes
-    (warnings and assumptions) that are printed with the table and kept in the report."""
-
-    kind: str
-    table: str
-    sections: dict[str, dict[str, Any]]
-    results: Any
-    extra: dict[str, Any] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
-    assumed: list[str] = field(default_factory=list)
-    truth: str = ""        # what its logs were recorded against (calib.truth.truth_label), for [calib]
 
 
 class Inputs:

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING, Any, Callable
 from calib.exceptions import CalibError
 
 if TYPE_CHECKING:   # annotations only: the records these callables take and give
-    from calib.experiments import MeasurementPlan
-    from calib.fitting import FitOutcome, Inputs
+    from calib.outcome import FitOutcome
+    from calib.plan import MeasurementPlan
     from calib.robot import RobotInfo
     from calib.trace import Trace
     from calib.truth import GroundTruth

@@ -2,18 +2,14 @@
 (3.84), and the ground truth the logs say they were recorded against."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from calib import registry
+from calib.outcome import FitOutcome
 from calib.registry import ReportContext
 from calib.robot import RobotInfo
+from calib.trace import Trace
 from calib.truth import GroundTruth
-
-if TYPE_CHECKING:
-    from calib.fitting import FitOutcome
-    from calib.trace import Trace
 
 SD = "99.73 %: 3 sd, Student's t for few points"
 ARM_NAMES = {"puma260": "PUMA 260", "puma560": "PUMA 560", "stanford": "Stanford arm", "microbo": "Microbo"}

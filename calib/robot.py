@@ -7,7 +7,6 @@ the controller uses, whatever the arm: nothing here depends on the robot's name.
 """
 from __future__ import annotations
 
-import importlib
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -49,10 +48,12 @@ def _data_file(path: Path) -> dict:
 
 def _gravity_model(name: str) -> tuple[Callable[[np.ndarray], np.ndarray], tuple[str, ...]]:
     """The generated module's gravity regressor (q (n,) rad -> (n, k)) and its column names."""
+    from rccl.kinematics import KinematicsNotFound, load
+
     try:
-        kin = importlib.import_module(f"rccl.kinematics.{name}")
+        kin = load(name)
         reg, names = kin.gravity_regressor, tuple(kin.GRAVITY_COEFFS)
-    except (ImportError, AttributeError):
+    except (KinematicsNotFound, AttributeError):
         raise CalibError(f"robot {name!r}: no generated gravity regressor (rccl.kinematics.{name}."
                          "gravity_regressor); run `make derive` after adding its model file") from None
     return (lambda q: np.asarray(reg(np.asarray(q, dtype=float)), dtype=float).reshape(len(q), -1)), names

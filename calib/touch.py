@@ -261,11 +261,10 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER
     """``n_per_face`` touches on each face of ``fixture``, shared among CONFIGS (a
     configuration that reaches few points of a face leaves its share to the others),
     grouped by face and configuration (so that the arm changes configuration at a hub only)."""
-    import importlib
-
     from models import load_robot
+    from rccl.kinematics import load
 
-    kin = importlib.import_module(f"rccl.kinematics.{robot}")
+    kin = load(robot)
     model = load_robot(robot)
     lower, upper = np.asarray(model.lower), np.asarray(model.upper)
     rng = np.random.default_rng(seed)

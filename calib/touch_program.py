@@ -15,7 +15,6 @@ The log holds only the measuring approaches, each record tagged with its touch's
 """
 from __future__ import annotations
 
-import importlib
 import threading
 from collections.abc import Callable
 
@@ -94,7 +93,9 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
     The arm first moves in joint space from where it is to the hub with the first
     touch's orientation (``start_q`` is unused; the arm's reading is the start).
     """
-    kin = importlib.import_module(f"rccl.kinematics.{robot}")
+    from rccl.kinematics import load
+
+    kin = load(robot)
     conv = Conversions.for_robot(robot)
     rate = plan.rate_hz
     meta = dict(plan.meta)

@@ -16,12 +16,12 @@ stationary").
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 from contextlib import ExitStack
 
 import numpy as np
 
+import rccl.kinematics
 from rccl.adaptive.force import JointModel, gravity_vector
 from rci.chg import CUR
 from rci.conversions import DAC_MAX, DAC_MIN
@@ -35,7 +35,7 @@ class ZeroFriction:
         self.s = session
         self.model = JointModel.for_robot(robot)
         self.conv = self.model.conv
-        self.kin = importlib.import_module(f"rccl.kinematics.{robot}")     # generated (make derive)
+        self.kin = rccl.kinematics.load(robot)     # generated (make derive)
         self.coeffs = gravity_vector(self.kin, self.model.gravity_coeffs)
         self.last: np.ndarray | None = None            # joint angles of the last cycle (rad)
         self.speeds = np.zeros(self.conv.n)             # rad/s, for the planning level

@@ -19,7 +19,6 @@ Use: ``rccl.open(url, kinematics=calibrated_kinematics("fitted.toml"))``.
 """
 from __future__ import annotations
 
-import importlib
 import math
 import tomllib
 from typing import Any
@@ -27,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from .exceptions import BadRequest
+from .kinematics import load
 
 DH_ERRORS = ("dtheta", "dd", "da", "dalpha")   # the [kinematics] keys: rad, m, m, rad per joint
 NEWTON_STEPS = 4          # at most: from the nominal solution (mm off) three reach rounding
@@ -203,7 +203,7 @@ def load_calibrated(path: str, robot: str = "puma260") -> CalibratedKinematics:
     """The calibrated kinematics of ``robot`` from the ``[kinematics]`` section of ``path``."""
     from models import load_robot
 
-    module = importlib.import_module(f"rccl.kinematics.{robot}")
+    module = load(robot)
     dh = np.array([[j.theta, j.d, j.a, j.alpha] for j in load_robot(robot).joints])
     errors = read_dh_errors(path, robot)
     if errors.shape != dh.shape:

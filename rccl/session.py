@@ -22,7 +22,6 @@ the counts sent never trip RCI's R_REQVEL check.
 """
 from __future__ import annotations
 
-import importlib
 from dataclasses import replace
 from typing import Any, Callable
 
@@ -46,6 +45,7 @@ from .planner import Planner
 from .position import Position, joint_position
 from .generator import MotionGenerator, check_kind
 from .jerk import JerkLimitedGenerator, JerkLimits
+from .kinematics import load
 from .segments import Kinematics
 from .trajectory import TrajectoryGenerator
 
@@ -56,19 +56,10 @@ PARK_POSE = "ready"
 def load_kinematics(robot: str) -> Kinematics:
     """The generated kinematics module of ``robot`` (rccl.kinematics.<robot>), wrapped for RCCL.
 
-    Raises ValueError naming the robots there are (a data file each in models/) for an unknown
-    name, or saying that the robot's kinematics have not been generated (``make derive``).
+    Raises ValueError (rccl.kinematics.KinematicsNotFound) naming the robots there are for an
+    unknown name, or saying that the robot's kinematics have not been generated (``make derive``).
     """
-    from models import available_robots
-
-    known = available_robots()
-    if not isinstance(robot, str) or robot not in known:
-        raise ValueError(f"robot={robot!r}: no such robot; known: {', '.join(known)} (models/ROBOT.toml)")
-    try:
-        return Kinematics(importlib.import_module(f"rccl.kinematics.{robot}"))
-    except ModuleNotFoundError:
-        raise ValueError(f"robot={robot!r}: no generated kinematics (rccl/kinematics/{robot}.py); "
-                         "run `make derive`") from None
+    return Kinematics(load(robot))
 
 
 def make_generator(kind: str, kin: Kinematics, limits: Limits, dt: float, q0: np.ndarray,

@@ -1,7 +1,6 @@
 """The generated back ends of both arms agree: compiled C, generated Python, CasADi, and Pinocchio on the URDF."""
 from __future__ import annotations
 
-import importlib
 import os
 import subprocess
 import sys
@@ -12,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+import rccl.kinematics
 from rccl.kinematics import backend
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -20,7 +20,7 @@ TOL = 1e-9  # the derivation's cross-check tolerance for kinematic quantities
 
 
 def _mod(robot):
-    return importlib.import_module(f"rccl.kinematics.{robot}")
+    return rccl.kinematics.load(robot)
 
 
 def _c(robot):

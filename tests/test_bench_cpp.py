@@ -12,6 +12,7 @@ import sysconfig
 import numpy as np
 import pytest
 
+import rccl.kinematics
 from bench import cpp_pinocchio
 
 ROBOTS = cpp_pinocchio.robots()
@@ -23,7 +24,7 @@ def test_every_robot_with_kernels_is_compared():
 
 @pytest.mark.parametrize("robot", ROBOTS)
 def test_pinocchio_cpp_agrees_with_the_generated_kernels(robot):
-    mod = __import__(f"rccl.kinematics.{robot}", fromlist=["x"])
+    mod = rccl.kinematics.load(robot)
     rng = np.random.default_rng(5)
     q = np.vstack([np.zeros(6), cpp_pinocchio.random_q(robot, 11, rng)])
     run = cpp_pinocchio.run(robot, q, repeats=1, with_results=True, profile=cpp_pinocchio.CHECK)

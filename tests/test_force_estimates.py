@@ -13,7 +13,6 @@ joint whose count moved slid (kinetic friction), and the ADC's 15 ms filter.
 """
 from __future__ import annotations
 
-import importlib
 import math
 import warnings
 
@@ -21,6 +20,7 @@ import numpy as np
 import pytest
 
 import rccl.adaptive
+import rccl.kinematics
 from models import load_robot
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import TrajectoryFault
@@ -38,7 +38,7 @@ TOOL = trsl(0.0, 0.0, PROBE)
 def _kin(robot):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)      # Python kinematics without the C kernels
-        return importlib.import_module(f"rccl.kinematics.{robot}")
+        return rccl.kinematics.load(robot)
 
 
 def ready_bar(robot: str) -> np.ndarray:

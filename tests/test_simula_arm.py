@@ -271,10 +271,10 @@ def test_params_file_changes_the_ground_truth(tmp_path):
 def test_params_file_moves_the_gravity_of_any_arm(tmp_path, robot, changes):
     """Changed coefficients of an arm other than the thesis's: simula's Pinocchio gravity is
     the generated regressor (rccl.kinematics) with the new values, on random poses."""
-    import importlib
+    import rccl.kinematics
 
     model = load_robot(robot)
-    kin = importlib.import_module(f"rccl.kinematics.{robot}")
+    kin = rccl.kinematics.load(robot)
     p = tmp_path / "fit.toml"
     p.write_text(f'[calib]\nschema = "rcci-calib-params/1"\nrobot = "{robot}"\n\n[gravity_coeffs]\n'
                  + "".join(f"{n} = {v}\n" for n, v in changes.items()))

@@ -113,12 +113,12 @@ def test_replay_screenshot_shows_the_arm(tmp_path):
 
 @pytest.mark.parametrize("robot", ["puma260", "microbo"])
 def test_the_view_draws_link_6_where_the_kinematics_put_it(robot):
-    import importlib
+    import rccl.kinematics
 
     from rci.viewer import ArmTree
 
     model = load_robot(robot)
-    kin = importlib.import_module(f"rccl.kinematics.{robot}")
+    kin = rccl.kinematics.load(robot)
     tree = ArmTree(model.urdf_path, [j.name for j in model.joints])
     rng = np.random.default_rng(18)
     for _ in range(20):

@@ -2,7 +2,6 @@
 end poses measured by an external instrument (CSV)."""
 from __future__ import annotations
 
-import importlib
 import os
 import tempfile
 
@@ -49,10 +48,11 @@ def _accuracy(ctx: ReportContext) -> dict:
     from calib.accuracy import cycle_cost, ik_cost, positioning_error
     from calib.truth import log_truth
     from rccl.calibrated import calibrated_kinematics, load_calibrated
+    from rccl.kinematics import load
     from rccl.session import load_kinematics
 
     robot = ctx.info.name
-    nominal = importlib.import_module(f"rccl.kinematics.{robot}")
+    nominal = load(robot)
     t = log_truth(next(tr for tr in ctx.traces if tr.experiment == "kinematics"))
     with tempfile.TemporaryDirectory(prefix="calib-truth-") as tmp:
         truth_file = os.path.join(tmp, "truth.toml")

@@ -2,14 +2,24 @@
 motions queued there (what ``rccl.bus.planning.BusEvents.arm`` and ``move_ev`` return)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..events import NULL, code_name
+from ..kinematics import load
+from ..segments import Kinematics
 
-if TYPE_CHECKING:
-    from .planning import BusEvents
+
+class Planning(Protocol):
+    """What a remote arm and its EFTs ask of the planning level (``rccl.bus.planning.BusEvents``):
+    the cell's name, a request to an arm's process, and the latest flags of a motion."""
+
+    cell: str
+
+    def request(self, arm: str, payload: dict, where: str) -> dict: ...
+
+    def flags(self, arm: str, serial: int) -> dict: ...
 
 
 class RemoteArm:
@@ -17,13 +27,12 @@ class RemoteArm:
     ``rate_hz``, ``kinematics`` (this process's generated module of the robot, to build
     positions) and ``q`` (the arm's last commanded joint angles, rad, asked for each time)."""
 
-    def __init__(self, events: "BusEvents", name: str, info: dict) -> None:
-        from ..session import load_kinematics
+    def __init__(self, events: Planning, name: str, info: dict) -> None:
         self.events = events
         self.name = name
         self.robot = str(info["robot"])
         self.rate_hz = int(info["rate_hz"])
-        self.kinematics = load_kinematics(self.robot)
+        self.kinematics = Kinematics(load(self.robot))
 
     @property
     def q(self) -> np.ndarray:
@@ -41,7 +50,7 @@ class RemoteEFT:
     """An EFT of a motion queued on an arm of another process; its flags are the latest the
     arm's process published. Reads like ``rccl.events.EFT`` (start, stop, status, state, t_started, ...)."""
 
-    def __init__(self, events: "BusEvents", arm: str, serial: int, where: str) -> None:
+    def __init__(self, events: Planning, arm: str, serial: int, where: str) -> None:
         self.events = events
         self.arm = arm
         self.serial = serial

@@ -1,0 +1,21 @@
+"""What one fit produced (:class:`FitOutcome`): the record that the fits of :mod:`calib.fits`
+return, :mod:`calib.fitting` runs and :mod:`calib.registry` / :mod:`calib.report` pass on."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass
+class FitOutcome:
+    """What a fit produced: the printed table, TOML sections, the raw results, and notes
+    (warnings and assumptions) that are printed with the table and kept in the report."""
+
+    kind: str
+    table: str
+    sections: dict[str, dict[str, Any]]
+    results: Any
+    extra: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    assumed: list[str] = field(default_factory=list)
+    truth: str = ""        # what its logs were recorded against (calib.truth.truth_label), for [calib]
