@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from setuptools import Extension, setup
+from setuptools import Extension, find_namespace_packages, setup
 from setuptools.command.build_ext import build_ext
 
 HERE = Path(__file__).parent
@@ -78,9 +78,34 @@ extensions = [
     for src in [src.relative_to(HERE)]
 ]
 
+#: the repository's folders and the names they are installed under: rci and rccl are their own
+#: names; the robot descriptions, the calibration and the 3D view go under the project's name, so that
+#: installing it adds no generic top-level import (a user's own ``models/`` stays theirs)
+INSTALLED_AS = {"rci": "rci", "rccl": "rccl", "models": "rcci.models", "calib": "rcci.calib", "view": "rcci.view"}
+
+
+def _packages() -> tuple[list[str], dict[str, str]]:
+    """Every package under each folder of INSTALLED_AS, by its installed name, and where it lives."""
+    names: list[str] = []
+    where: dict[str, str] = {}
+    for folder, name in INSTALLED_AS.items():
+        for sub in ["", *find_namespace_packages(str(HERE / folder), exclude=["*__pycache__*"])]:
+            installed = name + ("." + sub if sub else "")
+            names.append(installed)
+            if name != folder:
+                where[installed] = str(Path(folder, *sub.split("."))) if sub else folder
+    return names, where
+
+
+PACKAGES, PACKAGE_DIR = _packages()
+
 setup(
+    packages=PACKAGES,
+    package_dir=PACKAGE_DIR,
     ext_modules=extensions,
     cmdclass={"build_ext": OptionalBuildExt},
     # the generated C (for rebuilds and the staleness check) and the CasADi Function files
-    package_data={"rccl.kinematics": ["_c/*.c", "_c/*.h", "casadi/*/*.casadi"]},
+    # the robot data files and their URDFs ship inside rcci.models ($RCCI_MODELS overrides)
+    package_data={"rccl.kinematics": ["_c/*.c", "_c/*.h", "casadi/*/*.casadi"],
+                  "rcci.models": ["*.toml", "urdf/*.urdf", "README.md"]},
 )

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.experiments import friction_plans, static_plan
-from calib.fitting import run_fit
-from calib.logs import load_trace
-from calib.robot import robot_info
+from rcci.calib.experiments import friction_plans, static_plan
+from rcci.calib.fitting import run_fit
+from rcci.calib.logs import load_trace
+from rcci.calib.robot import robot_info
 from rci.conversions import Conversions, friction_torque
 from rci.how import How
 from rci.recorder import Recorder
@@ -79,8 +79,8 @@ def main() -> None:
                   f"({'OK' if best < 2.0 else 'SLOW'})")
             del out
     # the shipped joint-5 logs, whose fast passes are read at every servo tick (1 kHz)
-    from calib.logs import LOG_DIR
-    from calib.logs import load_traces
+    from rcci.calib.logs import LOG_DIR
+    from rcci.calib.logs import load_traces
 
     j5 = sorted(str(p) for p in Path(LOG_DIR).glob("friction-j5*.rcilog.*"))
     if j5:

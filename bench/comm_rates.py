@@ -20,7 +20,7 @@ its levels, each message sized as JSON (``rci.bus.encode``), as the Zenoh bus wo
   c1, every joint goal the planning level writes into the control function's variable
   (a joint vector); c3, the arrival it then waits for (one flag). Its rate is the scripted
   operator's: keys given at once, each jog waited for; a person typing sends fewer.
-- The gravity loading measurement (``calib.program.run_plan`` with calib's first PUMA 260
+- The gravity loading measurement (``rcci.calib.program.run_plan`` with calib's first PUMA 260
   Table 4.7 sweep, its 100 s warm-up included): c1, the plan, handed to the control function
   once (its path segments, warm-up, notes); c3, the end of the run the planning level waits
   for. Every cycle's record goes from the control function to the log file, not to the
@@ -193,8 +193,8 @@ def measure_teach(keys: str = TEACH_KEYS, rate_hz: int = 36) -> Traffic:
 def gravity_plan(warmup: bool = True, segments: int | None = None):
     """calib's first gravity plan for the PUMA 260 (a Table 4.7 sweep), with or without its warm-up;
     ``segments``: only the sweep's first so many segments (a shorter run, for tests)."""
-    from calib.experiments import gravity_plans
-    from calib.robot import robot_info
+    from rcci.calib.experiments import gravity_plans
+    from rcci.calib.robot import robot_info
     info = robot_info("puma260")
     plan = gravity_plans(info.regressor, info.lower, info.upper)[0]
     if segments is not None:
@@ -203,12 +203,12 @@ def gravity_plan(warmup: bool = True, segments: int | None = None):
 
 
 def measure_gravity(warmup: bool = True, segments: int | None = None) -> Traffic:
-    """calib.program.run_plan (the measurement program) for one gravity sweep on a lockstep simula.
+    """rcci.calib.program.run_plan (the measurement program) for one gravity sweep on a lockstep simula.
     c1: the plan, handed to the control function once (its path segments, warm-up and notes);
     c3: the end of the run the planning level waits for (one flag, with the records and cycles
     counts). The control function itself writes every cycle's record to the log file: data
     that does not cross to the planning level, so not counted."""
-    from calib.program import run_plan
+    from rcci.calib.program import run_plan
     from rci.simula.process import SimulaProcess
     plan = gravity_plan(warmup, segments)
     c1 = [len(encode({"op": "plan", "name": plan.name, "path": jsonable(plan.path), "warmup": jsonable(plan.warmup),

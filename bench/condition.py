@@ -148,8 +148,8 @@ def render(samples: int, seed: int, command: str) -> str:
               "exceeds F_l: the false alarm the text warns of. Read as printed (f_y), t_l must be (F_l, F_l), "
               "not the printed (F_l, 0), and a y force alone gives the true alarm (1.50 at 1.5 F_l); the false "
               "one then comes from an x force over 2 F_l (0.75 at 1.5 F_l), so \"y\" in the last sentence "
-              "must read x too: two changes. This report takes the f_x reading (one change); "
-              "reports/thesis-equations.md (derive/audit.py) takes the f_y one. RCCL implements neither: "
+              "must read x too: two changes. This report takes the f_x reading (one change), as "
+              "reports/thesis-equations.md (derive/audit.py) does. RCCL implements neither: "
               "its force limits use 4.56 (rccl.adaptive), the text's recommendation.", "",
               "## Verdict", "",
               f"The 4.5 N figure follows from the best pose of the arm's 3x3 block; the condition number "

@@ -237,7 +237,7 @@ def model_text(robot: str) -> str:
 def gravity_coefficients(robot: str) -> np.ndarray:
     """The generated gravity kernel's coefficients for the model file's link masses and
     centres of mass (those of the URDF inertials), so both sides compute the same torques."""
-    from models import load_robot
+    from rcci.models import load_robot
     from rccl.kinematics import load
     mod = load(robot)
     model = load_robot(robot)
@@ -302,7 +302,7 @@ def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False,
 
 def robots() -> list[str]:
     """Every robot under models/ with a URDF and compiled C kernels."""
-    from models.catalogue import available_robots
+    from rcci.models.catalogue import available_robots
     from rccl.kinematics import backend
     return [r for r in available_robots()
             if (ROOT / "models" / "urdf" / f"{r}.urdf").is_file() and (KERNEL_DIR / f"{r}.c").is_file()

@@ -508,7 +508,7 @@ def measure_robot(robot: str, sizes: list[int], n_pin: dict[int, int], rng: np.r
     pin = {op.name: op.results["pin_call"] for op in ops}
     c_vec = np.array([0.5] * len(mod.GRAVITY_COEFFS))
     c_map = dict(zip(mod.GRAVITY_COEFFS, c_vec))
-    from models import load_robot
+    from rcci.models import load_robot
     model_coeffs = load_robot(robot).gravity_coeffs  # what rccl.adaptive passes
     v = np.linspace(0.1, 0.6, 6)
     public = {

@@ -6,14 +6,14 @@ import os
 import shlex
 import sys
 
-from calib import registry
-from calib.cli_extra import add_commands
-from calib.exceptions import CalibError
-from calib.fitting import run_fit
-from calib.logs import load_trace
-from calib.params import read_params, update_params, writable_params
-from calib.progress import progress
-from calib.robot import robot_info
+from rcci.calib import registry
+from rcci.calib.cli_extra import add_commands
+from rcci.calib.exceptions import CalibError
+from rcci.calib.fitting import run_fit
+from rcci.calib.logs import load_trace
+from rcci.calib.params import read_params, update_params, writable_params
+from rcci.calib.progress import progress
+from rcci.calib.robot import robot_info
 
 DEFAULT_ROBOT = "puma260"   # the thesis's arm: the default where the input does not name one
 

@@ -6,7 +6,7 @@ a set of target poses of link 6 spread over the workspace; after each move it re
 encoders as the robot reports them and puts them through the truth's exact forward
 kinematics (the A-matrix product with the truth's errors, which equals simula's
 Pinocchio model to rounding: tests/test_calib_kinematic_loop.py). The error of a target
-is how far the arm's true T6 (and the probe tip, calib.touch.TIP, on it) is from where
+is how far the arm's true T6 (and the probe tip, rcci.calib.touch.TIP, on it) is from where
 RCCL was told to put it. Three runs: RCCL with the nominal kinematics, with the
 calibrated ones (``fitted``), and with the truth's own (the floor that the encoder counts
 the joints are commanded in leave).
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.touch import TIP, tool_transform
+from rcci.calib.touch import TIP, tool_transform
 
 RATE_HZ = 36
 CENTRE = np.radians([90.0, 60.0, -150.0, 20.0, -50.0, 30.0])   # a pose in front, elbow up

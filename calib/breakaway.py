@@ -1,6 +1,6 @@
 """Static friction coefficients F_s from breakaway ramps (thesis 4.5.5 first method, Table 4.5).
 
-A breakaway log (calib.breakaway_program) holds ramps: runs of cycles in which the
+A breakaway log (rcci.calib.breakaway_program) holds ramps: runs of cycles in which the
 measured joint is under current control (its CHG motion command is CUR, recorded in the
 log) with a motor torque rising steadily from zero. The joint stays still until its net
 torque exceeds the static friction, then moves. Per ramp:
@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.exceptions import FitError, LogError
-from calib.logs import clipped_note, saturated_mask
-from calib.trace import Trace
+from rcci.calib.drive import Drive
+from rcci.calib.exceptions import FitError, LogError
+from rcci.calib.logs import clipped_note, saturated_mask
+from rcci.calib.trace import Trace
 
 CUR_COMMAND = 2          # rci.chg.CUR
 SETTLE_S = 0.1           # s skipped at a ramp's start: the filter's step from the hold current

@@ -7,7 +7,7 @@ from its position servo to current mode (CUR) and its motor torque is ramped slo
 zero; the first encoder change marks the breakaway. The other joints stay servoed on the
 pose. Between ramps the joint sweeps a few degrees back and forth, so that it stays warm
 (a joint that stands cools, and a cold joint's friction is up to 20 % higher, 4.5.3).
-Only the ramps (and a moment either side) are recorded; the fit (calib.breakaway) finds
+Only the ramps (and a moment either side) are recorded; the fit (rcci.calib.breakaway) finds
 them in the log by their CUR commands.
 """
 from __future__ import annotations
@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
-from calib.paths import Path, PathSegment
-from calib.program import command_joints, drive_recorded, open_measurement
+from rcci.calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
+from rcci.calib.paths import Path, PathSegment
+from rcci.calib.program import command_joints, drive_recorded, open_measurement
 from rci import codes
 from rci.chg import CUR
 from rci.conversions import DAC_MAX, DAC_MIN, Conversions
@@ -81,7 +81,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     Each ramp starts from the motor torque that holds the arm against gravity (the data
     file's gravity model, through G^-T), so that both directions ramp from the balance.
     """
-    from calib.robot import robot_info
+    from rcci.calib.robot import robot_info
 
     info = robot_info(robot)
     gravity = info.gravity(np.array([info.nominal["gravity_coeffs"][n]["value"]

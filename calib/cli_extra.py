@@ -8,20 +8,20 @@ import shlex
 import tempfile
 from typing import Any
 
-from calib import registry
-from calib.exceptions import CalibError
-from calib.logs import LOG_DIR
+from rcci.calib import registry
+from rcci.calib.exceptions import CalibError
+from rcci.calib.logs import LOG_DIR
 
 REPORT = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reports", "calibration.md")
 
 
 def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_datafile: bool = False) -> dict:
     """Fit every kind present among ``paths`` in the registry's ``order``, chaining through ``params_path``."""
-    from calib.fitting import run_fit
-    from calib.logs import load_traces
-    from calib.params import read_params, update_params
-    from calib.progress import progress
-    from calib.robot import robot_info
+    from rcci.calib.fitting import run_fit
+    from rcci.calib.logs import load_traces
+    from rcci.calib.params import read_params, update_params
+    from rcci.calib.progress import progress
+    from rcci.calib.robot import robot_info
 
     traces = load_traces([p for p in progress(paths, len(paths), "reading logs",
                                               enabled=False if quiet else None)])
@@ -43,16 +43,16 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
 
 
 def _report(args: argparse.Namespace) -> int:
-    from calib.params import atomic_write
-    from calib.report import render
-    from calib.truth import truth_of
+    from rcci.calib.params import atomic_write
+    from rcci.calib.report import render
+    from rcci.calib.truth import truth_of
 
     paths = sorted(glob.glob(os.path.join(args.logs, "*.rcilog*")))
     if not paths:
         raise CalibError(f"no logs (*.rcilog, *.rcilog.xz, *.rcilog.gz) in {args.logs}; run `calib regen-logs`")
     out_dir = os.path.dirname(os.path.abspath(args.out))
     if args.params:
-        from calib.params import writable_params
+        from rcci.calib.params import writable_params
         writable_params(args.params)
     with tempfile.TemporaryDirectory(prefix="calib-report-") as tmp:
         params = args.params or os.path.join(tmp, "fitted.toml")
@@ -79,7 +79,7 @@ def _report(args: argparse.Namespace) -> int:
 
 def _regen_command(traces) -> str:
     """The command that recorded the logs, from their truth metadata."""
-    from calib.truth import log_truth
+    from rcci.calib.truth import log_truth
 
     metas = [log_truth(t) for t in traces]
     if any(m["kind"] != "simula" for m in metas):
@@ -106,7 +106,7 @@ WHY_NOT = {"rate": "its rate is part of the program's design (kinematics: 250 Hz
 def record_options(args: argparse.Namespace, kinds: tuple[str, ...]) -> "RecordOptions":
     """The options given to `calib record` for ``kinds``, each checked: refused (CalibError) when
     no kind of ``kinds`` takes it, or when a single kind does not; bad values named."""
-    from calib.registry import RecordOptions
+    from rcci.calib.registry import RecordOptions
 
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) not in (None, False)}
     for key, value in given.items():
@@ -135,15 +135,15 @@ def record_options(args: argparse.Namespace, kinds: tuple[str, ...]) -> "RecordO
 
 
 def robot_joints(robot: str) -> list[int]:
-    from calib.robot import robot_info
+    from rcci.calib.robot import robot_info
 
     return list(range(1, len(robot_info(robot).lower) + 1))
 
 
 def _record(args: argparse.Namespace) -> int:
-    from calib.registry import RecordRequest
-    from calib.robot import robot_info
-    from calib.truth import parse_against
+    from rcci.calib.registry import RecordRequest
+    from rcci.calib.robot import robot_info
+    from rcci.calib.truth import parse_against
 
     if bool(args.url) == bool(args.simula):
         raise CalibError("calib record: give --url (a robot, or a simula you started) or --simula ARGS "
@@ -196,7 +196,7 @@ def _record_on_own_simula(args: argparse.Namespace, kinds: tuple[str, ...], opti
     simulas calib starts with ARGS (--seed, --params), into --out as .rcilog.xz; logs already
     there are not recorded again unless --fresh; ``all`` leaves out, with the reason, a kind
     the arm cannot support."""
-    from calib.regen import check_truth_file, regen
+    from rcci.calib.regen import check_truth_file, regen
 
     seed, params = simula_words(args.simula)
     if params:
@@ -246,9 +246,9 @@ def add_commands(sub: Any) -> None:
                      help="skip RCCL's positioning run on simula (the kinematic section's before/after)")
     rep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=_report)
-    from calib.regen import add_regen
+    from rcci.calib.regen import add_regen
     add_regen(sub)
-    from calib.coverage import add_coverage
+    from rcci.calib.coverage import add_coverage
     add_coverage(sub)
-    from calib.hidden_truth import add_hidden_truth
+    from rcci.calib.hidden_truth import add_hidden_truth
     add_hidden_truth(sub)

@@ -1,6 +1,6 @@
 """`calib coverage`: how often the printed gravity intervals hold, measured over simula seeds.
 
-For each seed, a hidden truth (calib.hidden_truth, the same seed) is drawn for the arm, its
+For each seed, a hidden truth (rcci.calib.hidden_truth, the same seed) is drawn for the arm, its
 gravity sweeps (`calib record gravity`'s plans) are recorded on a lockstep simula of that
 truth with that seed, and fitted with the truth's own torque sensitivities (so that the
 gravity fit's own interval is what is tested, not the sensitivities'). Each coefficient is
@@ -16,18 +16,18 @@ from typing import Any
 
 import numpy as np
 
-from calib.exceptions import CalibError
+from rcci.calib.exceptions import CalibError
 
 
 def gravity_coverage(robot: str, seed: int, speed_deg: float, folder: str) -> list[tuple[str, float, float, float]]:
     """(name, fit, error, truth) of every gravity coefficient for one seed (module docstring)."""
-    from calib.fitting import run_fit
-    from calib.fits.gravity import plans
-    from calib.hidden_truth import write_hidden_truth
-    from calib.logs import load_trace
-    from calib.program import run_plan
-    from calib.robot import robot_info
-    from calib.truth import truth_meta, truth_of
+    from rcci.calib.fitting import run_fit
+    from rcci.calib.fits.gravity import plans
+    from rcci.calib.hidden_truth import write_hidden_truth
+    from rcci.calib.logs import load_trace
+    from rcci.calib.program import run_plan
+    from rcci.calib.robot import robot_info
+    from rcci.calib.truth import truth_meta, truth_of
     from rci.simula.process import SimulaProcess
 
     info = robot_info(robot)

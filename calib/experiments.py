@@ -13,10 +13,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from calib.friction_poses import check_friction_pose, friction_pose
-from calib.paths import Path, PathSegment, sweep_path
-from calib.plan import MeasurementPlan
-from calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
+from rcci.calib.friction_poses import check_friction_pose, friction_pose
+from rcci.calib.paths import Path, PathSegment, sweep_path
+from rcci.calib.plan import MeasurementPlan
+from rcci.calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
                          table_4_7_identifies)
 
 DEG = np.pi / 180
@@ -110,7 +110,7 @@ THESIS_ARM = "puma260"   # the arm FRICTION_POSES were chosen for (and the defau
 
 
 def _robot_limits(robot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from models import load_robot
+    from rcci.models import load_robot
 
     m = load_robot(robot)
     return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)
@@ -118,10 +118,10 @@ def _robot_limits(robot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, float]:
     """(pose rad, half window rad) of joint ``j``'s friction sweeps on the arm of ``robot``
-    (calib.robot.RobotInfo; None: the thesis's): FRICTION_POSES where they serve it (gravity
+    (rcci.calib.robot.RobotInfo; None: the thesis's): FRICTION_POSES where they serve it (gravity
     does no work over the window, and the window with its turns fits the range), else
-    calib.friction_poses.friction_pose's; CalibError when neither does."""
-    from calib.exceptions import CalibError
+    rcci.calib.friction_poses.friction_pose's; CalibError when neither does."""
+    from rcci.calib.exceptions import CalibError
 
     qdeg, half = FRICTION_POSES[j]
     q = np.array(qdeg, float) * DEG
@@ -135,7 +135,7 @@ def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.nd
         found = friction_pose(robot, j)
     if found is None:
         raise CalibError(f"robot {robot.name}: no pose found for joint {j}'s friction window over which "
-                         "gravity does no work (calib.friction_poses)")
+                         "gravity does no work (rcci.calib.friction_poses)")
     return found
 
 
@@ -152,10 +152,10 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
     both plans sweep the same window.
     The sweeps turn without standing still, so a joint stays as warm at the top speed
     as at the slowest (idle time cools it, 4.5.3), after FRICTION_WARMUP_S of warm-up.
-    ``robot`` (calib.robot.RobotInfo; None: the thesis's arm) gives the joint ranges and
+    ``robot`` (rcci.calib.robot.RobotInfo; None: the thesis's arm) gives the joint ranges and
     speeds, and each window is checked on its gravity model (check_friction_pose).
     """
-    from calib.exceptions import CalibError
+    from rcci.calib.exceptions import CalibError
 
     lower, upper, vmax = _robot_limits(THESIS_ARM if robot is None else robot.name)
     plans = []
@@ -168,7 +168,7 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
                 top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
             except ValueError as exc:
                 arm = THESIS_ARM if robot is None else robot.name
-                raise CalibError(f"robot {arm}: {exc} (calib.experiments.FRICTION_POSES)") from None
+                raise CalibError(f"robot {arm}: {exc} (rcci.calib.experiments.FRICTION_POSES)") from None
             slowest = 2 * half / MAX_PASS_S          # deg/s: no pass longer than MAX_PASS_S
             cand = [(v, n) for v, n in zip(FRICTION_SPEEDS_DEG, FRICTION_TRIPS)
                     if slowest <= v < top]
@@ -226,15 +226,15 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
     The pulley is a simula load option (``--load pulley:...``); its string winds on a
     drum on the joint axis, and the mass rises as the joint angle increases (sign +1).
     ``mass_kg`` None takes SENSITIVITY_MASS, made smaller where the arm could not carry it
-    (calib.headroom: the motors' current limits, with margins for a truth whose sensitivity,
+    (rcci.calib.headroom: the motors' current limits, with margins for a truth whose sensitivity,
     friction and gravity are not the data file's, from the ``ready`` pose a fresh arm
     stands in); each such change is appended to ``notes`` and kept in the log's metadata
     (``load_note``). A ``mass_kg`` given that the arm could not carry is refused. The arcs
-    start from the friction poses (the thesis arm's); ``robot`` (calib.robot.RobotInfo,
+    start from the friction poses (the thesis arm's); ``robot`` (rcci.calib.robot.RobotInfo,
     None: the thesis's arm) has them checked against its joint ranges.
     """
-    from calib.exceptions import CalibError
-    from calib.robot import robot_info
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.robot import robot_info
 
     info = robot if robot is not None else robot_info(THESIS_ARM)
     lower, upper, vmax = _robot_limits(info.name)
@@ -272,7 +272,7 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
 def _default_mass(info, j: int, radius: float) -> float:
     """SENSITIVITY_MASS on the thesis's arm; on another, the mass whose load m g r is half the
     joint's data-file friction (kg, to 0.1 kg, at least 0.2 kg)."""
-    from calib.sensitivity import GRAVITY
+    from rcci.calib.sensitivity import GRAVITY
 
     if info.name == THESIS_ARM:
         return SENSITIVITY_MASS[j]
@@ -288,11 +288,11 @@ MIN_LOAD_OF_FRICTION = 0.2   # the load torque m g r must be at least this share
 def _carried_load(info, j: int, make, mass: float, radius_m: float, adapt: bool,
                   notes: list[str] | None) -> MeasurementPlan:
     """The loaded plan of joint ``j`` with the largest mass (``mass`` times a step of
-    SENSITIVITY_MASS_STEPS; only ``mass`` itself unless ``adapt``) that calib.headroom says
+    SENSITIVITY_MASS_STEPS; only ``mass`` itself unless ``adapt``) that rcci.calib.headroom says
     the arm carries from its ready pose; CalibError naming the motor and currents if none."""
-    from calib.exceptions import CalibError
-    from calib.headroom import approach_routes, plan_setpoints, start_pose, worst
-    from calib.sensitivity import GRAVITY
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.headroom import approach_routes, plan_setpoints, start_pose, worst
+    from rcci.calib.sensitivity import GRAVITY
 
     fr = info.nominal["friction"]
     friction = 0.5 * (fr["coulomb_pos"]["values"][j - 1] + fr["coulomb_neg"]["values"][j - 1])
@@ -322,7 +322,7 @@ def _carried_load(info, j: int, make, mass: float, radius_m: float, adapt: bool,
                 said.append(f"recording with {m:g} kg")
             if said:
                 note = (f"sensitivity-j{j}-loaded: {mass:g} kg on the straight approach is not carried "
-                        f"({first.describe()}); " + " and ".join(said) + " (calib.headroom)")
+                        f"({first.describe()}); " + " and ".join(said) + " (rcci.calib.headroom)")
                 plan.meta["load_note"] = note
                 if notes is not None:
                     notes.append(note)
@@ -346,10 +346,10 @@ def gravity_plans(regressor: Callable[[np.ndarray], np.ndarray], lower: np.ndarr
                   names: tuple[str, ...] | None = None, kinds: tuple[str, ...] | None = None,
                   noise: np.ndarray | None = None, extra: int = 2) -> list[MeasurementPlan]:
     """4.5.6: each Table 4.7 sweep and its friction-cancelling repeat (4.49-4.51), when they
-    serve the arm (calib.poses.table_4_7_identifies: the thesis's PUMA 260); for any other
+    serve the arm (rcci.calib.poses.table_4_7_identifies: the thesis's PUMA 260); for any other
     arm, sweeps chosen by its regressor to identify every coefficient (``names``: its
     columns), ``extra`` beyond the fewest, each row weighted by the joint's expected
-    ``noise`` (its friction; default equal), without repeats (calib.poses.identifying_sweeps)."""
+    ``noise`` (its friction; default equal), without repeats (rcci.calib.poses.identifying_sweeps)."""
     if not table_4_7_identifies(regressor, lower, upper, kinds):
         return _identifying_plans(regressor, lower, upper, speed_deg, trips, names, kinds, noise, extra)
     plans = []

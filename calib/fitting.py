@@ -1,6 +1,6 @@
 """One fit of one kind over a set of logs: the results, their table, their parameter sections.
 
-The kinds themselves are the modules of :mod:`calib.fits` (calib.registry); this module
+The kinds themselves are the modules of :mod:`rcci.calib.fits` (rcci.calib.registry); this module
 runs one of them with the inputs it needs from earlier fits.
 
 A fit that needs values from an earlier fit (the torque sensitivities turn currents into
@@ -18,12 +18,12 @@ import os
 
 import numpy as np
 
-from calib import registry
-from calib.exceptions import CalibError
-from calib.logs import motors_of
-from calib.outcome import FitOutcome
-from calib.robot import RobotInfo
-from calib.trace import Trace
+from rcci.calib import registry
+from rcci.calib.exceptions import CalibError
+from rcci.calib.logs import motors_of
+from rcci.calib.outcome import FitOutcome
+from rcci.calib.robot import RobotInfo
+from rcci.calib.trace import Trace
 
 # what fits each input, for the refusal's message
 PROVIDER = {"sigma": "sensitivity", "gravity": "gravity"}
@@ -94,7 +94,7 @@ class Inputs:
         assumed: no honest error exists for them). The a priori scale errors of 4.5.2's
         independent error (mass, drum radius, current scale) are common to every torque and
         are not included (docs/calib.md)."""
-        from calib.lsq import coverage_factor
+        from rcci.calib.lsq import coverage_factor
 
         m = self.params.get("motors", {})
         sigma = np.asarray(m.get("torque_sensitivity", [np.nan] * 6), dtype=float)
@@ -171,9 +171,9 @@ def log_set_notes(traces: list[Trace]) -> list[str]:
 
 def run_fit(kind: str, traces: list[Trace], info: RobotInfo, params: dict | None,
             assume_datafile: bool = False, params_name: str | None = None) -> FitOutcome:
-    """Fit ``kind`` (a name in calib.registry) on ``traces``; inputs from ``params`` (see the
+    """Fit ``kind`` (a name in rcci.calib.registry) on ``traces``; inputs from ``params`` (see the
     module docstring)."""
-    from calib.truth import truth_label
+    from rcci.calib.truth import truth_label
 
     fit_kind = registry.kind(kind)
     logs = " ".join(os.path.basename(t.path) for t in traces)

@@ -2,13 +2,13 @@
 
 Each pass through a window with no change of potential energy does work against
 friction only, so its mean friction is W / |d theta| at the pass's speed (taken with
-smooth edges, calib.work.tapered_mean).  Per joint and
+smooth edges, rcci.calib.work.tapered_mean).  Per joint and
 direction the points are fitted to 4.27, |f| = F_c + F_v |omega|, by least squares with
 F_c, F_v >= 0 (CasADi QP).
 The variation of Table 4.4 is read from the same passes: the friction along the path,
 averaged over passes at each position, against its mean.
 
-The uncertainty printed is a 99.73 % interval (calib.lsq.coverage_factor: 3 sd, Student's
+The uncertainty printed is a 99.73 % interval (rcci.calib.lsq.coverage_factor: 3 sd, Student's
 t for the fit's few degrees of freedom). For F_v it is the fit's; for F_c the fit's
 combined with three standard deviations of the position pattern's window mean: the friction
 varies along the path (Table 4.4), the same on every pass, so each pass's mean carries
@@ -26,16 +26,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.exceptions import FitError, LogError
-from calib.logs import clipped_note, saturated_mask
-from calib.lsq import PRINTED_SD, bounded_lsq, coverage_factor
-from calib.trace import Trace
-from calib.work import (Pass, find_passes, hann_edge_weights, tapered_mean, up_down_half_difference,
+from rcci.calib.drive import Drive
+from rcci.calib.exceptions import FitError, LogError
+from rcci.calib.logs import clipped_note, saturated_mask
+from rcci.calib.lsq import PRINTED_SD, bounded_lsq, coverage_factor
+from rcci.calib.trace import Trace
+from rcci.calib.work import (Pass, find_passes, hann_edge_weights, tapered_mean, up_down_half_difference,
                          window_time)
 
 PROFILE_BIN = 0.01  # rad: position bins of the Table 4.4 profile (finer than gear irregularities)
-# rad: length of the Hann edges of each pass's weighting (calib.work.tapered_mean); long
+# rad: length of the Hann edges of each pass's weighting (rcci.calib.work.tapered_mean); long
 # against the filter's smear at the top speeds (0.06 rad on joint 5), capped at a quarter
 # of the window so that short windows keep a flat middle
 TAPER = 0.3
@@ -56,7 +56,7 @@ class FrictionPoint:
 @dataclass(frozen=True)
 class DirectionFit:
     """4.27 for one joint and direction: F_c (N m), F_v (N m s/rad); errors are 99.73 %
-    intervals: ``factor`` times the fit's standard deviation (calib.lsq.coverage_factor),
+    intervals: ``factor`` times the fit's standard deviation (rcci.calib.lsq.coverage_factor),
     for F_c combined with 3 x the position pattern's (``coulomb_pattern_sd``, N m)."""
 
     coulomb: float
@@ -88,7 +88,7 @@ class FrictionResult:
     def with_window_gravity(self, g: float, sd: float) -> "FrictionResult":
         """F_c+ less and F_c- plus the window's mean gravity torque ``g`` (N m; each + pass
         carries +g, each - pass -g), its standard deviation ``sd`` added to the errors
-        (x PRINTED_SD) (calib.window_gravity)."""
+        (x PRINTED_SD) (rcci.calib.window_gravity)."""
         def moved(f: DirectionFit, d: int) -> DirectionFit:
             return replace(f, coulomb=f.coulomb - d * g, coulomb_err=float(np.hypot(f.coulomb_err, PRINTED_SD * sd)),
                            window_gravity=d * g)
@@ -231,7 +231,7 @@ def pattern_sd(profiles: list[np.ndarray], lo: float, hi: float, lines: int = 6)
     """Standard deviation (relative to the friction) of the position pattern's mean over
     the window [lo, hi] rad, as each pass's tapered mean weighs it; NaN without a profile.
 
-    The mean of each profile pair (the repeatable part, calib.friction.profile_variation)
+    The mean of each profile pair (the repeatable part, rcci.calib.friction.profile_variation)
     is resolved greedily into ``lines`` sinusoids of the path (the strongest wavenumber of
     what is left, then its least-squares amplitude); each contributes A^2 |H(k)|^2 / 2,
     the variance of its weighted window mean over a uniformly random phase. Checked by

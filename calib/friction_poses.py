@@ -1,6 +1,6 @@
 """Friction poses for any arm: where a joint can sweep a long window over which gravity does no work.
 
-The thesis's poses (calib.experiments.FRICTION_POSES) were chosen for the PUMA 260 and are
+The thesis's poses (rcci.calib.experiments.FRICTION_POSES) were chosen for the PUMA 260 and are
 kept wherever they serve an arm. Elsewhere (the PUMA 560's narrower joint 1 and 4 ranges, the
 Stanford arm's other link layout and its prismatic joint 3) :func:`friction_pose` searches:
 the other joints at right angles (-180, -90, 0, 90, 180 deg, inside their ranges; a prismatic
@@ -38,8 +38,8 @@ def _half(c: float, lo: float, hi: float, kind: str) -> float:
 
 def friction_pose(info, j: int) -> tuple[np.ndarray, float] | None:
     """(pose (n,) rad/m, half window) for joint ``j`` (1-based) of the arm of ``info``
-    (calib.robot.RobotInfo), or None when no candidate leaves gravity without work."""
-    from calib.exceptions import CalibError
+    (rcci.calib.robot.RobotInfo), or None when no candidate leaves gravity without work."""
+    from rcci.calib.exceptions import CalibError
 
     lower, upper, kinds = np.asarray(info.lower), np.asarray(info.upper), info.kinds
     n = len(lower)
@@ -64,10 +64,10 @@ def friction_pose(info, j: int) -> tuple[np.ndarray, float] | None:
 
 def check_friction_pose(info, joint: int, lo: float, hi: float, q: np.ndarray, points: int = 61) -> None:
     """Refuse (CalibError) a friction window of ``joint`` (1-based) over which gravity does work
-    on the arm of ``info`` (calib.robot.RobotInfo), judged by its regressor: the mean of every
+    on the arm of ``info`` (rcci.calib.robot.RobotInfo), judged by its regressor: the mean of every
     column of the joint's row over [lo, hi] must vanish (4.5.4), whatever the coefficients.
     FRICTION_POSES were chosen on the PUMA 260; another arm needs poses of its own."""
-    from calib.exceptions import CalibError
+    from rcci.calib.exceptions import CalibError
 
     th = np.linspace(lo, hi, points)
     rows = []
@@ -84,6 +84,6 @@ def check_friction_pose(info, joint: int, lo: float, hi: float, q: np.ndarray, p
 
 
 def _ready(robot: str) -> np.ndarray:
-    from models import load_robot
+    from rcci.models import load_robot
 
     return np.asarray(load_robot(robot).poses["ready"], dtype=float)

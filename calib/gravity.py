@@ -30,13 +30,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.exceptions import FitError, LogError
-from calib.logs import clipped_note, saturated_mask
-from calib.lsq import bounded_lsq, coverage_factor
-from calib.poses import unidentified
-from calib.trace import Trace
-from calib.work import Pass, find_passes, up_down_half_difference, window_work
+from rcci.calib.drive import Drive
+from rcci.calib.exceptions import FitError, LogError
+from rcci.calib.logs import clipped_note, saturated_mask
+from rcci.calib.lsq import bounded_lsq, coverage_factor
+from rcci.calib.poses import unidentified
+from rcci.calib.trace import Trace
+from rcci.calib.work import Pass, find_passes, up_down_half_difference, window_work
 
 Regressor = Callable[[np.ndarray], np.ndarray]  # q (6,) rad -> (6, k), tau_g = Y c
 
@@ -86,7 +86,7 @@ class GravityResult:
     direction_diff: np.ndarray
     friction_error: np.ndarray
     rows: list[GravityRow]
-    factor: float = 3.0          # the fit's sd times this in ``error`` (calib.lsq.coverage_factor)
+    factor: float = 3.0          # the fit's sd times this in ``error`` (rcci.calib.lsq.coverage_factor)
 
     def with_scale_error(self, relative: float) -> "GravityResult":
         """The errors with a relative scale uncertainty of the torques added (the fitted
@@ -225,10 +225,10 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     themselves measure it (``sweep_friction``), so no other fit's values are needed.
     error = sqrt((t sd of the fit)^2 + (half the difference between the fits of the two
     directions)^2): the thesis's combination of measurement uncertainty and direction, with
-    the fit's part a 99.73 % interval as everywhere in calib (t = calib.lsq.coverage_factor
+    the fit's part a 99.73 % interval as everywhere in calib (t = rcci.calib.lsq.coverage_factor
     of the fit's degrees of freedom; the thesis printed 2 sd); friction_error = how much the
     result moves without the repeat (4.49). FitError naming them when the sweeps leave
-    coefficients open (calib.poses.unidentified).
+    coefficients open (rcci.calib.poses.unidentified).
     """
     passes = [p for tr in traces for p in sweep_passes(tr, drive, notes)]
     if noise is None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.robot import RobotInfo
+from rcci.calib.robot import RobotInfo
 
 #: relative uncertainty allowed for, per quantity the campaign measures: a truth may be this
 #: far from the data file (the sensitivity down, friction and gravity up) and still be carried
@@ -48,14 +48,14 @@ class Headroom:
 
 def max_current(robot: str) -> np.ndarray:
     """Each motor's current limit (A) from the data file."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     return np.asarray(load_robot(robot).max_current, dtype=float)
 
 
 def start_pose(robot: str) -> np.ndarray:
     """Where a freshly started arm stands (simula -p: the ``ready`` pose), rad / m."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     return np.asarray(load_robot(robot).poses["ready"], dtype=float)
 
@@ -105,10 +105,10 @@ def approach_routes(here: np.ndarray, first: np.ndarray) -> list[tuple[np.ndarra
 
 
 def plan_setpoints(plan, here: np.ndarray, accel: float, rate_hz: float | None = None) -> np.ndarray:
-    """Every setpoint (N, n) calib.program.run_plan commands for ``plan`` from the pose ``here``:
+    """Every setpoint (N, n) rcci.calib.program.run_plan commands for ``plan`` from the pose ``here``:
     the approach, the warm-up, the settle and the recorded path (``accel``: the moves'
-    acceleration, rad/s^2, calib.experiments.ACCEL)."""
-    from calib.paths import Path, PathSegment, approach_path
+    acceleration, rad/s^2, rcci.calib.experiments.ACCEL)."""
+    from rcci.calib.paths import Path, PathSegment, approach_path
 
     rate = rate_hz or plan.rate_hz
     body = plan.path.sample(rate)

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.params import dumps
-from models import load_robot
-from models.params import SCHEMA
+from rcci.calib.params import dumps
+from rcci.models import load_robot
+from rcci.models.params import SCHEMA
 
 FACTOR_RANGE = (0.10, 0.30)        # relative distance of sigma and friction from the data file
 GRAVITY_RANGE = (0.03, 0.10)       # ... of the gravity coefficients (their centres of mass move)
@@ -30,7 +30,7 @@ HOLD_SHARE = 0.8   # a valid truth holds the arm still anywhere in its ranges un
 
 
 def hidden_truth(robot: str, seed: int) -> dict:
-    """The parameter file's tables (``calib.params.dumps`` writes them) of a truth of ``robot``
+    """The parameter file's tables (``rcci.calib.params.dumps`` writes them) of a truth of ``robot``
     drawn with ``seed`` as the module docstring says, redrawn (from the same generator) until
     it is an arm that could exist: one whose motors hold it against gravity and move it against
     Coulomb friction anywhere in its ranges under HOLD_SHARE of their current limit (a real
@@ -47,7 +47,7 @@ def hidden_truth(robot: str, seed: int) -> dict:
 def _holds(robot: str, data: dict) -> bool:
     """True when the truth ``data`` moves its arm at every one of 400 random poses under
     HOLD_SHARE of each motor's current limit (gravity plus Coulomb friction, through G)."""
-    from calib.robot import robot_info
+    from rcci.calib.robot import robot_info
 
     info = robot_info(robot)
     m = load_robot(robot)
@@ -84,7 +84,7 @@ def _draw(robot: str, seed: int, rng: np.random.Generator) -> dict:
     revolute = np.array([k == "revolute" for k in m.kinds])
     kin = {k: np.where(revolute, v, 0.0) for k, v in kin.items()}   # simula has no DH errors for a slide
     return {"calib": {"schema": SCHEMA, "robot": robot,
-                      "hidden_truth": f"calib.hidden_truth seed {seed}: sigma and friction 10-30 %, "
+                      "hidden_truth": f"rcci.calib.hidden_truth seed {seed}: sigma and friction 10-30 %, "
                                       "gravity 3-10 % away from the data file (those simula can move)"},
             "motors": {"torque_sensitivity": [float(x) for x in np.round(sigma, 6)]},
             "friction": friction,
@@ -94,7 +94,7 @@ def _draw(robot: str, seed: int, rng: np.random.Generator) -> dict:
 
 def write_hidden_truth(path: str, robot: str, seed: int) -> dict:
     """Write :func:`hidden_truth` to ``path`` (atomically) and return its tables."""
-    from calib.params import atomic_write
+    from rcci.calib.params import atomic_write
 
     data = hidden_truth(robot, seed)
     atomic_write(path, f"# a hidden truth of {robot} (calib hidden-truth --seed {seed}); docs/calib.md\n\n"
@@ -112,9 +112,9 @@ def add_hidden_truth(sub) -> None:
 
 
 def _main(args) -> int:
-    from calib.exceptions import CalibError
-    from calib.params import writable_params
-    from calib.robot import robot_info
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.params import writable_params
+    from rcci.calib.robot import robot_info
 
     robot_info(args.robot)              # an arm calib cannot model is refused
     writable_params(args.out)

@@ -12,7 +12,7 @@ the same direction).
 
 Two kinds of measurement:
 
-* touches (``calib record kinematics``, calib.touch): the probe tip p(q, e) = T6(q, e) tip
+* touches (``calib record kinematics``, rcci.calib.touch): the probe tip p(q, e) = T6(q, e) tip
   lies on a known face, n . p = h; one residual per touch, in metres.  A point measures no
   turn of link 6 about the line from the wrist centre to the tip, so that combination of
   the wrist's angle errors stays unseparated too;
@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from calib.exceptions import FitError, LogError
-from calib.trace import Trace
+from rcci.calib.exceptions import FitError, LogError
+from rcci.calib.trace import Trace
 
 PARAM_NAMES = ("dtheta", "dd", "da", "dalpha")
 UNITS = ("rad", "m", "m", "rad")
@@ -62,8 +62,8 @@ class KinematicFit:
     @property
     def factor(self) -> float:
         """Standard deviations in the printed uncertainty: Student's t (99.73 %) for the
-        residual's degrees of freedom (calib.lsq.coverage_factor)."""
-        from calib.lsq import coverage_factor
+        residual's degrees of freedom (rcci.calib.lsq.coverage_factor)."""
+        from rcci.calib.lsq import coverage_factor
 
         dof = self.measurements * (6 if self.kind == "poses" else 1) - self.rank
         return coverage_factor(dof)
@@ -134,14 +134,14 @@ def fk_function(dh: np.ndarray) -> ca.Function:
 
 def nominal_dh(robot: str = "puma260") -> np.ndarray:
     """The data file's DH table, (n, 4) rows (theta offset rad, d m, a m, alpha rad)."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     return np.array([[j.theta, j.d, j.a, j.alpha] for j in load_robot(robot).joints])
 
 
 def _rotvec(R: np.ndarray) -> np.ndarray:
     """Rotation vector (rad) of a rotation matrix."""
-    from calib.touch import rotation_vector
+    from rcci.calib.touch import rotation_vector
 
     return rotation_vector(R)
 

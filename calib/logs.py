@@ -10,9 +10,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from calib.exceptions import LogError, MixedLogsError
-from calib import registry
-from calib.trace import Trace, check_samples
+from rcci.calib.exceptions import LogError, MixedLogsError
+from rcci.calib import registry
+from rcci.calib.trace import Trace, check_samples
 from rci.exceptions import LogFormatError
 from rci.recorder import read_log
 

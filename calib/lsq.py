@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from calib.exceptions import FitError
+from rcci.calib.exceptions import FitError
 
 # The uncertainty calib prints beside a fitted value (Tables 4.2, 4.3, the kinematic errors)
 # is a 99.73 % interval: three standard deviations when the standard deviation is known,

@@ -1,5 +1,5 @@
-"""What one fit produced (:class:`FitOutcome`): the record that the fits of :mod:`calib.fits`
-return, :mod:`calib.fitting` runs and :mod:`calib.registry` / :mod:`calib.report` pass on."""
+"""What one fit produced (:class:`FitOutcome`): the record that the fits of :mod:`rcci.calib.fits`
+return, :mod:`rcci.calib.fitting` runs and :mod:`rcci.calib.registry` / :mod:`rcci.calib.report` pass on."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -18,4 +18,4 @@ class FitOutcome:
     extra: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     assumed: list[str] = field(default_factory=list)
-    truth: str = ""        # what its logs were recorded against (calib.truth.truth_label), for [calib]
+    truth: str = ""        # what its logs were recorded against (rcci.calib.truth.truth_label), for [calib]

@@ -17,17 +17,17 @@ from typing import Any
 
 import numpy as np
 
-import models.params
-from calib.exceptions import CalibError
-from models import FRICTION_KEYS, JointFriction, ModelError
-from models.params import SCHEMA
+import rcci.models.params
+from rcci.calib.exceptions import CalibError
+from rcci.models import FRICTION_KEYS, JointFriction, ModelError
+from rcci.models.params import SCHEMA
 
 
 def read_params(path: str) -> dict[str, Any]:
-    """A parameter file as a dict (``models.params``, the one reader); CalibError naming the
+    """A parameter file as a dict (``rcci.models.params``, the one reader); CalibError naming the
     file when it is not one."""
     try:
-        return models.params.read_params(path)
+        return rcci.models.params.read_params(path)
     except ModelError as exc:
         raise CalibError(str(exc)) from None
 
@@ -38,9 +38,9 @@ def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any
     """Merge ``sections`` into the file at ``path`` (created if absent), atomically.
 
     ``[calib] truth_KIND`` says what the logs of fit ``kind`` were recorded against
-    (calib.truth.truth_label: the robot, or the simula's seed and parameter file with its
+    (rcci.calib.truth.truth_label: the robot, or the simula's seed and parameter file with its
     hash), so that every value's origin is in the file and a later fit that takes it as an
-    input can warn when its own logs are of another truth (calib.fitting.Inputs).
+    input can warn when its own logs are of another truth (rcci.calib.fitting.Inputs).
 
     ``[calib] assumed`` lists the values fits took from the robot data file instead of an
     earlier fit (``--assume-datafile``); the entries of fit ``kind`` are replaced by
@@ -172,7 +172,7 @@ def load_fitted(path: str | None, robot: str) -> Fitted:
     ``p.assumed`` names every value that is the data file's rather than fitted, for the
     program to print.
     """
-    from calib.robot import robot_info
+    from rcci.calib.robot import robot_info
 
     nominal = robot_info(robot).nominal
     data = read_params(path) if path else {"calib": {"robot": robot}}

@@ -9,8 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from calib.exceptions import CalibError  # noqa: E402
-from calib.friction import FrictionPoint, FrictionResult  # noqa: E402
+from rcci.calib.exceptions import CalibError  # noqa: E402
+from rcci.calib.friction import FrictionPoint, FrictionResult  # noqa: E402
 
 
 def y_limits(friction: np.ndarray, fit, top_speed: float) -> tuple[float, float]:

@@ -223,9 +223,9 @@ def identifying_sweeps(regressor: Callable[[np.ndarray], np.ndarray], names: tup
     from the first, each stop traded for a nearer pose where the volume stays above
     ``keep`` of the best (the moves between sweeps took as long as the sweeps). No
     repeat: the fit takes the friction pattern out with each sweep's own up/down profile
-    (calib.gravity). CalibError, naming them, when coefficients cannot be identified by any
+    (rcci.calib.gravity). CalibError, naming them, when coefficients cannot be identified by any
     such sweep (a prismatic joint's mass term, say)."""
-    from calib.exceptions import CalibError
+    from rcci.calib.exceptions import CalibError
 
     k = len(names)
     rng = np.random.default_rng(seed)

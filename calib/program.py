@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.exceptions import CalibError
-from calib.experiments import ACCEL, MeasurementPlan
-from calib.paths import Path, PathSegment, approach_path
+from rcci.calib.exceptions import CalibError
+from rcci.calib.experiments import ACCEL, MeasurementPlan
+from rcci.calib.paths import Path, PathSegment, approach_path
 from rci import codes
 from rci.conversions import Conversions
 from rci.exceptions import RCIError
@@ -73,7 +73,7 @@ def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, n
 def approach_speed(robot: str) -> float:
     """Speed (rad/s or m/s, of the joint that moves most) of the moves to a plan's start: 0.6, or
     80 % of the slowest joint's limit where that is less (the Stanford arm's 0.5 m/s slide)."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     return float(min(0.6, 0.8 * min(load_robot(robot).max_velocity)))
 
@@ -131,7 +131,7 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
 
 def record_plans(request, plans: list[MeasurementPlan]) -> None:
     """``calib record``: run each of ``plans`` on the robot of ``request`` (a
-    calib.registry.RecordRequest), one log per plan in its folder, and say so."""
+    rcci.calib.registry.RecordRequest), one log per plan in its folder, and say so."""
     import os
 
     for plan in plans:

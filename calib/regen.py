@@ -22,14 +22,14 @@ import time
 
 from typing import Any
 
-from calib import registry
-from calib.exceptions import CalibError
-from calib.experiments import MeasurementPlan
-from calib.logs import LOG_DIR
-from calib.program import run_plan
-from calib.registry import OwnSimula, RecordOptions, RegenContext
-from calib.robot import robot_info
-from calib.truth import truth_meta
+from rcci.calib import registry
+from rcci.calib.exceptions import CalibError
+from rcci.calib.experiments import MeasurementPlan
+from rcci.calib.logs import LOG_DIR
+from rcci.calib.program import run_plan
+from rcci.calib.registry import OwnSimula, RecordOptions, RegenContext
+from rcci.calib.robot import robot_info
+from rcci.calib.truth import truth_meta
 
 KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable errors
 
@@ -101,7 +101,7 @@ class _Simula:
 def record_breakaway(ctx: RegenContext) -> None:
     """Table 4.5's breakaway ramps of the context's joints on a fresh lockstep simula (the
     ramps already recorded in its folder are not recorded again)."""
-    from calib.breakaway_program import breakaway_plans, run_breakaway
+    from rcci.calib.breakaway_program import breakaway_plans, run_breakaway
     from rci.simula.process import SimulaProcess
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
@@ -122,9 +122,9 @@ def record_kinematics(out_path: str, seed: int, params: str | None,
                       touches_per_face: int = KINEMATIC_TOUCHES, plan_seed: int = 1985,
                       robot: str = "puma260") -> int:
     """The kinematic touches of ``robot`` (default the thesis's arm) on a fresh lockstep simula
-    with the fixture and the probe (``--env``, calib.touch.simula_words); returns the records logged."""
-    from calib.touch import simula_words, touch_plan
-    from calib.touch_program import run_touches
+    with the fixture and the probe (``--env``, rcci.calib.touch.simula_words); returns the records logged."""
+    from rcci.calib.touch import simula_words, touch_plan
+    from rcci.calib.touch_program import run_touches
     from rci.simula.process import SimulaProcess
 
     plan = touch_plan(touches_per_face, seed=plan_seed, robot=robot)
@@ -168,13 +168,13 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
           skip_refused: bool = False, resume: bool = False) -> dict[str, Any]:
     """Record every log of ``kinds`` of ``robot`` (default the thesis's arm) into ``out_dir``
     (against simula with ``params``), with a progress bar naming the program in hand unless
-    ``quiet`` (calib.progress). With ``resume``, logs already in ``out_dir`` are not recorded
+    ``quiet`` (rcci.calib.progress). With ``resume``, logs already in ``out_dir`` are not recorded
     again (a campaign resumes after an interruption). Every program is planned before the first is recorded, so a
     refusal costs no recording; with ``skip_refused`` a kind the arm cannot support is left out
     and its reason returned. On an error the raw logs of ``out_dir/.work`` are kept (the error
     names the partial log). Returns {"recorded": names, "skipped": names, "refused": {kind:
     reason}, "notes": [...], "seconds": wall time}."""
-    from calib.progress import progress
+    from rcci.calib.progress import progress
 
     t0 = time.monotonic()
     info = robot_info(robot)
@@ -228,7 +228,7 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
 
 def check_truth_file(params: str, robot: str) -> None:
     """Refuse a simula parameter file simula would refuse, before hours of recording."""
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import load_params, truth_from_model
 

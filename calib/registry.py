@@ -1,4 +1,4 @@
-"""The registry of fits: every module of :mod:`calib.fits` declares one kind of fit.
+"""The registry of fits: every module of :mod:`rcci.calib.fits` declares one kind of fit.
 
 A kind is one :class:`FitKind` record, named ``KIND`` at the top level of its module in
 ``calib/fits/``. It says everything the commands need to know about that fit: the name
@@ -25,14 +25,14 @@ from dataclasses import dataclass, field
 from functools import cache
 from typing import TYPE_CHECKING, Any, Callable
 
-from calib.exceptions import CalibError
+from rcci.calib.exceptions import CalibError
 
 if TYPE_CHECKING:   # annotations only: the records these callables take and give
-    from calib.outcome import FitOutcome
-    from calib.plan import MeasurementPlan
-    from calib.robot import RobotInfo
-    from calib.trace import Trace
-    from calib.truth import GroundTruth
+    from rcci.calib.outcome import FitOutcome
+    from rcci.calib.plan import MeasurementPlan
+    from rcci.calib.robot import RobotInfo
+    from rcci.calib.trace import Trace
+    from rcci.calib.truth import GroundTruth
 
 
 @dataclass
@@ -65,7 +65,7 @@ class RecordRequest:
 @dataclass(frozen=True)
 class RecordOptions:
     """The options of ``calib record ... --simula`` a kind's programs honour (None: its default).
-    Each kind refuses, before recording, the ones it cannot honour (calib.cli_extra.OPTIONS)."""
+    Each kind refuses, before recording, the ones it cannot honour (rcci.calib.cli_extra.OPTIONS)."""
 
     joints: tuple[int, ...] | None = None   # 1-based
     mass: float | None = None               # kg on the pulley (sensitivity)
@@ -129,7 +129,7 @@ class FitKind:
     """One kind of fit (module docstring). Callables:
 
     * ``fit(traces, info, params, inputs, notes) -> FitOutcome``: ``params`` the parameter
-      file's tables ({} if none), ``inputs`` the earlier fits' values (calib.fitting.Inputs),
+      file's tables ({} if none), ``inputs`` the earlier fits' values (rcci.calib.fitting.Inputs),
       ``notes`` a list to append warnings to.
     * ``report(ctx, outcome) -> list[str]``: Markdown lines of its report section.
     * ``plot(outcome, folder, prefix) -> list[str]``: the files written (None: no plots).
@@ -160,7 +160,7 @@ class FitKind:
 
 @cache
 def _registry() -> dict[str, FitKind]:
-    import calib.fits as package
+    import rcci.calib.fits as package
 
     found: dict[str, FitKind] = {}
     for module in pkgutil.iter_modules(package.__path__):

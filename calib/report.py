@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib import registry
-from calib.outcome import FitOutcome
-from calib.registry import ReportContext
-from calib.robot import RobotInfo
-from calib.trace import Trace
-from calib.truth import GroundTruth
+from rcci.calib import registry
+from rcci.calib.outcome import FitOutcome
+from rcci.calib.registry import ReportContext
+from rcci.calib.robot import RobotInfo
+from rcci.calib.trace import Trace
+from rcci.calib.truth import GroundTruth
 
 SD = "99.73 %: 3 sd, Student's t for few points"
 ARM_NAMES = {"puma260": "PUMA 260", "puma560": "PUMA 560", "stanford": "Stanford arm", "microbo": "Microbo"}
@@ -72,7 +72,7 @@ def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitO
            regen: str, logs: list[str], plots: dict[str, list[str]], traces: "list[Trace]",
            params_path: str, quiet: bool = True, no_accuracy: bool = False) -> str:
     """The Markdown report (``truth`` None: logs of a robot, no scoring): a section per kind
-    fitted (calib.registry, in ``report_order``), then the warnings and the summary."""
+    fitted (rcci.calib.registry, in ``report_order``), then the warnings and the summary."""
     if truth is None:
         against = ("The logs were recorded against a robot (their metadata says so): there is no "
                    "ground truth, and the tables show the fits alone.")
@@ -113,7 +113,7 @@ def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitO
           "tau1 = -(W_g1 + W_g2)/2 (printed -2(...) and 2(...): a 1/2 read as 2, and tau1's sign). "
           "Counting W_g as the integral of tau instead (tau and W on the same side) keeps W_g1 but needs "
           "four sign errors (W_g2, 4.45, 4.46, tau0) besides the 1/2, so this report does not take it "
-          "(reports/thesis-equations.md, written by derive/audit.py, still does). calib's formula does not "
+          "(nor does reports/thesis-equations.md, written by derive/audit.py). calib's formula does not "
           "depend on the reading: for the motor's torque a cos u + b sin u over the pass (u from the start) "
           "the segment works it measures are W1 = a + b, W2 = b - a, so its tau0 = a = (W1 - W2)/2 and "
           "tau1 = b = (W1 + W2)/2 moving in the + direction (tau0 = -(W1 - W2)/2 in the - direction).",

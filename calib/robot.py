@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.exceptions import CalibError
+from rcci.calib.drive import Drive
+from rcci.calib.exceptions import CalibError
 
 @dataclass(frozen=True)
 class RobotInfo:
@@ -37,7 +37,7 @@ class RobotInfo:
 
 
 def _data_file(path: Path) -> dict:
-    """The data file's raw tables (its own units), read from where ``models.load_robot``
+    """The data file's raw tables (its own units), read from where ``rcci.models.load_robot``
     found and validated it (``$RCCI_MODELS`` or the models package)."""
     try:
         with open(path, "rb") as f:
@@ -66,7 +66,7 @@ def robot_info(name: str) -> RobotInfo:
     uses), the ranges the models package's; the nominal values are the data file's.
     """
     from rci.conversions import Conversions
-    from models import ModelError, load_robot
+    from rcci.models import ModelError, load_robot
 
     try:
         model = load_robot(name)

@@ -17,11 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.exceptions import FitError, LogError
-from calib.logs import ADC_RAIL, clipped_note, saturated_mask
-from calib.trace import Trace
-from calib.work import find_passes, window_work
+from rcci.calib.drive import Drive
+from rcci.calib.exceptions import FitError, LogError
+from rcci.calib.logs import ADC_RAIL, clipped_note, saturated_mask
+from rcci.calib.trace import Trace
+from rcci.calib.work import find_passes, window_work
 
 GRAVITY = 9.80665  # m/s^2, standard gravity: the mass's weight
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.exceptions import FitError
-from calib.logs import clipped_note, saturated_mask
-from calib.trace import Trace
+from rcci.calib.drive import Drive
+from rcci.calib.exceptions import FitError
+from rcci.calib.logs import clipped_note, saturated_mask
+from rcci.calib.trace import Trace
 
 FILTER_SETTLE_S = 0.1  # skip this long into a halt: ~6 time constants of the 15 ms filter
 

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.breakaway import BreakawayResult
-from calib.friction import FrictionResult
-from calib.gravity import GravityResult, row_result
-from calib.sensitivity import SensitivityResult
-from calib.static import StaticResult
+from rcci.calib.breakaway import BreakawayResult
+from rcci.calib.friction import FrictionResult
+from rcci.calib.gravity import GravityResult, row_result
+from rcci.calib.sensitivity import SensitivityResult
+from rcci.calib.static import StaticResult
 
 
 def table_4_1(res: list[SensitivityResult]) -> str:

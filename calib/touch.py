@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.exceptions import CalibError
+from rcci.calib.exceptions import CalibError
 
 TOUCH_RATE_HZ = 250            # one count of a joint's encoder per cycle at most in the slow approach
 STANDOFF = 0.006               # m from the nominal face where each approach starts (arm errors < 4 mm)
@@ -261,7 +261,7 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER
     """``n_per_face`` touches on each face of ``fixture``, shared among CONFIGS (a
     configuration that reaches few points of a face leaves its share to the others),
     grouped by face and configuration (so that the arm changes configuration at a hub only)."""
-    from models import load_robot
+    from rcci.models import load_robot
     from rccl.kinematics import load
 
     kin = load(robot)

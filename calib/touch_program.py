@@ -11,7 +11,7 @@ counts, so the arm is exactly at the commanded counts at every cycle and the con
 lies between the last open and the first closed reading.
 
 The log holds only the measuring approaches, each record tagged with its touch's index
-(user field ``touch``); the fit (calib.kinematics) reads the probe bit from ``inport1``.
+(user field ``touch``); the fit (rcci.calib.kinematics) reads the probe bit from ``inport1``.
 """
 from __future__ import annotations
 
@@ -20,9 +20,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from calib.exceptions import CalibError
-from calib.program import command_joints, drive_recorded, open_measurement
-from calib.touch import (BACKOFF, FAST, OVERTRAVEL, SLOW, STANDOFF, TouchPlan, cartesian_line,
+from rcci.calib.exceptions import CalibError
+from rcci.calib.program import command_joints, drive_recorded, open_measurement
+from rcci.calib.touch import (BACKOFF, FAST, OVERTRAVEL, SLOW, STANDOFF, TouchPlan, cartesian_line,
                          hub_pose, joint_route, joint_line, pose_t6, tool_transform)
 from rci import codes
 from rci.conversions import Conversions

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.exceptions import LogError
+from rcci.calib.exceptions import LogError
 
 
 @dataclass

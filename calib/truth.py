@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.exceptions import CalibError, LogError
-from calib.robot import RobotInfo
-from models import FRICTION_KEYS, JointFriction
+from rcci.calib.exceptions import CalibError, LogError
+from rcci.calib.robot import RobotInfo
+from rcci.models import FRICTION_KEYS, JointFriction
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ def simulator_truth(info: RobotInfo, params: dict | None = None, source: str = "
     """Ground truth of a simula built from the data file and the parsed parameter file ``params``."""
     import pinocchio as pin
 
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.arm import SimulatedArm
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import apply_params, truth_from_model
@@ -182,7 +182,7 @@ def simula_pattern(robot: str, seed: int, joint: int, window: tuple[float, float
                    params: dict | None = None, points: int = 4000) -> tuple[np.ndarray, np.ndarray]:
     """(angles, relative Coulomb variation v p(q)) of ``joint`` over ``window`` in a simula
     started with ``seed``."""
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.arm import SimulatedArm
     from rci.simula.params import apply_params, truth_from_model
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.work import hann_edge_weights
+from rcci.calib.work import hann_edge_weights
 
 # a priori spread (1 sd) of DH errors when the parameter file has no kinematic calibration:
 # lengths as Table 3.1's stated uncertainties (0.38-0.64 mm), angles estimated at 0.1 deg
@@ -34,7 +34,7 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
                    taper: float, seed: int = 0) -> tuple[float, float, str]:
     """(g_w N m, its standard deviation N m, where the model came from) for ``joint``
     (1-based) swept over ``window`` (rad) at ``pose`` (rad), tapered as the pass means are."""
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.arm import SimulatedArm
     from rci.simula.params import apply_params, truth_from_model
 

@@ -21,7 +21,7 @@ from derive import emit_c, emit_casadi, emit_python
 from derive.derivation import derive_robot, robot_names
 from derive.kernels import build_kernels
 from derive.robots import load_spec
-from models import load_robot
+from rcci.models import load_robot
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "rccl" / "kinematics"

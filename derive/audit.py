@@ -158,11 +158,13 @@ def check_partial_derivative(dh) -> float:
 
 
 def gravity_work() -> dict[str, sp.Expr]:
-    """4.44-4.47 from tau(phi) = -m g r cos(phi) (the text's tau0 and tau1): work over the two 90 degree segments."""
+    """4.44-4.47 over the two 90 degree segments, with tau(phi) = -m g r cos(phi) the loading gravity
+    puts on the joint (the text's tau0 and tau1) and W_g the work done against it (the text's words:
+    4.48's W_1 = W_f1 + W_g1 is what the motor does), W_g = -integral of tau."""
     m, g, r, phi, p0 = sp.symbols("m g r phi phi0", real=True)
     tau = -m * g * r * sp.cos(phi)
-    wg1 = sp.integrate(tau, (phi, p0, p0 + sp.pi / 2))
-    wg2 = sp.integrate(tau, (phi, p0 + sp.pi / 2, p0 + sp.pi))
+    wg1 = -sp.integrate(tau, (phi, p0, p0 + sp.pi / 2))
+    wg2 = -sp.integrate(tau, (phi, p0 + sp.pi / 2, p0 + sp.pi))
     tau0, tau1 = tau.subs(phi, p0), tau.subs(phi, p0 + sp.pi / 2)
     tidy = lambda e: sp.factor(sp.expand(sp.expand_trig(sp.simplify(e))))     # noqa: E731
     return {"Wg1": tidy(wg1), "Wg2": tidy(wg2), "Wg": sp.simplify(wg1 + wg2),
@@ -206,13 +208,17 @@ def two_link_pose() -> list[tuple[int, int]]:
 
 
 def force_limit_example() -> dict[str, sp.Expr]:
-    """4.53 on 4.55: the torque of the limit f_y = F_l and what an x force alone does to the projection."""
+    """4.53 on 4.55 under both readings of the limit (f_x = F_l, f_y = F_l): its torque t_l = J^T q_l and
+    what a force f in x alone and in y alone does to the projection t_a^T t_l / ||t_l||^2."""
     fl, f = sp.symbols("F_l f", positive=True)
     jt = sp.Matrix([[1, 1], [0, 1]])
-    t_l = jt * sp.Matrix([0, fl])
-    t_x = jt * sp.Matrix([f, 0])
-    return {"t_l": t_l, "x alone, onto t_l": sp.simplify((t_x.T * t_l)[0] / (t_l.T * t_l)[0]),
-            "y alone, onto t_l": sp.simplify(((jt * sp.Matrix([0, f])).T * t_l)[0] / (t_l.T * t_l)[0])}
+    out: dict[str, sp.Expr] = {}
+    for axis, q_l in (("x", sp.Matrix([fl, 0])), ("y", sp.Matrix([0, fl]))):
+        t_l = jt * q_l
+        out[f"t_l, limit on f{axis}"] = t_l
+        for name, q in (("x", sp.Matrix([f, 0])), ("y", sp.Matrix([0, f]))):
+            out[f"{name} alone, limit on f{axis}"] = sp.simplify(((jt * q).T * t_l)[0] / (t_l.T * t_l)[0])
+    return out
 
 
 def check_condition_bound(trials: int = 200) -> bool:
@@ -272,7 +278,7 @@ def rows(derivations) -> list:
         "derived" if 50 < ratio < 200 else "differs",
         f"the remainder after the first-order terms shrinks as eps^2 (residual ratio {ratio:.0f} for eps 1e-3 vs "
         "1e-4), so to first order T6 = prod A + sum_i A_1..dA_i..A_6, linear in the error parameters (M e); "
-        "calib.kinematics builds M = dT6/de by automatic differentiation and fits e "
+        "rcci.calib.kinematics builds M = dT6/de by automatic differentiation and fits e "
         "(tests/test_calib_kinematics.py::test_recovers_identifiable_errors_and_names_the_parallel_axis_pair)")
     # --- chapter 4 ---------------------------------------------------------------------------
     add("4.1-4.3", "tau = k phi i_a; tau_load + tau_friction = sigma i_a", "as printed", "definition",
@@ -281,7 +287,7 @@ def rows(derivations) -> list:
     add("4.4-4.5", "W = integral i_a dtheta_s / sigma, summed per sample", "W = int i_a dtheta_s / sigma", "erratum",
         "with torque = sigma i_a (4.3) the work is sigma times the integral, not divided by it (a unit check: "
         "N m/A times A rad is J); "
-        "calib.work.window_work integrates torque over angle (trapezoid), verified in tests/test_calib_fits.py::test_window_work_of_linear_torque_is_exact_off_sample",
+        "rcci.calib.work.window_work integrates torque over angle (trapezoid), verified in tests/test_calib_fits.py::test_window_work_of_linear_torque_is_exact_off_sample",
         "W = sigma int i_a dtheta_s")
     add("4.6", "dynamics: D thdd + c + t_g + f + t_a = t_j", "D(theta) thd + ...", "OCR",
         "the inertia term multiplies the acceleration (thdd), as 'acceleration' in the text says; derived in full "
@@ -339,24 +345,29 @@ def rows(derivations) -> list:
         f"({AUDIT_TEST}::test_drive_train_conversions_4_28_to_4_38)", "f_dac(thd)")
     ok = check_sensitivity_algebra()
     add("4.39-4.43", "W+ - W'+ - W- + W'- = (dWf+ - dWf-) + 2 W_mass", "as printed", "derived" if ok else "differs",
-        "SymPy: from 4.39-4.42 with equal pulley friction both ways and dW_f = W_f - W'_f; calib.sensitivity "
+        "SymPy: from 4.39-4.42 with equal pulley friction both ways and dW_f = W_f - W'_f; rcci.calib.sensitivity "
         "implements it (tests/test_calib_fits.py::test_sensitivity_recovers_table_4_1_through_the_coupled_wrist)")
     gw = gravity_work()
     m, g, r, p0 = sp.symbols("m g r phi0", real=True)
+    reading = ("W_g is the work done against gravity, W_g = -integral of tau with tau = -m g r cos(phi) the "
+               "loading (the text's tau0, tau1 and its words; Table 4.8's header (W_g2 - W_g1)/2 = tau0 agrees)")
     add("4.44", "W_g1, W_g2 over the two 90 deg segments", "Wg1 = -mgr(cos - sin), Wg2 = -mgr(cos + sin)", "OCR",
-        "integrating tau = -m g r cos(phi) (the text's tau0, tau1): Wg1 as printed, Wg2 lost its sign",
+        f"{reading}: Wg2 as printed, Wg1 lost its sign. The other reading (W_g = +integral of tau) keeps Wg1 but "
+        "needs four sign errors (Wg2, 4.45, 4.46, tau0) besides 4.47's fraction, so it is not taken",
         f"Wg1 = {gw['Wg1']}, Wg2 = {gw['Wg2']}")
-    add("4.45-4.46", "W_g; W_g1 - W_g2", "Wg = -2mgr sin phi0; Wg1 - Wg2 = 2mgr cos phi0", "OCR",
-        "signs lost (follow from 4.44)", f"Wg = {gw['Wg']}, Wg1 - Wg2 = {gw['Wg1-Wg2']}")
+    add("4.45-4.46", "W_g; W_g1 - W_g2", "as printed", "derived",
+        f"{reading}: Wg = {gw['Wg']}, Wg1 - Wg2 = {gw['Wg1-Wg2']}, both as printed")
     add("4.47", "tau0, tau1 from the segment works", "tau0 = -2(Wg1 - Wg2), tau1 = 2(Wg1 + Wg2)", "OCR",
         f"tau0 / (Wg1 - Wg2) = {gw['tau0/(Wg1-Wg2)']}, tau1 / (Wg1 + Wg2) = {gw['tau1/(Wg1+Wg2)']}: a '1/2' read "
-        "as '2' and a sign lost; calib.gravity uses tau0 = d (W1 - W2)/2 "
-        "(tests/test_calib_fits.py::test_gravity_fit_recovers_table_4_9_and_the_repeat_matters)",
-        "tau0 = (Wg1 - Wg2)/2, tau1 = (Wg1 + Wg2)/2")
+        "as '2' in both, and tau1's sign lost; calib's fit does not depend on the reading: for the motor's "
+        "torque a cos u + b sin u over a + pass its segment works are W1 = a + b, W2 = b - a, so it takes "
+        "tau0 = (W1 - W2)/2 (rcci.calib.gravity; "
+        "tests/test_calib_fits.py::test_gravity_fit_recovers_table_4_9_and_the_repeat_matters)",
+        "tau0 = -(Wg1 - Wg2)/2, tau1 = -(Wg1 + Wg2)/2")
     ok = check_friction_repeat()
     add("4.48-4.51", "W1 - W2 = Wg1 - Wg2 (equal friction); the repeat: W'2 - W2 - W'1 + W1 = Wg1 - Wg2",
         "as printed", "derived" if ok else "differs",
-        "SymPy from 4.48-4.50 with W'_g = 0 (axis along g) and equal dW_f; calib.gravity.gravity_rows applies "
+        "SymPy from 4.48-4.50 with W'_g = 0 (axis along g) and equal dW_f; rcci.calib.gravity.gravity_rows applies "
         "the repeat (tests/test_calib_fits.py::test_gravity_fit_recovers_table_4_9_and_the_repeat_matters)")
     add("4.52", "t_a = J^T q", "as printed", "implemented",
         "3.2 again; rccl.adaptive.comply (the force-servoed joints) uses it; the kernels torque_from_force match "
@@ -365,11 +376,14 @@ def rows(derivations) -> list:
     add("4.53", "limit exceeded if the normalised projection of t_a on t_l exceeds one",
         "t_a^T t_l / ||t_a||^2 > 1; t_l = (F_l, 0)", "OCR",
         f"the projection normalised by t_l is t_a^T t_l / ||t_l||^2 (the print's ||t_a|| never exceeds one for "
-        f"t_a = 2 t_l); 4.55 gives t_l = J^T (0, F_l) = {tuple(fl['t_l'])}; a force f in x alone projects to "
-        f"{fl['x alone, onto t_l']}, over one once f > 2 F_l: a false alarm from a force the limit ignores, the "
-        f"text's point (its 'y direction alone' reads x; y alone gives {fl['y alone, onto t_l']}, the true alarm). "
-        "Not implemented: RCCL uses 4.56, the text's recommendation",
-        "t_a^T t_l / ||t_l||^2 > 1, t_l = (F_l, F_l)")
+        f"t_a = 2 t_l). The limit read as f_x = F_l (the text prints f_y): 4.55 gives t_l = J^T (F_l, 0) = "
+        f"{tuple(fl['t_l, limit on fx'])}, the printed t_l, and a force f in y alone, which the limit ignores, "
+        f"projects to {fl['y alone, limit on fx']}, over one once f > F_l: the false alarm the text warns of "
+        f"('greater than F_l in the y direction alone'). One symbol changes (f_y for f_x) and the rest stands; read "
+        f"as f_y, t_l would be {tuple(fl['t_l, limit on fy'])}, not the printed (F_l, 0), and the false alarm "
+        f"would come from x (projection {fl['x alone, limit on fy']}), two changes, so that reading is not taken "
+        "(reports/condition.md tabulates both). Not implemented: RCCL uses 4.56, the text's recommendation",
+        "t_a^T t_l / ||t_l||^2 > 1, the limit on f_x: t_l = (F_l, 0)")
     poses = two_link_pose()
     add("4.54-4.55", "two-link example: tau1 = fx + fy, tau2 = fy; J^T = [[1, 1], [0, 1]]", "as printed",
         "derived" if poses else "differs",

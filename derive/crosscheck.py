@@ -20,14 +20,14 @@ from types import ModuleType
 import numpy as np
 import pinocchio as pin
 
-from models.kinematics import Singular
+from rcci.models.kinematics import Singular
 
 ROOT = Path(__file__).resolve().parent.parent
 #: the package `make derive` writes the generated modules into (derive/__main__.py OUT_DIR);
 #: the cross-check runs that output, loaded by name: the derivation never imports the runtime
 GENERATED_PACKAGE = "rccl.kinematics"
 def _robots() -> tuple[str, ...]:
-    from models import available_robots
+    from rcci.models import available_robots
 
     return tuple(available_robots())
 
@@ -224,7 +224,7 @@ def check_jacobian_computations(mod, arm: PinArm, qs: np.ndarray, res: CrossChec
 
 
 def check_gravity(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult, seed: int = 2) -> None:
-    from models import load_robot
+    from rcci.models import load_robot
 
     model = load_robot(mod.ROBOT)
     masses = np.array([link.mass for link in model.links])
@@ -312,7 +312,7 @@ def check_dynamics(mod, arm: PinArm, qs: np.ndarray, res: CrossCheckResult, seed
     """The whole dynamics (4.6, derive.dynamics) against Pinocchio's rnea, crba,
     computeCoriolisMatrix, computeGeneralizedGravity and computeJointTorqueRegressor; errors
     relative to max(1, largest entry of Pinocchio's answer)."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     rng = np.random.default_rng(seed)
     model = load_robot(mod.ROBOT)

@@ -134,7 +134,7 @@ def _angle(value: float, name: str, params: dict[sp.Symbol, float]) -> sp.Expr:
 
 
 def dh_from_model(model) -> tuple[DHRobot, dict[sp.Symbol, float]]:
-    """The symbolic DH table of a robot's model file (``models.RobotModel``) and the
+    """The symbolic DH table of a robot's model file (``rcci.models.RobotModel``) and the
     numbers of its symbols (SI).
 
     Joint i's variable q_i is added to theta (revolute) or d (prismatic), the other

@@ -175,7 +175,7 @@ def standard_from_links(robot: DHRobot) -> dict[sp.Symbol, sp.Expr]:
 
 
 def numeric_standard(robot: DHRobot, values: dict[sp.Symbol, float], links) -> dict[sp.Symbol, float]:
-    """The standard parameters of a model's link inertials (``models.LinkInertial``), numbers."""
+    """The standard parameters of a model's link inertials (``rcci.models.LinkInertial``), numbers."""
     sub: dict[sp.Symbol, float] = dict(values)
     for k, li in enumerate(links):
         sub[MASS[k]] = float(li.mass)

@@ -36,7 +36,7 @@ def _kernel(spec: RobotSpec, name: str, doc: str, inputs: list[Arg], outputs: li
 
 
 def dynamics_kernels(spec: RobotSpec, links) -> tuple[list[Kernel], BaseParameters]:
-    """The dynamics kernels of ``spec`` with the link inertials ``links`` (models.LinkInertial)."""
+    """The dynamics kernels of ``spec`` with the link inertials ``links`` (rcci.models.LinkInertial)."""
     dh = spec.dh
     std = numeric_standard(dh, spec.params, links)
     par = [{k: sp.Float(std[s], 17) if std[s] else sp.Integer(0) for k, s in link_params(j + 1).items()}

@@ -22,7 +22,7 @@ from derive.kernel import Kernel
 from derive.lowering import in_dependency_order
 from derive.robots import RobotSpec, load_spec
 from derive.dynamics_kernels import base_names
-from models.kinematics import DYNAMICS, PUBLIC
+from rcci.models.kinematics import DYNAMICS, PUBLIC
 
 COMMAND = "make derive  (python -m derive)"
 #: the runtime's configuration record (rccl.kinematics.runtime) of each class's config signs
@@ -211,7 +211,7 @@ computations, the gravity vector and the whole dynamics (eq. 4.6: inverse dynami
 base regressor), derived with SymPy from the DH table of
 {spec.model_path.split("/")[-1]} (J. Lloyd 1985, chapters 3 and 4). SI units, radians; every
 function accepts one configuration or a batch along a leading axis. Contract:
-models.kinematics; runtime helpers: rccl.kinematics.runtime.
+rcci.models.kinematics; runtime helpers: rccl.kinematics.runtime.
 """
 # fmt: off
 # ruff: noqa
@@ -251,7 +251,7 @@ _API = _rt.public_api(_ROBOT)  # the contract's functions: compiled fast entries
 
 
 def _dynamics_api(kernels: list[Kernel]) -> str:
-    """The dynamics functions (models.kinematics.DYNAMICS): compiled fast entries over the
+    """The dynamics functions (rcci.models.kinematics.DYNAMICS): compiled fast entries over the
     runtime's checks, as the contract's functions."""
     present = [n for n in DYNAMICS if any(k.name == n for k in kernels)]
     if not present:

@@ -162,7 +162,7 @@ def build_kernels(d: Derivation) -> list[Kernel]:
            source="4.26")
     # -- the whole equation 4.6 (derive.dynamics): D, c, C, inverse dynamics, base regressor
     from derive.dynamics_kernels import dynamics_kernels
-    from models import load_robot
+    from rcci.models import load_robot
 
     ks += dynamics_kernels(spec, load_robot(robot).links)[0]
     return ks

@@ -1,6 +1,6 @@
 """The numbers and structure the derivation needs from a robot's model file.
 
-Everything comes from ``models/<robot>.toml`` through ``models.load_robot``: the DH table
+Everything comes from ``models/<robot>.toml`` through ``rcci.models.load_robot``: the DH table
 (``derive.dh.dh_from_model``: fixed lengths become symbols such as a2, d3, substituted only
 when code is emitted), joint kinds and ranges, gravity, and the optional gravity grouping
 (centre-of-mass form and coefficient meanings, as thesis eqs. 4.21 and 4.24). No robot is
@@ -41,15 +41,15 @@ class RobotSpec:
 
 
 def robot_names() -> tuple[str, ...]:
-    """Every robot with a data file under models/ (``models.available_robots``)."""
-    from models import available_robots
+    """Every robot with a data file under models/ (``rcci.models.available_robots``)."""
+    from rcci.models import available_robots
 
     return tuple(available_robots())
 
 
 def load_spec(name: str) -> RobotSpec:
     """Read ``models/<name>.toml`` into the derivation's view of the robot."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     model = load_robot(name)
     dh, lengths = dh_from_model(model)

@@ -3,7 +3,7 @@
     .venv/bin/python docs/api.py                 # writes docs/api/index.html (not committed)
     .venv/bin/python docs/api.py --out /tmp/api  # elsewhere
 
-Every module of the installed packages ``models``, ``rci``, ``rccl`` and ``calib`` gets a page
+Every module of the installed packages ``rcci.models``, ``rci``, ``rccl``, ``rcci.calib`` and ``rcci.view`` gets a page
 (``__main__`` modules, which run a program when imported, are left out). The build fails
 (exit 1, each problem named) when pdoc cannot import a module or warns, when a page links to a
 page or anchor that does not exist, or when a docstring names a project object in backticks
@@ -21,7 +21,7 @@ import sys
 import warnings
 from pathlib import Path
 
-PACKAGES = ("models", "rci", "rccl", "calib")
+PACKAGES = ("rcci.models", "rci", "rccl", "rcci.calib", "rcci.view")
 ROOT = Path(__file__).resolve().parent.parent
 
 

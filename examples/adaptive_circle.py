@@ -85,7 +85,7 @@ def main(url: str):
 def world_xy(arm) -> tuple[np.ndarray, np.ndarray]:
     """(times, XY of link 6 in metres) from the measured joint angles, by Pinocchio on the URDF."""
     import pinocchio as pin
-    from models import load_robot
+    from rcci.models import load_robot
 
     pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))
     pd = pm.createData()

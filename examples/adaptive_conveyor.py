@@ -80,7 +80,7 @@ def tracking_error(arm, track) -> tuple[np.ndarray, np.ndarray]:
     The object position comes from the belt encoder in the same how as the joint angles.
     """
     import pinocchio as pin
-    from models import load_robot
+    from rcci.models import load_robot
 
     pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))
     pd = pm.createData()

@@ -80,7 +80,7 @@ def main(url: str):
 def world(arm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(times s, probe points m (N, 3), true contact force N) from the measured joint angles (Pinocchio)."""
     import pinocchio as pin
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.environment import parse_environment
 
     pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))

@@ -90,7 +90,7 @@ def probe_force(arm) -> tuple[np.ndarray, np.ndarray]:
     """(t s, contact force N) from the joint angles the encoders reported (Pinocchio, simula's contact
     model): quantised by the encoders (~0.6 N per count of joint 3 on this contact)."""
     import pinocchio as pin
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.environment import parse_environment
 
     pm = pin.buildModelFromUrdf(str(load_robot("puma260").urdf_path))

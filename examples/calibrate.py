@@ -26,7 +26,7 @@ import numpy as np
 from rci import codes
 from rci.chg import POS, STOPCAL
 from rci.conversions import Conversions
-from models import load_robot
+from rcci.models import load_robot
 from rci.session import Session
 
 CREEP_COUNTS = 20          # counts per cycle while searching for the index mark

@@ -26,7 +26,7 @@ from typing import Iterator
 import numpy as np
 
 from rci.conversions import Conversions
-from models import load_robot
+from rcci.models import load_robot
 from rci.session import Session
 
 

@@ -7,11 +7,11 @@
 The arm goes to the first corner in joint mode, then round the square in Cartesian mode
 with its gripper tip 2 cm above a table (simula's ``--env box:...``, so the surface is
 real to the simulator too), pausing at the second corner, and back to park.
-``rccl.viewer.show(arm)`` draws the arm as the robot reports it, each request's planned
+``rcci.view.plan.show(arm)`` draws the arm as the robot reports it, each request's planned
 path (grey done, magenta running, blue queued), the target frame and the table.
 
 With ``--screenshot PNG`` the picture is taken during the pause (headless Chromium,
-``rci.screenshot``) and written to PNG; the program then finishes the square.
+``rcci.view.screenshot``) and written to PNG; the program then finishes the square.
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import time
 import warnings
 
 import rccl
-import rccl.viewer
+import rcci.view.plan
 from rccl import EQ, T6, TL, gentr_rot, gentr_trsl, makeposition, yunit
 
 # the table: a block beside the arm whose top is 0.15 m below the shoulder (the base frame's origin)
@@ -45,7 +45,7 @@ def run(url: str, env: list[str], *, port: int, pause: float, delay: float, scre
     # overrun="count": a cycle made late by a busy machine (a browser drawing in software beside the
     # real-time simula) holds the arm one period; the demo counts it instead of ending the control
     with rccl.open(url, robot="puma260", timeout=2.0, overrun="count") as arm:
-        view = rccl.viewer.show(arm, env=env, port=port, quiet=True)
+        view = rcci.view.plan.show(arm, env=env, port=port, quiet=True)
         print(f"view {view.url}", flush=True)
         if delay > 0 and not screenshot:
             print(f"the arm starts in {delay:.0f} s: open the address in a browser", flush=True)
@@ -60,7 +60,7 @@ def run(url: str, env: list[str], *, port: int, pause: float, delay: float, scre
         arm.setmod("j")
         arm.move(arm.park)
         if screenshot:
-            from rci.screenshot import screenshot as take
+            from rcci.view.screenshot import screenshot as take
 
             arm.waitfor(corner)
             arm.rci.wait(0.3)

@@ -22,7 +22,7 @@ import numpy as np
 from rccl.kinematics import puma260 as kinematics
 from rci.chg import CUR
 from rci.conversions import Conversions
-from models import load_robot
+from rcci.models import load_robot
 from rci.session import Session
 
 
@@ -30,7 +30,7 @@ class Weightless:
     """The control function ``weightless()`` of 2.2.2, bound to one session."""
 
     def __init__(self, session: Session, robot: str = "puma260", fitted=None) -> None:
-        """``fitted``: a ``calib.params.Fitted`` (torque sensitivities, gravity
+        """``fitted``: a ``rcci.calib.params.Fitted`` (torque sensitivities, gravity
         coefficients) to use instead of the robot data file's values."""
         self.s = session
         if fitted is None:
@@ -79,8 +79,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="end the control after S s without a HOW (default: the session's; give more on a "
                          "loaded machine)")
     args = ap.parse_args(argv)
-    from calib.exceptions import CalibError
-    from calib.params import load_fitted
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.params import load_fitted
     try:
         fitted = load_fitted(args.params, args.robot) if args.params else None
     except (CalibError, OSError) as exc:

@@ -9,7 +9,7 @@ of section 4.4.3 / Appendix D.  Each robot has one TOML data file and one URDF.
 
 Usage::
 
-    from models import load_robot
+    from rcci.models import load_robot
     puma = load_robot("puma260")          # or "microbo", or a path to a .toml file
     puma.n_joints, puma.lower, puma.upper, puma.max_velocity    # SI numpy arrays
     puma.joints[2].kind, puma.joints[2].d, puma.joints[2].alpha  # joint 3 (0-based list)
@@ -40,7 +40,7 @@ error.  Any malformed or inconsistent file (missing field, wrong unit, NaN, lowe
 upper, unknown joint kind, value without source, wrong number of joints, pose outside the
 ranges, missing URDF or a URDF whose joints/limits/link frames/inertials disagree with the
 data file)
-raises :class:`models.ModelError` naming the file, the field and the problem.
+raises :class:`rcci.models.ModelError` naming the file, the field and the problem.
 
 Models are looked up in ``$RCCI_MODELS`` if set, else in this package's directory (the data
 files ship as package data).

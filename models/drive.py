@@ -1,10 +1,10 @@
 """The friction of a joint drive, thesis eq. 4.27 (Tables 4.2-4.6), in two forms.
 
 * :class:`Friction`: as the robot data file states it, each vector with its source and
-  uncertainty (part of :class:`models.robot.RobotModel`).
+  uncertainty (part of :class:`rcci.models.robot.RobotModel`).
 * :class:`JointFriction`: the six coefficients as plain SI arrays, the one record every user
   of eq. 4.27 extends: the simulated arm's truth (``rci.simula.params.Truth``), a fit
-  (``calib.params.Fitted``) and the adaptive force model's belief
+  (``rcci.calib.params.Fitted``) and the adaptive force model's belief
   (``rccl.adaptive.force.JointModel``).
 """
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Parsing and validating one robot data file into a :class:`models.robot.RobotModel`;
-every failure is a :class:`models.exceptions.ModelError` naming the file, the field and the problem."""
+"""Parsing and validating one robot data file into a :class:`rcci.models.robot.RobotModel`;
+every failure is a :class:`rcci.models.exceptions.ModelError` naming the file, the field and the problem."""
 from __future__ import annotations
 
 import math
@@ -170,7 +170,7 @@ class Loader:
 
     def load(self, check: bool = True) -> RobotModel:
         """The model of the data file; ``check=False`` skips the URDF check (for writing
-        the URDF from the data file: models.urdf_write)."""
+        the URDF from the data file: rcci.models.urdf_write)."""
         try:
             with open(self.path, "rb") as fh:
                 data = tomllib.load(fh)

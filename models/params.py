@@ -1,8 +1,8 @@
 """The calibration parameter file: the one schema and reader (TOML; sections in docs/calib.md).
 
-``calib`` writes it (``calib.params.update_params``) and three places read it: ``calib``
+``calib`` writes it (``rcci.calib.params.update_params``) and three places read it: ``calib``
 itself, ``simula --params`` (the simulated arm's truth) and control programs
-(``calib.params.load_fitted``). All of them read through :func:`read_params`, so a file
+(``rcci.calib.params.load_fitted``). All of them read through :func:`read_params`, so a file
 one accepts the others accept too. A file starts with a ``[calib]`` table naming the
 ``schema`` (:data:`SCHEMA`) and the ``robot``; fits add their own sections.
 """

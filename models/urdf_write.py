@@ -1,4 +1,4 @@
-"""Write a robot's URDF from its data file: ``python -m models.urdf_write puma560``.
+"""Write a robot's URDF from its data file: ``python -m rcci.models.urdf_write puma560``.
 
 The URDF follows the conventions of models/README.md: ``base_link`` is DH frame 0 and
 ``link1 .. linkN`` are DH frames 1 .. N. A DH step A_i = Rz(q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)
@@ -43,7 +43,7 @@ def urdf_text(model: RobotModel) -> str:
     g = model.conversion.gear_ratio.values
     sigma = model.motors.torque_sensitivity.values
     out = ['<?xml version="1.0"?>',
-           f'<!-- {model.title}: GENERATED from {model.path.name} by `python -m models.urdf_write '
+           f'<!-- {model.title}: GENERATED from {model.path.name} by `python -m rcci.models.urdf_write '
            f'{model.name}`; do not edit.',
            '  base_link is DH frame 0, link1 .. linkN are DH frames 1 .. N (models/README.md).',
            '  Visual geometry is a sketch. -->',
@@ -94,7 +94,7 @@ def urdf_text(model: RobotModel) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m models.urdf_write", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m rcci.models.urdf_write", description=__doc__.splitlines()[0])
     ap.add_argument("robot", help="robot name or data-file path")
     args = ap.parse_args(argv)
     model = Loader(data_file(args.robot)).load(check=False)
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     path = Path(model.urdf_path)
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
-    print(f"models.urdf_write: {path}")
+    print(f"rcci.models.urdf_write: {path}")
     Loader(data_file(args.robot)).load()  # the written URDF passes the loader's check
     return 0
 

@@ -201,7 +201,7 @@ def _fixed(d: float, a: float, alpha: float) -> np.ndarray:
 
 def load_calibrated(path: str, robot: str = "puma260") -> CalibratedKinematics:
     """The calibrated kinematics of ``robot`` from the ``[kinematics]`` section of ``path``."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     module = load(robot)
     dh = np.array([[j.theta, j.d, j.a, j.alpha] for j in load_robot(robot).joints])

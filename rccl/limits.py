@@ -45,7 +45,7 @@ class Limits:
 
 def load_limits(robot: str) -> Limits:
     """Limits of ``robot`` from its data file (joint ranges and velocities, via models) plus the estimates above."""
-    from models import load_robot
+    from rcci.models import load_robot
 
     model = load_robot(robot)
     vel = np.array(model.max_velocity, dtype=float)

@@ -114,7 +114,7 @@ class Arm(Planner):
     # -- rccl_open / rccl_control / rccl_close --------------------------------------------
     def open(self) -> "Arm":
         """Open the RCI session and start the trajectory generator as its control function."""
-        from models import load_robot
+        from rcci.models import load_robot
 
         self.rci.open()
         try:

@@ -17,7 +17,7 @@ import numpy as np
 
 from . import codes
 from .chg import CUR, DAC_MAX, DAC_MIN, MOTION_NAMES, NONE, POS, STOP, STOPCAL, UNVALUED, VALUED, Chg, Cmd, Flag
-from models import ModelError
+from rcci.models import ModelError
 from .how import How
 from .rate import rate_from_code
 
@@ -68,7 +68,7 @@ class CommandLimits:
         and in DAC counts (kappa times the ADC value, eq. 4.34), capped at the 12-bit range.
         """
         from .conversions import Conversions
-        from models import load_robot
+        from rcci.models import load_robot
         model = load_robot(name)
         conv = Conversions.from_model(model)
         adc = np.abs(np.asarray(conv.currents_to_adc(np.asarray(model.max_current, float)), float))

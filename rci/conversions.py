@@ -118,7 +118,7 @@ class Conversions:
     # --- construction -------------------------------------------------------------
     @classmethod
     def from_model(cls, model, *, sigma: np.ndarray | None = None, consistent_encoders: bool = True) -> "Conversions":
-        """Constants from a :class:`models.RobotModel`.
+        """Constants from a :class:`rcci.models.RobotModel`.
 
         ``sigma`` overrides the torque sensitivities (e.g. values fitted by ``calib``).
         ``consistent_encoders`` uses ``encoder_ratio_consistent`` when the data file has it
@@ -143,7 +143,7 @@ class Conversions:
     @classmethod
     def for_robot(cls, name: str = "puma260", **kw) -> "Conversions":
         """Constants of a named robot (``"puma260"``, ``"microbo"``) from its data file."""
-        from models import load_robot
+        from rcci.models import load_robot
         return cls.from_model(load_robot(name), **kw)
 
     @property

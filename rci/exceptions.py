@@ -3,7 +3,7 @@ from __future__ import annotations
 
 # a malformed robot model: defined by the robot description (models, its own root), named
 # here too for programs that import it from rci
-from models.exceptions import ModelError  # noqa: F401
+from rcci.models.exceptions import ModelError  # noqa: F401
 
 
 class RCIError(Exception):

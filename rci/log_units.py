@@ -16,7 +16,7 @@ base frame, metres):
   coupled (G, R not diagonal) has a commanded value only when every motor it depends on was
   commanded the same way. Commands are not carried forward: NaN means "not sent this cycle".
 
-The exports (``rci.export``), the replay (``rci.view``) and the plot (``rci.plot``) all
+The exports (``rci.export``), the replay (``rcci.view.replay``) and the plot (``rci.plot``) all
 read a log through this module, so the three show the same numbers.
 """
 from __future__ import annotations
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models import load_robot
+from rcci.models import load_robot
 
 from .chg import CUR, POS
 from .conversions import Conversions

@@ -4,7 +4,7 @@
     python -m rci.plot calib/logs/kinematics.rcilog.xz --out kin.png
 
 Six panels from one ``.rcilog`` (docs/recording.md), every value in SI units through
-``rci.log_units`` (the same numbers ``rci.export`` and ``rci.view`` show):
+``rci.log_units`` (the same numbers ``rci.export`` and ``rcci.view.replay`` show):
 
 * joint positions, measured (solid) and commanded by POS (dashed), rad (m on a prismatic joint);
 * joint rates, measured, rad/s (m/s);

@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from rci.chg import POS, Chg
-from models import load_robot
+from rcci.models import load_robot
 from rci.simula.environment import (CONVEYOR_CHANNEL, Box, Conveyor, Environment, EnvironmentArm,
                                     parse_environment, plane)
 from rci.simula.params import truth_from_model

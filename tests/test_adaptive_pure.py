@@ -18,7 +18,7 @@ from rccl.adaptive.monitor import Monitor, Sample
 from rccl.kinematics import puma260 as kin
 from rccl.position import EQ, TL, makeposition
 from rccl.transform import T6, Trsf, diff_map, inverse, trsl
-from models import load_robot
+from rcci.models import load_robot
 
 PUMA = load_robot("puma260")
 MODEL = JointModel.for_robot("puma260")

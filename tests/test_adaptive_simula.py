@@ -16,7 +16,7 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 sys.path.insert(0, str(EXAMPLES))
 
 from adaptive_sim import environment_simula          # noqa: E402
-from models import load_robot               # noqa: E402
+from rcci.models import load_robot               # noqa: E402
 from rci.simula.environment import parse_environment  # noqa: E402
 
 PUMA = load_robot("puma260")

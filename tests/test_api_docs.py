@@ -15,7 +15,7 @@ api = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(api)
 
 
-@pytest.mark.parametrize("packages", [("models", "rci"), ("rccl",), ("calib",)], ids="+".join)
+@pytest.mark.parametrize("packages", [("rcci.models", "rci"), ("rccl",), ("rcci.calib", "rcci.view")], ids="+".join)
 def test_the_api_reference_builds_without_a_broken_reference(packages, tmp_path):
     problems = api.build(tmp_path, packages)
     assert problems == [], "\n".join(problems)

@@ -15,7 +15,10 @@ from functools import cache
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("models", "derive", "rci", "rccl", "calib")
+PACKAGES = ("models", "derive", "rci", "rccl", "calib", "view")
+#: the folders installed under another name (setup.py's INSTALLED_AS): an import of the
+#: installed name is an edge to the folder's module
+INSTALLED_PREFIX = "rcci."
 # written by `make derive`: one module per robot data file under models/
 GENERATED = tuple(f"rccl/kinematics/{p.stem}.py" for p in sorted((ROOT / "models").glob("*.toml")))
 LONG_LINES = 600
@@ -63,7 +66,7 @@ def _imported_names(name: str, path: Path) -> set[str]:
             visit(child)
 
     visit(_tree(path))
-    return out
+    return {n.removeprefix(INSTALLED_PREFIX) for n in out}
 
 
 def _graph() -> dict[str, set[str]]:

@@ -428,7 +428,7 @@ def test_gravity_takes_mappings_and_records_in_the_fast_entry(robot):
     from types import MappingProxyType
 
     from rccl.kinematics import exceptions as errors
-    from models import load_robot
+    from rcci.models import load_robot
     mod = _mod(robot)
     model = load_robot(robot)
     c = np.array([model.gravity_coeffs[n].value for n in mod.GRAVITY_COEFFS])

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.breakaway import breakaway_points, fit_breakaway
-from calib.exceptions import LogError
-from calib.trace import Trace
+from rcci.calib.breakaway import breakaway_points, fit_breakaway
+from rcci.calib.exceptions import LogError
+from rcci.calib.trace import Trace
 from tests.test_calib_synth import drive
 
 RATE = 72.0
@@ -78,9 +78,9 @@ def test_a_ramp_without_breakaway_is_named():
 @pytest.mark.slow
 def test_breakaway_program_on_simula_measures_table_4_5(tmp_path):
     """`calib record breakaway` for joint 5 on a lockstep simula (about a minute)."""
-    from calib.breakaway_program import breakaway_plans, run_breakaway
-    from calib.logs import load_traces
-    from calib.robot import robot_info
+    from rcci.calib.breakaway_program import breakaway_plans, run_breakaway
+    from rcci.calib.logs import load_traces
+    from rcci.calib.robot import robot_info
     from rci.simula.process import SimulaProcess
 
     info = robot_info("puma260")

@@ -1,6 +1,6 @@
 """Issue 30: recording a calibration on a truth that is not the data file's, as a user runs it.
 
-The truth is calib.hidden_truth seed 1 (torque sensitivities 18-29 % off Table 4.1, joint 5's
+The truth is rcci.calib.hidden_truth seed 1 (torque sensitivities 18-29 % off Table 4.1, joint 5's
 18 % low; friction 10-30 % off; gravity 3-10 % off; DH errors), recorded on lockstep simulas
 seeded 4 and 3, not the shipped logs' 1985: the loaded sensitivity run of joint 5 that aborted
 with R_MAXCUR on the straight approach from ready is carried on the route calib chooses, a
@@ -16,15 +16,15 @@ import sys
 import numpy as np
 import pytest
 
-from calib import headroom
-from calib.exceptions import CalibError
-from calib.experiments import sensitivity_plans
-from calib.hidden_truth import hidden_truth, write_hidden_truth
-from calib.logs import load_trace
-from calib.program import run_plan
-from calib.regen import regen
-from calib.registry import RecordOptions
-from calib.robot import robot_info
+from rcci.calib import headroom
+from rcci.calib.exceptions import CalibError
+from rcci.calib.experiments import sensitivity_plans
+from rcci.calib.hidden_truth import hidden_truth, write_hidden_truth
+from rcci.calib.logs import load_trace
+from rcci.calib.program import run_plan
+from rcci.calib.regen import regen
+from rcci.calib.registry import RecordOptions
+from rcci.calib.robot import robot_info
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 INFO = robot_info("puma260")
@@ -47,7 +47,7 @@ def test_the_hidden_truth_is_10_to_30_percent_away_and_valid():
 
 
 def _calib(*args: str, cwd: str = ROOT) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "calib", *args], capture_output=True, text=True, cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "rcci.calib", *args], capture_output=True, text=True, cwd=cwd,
                           timeout=600)
 
 
@@ -94,7 +94,7 @@ def test_a_failed_recording_keeps_the_log_its_error_names(truth, tmp_path, monke
     ("sensitivity", ["--loaded"]), ("friction", ["--joints", "7"]), ("all", ["--loaded"]),
 ])
 def test_simula_refuses_an_option_it_cannot_honour(kind, option, tmp_path, capsys):
-    from calib.__main__ import main
+    from rcci.calib.__main__ import main
 
     assert main(["record", kind, "--simula", "--seed 4", *option, "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
@@ -123,8 +123,8 @@ def test_simula_options_are_honoured_and_a_campaign_resumes(truth, tmp_path):
 def test_record_all_names_what_an_arm_cannot_support(tmp_path):
     """The Stanford arm: the touch fixture (the PUMA 260's) is out of its reach, so kinematics is
     refused with the reason; joint 2's sensitivity is left out by name and the others planned."""
-    from calib.regen import campaign_plans
-    from calib.registry import RegenContext
+    from rcci.calib.regen import campaign_plans
+    from rcci.calib.registry import RegenContext
 
     ctx = RegenContext(str(tmp_path), str(tmp_path), 4, None, robot_info("stanford"))
     plans, refused = campaign_plans(ctx, ("kinematics", "sensitivity", "gravity", "static"), skip_refused=True)
@@ -168,9 +168,9 @@ def _j5_logs():
 def test_sensitivity_at_the_adc_rail_is_named():
     """Every pass of joint 5 at the rail: refused, naming the rail; all but one round trip: one
     trial, and a note that its spread is unknown."""
-    from calib.logs import ADC_RAIL
-    from calib.sensitivity import fit_sensitivity
-    from calib.work import find_passes
+    from rcci.calib.logs import ADC_RAIL
+    from rcci.calib.sensitivity import fit_sensitivity
+    from rcci.calib.work import find_passes
 
     loaded, unloaded = _j5_logs()
     full = loaded.adc.copy()
@@ -193,7 +193,7 @@ def test_other_arms_get_friction_and_sensitivity_plans_where_gravity_allows():
     """Stanford's prismatic joint 3: a window inside its range, the axis horizontal (no work by
     gravity), speeds in m/s, the pulley pulling the slide with m g; PUMA 560 joint 1: a window of
     its own inside +-160 deg; joints whose centres of mass lie off the links are refused by name."""
-    from calib.experiments import check_friction_pose, friction_plans
+    from rcci.calib.experiments import check_friction_pose, friction_plans
 
     stanford = robot_info("stanford")
     fr = friction_plans([3], robot=stanford)[0]

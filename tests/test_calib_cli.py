@@ -6,8 +6,8 @@ import os
 import numpy as np
 import pytest
 
-from calib.__main__ import main
-from calib.params import read_params
+from rcci.calib.__main__ import main
+from rcci.calib.params import read_params
 from tests.test_calib_synth import SIGMA, drive, friction_torque, sweep, to_trace, write_rcilog
 from tests.test_calib_fits import FC_M, FC_P, FV_M, FV_P, rates
 
@@ -15,7 +15,7 @@ from tests.test_calib_fits import FC_M, FC_P, FV_M, FV_P, rates
 def sigma_params(tmp_path, name: str = "fitted.toml", sigma=SIGMA) -> str:
     """A parameter file holding fitted torque sensitivities (as `calib fit sensitivity` writes),
     which the friction fit needs."""
-    from calib.params import update_params
+    from rcci.calib.params import update_params
 
     path = str(tmp_path / name)
     update_params(path, "puma260", {"motors": {"torque_sensitivity": [float(x) for x in sigma]}}, "test")
@@ -121,8 +121,8 @@ def test_gzipped_log_fits_like_the_plain_one(tmp_path, capsys):
 
 
 def test_runtime_loads_fitted_values_and_keeps_the_rest_nominal(tmp_path, capsys):
-    from calib.exceptions import CalibError
-    from calib.params import load_fitted
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.params import load_fitted
 
     params = sigma_params(tmp_path)
     assert main(["fit", "friction", _friction_log(tmp_path, 3), "--params", params, "-q"]) == 0

@@ -22,12 +22,12 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from calib.cli_extra import fit_all
-from calib.experiments import friction_plans, gravity_plans, sensitivity_plans
-from calib.program import run_plan
-from calib.regen import record_kinematics
-from calib.robot import robot_info
-from calib.truth import truth_meta, truth_of
+from rcci.calib.cli_extra import fit_all
+from rcci.calib.experiments import friction_plans, gravity_plans, sensitivity_plans
+from rcci.calib.program import run_plan
+from rcci.calib.regen import record_kinematics
+from rcci.calib.robot import robot_info
+from rcci.calib.truth import truth_meta, truth_of
 
 TRUTH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "calib", "logs",
                      "simula-truth.toml")
@@ -162,7 +162,7 @@ def test_kinematic_errors_within_their_printed_uncertainty(calibrated):
 def test_the_parameter_file_is_a_truth_simula_and_rccl_take(calibrated):
     """What calib wrote loads in simula (--params) and in RCCL (rccl.calibrated)."""
     from rccl.calibrated import load_calibrated
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.params import load_params, truth_from_model
 
     path = os.path.join(os.path.dirname(calibrated["traces"][0].path), "fitted.toml")

@@ -4,14 +4,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.exceptions import FitError, LogError
-from calib.friction import fit_friction
-from calib.gravity import fit_gravity
-from calib.lsq import bounded_lsq
-from calib.poses import TABLE_4_7, main_sweep, repeat_sweep
-from calib.sensitivity import GRAVITY, fit_sensitivity
-from calib.static import fit_static
-from calib.work import find_passes, window_work
+from rcci.calib.exceptions import FitError, LogError
+from rcci.calib.friction import fit_friction
+from rcci.calib.gravity import fit_gravity
+from rcci.calib.lsq import bounded_lsq
+from rcci.calib.poses import TABLE_4_7, main_sweep, repeat_sweep
+from rcci.calib.sensitivity import GRAVITY, fit_sensitivity
+from rcci.calib.static import fit_static
+from rcci.calib.work import find_passes, window_work
 from tests.test_calib_synth import DEG, SIGMA, drive, friction_torque, regressor, sweep, to_trace
 
 FC_P = np.array([0.76, 1.62, 0.85, 0.175, 0.178, 0.140])
@@ -85,7 +85,7 @@ def test_friction_fit_recovers_tables_4_2_and_4_3():
     traces = []
     for j in range(6):
         # three round trips per speed: one pass per speed left the viscous fit within
-        # 15 % only for lucky seeds (the tapered pass mean of calib.work weighs 3/4 of a
+        # 15 % only for lucky seeds (the tapered pass mean of rcci.calib.work weighs 3/4 of a
         # 1 rad window)
         t, q = sweep(np.zeros(6), j, -0.5, 0.5, [0.05, 0.2, 0.5, 0.9, 1.4] * 3)
         tau = friction_torque(rates(t, q), FC_P, FC_M, FV_P, FV_M)

@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from calib.__main__ import main
-from calib.params import read_params, update_params
+from rcci.calib.__main__ import main
+from rcci.calib.params import read_params, update_params
 from tests.test_calib_cli import _friction_log, sigma_params
 from tests.test_calib_fits import FC_M, FC_P, FV_M, FV_P, rates
 from tests.test_calib_synth import DEG, SIGMA, drive, friction_torque, sweep, to_trace, write_rcilog
@@ -17,7 +17,7 @@ from tests.test_calib_synth import DEG, SIGMA, drive, friction_torque, sweep, to
 
 def _sensitivity_logs(tmp_path, joints, sigma=SIGMA) -> list[str]:
     """Loaded and unloaded sensitivity logs of ``joints`` (1-based) with true ``sigma``."""
-    from calib.sensitivity import GRAVITY
+    from rcci.calib.sensitivity import GRAVITY
 
     rng = np.random.default_rng(4)
     d = drive(np.asarray(sigma, float))
@@ -49,9 +49,9 @@ def test_friction_without_fitted_sensitivities_is_refused_with_the_command_that_
 
 @pytest.mark.parametrize("kind", ["static", "breakaway"])
 def test_fits_that_subtract_gravity_refuse_without_fitted_coefficients(tmp_path, capsys, kind):
-    from calib.fitting import run_fit
-    from calib.exceptions import CalibError
-    from calib.robot import robot_info
+    from rcci.calib.fitting import run_fit
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.robot import robot_info
     from tests.test_calib_synth import to_trace as tt
 
     params = read_params(sigma_params(tmp_path))
@@ -95,7 +95,7 @@ def test_sensitivity_of_some_joints_leaves_the_others_unfitted_nan(tmp_path, cap
 
 
 def test_simula_keeps_its_own_value_where_the_file_says_nan(tmp_path):
-    from models import load_robot
+    from rcci.models import load_robot
     from rci.simula.params import load_params, truth_from_model
 
     params = str(tmp_path / "fitted.toml")
@@ -110,7 +110,7 @@ def test_simula_keeps_its_own_value_where_the_file_says_nan(tmp_path):
 def _clipped_friction_log(tmp_path, joint: int, rail_fraction: float) -> str:
     """A friction log whose ADC channel of ``joint`` sits at the rail on the first
     ``rail_fraction`` of the passes (the current saturated the sense amplifier)."""
-    from calib.trace import Trace
+    from rcci.calib.trace import Trace
 
     rng = np.random.default_rng(joint)
     t, q = sweep(np.zeros(6), joint - 1, -0.5, 0.5, [0.1, 0.4, 0.8, 1.2] * 2)
@@ -200,9 +200,9 @@ def test_friction_plot_panels_span_the_data_and_the_fit(tmp_path):
     (not 0 to the top, where a 1.6 N m friction's few per cent of viscous rise is flat)."""
     import matplotlib.image as mpimg
 
-    from calib.friction import fit_friction
-    from calib.logs import load_trace
-    from calib.plots import friction_plots, y_limits
+    from rcci.calib.friction import fit_friction
+    from rcci.calib.logs import load_trace
+    from rcci.calib.plots import friction_plots, y_limits
 
     tr = load_trace(_friction_log(tmp_path, 2))
     res, points = fit_friction([tr], drive())

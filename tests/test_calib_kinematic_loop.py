@@ -9,8 +9,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from calib.kinematics import fk_function, nominal_dh
-from models import load_robot
+from rcci.calib.kinematics import fk_function, nominal_dh
+from rcci.models import load_robot
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TRUTH = os.path.join(ROOT, "calib", "logs", "simula-truth.toml")
@@ -56,7 +56,7 @@ def test_kinematic_errors_of_a_prismatic_arm_are_refused():
 
 
 def test_touch_probe_closes_inside_a_block_and_not_outside():
-    from calib.touch import simula_words
+    from rcci.calib.touch import simula_words
     from rci.simula.environment import EnvironmentArm, parse_environment
 
     env = parse_environment(simula_words())
@@ -64,7 +64,7 @@ def test_touch_probe_closes_inside_a_block_and_not_outside():
     assert arm.sample().inport1 & 2 == 0          # the ready pose is far from every face
     # put the tip 1 mm below the floor (z = -0.20 m): find a pose with the nominal IK
     import rccl.kinematics.puma260 as kin
-    from calib.touch import TIP, pose_t6
+    from rcci.calib.touch import TIP, pose_t6
     R = np.diag([1.0, -1.0, -1.0])               # probe pointing down
     # the true tip is off the nominal one by the arm's DH errors (about a millimetre)
     arm.q = kin.ik(pose_t6(np.array([0.2, -0.1, -0.21]), R, TIP), kin.Config(-1, 1, 1), None)
@@ -78,7 +78,7 @@ def test_touch_probe_closes_inside_a_block_and_not_outside():
 @pytest.fixture(scope="module")
 def shipped_fit(tmp_path_factory):
     """`calib fit kinematics` of the shipped touches, into a parameter file."""
-    from calib.__main__ import main
+    from rcci.calib.__main__ import main
 
     path = str(tmp_path_factory.mktemp("kin") / "fitted.toml")
     assert main(["fit", "kinematics", SHIPPED, "-p", path, "-q"]) == 0
@@ -125,7 +125,7 @@ def test_bad_calibration_files_are_named(tmp_path, shipped_fit):
 def test_rccl_positions_the_simulated_arm_to_the_encoders_floor_with_the_fit(shipped_fit):
     """RCCL on a simula built from the truth: nominal kinematics miss by over a millimetre,
     the calibrated ones by tens of micrometres, near what whole encoder counts leave."""
-    from calib.accuracy import positioning_error
+    from rcci.calib.accuracy import positioning_error
 
     nominal, calibrated, floor = positioning_error(TRUTH, shipped_fit, n=5, seed=3)
     rms = lambda a: float(np.sqrt(np.mean(a ** 2)))  # noqa: E731

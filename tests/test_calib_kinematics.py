@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.__main__ import main
-from calib.kinematics import fit_kinematics, fk_function
-from models import load_robot
+from rcci.calib.__main__ import main
+from rcci.calib.kinematics import fit_kinematics, fk_function
+from rcci.models import load_robot
 
 MODEL = load_robot("puma260")
 DH = np.array([[j.theta, j.d, j.a, j.alpha] for j in MODEL.joints])
@@ -61,7 +61,7 @@ def test_command_reads_poses_and_reports_bad_lines(tmp_path, capsys):
 def test_pose_files_of_another_arm_take_robot(tmp_path, capsys):
     """Pose files name no arm: `--robot puma560` fits them with the PUMA 560's table (and says
     so); without it the output names the PUMA 260 it assumed, which does not fit them."""
-    from calib.params import read_params
+    from rcci.calib.params import read_params
 
     m = load_robot("puma560")
     dh = np.array([[j.theta, j.d, j.a, j.alpha] for j in m.joints])

@@ -1,4 +1,4 @@
-"""The Stanford arm's prismatic joint 3 calibrated on a hidden truth (calib.hidden_truth seed 2,
+"""The Stanford arm's prismatic joint 3 calibrated on a hidden truth (rcci.calib.hidden_truth seed 2,
 simula seed 6): its torque sensitivity from a 0.2 m stroke with and without a mass pulling the
 slide (m g), its Coulomb (N) and viscous (N s/m) friction from sweeps with the axis horizontal;
 every value within its printed interval of the truth. About 4 min of recording under load: `-m slow`."""
@@ -7,14 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.experiments import friction_plans, sensitivity_plans
-from calib.fitting import run_fit
-from calib.hidden_truth import hidden_truth, write_hidden_truth
-from calib.logs import load_trace
-from calib.lsq import coverage_factor
-from calib.program import run_plan
-from calib.robot import robot_info
-from calib.truth import truth_meta, truth_of
+from rcci.calib.experiments import friction_plans, sensitivity_plans
+from rcci.calib.fitting import run_fit
+from rcci.calib.hidden_truth import hidden_truth, write_hidden_truth
+from rcci.calib.logs import load_trace
+from rcci.calib.lsq import coverage_factor
+from rcci.calib.program import run_plan
+from rcci.calib.robot import robot_info
+from rcci.calib.truth import truth_meta, truth_of
 
 ROBOT, TRUTH_SEED, SIMULA_SEED = "stanford", 2, 6
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.experiments import (FRICTION_POSES, friction_plans, gravity_plans,
+from rcci.calib.experiments import (FRICTION_POSES, friction_plans, gravity_plans,
                                sensitivity_plans, static_plan)
-from calib.robot import robot_info
-from calib.work import find_passes
+from rcci.calib.robot import robot_info
+from rcci.calib.work import find_passes
 
 INFO = robot_info("puma260")
 
@@ -101,8 +101,8 @@ def test_program_records_exactly_the_path_over_a_real_link(tmp_path):
     import threading
     import time
 
-    from calib.logs import load_trace
-    from calib.program import run_plan
+    from rcci.calib.logs import load_trace
+    from rcci.calib.program import run_plan
     from rci.conversions import Conversions
     from robot_monitor import EchoArm, Monitor
 
@@ -140,9 +140,9 @@ def test_program_records_exactly_the_path_over_a_real_link(tmp_path):
 def test_friction_program_on_simula_fits_the_simulated_joint(tmp_path):
     """A short friction program on a real simula process (lockstep, warm joints): the
     recorded log fits to the simulator's Coulomb friction within Table 4.2's bounds."""
-    from calib.fitting import run_fit
-    from calib.logs import load_trace
-    from calib.program import run_plan
+    from rcci.calib.fitting import run_fit
+    from rcci.calib.logs import load_trace
+    from rcci.calib.program import run_plan
     from rci.simula.process import SimulaProcess
 
     (plan,) = friction_plans([6], speeds_deg=(30, 60, 90), trips=1)
@@ -162,8 +162,8 @@ def test_friction_program_on_simula_fits_the_simulated_joint(tmp_path):
 
 def test_program_error_names_the_program_and_keeps_the_partial_log(tmp_path):
     """A robot that cannot be reached: the error says which program and where."""
-    from calib.exceptions import CalibError
-    from calib.program import run_plan
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.program import run_plan
 
     (plan,) = friction_plans([1], speeds_deg=(30,), trips=1)
     with pytest.raises(CalibError, match=r"friction-j1 on socket://127.0.0.1:9"):
@@ -173,7 +173,7 @@ def test_program_error_names_the_program_and_keeps_the_partial_log(tmp_path):
 @pytest.mark.slow
 def test_regen_logs_records_gravity_logs_that_fit(tmp_path):
     """`calib regen-logs --kinds gravity` end to end (a few minutes: -m slow)."""
-    from calib.__main__ import main
+    from rcci.calib.__main__ import main
 
     assert main(["regen-logs", "--kinds", "gravity", "--out", str(tmp_path)]) == 0
     logs = sorted(str(p) for p in tmp_path.glob("gravity-*.rcilog.xz"))
@@ -187,14 +187,14 @@ def test_the_thesis_poses_are_checked_on_the_arm_they_are_given():
     arm's are not used where they do not serve it: on the PUMA 560 joint 1's window does not
     fit its +-160 deg (another pose is found), and joint 2's leaves gravity doing work (cy2, and cx3
     with its elbow offset a3), where no pose is found yet: refused with the reason, not recorded."""
-    from calib.exceptions import CalibError
-    from calib.experiments import check_friction_pose
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.experiments import check_friction_pose
 
     assert [p.name for p in friction_plans(robot=INFO)] == [p.name for p in friction_plans()]
     for mine, default in zip(friction_plans([2], robot=INFO), friction_plans([2])):
         np.testing.assert_array_equal(mine.path.sample(72), default.path.sample(72))
     other = robot_info("puma560")
-    # joint 1's thesis window does not fit its +-160 deg: calib.friction_poses finds one that does
+    # joint 1's thesis window does not fit its +-160 deg: rcci.calib.friction_poses finds one that does
     (plan,) = friction_plans([1], robot=other)
     lo, hi = plan.meta["window"]
     assert other.lower[0] < lo < hi < other.upper[0] and hi - lo >= np.radians(200)

@@ -2,13 +2,13 @@
 coefficients (models/puma560.toml, derive.gravity.minimal_gravity).
 
 Table 4.7's sweeps were chosen for the PUMA 260's three coefficients; for the PUMA 560 calib
-chooses its own (calib.poses.identifying_sweeps): the fewest 180-degree sweeps whose
+chooses its own (rcci.calib.poses.identifying_sweeps): the fewest 180-degree sweeps whose
 regressor rows identify all ten. They are recorded here by calib's own measurement program
-(calib.program.run_plan, as `calib record gravity --robot puma560` runs it) on a real
+(rcci.calib.program.run_plan, as `calib record gravity --robot puma560` runs it) on a real
 lockstep `simula --robot puma560` whose truth is not the data file's (a parameter file moves
 five coefficients, cz4/cx5/cx6 stay 0), then fitted by the `calib fit gravity` command; every
 coefficient must lie within the uncertainty it prints of the simulated arm's truth (the
-Pinocchio gravity of simula's URDF, fitted to the regressor by calib.truth).
+Pinocchio gravity of simula's URDF, fitted to the regressor by rcci.calib.truth).
 """
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from calib.exceptions import CalibError
-from calib.robot import robot_info
+from rcci.calib.exceptions import CalibError
+from rcci.calib.robot import robot_info
 
 ROBOT = "puma560"
 TRUTH = {"cy2": 1.5, "cz3": 9.2, "cx4": 0.05, "cz5": 0.06, "cy6": -0.02}
@@ -28,8 +28,8 @@ SPEED_DEG = 60.0     # deg/s: three times the thesis's 20, to keep the run short
 
 
 def test_table_4_7_does_not_serve_the_puma560_and_ten_sweeps_do():
-    from calib.fits.gravity import plans
-    from calib.poses import TABLE_4_8_SWEEPS, main_sweep, table_4_7_identifies, unidentified
+    from rcci.calib.fits.gravity import plans
+    from rcci.calib.poses import TABLE_4_8_SWEEPS, main_sweep, table_4_7_identifies, unidentified
 
     info = robot_info(ROBOT)
     assert not table_4_7_identifies(info.regressor, info.lower, info.upper, info.kinds)
@@ -55,18 +55,18 @@ def test_table_4_7_does_not_serve_the_puma560_and_ten_sweeps_do():
 
 def test_coefficients_no_sweep_can_measure_are_named():
     """The Microbo's c12 is the weight its vertical lift carries: no revolute sweep sees it."""
-    from calib.fits.gravity import plans
+    from rcci.calib.fits.gravity import plans
 
     with pytest.raises(CalibError, match=r"gravity coefficients c12 cannot be identified"):
         plans(robot_info("microbo"))
 
 
 def test_calib_fit_gravity_on_the_puma560(tmp_path, capsys):
-    from calib.__main__ import main
-    from calib.fits.gravity import plans
-    from calib.logs import load_trace
-    from calib.program import run_plan
-    from calib.truth import truth_meta, truth_of
+    from rcci.calib.__main__ import main
+    from rcci.calib.fits.gravity import plans
+    from rcci.calib.logs import load_trace
+    from rcci.calib.program import run_plan
+    from rcci.calib.truth import truth_meta, truth_of
     from rci.simula.process import SimulaProcess
 
     truth_file = tmp_path / "truth.toml"
@@ -92,7 +92,7 @@ def test_calib_fit_gravity_on_the_puma560(tmp_path, capsys):
     assert main(["fit", "gravity", *logs, "--assume-datafile", "-q", "-p", params]) == 0
     printed = capsys.readouterr().out
     assert f"10 log(s) of robot {ROBOT}" in printed
-    from calib.params import read_params
+    from rcci.calib.params import read_params
 
     fitted = read_params(params)
     assert fitted["calib"]["robot"] == ROBOT

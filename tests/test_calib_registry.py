@@ -1,4 +1,4 @@
-"""The registry of fits (calib.registry): every module of calib/fits declares one kind, and
+"""The registry of fits (rcci.calib.registry): every module of calib/fits declares one kind, and
 the commands take their kinds, order and sections from it."""
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from calib import registry
-from calib.exceptions import CalibError
-from calib.logs import LOG_DIR
+from rcci.calib import registry
+from rcci.calib.exceptions import CalibError
+from rcci.calib.logs import LOG_DIR
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -46,29 +46,29 @@ def test_an_unknown_kind_is_refused_with_the_known_ones():
 
 
 def test_every_shipped_log_names_a_registered_kind():
-    from calib.logs import load_trace
+    from rcci.calib.logs import load_trace
 
     seen = {load_trace(p).experiment for p in sorted(glob.glob(os.path.join(LOG_DIR, "*.rcilog.*")))}
     assert seen == set(registry.names())
 
 
 def test_the_cli_offers_the_registered_kinds_and_their_titles():
-    out = subprocess.run([sys.executable, "-m", "calib", "fit", "--help"], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-m", "rcci.calib", "fit", "--help"], capture_output=True, text=True,
                          cwd=ROOT, timeout=60)
     assert out.returncode == 0
     text = " ".join(out.stdout.split())
     for kind in registry.kinds():
         assert kind.name in text and " ".join(kind.title.split()) in text
-    out = subprocess.run([sys.executable, "-m", "calib", "record", "--help"], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-m", "rcci.calib", "record", "--help"], capture_output=True, text=True,
                          cwd=ROOT, timeout=60)
     assert "{" + ",".join(registry.names() + ("all",)) + "}" in out.stdout.replace("\n", "").replace(" ", "")
 
 
 def test_a_fit_writes_only_its_own_section(tmp_path):
     """The sections a fit returns are the one its kind declares."""
-    from calib.fitting import run_fit
-    from calib.logs import load_trace
-    from calib.robot import robot_info
+    from rcci.calib.fitting import run_fit
+    from rcci.calib.logs import load_trace
+    from rcci.calib.robot import robot_info
 
     info = robot_info("puma260")
     paths = sorted(glob.glob(os.path.join(LOG_DIR, "sensitivity-*.rcilog.*")))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import stat
 
-from calib.params import atomic_write
+from rcci.calib.params import atomic_write
 
 
 def test_a_new_report_gets_the_umask_mode_not_mkstemps_0600(tmp_path):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models import load_robot
+from rcci.models import load_robot
 from rci.simula.arm import SimulatedArm
 from rci.simula.params import truth_from_model
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.exceptions import CalibError
-from calib.robot import robot_info
+from rcci.calib.exceptions import CalibError
+from rcci.calib.robot import robot_info
 from tests.test_calib_synth import regressor as thesis_424
 
 
@@ -24,7 +24,7 @@ def test_another_arm_brings_its_own_coefficients():
     the data file's gravity vector (Pinocchio on its URDF)."""
     import pinocchio as pin
 
-    from models import load_robot
+    from rcci.models import load_robot
 
     info = robot_info("puma560")
     assert info.gravity_names == ("cx2", "cy2", "cx3", "cz3", "cx4", "cz4", "cx5", "cz5", "cx6", "cy6")
@@ -42,11 +42,11 @@ def test_an_arm_without_generated_kinematics_is_refused(tmp_path, monkeypatch):
     """A model file added without `make derive`: a clear refusal naming the robot and the cure."""
     import shutil
 
-    import models
+    import rcci.models
 
-    text = (models.models_dir() / "puma260.toml").read_text()
+    text = (rcci.models.models_dir() / "puma260.toml").read_text()
     (tmp_path / "nogenerated.toml").write_text(text.replace('name = "puma260"', 'name = "nogenerated"'))
-    shutil.copytree(models.models_dir() / "urdf", tmp_path / "urdf")
+    shutil.copytree(rcci.models.models_dir() / "urdf", tmp_path / "urdf")
     monkeypatch.setenv("RCCI_MODELS", str(tmp_path))
     with pytest.raises(CalibError, match=r"'nogenerated'.*no generated gravity regressor.*make derive"):
         robot_info("nogenerated")

@@ -9,10 +9,10 @@ import os
 import numpy as np
 import pytest
 
-from calib.cli_extra import fit_all
-from calib.logs import LOG_DIR
-from calib.params import read_params
-from calib.truth import truth_of
+from rcci.calib.cli_extra import fit_all
+from rcci.calib.logs import LOG_DIR
+from rcci.calib.params import read_params
+from rcci.calib.truth import truth_of
 
 LOGS = sorted(glob.glob(os.path.join(LOG_DIR, "*.rcilog.*")))
 pytestmark = pytest.mark.skipif(not LOGS, reason="no shipped logs: run `calib regen-logs`")
@@ -116,12 +116,12 @@ def test_friction_logs_read_fast_passes_of_joints_2_to_6_at_every_servo_tick(fit
 
 def test_variation_within_a_fifth_of_the_pattern_in_the_window(fitted):
     """Table 4.4 gives approximate values, no bounds: the fit is held to 20 % of the same
-    statistic of simula's pattern over the window (calib.truth.simula_variation)."""
-    from calib.truth import simula_variation
+    statistic of simula's pattern over the window (rcci.calib.truth.simula_variation)."""
+    from rcci.calib.truth import simula_variation
 
     import tomllib
 
-    from calib.truth import log_truth
+    from rcci.calib.truth import log_truth
 
     windows = {t.meta["joint"]: (log_truth(t), tuple(t.meta["window"]))
                for t in fitted["traces"] if t.experiment == "friction"}
@@ -135,7 +135,7 @@ def test_variation_within_a_fifth_of_the_pattern_in_the_window(fitted):
 def test_every_table_4_8_row_within_table_4_9_uncertainty(fitted):
     """Each sweep of Table 4.8 solved for its leading coefficient (the others from the
     fit), as the thesis's 'Result' column, within Table 4.9's bound of the truth."""
-    from calib.gravity import row_result
+    from rcci.calib.gravity import row_result
 
     g = fitted["outcomes"]["gravity"].results
     truth = dict(zip(g.names, fitted["truth"].gravity))
@@ -149,8 +149,8 @@ def test_every_table_4_8_row_within_table_4_9_uncertainty(fitted):
 def test_static_friction_coefficients_within_tolerance_of_table_4_5(fitted):
     """Breakaway ramps (calib record breakaway) against simula's breakaway threshold (the
     truth's Table 4.5). The thesis states no uncertainty for these hand-tuned values;
-    calib.breakaway.TOLERANCE is this project's (5 %, joint 4 10 %)."""
-    from calib.breakaway import TOLERANCE
+    rcci.calib.breakaway.TOLERANCE is this project's (5 %, joint 4 10 %)."""
+    from rcci.calib.breakaway import TOLERANCE
 
     truth = fitted["truth"]
     res = fitted["outcomes"]["breakaway"].results

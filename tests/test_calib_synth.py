@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.drive import Drive
-from calib.trace import Trace
+from rcci.calib.drive import Drive
+from rcci.calib.trace import Trace
 
 DEG = np.pi / 180
 

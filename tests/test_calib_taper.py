@@ -1,10 +1,10 @@
-"""The tapered pass mean (calib.work.tapered_mean): a position-dependent friction seen
+"""The tapered pass mean (rcci.calib.work.tapered_mean): a position-dependent friction seen
 through the current filter of Appendix C no longer shifts with speed."""
 from __future__ import annotations
 
 import numpy as np
 
-from calib.work import find_passes, hann_edge_weights, tapered_mean, window_work
+from rcci.calib.work import find_passes, hann_edge_weights, tapered_mean, window_work
 
 TAU = 0.015        # s, the current-sense filter
 H = 0.001          # s, servo tick

@@ -5,7 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from calib.params import update_params
+from rcci.calib.params import update_params
 
 ROOT = Path(__file__).resolve().parent.parent
 NOMINAL_C12 = 5.509          # models/puma260.toml, Table 4.9

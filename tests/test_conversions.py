@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from rci.conversions import Conversions, friction_torque
-from models import load_robot
+from rcci.models import load_robot
 
 ROBOTS = ("puma260", "microbo")
 CONV = {r: Conversions.for_robot(r) for r in ROBOTS}

@@ -42,7 +42,7 @@ def test_fk_and_jacobians_match_pinocchio(name):
 @pytest.mark.parametrize("name", ROBOTS)
 def test_gravity_matches_pinocchio(name):
     mod, arm = cc.MODULES[name], ARMS[name]
-    from models import load_robot
+    from rcci.models import load_robot
 
     model = load_robot(name)
     masses = np.array([link.mass for link in model.links])

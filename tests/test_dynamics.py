@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from models import available_robots, load_robot
+from rcci.models import available_robots, load_robot
 
 ROBOTS = tuple(available_robots())
 REL = 1e-10
@@ -145,7 +145,7 @@ def test_batched_equals_single(robot: str) -> None:
 
 
 def test_bad_input_is_named() -> None:
-    from models.kinematics import InvalidInput
+    from rcci.models.kinematics import InvalidInput
 
     mod, _ = ARMS[ROBOTS[0]]
     with pytest.raises(InvalidInput, match="qd"):

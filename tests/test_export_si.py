@@ -203,7 +203,7 @@ def test_a_prismatic_arm_is_in_metres(tmp_path):
 
 
 def test_the_replay_shows_the_record_in_si_units(recorded):
-    from rci.view import Replay
+    from rcci.view.replay import Replay
 
     replay = Replay(recorded)
     si = log_in_si(read_log(recorded))

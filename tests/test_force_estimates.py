@@ -21,7 +21,7 @@ import pytest
 
 import rccl.adaptive
 import rccl.kinematics
-from models import load_robot
+from rcci.models import load_robot
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl.exceptions import TrajectoryFault
 from rccl.adaptive.force import ForceEstimator, JointModel, FILTER_TAU

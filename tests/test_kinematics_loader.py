@@ -7,13 +7,13 @@ import sys
 
 import pytest
 
-import models
+import rcci.models
 import rccl.kinematics
 from rccl.kinematics import KinematicsNotFound, load
 
 
 def test_each_robot_with_a_data_file_loads_its_generated_module():
-    for robot in models.available_robots():
+    for robot in rcci.models.available_robots():
         mod = load(robot)
         assert mod is sys.modules[f"rccl.kinematics.{robot}"]
         assert mod.fk(mod.LOWER * 0.0).shape == (4, 4)      # a real module of the contract, not a stub
@@ -27,9 +27,9 @@ def test_an_unknown_robot_is_refused_naming_the_robots_there_are():
 
 
 def test_a_data_file_without_make_derive_is_refused_with_the_cure(tmp_path, monkeypatch):
-    text = (models.models_dir() / "puma260.toml").read_text()
+    text = (rcci.models.models_dir() / "puma260.toml").read_text()
     (tmp_path / "nogenerated.toml").write_text(text.replace('name = "puma260"', 'name = "nogenerated"'))
-    shutil.copytree(models.models_dir() / "urdf", tmp_path / "urdf")
+    shutil.copytree(rcci.models.models_dir() / "urdf", tmp_path / "urdf")
     monkeypatch.setenv("RCCI_MODELS", str(tmp_path))
     with pytest.raises(ImportError, match=r"robot='nogenerated': no generated kinematics "
                                           r"\(rccl/kinematics/nogenerated.py\); run `make derive`"):

@@ -3,7 +3,9 @@
 ``models`` (the robot description) is the ground floor: it imports none of the project's
 other packages. ``derive`` and ``rci`` stand on it and not on each other; ``rccl`` and
 ``calib`` stand above. A package may import only from its own floor or below (``calib``
-uses ``rccl``'s kinematics and calibrated arm, which share its floor).
+uses ``rccl``'s kinematics and calibrated arm, which share its floor). The 3D view (``view``,
+installed as ``rcci.view``) is the top floor: it shows rci's logs and rccl's plans, and nothing
+imports it (a viewed process feeds it through ``rci.view_link``).
 """
 from __future__ import annotations
 
@@ -11,7 +13,10 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-FLOOR = {"models": 0, "derive": 1, "rci": 1, "rccl": 2, "calib": 2}
+FLOOR = {"models": 0, "derive": 1, "rci": 1, "rccl": 2, "calib": 2, "view": 3}
+#: models, calib and view are installed as rcci.models, rcci.calib and rcci.view (setup.py): imports use those names
+INSTALLED_PREFIX = "rcci."
+INSTALLED_ELSEWHERE = ("models", "calib", "view")
 #: same-floor imports that are part of the design
 ALLOWED_SIDEWAYS = {("calib", "rccl")}
 
@@ -30,6 +35,7 @@ def _imports(path: Path, module: str) -> set[str]:
                 out.add(".".join(base + ([node.module] if node.module else [])))
             elif node.module:
                 out.add(node.module)
+    out = {name.removeprefix(INSTALLED_PREFIX) for name in out}
     return {name for name in out if name.split(".")[0] in FLOOR}
 
 
@@ -70,3 +76,19 @@ def test_no_module_of_the_project_imports_the_old_robot_model_path():
                 if isinstance(node, ast.ImportFrom) and node.module and node.module.endswith("robot_model"):
                     users.append(str(path.relative_to(ROOT)))
     assert not users, users
+
+
+def test_the_project_imports_its_folders_by_their_installed_names():
+    """``models`` and ``calib`` are installed as ``rcci.models`` and ``rcci.calib``: an import of the
+    bare folder name works only from the repository's root, and would put a second copy of the
+    package beside the installed one (its exceptions then not caught as themselves)."""
+    bare = []
+    for top in (*FLOOR, "bench", "examples", "tests", "docs"):
+        for path in (ROOT / top).rglob("*.py"):
+            tree = ast.parse(path.read_text(), str(path))
+            for node in ast.walk(tree):
+                names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                         [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else [])
+                bare += [f"{path.relative_to(ROOT)}:{node.lineno} {n}" for n in names
+                         if n.split(".")[0] in INSTALLED_ELSEWHERE]
+    assert not bare, "imports of a folder by a name that is not installed: " + ", ".join(bare)

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models import ModelError
-from models import Joint, RobotModel, Source, load_robot, models_dir
+from rcci.models import ModelError
+from rcci.models import Joint, RobotModel, Source, load_robot, models_dir
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 ROBOTS = ("puma260", "microbo")

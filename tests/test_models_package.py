@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import models
-from models import FRICTION_KEYS, JointFriction, ModelError, load_robot
-from models.params import SCHEMA, ParamsFileError, read_params
+import rcci.models
+from rcci.models import FRICTION_KEYS, JointFriction, ModelError, load_robot
+from rcci.models.params import SCHEMA, ParamsFileError, read_params
 
 
 def test_old_import_paths_name_the_same_objects():
@@ -19,17 +19,17 @@ def test_old_import_paths_name_the_same_objects():
     import rci.exceptions
     import rci.robot_model
 
-    assert rci.robot_model.load_robot is models.load_robot
-    assert rci.robot_model.RobotModel is models.RobotModel
+    assert rci.robot_model.load_robot is rcci.models.load_robot
+    assert rci.robot_model.RobotModel is rcci.models.RobotModel
     assert rci.ModelError is rci.exceptions.ModelError is ModelError
     assert not issubclass(ModelError, rci.RCIError)   # its own root, below rci
 
 
 def test_calib_reads_the_data_file_from_rcci_models(tmp_path, monkeypatch):
     """calib's nominal values come from where the loader found the robot, $RCCI_MODELS included."""
-    from calib.robot import robot_info
+    from rcci.calib.robot import robot_info
 
-    shutil.copytree(models.models_dir(), tmp_path / "m", ignore=shutil.ignore_patterns("*.py", "__pycache__"))
+    shutil.copytree(rcci.models.models_dir(), tmp_path / "m", ignore=shutil.ignore_patterns("*.py", "__pycache__"))
     path = tmp_path / "m" / "puma260.toml"
     text = path.read_text()
     assert 'title = "Unimation PUMA 260"' in text
@@ -45,8 +45,8 @@ def test_calib_reads_the_data_file_from_rcci_models(tmp_path, monkeypatch):
 ])
 def test_one_reader_for_calib_and_simula(tmp_path, text, field):
     """calib and simula refuse the same files with the same message (the one reader's)."""
-    from calib.exceptions import CalibError
-    from calib.params import read_params as calib_read
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.params import read_params as calib_read
     from rci.simula.exceptions import ParamsError
     from rci.simula.params import load_params, truth_from_model
 
@@ -63,7 +63,7 @@ def test_one_reader_for_calib_and_simula(tmp_path, text, field):
 
 
 def test_a_file_calib_writes_is_one_simula_reads(tmp_path):
-    from calib.params import update_params
+    from rcci.calib.params import update_params
     from rci.simula.params import load_params, truth_from_model
 
     path = tmp_path / "p.toml"
@@ -74,7 +74,7 @@ def test_a_file_calib_writes_is_one_simula_reads(tmp_path):
 
 
 def test_simula_calib_and_the_force_model_share_one_friction_record():
-    from calib.params import Fitted, load_fitted
+    from rcci.calib.params import Fitted, load_fitted
     from rccl.adaptive.force import JointModel
     from rci.simula.params import Truth, truth_from_model
 

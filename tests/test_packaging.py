@@ -4,8 +4,10 @@ directory run the installed ``simula -p`` and a short RCCL move against it.
 The fresh venv gets the project's dependencies (pin, casadi, numpy, ...) from the test
 venv's site-packages through ``.pth`` files (what ``--system-site-packages`` does for a
 system Python), so nothing is downloaded and the test stays fast; the project itself comes only from the wheel:
-the script checks that ``models``, ``rci`` and ``rccl`` load from the fresh venv and that
-the robot files are found as package data.
+the script checks that ``rcci.models``, ``rci`` and ``rccl`` load from the fresh venv and that
+the robot files are found as package data. The wheel adds no generic top-level name
+(``models``, ``calib``, ``derive``, ``bench``): the repository's ``models/`` and ``calib/`` are
+installed as ``rcci.models`` and ``rcci.calib``.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import sysconfig
 import textwrap
 import time
 import venv
+import zipfile
 from pathlib import Path
 
 
@@ -31,16 +34,22 @@ CLIENT = textwrap.dedent('''
 
     import numpy as np
 
-    import models, rccl, rci
+    import rcci.models, rccl, rci
     from rccl import EQ, T6, TL, Trsf, makeposition
     from rccl.kinematics import puma260 as kin
     from rci.simula.process import ToolProcess
 
     prefix = Path(sys.prefix).resolve()
-    for mod in (models, rci, rccl):
+    for mod in (rcci.models, rci, rccl):
         where = Path(mod.__file__).resolve()
         assert prefix in where.parents, f"{mod.__name__} loaded from {where}, not from {prefix}"
-    data = models.models_dir()
+    for generic in ("models", "calib", "derive", "bench"):
+        try:
+            __import__(generic)
+        except ImportError:
+            continue
+        raise AssertionError(f"the installed project provides a top-level {generic!r}")
+    data = rcci.models.models_dir()
     assert prefix in data.parents and (data / "puma260.toml").is_file() \\
         and (data / "urdf" / "puma260.urdf").is_file(), f"robot files not in the wheel: {data}"
 
@@ -79,6 +88,9 @@ def test_wheel_installs_and_runs_outside_the_tree(tmp_path):
              if "deprecat" in line.lower() or "BuildBackendWarning" in line]
     assert not noise, "setuptools deprecation warnings in the build:\n" + "\n".join(noise)
     (wheel,) = wheels.glob("rcci-*.whl")
+    with zipfile.ZipFile(wheel) as zf:
+        tops = {name.split("/")[0] for name in zf.namelist() if not name.split("/")[0].endswith(".dist-info")}
+    assert tops == {"rci", "rccl", "rcci"}, f"top-level names in the wheel: {sorted(tops)}"
     t_build = time.monotonic() - t0
 
     fresh = tmp_path / "fresh"

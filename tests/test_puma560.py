@@ -10,7 +10,7 @@ import sympy as sp
 
 from derive.dh import DHLink, DHRobot, Q
 from derive.inverse import OutsideClass, class_reasons, solve_ik
-from models import load_robot
+from rcci.models import load_robot
 from rccl.kinematics import exceptions as errors
 from rccl.kinematics import puma560 as P
 

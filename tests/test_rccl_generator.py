@@ -173,7 +173,7 @@ def test_a_functional_transform_that_raises_stops_the_arm_with_its_name(sim, kin
 @pytest.mark.parametrize("kind", KINDS)
 def test_a_move_at_the_joint_speed_limit_with_a_monitor_reaches_its_target(sim, kind, rate):
     """Issue 25, defect 4: the adaptive cycle omitted the encoder rounding; R_REQVEL at 4.48 rad/s."""
-    from models import load_robot
+    from rcci.models import load_robot
     vmax = np.array(load_robot("puma260").max_velocity)
     with _open(sim, kind) as arm:
         go(arm, Q0, rot_speed=2.0)

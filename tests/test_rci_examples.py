@@ -133,6 +133,6 @@ def test_teach_program_on_a_terminal(tmp_path):
     assert proc.returncode == 0, proc.stderr.read()
     poses = json.loads(out.read_text())["poses"]
     assert len(poses) == 1
-    from models import load_robot
+    from rcci.models import load_robot
     ready = load_robot("puma260").poses["ready"]
     np.testing.assert_allclose(np.degrees(np.array(poses[0]) - ready), [4, 0, 0, 0, 0, 0], atol=0.05)

@@ -8,7 +8,7 @@ import pytest
 
 from rci import codes
 from rci.chg import CUR, POS, STOPCAL, Chg
-from models import load_robot
+from rcci.models import load_robot
 from rci.simula.arm import SimulatedArm
 from rci.simula.exceptions import ParamsError
 from rci.simula.params import PulleyLoad, load_params, parse_load, truth_from_model

@@ -16,7 +16,7 @@ import pytest
 from rci import codes, protocol
 from rci.how import How
 from rci.link import open_link
-from models import load_robot
+from rcci.models import load_robot
 from rci.session import Session
 from rci.simula.arm import SimulatedArm
 from rci.simula.params import truth_from_model

@@ -16,7 +16,7 @@ from rci import codes, protocol
 from rci.chg import CUR, POS, STOPCAL, Chg
 from rci.conversions import Conversions
 from rci.link import open_link
-from models import load_robot
+from rcci.models import load_robot
 from rci.simula.process import SimulaProcess
 
 PUMA = load_robot("puma260")

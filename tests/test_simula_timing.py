@@ -17,7 +17,7 @@ import pytest
 from rci import protocol
 from rci.chg import Chg
 from rci.link import open_link
-from models import load_robot
+from rcci.models import load_robot
 from rci.simula import server as server_mod
 from rci.simula.arm import SimulatedArm
 from rci.simula.params import truth_from_model

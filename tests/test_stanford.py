@@ -111,7 +111,7 @@ def test_the_shipped_model_file_has_this_table():
     """models/stanford.toml (what `make derive` reads) is the table derived here, numbers and
     joint-3 stroke included."""
     from derive.dh import dh_from_model
-    from models import load_robot
+    from rcci.models import load_robot
 
     model = load_robot("stanford")
     robot, params = dh_from_model(model)

@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 import pytest
 
 from derive import audit
@@ -63,7 +64,16 @@ def test_the_derivations_of_the_audit_hold():
     assert 50 < ratio < 200                            # second-order remainder (3.84)
     assert audit.check_q_matrices() and audit.check_sensitivity_algebra() and audit.check_friction_repeat()
     gw = audit.gravity_work()
-    assert str(gw["tau0/(Wg1-Wg2)"]) == "1/2" and str(gw["tau1/(Wg1+Wg2)"]) == "1/2"
+    # W_g the work done against gravity (issue 29, item 12): 4.45, 4.46 and Table 4.8's header stand as
+    # printed, and 4.47 is tau0 = -(Wg1 - Wg2)/2, tau1 = -(Wg1 + Wg2)/2
+    m, g, r, p0 = sp.symbols("m g r phi0", real=True)
+    assert sp.simplify(gw["Wg"] - (-2 * m * g * r * sp.sin(p0))) == 0
+    assert sp.simplify(gw["Wg1-Wg2"] - 2 * m * g * r * sp.cos(p0)) == 0
+    assert sp.simplify((gw["Wg2"] - gw["Wg1"]) / 2 - (-m * g * r * sp.cos(p0))) == 0      # Table 4.8: = tau0
+    assert str(gw["tau0/(Wg1-Wg2)"]) == "-1/2" and str(gw["tau1/(Wg1+Wg2)"]) == "-1/2"
+    fl = audit.force_limit_example()                   # 4.53-4.55 read as a limit on f_x: t_l as printed
+    F = sp.Symbol("F_l", positive=True)
+    assert list(fl["t_l, limit on fx"]) == [F, 0] and list(fl["t_l, limit on fy"]) == [F, F]
     assert audit.two_link_pose() and audit.check_condition_bound()
 
 

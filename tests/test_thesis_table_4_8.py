@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from calib.fits.gravity import J3A_NOTE, THESIS_4_8
+from rcci.calib.fits.gravity import J3A_NOTE, THESIS_4_8
 
 C13_J3B = -1.744            # Table 4.8, row j3B / joint 3: c13
 C15_J3A_RESULT = -1.194     # Table 4.8, row j3A: its printed result c15

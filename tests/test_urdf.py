@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 import yourdfpy
 
-from models import RobotModel, load_robot
+from rcci.models import RobotModel, load_robot
 
 ROBOTS = ("puma260", "microbo", "stanford")  # every URDF is also cross-checked in tests/test_crosscheck.py
 N_SAMPLES = 300

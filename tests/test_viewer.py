@@ -3,9 +3,9 @@
 A real ``simula -p --power-on --view`` process serves the view of its arm; headless
 Chromium (Debian's ``chromium`` package, software WebGL; .ci/run installs it) loads the
 page, an RCCL program turns the waist, and the same page, updated over its websocket,
-is captured again. The arm is drawn in the view's orange (rci.viewer.ARM_COLOR): both
+is captured again. The arm is drawn in the view's orange (rcci.view.scene.ARM_COLOR): both
 pictures must show a body of orange pixels, the picture must not be a uniform canvas,
-and the orange must have moved. The replay (``python -m rci.view LOG --screenshot``) is
+and the orange must have moved. The replay (``python -m rcci.view.replay LOG --screenshot``) is
 checked the same way on a shipped log. Without Chromium these tests fail and say how
 to install it: they are never skipped.
 
@@ -26,10 +26,10 @@ import numpy as np
 import pytest
 
 import rccl
-from models import load_robot
+from rcci.models import load_robot
 from rccl import EQ, T6, TL, gentr_rot, gentr_trsl, makeposition, yunit
 from rccl.position import joint_position
-from rci.screenshot import Browser, pixels
+from rcci.view.screenshot import Browser, pixels
 from rci.simula.process import SimulaProcess
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -102,7 +102,7 @@ def test_simula_view_shows_the_arm_in_chromium_and_follows_it():
 
 def test_replay_screenshot_shows_the_arm(tmp_path):
     out = tmp_path / "replay.png"
-    r = subprocess.run([sys.executable, "-m", "rci.view", "calib/logs/kinematics.rcilog.xz", "--port", "0",
+    r = subprocess.run([sys.executable, "-m", "rcci.view.replay", "calib/logs/kinematics.rcilog.xz", "--port", "0",
                         "--screenshot", str(out), "--size", f"{SIZE[0]}x{SIZE[1]}", "--at", "20"],
                        capture_output=True, text=True, timeout=90, cwd=ROOT)
     assert r.returncode == 0, r.stderr
@@ -115,7 +115,7 @@ def test_replay_screenshot_shows_the_arm(tmp_path):
 def test_the_view_draws_link_6_where_the_kinematics_put_it(robot):
     import rccl.kinematics
 
-    from rci.viewer import ArmTree
+    from rcci.view.scene import ArmTree
 
     model = load_robot(robot)
     kin = rccl.kinematics.load(robot)
@@ -132,7 +132,7 @@ def _corner(name: str, x: float, y: float, z: float):
 
 
 def test_the_rccl_reader_draws_every_queued_request_and_its_status():
-    from rccl.viewer import COLORS, PlanReader
+    from rcci.view.plan import COLORS, PlanReader
 
     corners = [(0.30, -0.18), (0.30, 0.02), (0.20, 0.02)]
     with SimulaProcess("-p", "--power-on", lockstep=True) as sim:
@@ -162,7 +162,7 @@ def test_the_rccl_reader_draws_every_queued_request_and_its_status():
 
 
 def test_the_feed_merges_what_queued_up():
-    from rci.view_feed import merge
+    from rcci.view.process import merge
 
     pending: dict = {}
     merge(pending, {"q": [0] * 6, "paths": {"a": [[[[0, 0, 0], [1, 1, 1]], [1, 2, 3]]]}})
@@ -171,8 +171,8 @@ def test_the_feed_merges_what_queued_up():
 
 
 @pytest.mark.parametrize("cmd, needles", [
-    ((sys.executable, "-m", "rci.view", "--help"), ("--port", "--screenshot", "--at", "--env", "--speed")),
-    ((sys.executable, "-m", "rci.view_feed", "--help"), ("--port", "--env", "--robot")),
+    ((sys.executable, "-m", "rcci.view.replay", "--help"), ("--port", "--screenshot", "--at", "--env", "--speed")),
+    ((sys.executable, "-m", "rcci.view.process", "--help"), ("--port", "--env", "--robot")),
     ((sys.executable, "-m", "rci.simula", "--help"), ("--view", "--view-port")),
 ])
 def test_the_view_commands_explain_themselves(cmd, needles):

@@ -3,16 +3,16 @@ from __future__ import annotations
 
 import os
 
-from calib.fitting import FitOutcome, merge_joint_values
-from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.report import joint_truth
-from calib.tables import table_4_5
+from rcci.calib.fitting import FitOutcome, merge_joint_values
+from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from rcci.calib.report import joint_truth
+from rcci.calib.tables import table_4_5
 
 KEYS = ("static_pos", "static_neg")
 
 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
-    from calib.breakaway import fit_breakaway
+    from rcci.calib.breakaway import fit_breakaway
 
     joints = sorted({t.joint_index() for t in traces})
     drive = info.drive.with_sigma(inputs.sigma(joints))
@@ -26,7 +26,7 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
 
 
 def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
-    from calib.breakaway import TOLERANCE
+    from rcci.calib.breakaway import TOLERANCE
 
     fr = ctx.info.nominal["friction"]
     L = ["## Table 4.5: static friction coefficients F_s (N m)", "",
@@ -37,7 +37,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "moves; the torque at that moment (the line through the ramp's last 0.4 s of "
          "readings, read 15.5 ms later for the filter) minus gravity is F_s. The thesis "
          "states no uncertainty for Table 4.5; the tolerance is this project's "
-         "(`calib.breakaway.TOLERANCE`: 5 %, 10 % on joint 4, whose single ramps spread "
+         "(`rcci.calib.breakaway.TOLERANCE`: 5 %, 10 % on joint 4, whose single ramps spread "
          "by 10 %). The truth is simula's breakaway threshold; where Table 4.4's variation lifts "
          "the kinetic friction above F_s (joint 4), a joint can only move once the torque also "
          "exceeds that.", "",
@@ -56,7 +56,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
 
 
 def record(req: RecordRequest) -> None:
-    from calib.breakaway_program import breakaway_plans, run_breakaway
+    from rcci.calib.breakaway_program import breakaway_plans, run_breakaway
 
     static = req.info.nominal["friction"]["static_pos"]["values"]
     for plan in breakaway_plans(static, req.info.drive.G, req.joints):
@@ -68,9 +68,9 @@ def record(req: RecordRequest) -> None:
 def regen(ctx: RegenContext) -> list:
     """The ramps, every joint, on a simula of their own (so that `--kinds breakaway` alone
     records the same logs); recorded here, nothing left for the shared simula."""
-    from calib.breakaway_program import breakaway_plans
-    from calib.regen import record_breakaway
-    from calib.registry import OwnSimula
+    from rcci.calib.breakaway_program import breakaway_plans
+    from rcci.calib.regen import record_breakaway
+    from rcci.calib.registry import OwnSimula
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
     names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.joints()))

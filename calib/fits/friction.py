@@ -5,11 +5,11 @@ from typing import Any
 
 import numpy as np
 
-from calib.fitting import FitOutcome, merge_joint_values
-from calib.friction import fit_friction
-from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.report import SD
-from calib.tables import table_4_2_4_3
+from rcci.calib.fitting import FitOutcome, merge_joint_values
+from rcci.calib.friction import fit_friction
+from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from rcci.calib.report import SD
+from rcci.calib.tables import table_4_2_4_3
 
 #: the per-joint keys this fit writes to [friction], and how each comes from a joint's result
 FITTED = (("coulomb_pos", lambda r: r.plus.coulomb), ("coulomb_neg", lambda r: r.minus.coulomb),
@@ -36,9 +36,9 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
 
 def _window_gravity(res, traces, info, params, notes) -> list:
     """Each joint's Coulomb values corrected for gravity's mean over its window on the arm
-    the parameter file describes (calib.window_gravity)."""
-    from calib.friction import TAPER
-    from calib.window_gravity import window_gravity
+    the parameter file describes (rcci.calib.window_gravity)."""
+    from rcci.calib.friction import TAPER
+    from rcci.calib.window_gravity import window_gravity
 
     out, sources = [], set()
     for r in res:
@@ -60,7 +60,7 @@ def _window_gravity(res, traces, info, params, notes) -> list:
 
 
 def plot(out: FitOutcome, folder: str, prefix: str) -> list[str]:
-    from calib.plots import friction_plots
+    from rcci.calib.plots import friction_plots
 
     return friction_plots(out.results, out.extra["points"], folder, prefix=prefix)
 
@@ -69,7 +69,7 @@ def _variation_truth(ctx: ReportContext) -> dict[int, tuple[float, float]]:
     """Per joint, the peak and sqrt(2) RMS of simula's Table 4.4 pattern over the log's window."""
     import tomllib
 
-    from calib.truth import log_truth, simula_variation
+    from rcci.calib.truth import log_truth, simula_variation
 
     vt = {}
     for tr in ctx.traces:
@@ -151,14 +151,14 @@ def _rows(res, fr, truth, check, table: str, what: str, scale: float, fmt: str, 
 
 
 def record(req: RecordRequest) -> None:
-    from calib.experiments import friction_plans
-    from calib.program import record_plans
+    from rcci.calib.experiments import friction_plans
+    from rcci.calib.program import record_plans
 
     record_plans(req, friction_plans(req.joints, robot=req.info))
 
 
 def regen(ctx: RegenContext) -> list:
-    from calib.experiments import friction_plans
+    from rcci.calib.experiments import friction_plans
 
     return [((), p) for p in ctx.per_joint("friction", lambda j: friction_plans([j], robot=ctx.info))]
 

@@ -5,10 +5,10 @@ from typing import Any
 
 import numpy as np
 
-from calib.fitting import FitOutcome
-from calib.gravity import fit_gravity, row_result
-from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.tables import combination, table_4_8_4_9
+from rcci.calib.fitting import FitOutcome
+from rcci.calib.gravity import fit_gravity, row_result
+from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from rcci.calib.tables import combination, table_4_8_4_9
 
 THESIS_4_8 = {  # Table 4.8: (position, joint) -> (tau0 in c, (W_g2 - W_g1)/2), as printed but for j3A
     ("j5", 5): ("c15", -1.191), ("j4", 4): ("c15", -1.193), ("j3B", 3): ("c13", -1.744),
@@ -89,10 +89,10 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
 
 
 def plans(info, speed_deg: float = 20.0, extra: int = 2) -> list:
-    """The gravity sweeps for the arm of ``info`` (calib.experiments.gravity_plans): Table 4.7's
+    """The gravity sweeps for the arm of ``info`` (rcci.calib.experiments.gravity_plans): Table 4.7's
     where they identify its coefficients, else sweeps chosen by its regressor, each joint's
     rows weighted by its data-file friction (what remains of it in W1 - W2)."""
-    from calib.experiments import gravity_plans
+    from rcci.calib.experiments import gravity_plans
 
     fr = info.nominal["friction"]
     noise = (np.asarray(fr["coulomb_pos"]["values"], float) + np.asarray(fr["coulomb_neg"]["values"], float)) / 2
@@ -101,7 +101,7 @@ def plans(info, speed_deg: float = 20.0, extra: int = 2) -> list:
 
 
 def record(req: RecordRequest) -> None:
-    from calib.program import record_plans
+    from rcci.calib.program import record_plans
 
     record_plans(req, plans(req.info))
 

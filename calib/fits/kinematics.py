@@ -7,16 +7,16 @@ import tempfile
 
 import numpy as np
 
-from calib.exceptions import FitError
-from calib.fitting import FitOutcome
-from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.touch import SLOW
+from rcci.calib.exceptions import FitError
+from rcci.calib.fitting import FitOutcome
+from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from rcci.calib.touch import SLOW
 
 ACCURACY_TARGETS = 20   # target poses of the before/after positioning run
 
 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
-    from calib.kinematics import Touches, fit_touches, nominal_dh, section, table, touches_from_trace
+    from rcci.calib.kinematics import Touches, fit_touches, nominal_dh, section, table, touches_from_trace
 
     parts = [touches_from_trace(tr, info.drive) for tr in traces]
     if len({tuple(p.tip) for p in parts}) > 1:
@@ -36,7 +36,7 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
 def fit_poses(paths: list[str], robot: str):
     """The fit of end poses of ``robot`` measured by an instrument (CSV files of q and T6), with
     its section: ``(fit, table text, {"kinematics": section})``."""
-    from calib.kinematics import fit_kinematics, nominal_dh, read_poses, section, table
+    from rcci.calib.kinematics import fit_kinematics, nominal_dh, read_poses, section, table
 
     Q, T = zip(*(read_poses(p) for p in paths))
     fit_ = fit_kinematics(nominal_dh(robot), np.vstack(Q), np.concatenate(T))
@@ -45,8 +45,8 @@ def fit_poses(paths: list[str], robot: str):
 
 def _accuracy(ctx: ReportContext) -> dict:
     """RCCL's positioning error before/after on a simula of the logs' truth, and the cost."""
-    from calib.accuracy import cycle_cost, ik_cost, positioning_error
-    from calib.truth import log_truth
+    from rcci.calib.accuracy import cycle_cost, ik_cost, positioning_error
+    from rcci.calib.truth import log_truth
     from rccl.calibrated import calibrated_kinematics, load_calibrated
     from rccl.kinematics import load
     from rccl.session import load_kinematics
@@ -70,7 +70,7 @@ def _accuracy(ctx: ReportContext) -> dict:
 
 
 def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
-    from calib.kinematics import PARAM_NAMES
+    from rcci.calib.kinematics import PARAM_NAMES
 
     truth, check = ctx.truth, ctx.check
     accuracy = _accuracy(ctx) if truth is not None and not ctx.no_accuracy else None
@@ -82,7 +82,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          f"`calib record kinematics` touches the three faces of a fixture (a floor and two walls, "
          f"known in the base frame) {fit_.measurements} times with a touch-trigger probe on the flange "
          f"(tip at ({', '.join(f'{1e3 * x:.0f}' for x in t.tip)}) mm in link 6, a cranked stylus), "
-         f"approaching each face along its normal at {1e3 * SLOW:.1f} mm/s (calib.touch.SLOW) and stopping on "
+         f"approaching each face along its normal at {1e3 * SLOW:.1f} mm/s (rcci.calib.touch.SLOW) and stopping on "
          "the cycle the probe's "
          "switch (inport1) is seen closed; the joint angles between the last open and the first "
          "closed reading put the tip on the face: one equation n . p(q, e) = h per touch. The touches "
@@ -165,8 +165,8 @@ def _accuracy_section(accuracy: dict | None) -> list[str]:
 
 
 def record(req: RecordRequest) -> None:
-    from calib.touch import touch_plan
-    from calib.touch_program import run_touches
+    from rcci.calib.touch import touch_plan
+    from rcci.calib.touch_program import run_touches
 
     plan = touch_plan(max(1, (req.args.touches or 48) // 3), robot=req.robot)
     path = os.path.join(req.out, plan.name + ".rcilog")
@@ -176,9 +176,9 @@ def record(req: RecordRequest) -> None:
 
 def regen(ctx: RegenContext) -> list:
     """The touches on a simula of their own (the fixture and the probe are its environment)."""
-    from calib.regen import record_kinematics_log
-    from calib.registry import OwnSimula
-    from calib.touch import touch_plan
+    from rcci.calib.regen import record_kinematics_log
+    from rcci.calib.registry import OwnSimula
+    from rcci.calib.touch import touch_plan
 
     touch_plan(1, robot=ctx.info.name)     # refused here, before any recording, if the arm cannot
     return [(("own",), OwnSimula("kinematics", lambda: record_kinematics_log(ctx)))]

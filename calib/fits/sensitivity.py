@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.fitting import FitOutcome, merge_joint_values
-from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.report import joint_truth, nominal_vector
-from calib.sensitivity import fit_sensitivity
-from calib.tables import table_4_1
+from rcci.calib.fitting import FitOutcome, merge_joint_values
+from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from rcci.calib.report import joint_truth, nominal_vector
+from rcci.calib.sensitivity import fit_sensitivity
+from rcci.calib.tables import table_4_1
 
 RADIUS_M = 0.05  # pulley drum radius (estimate: a 10 cm drum, Figure 4.2 is lost)
 KEYS = ("torque_sensitivity", "torque_sensitivity_std", "torque_sensitivity_error", "torque_sensitivity_trials")
@@ -47,8 +47,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
 
 
 def record(req: RecordRequest) -> None:
-    from calib.experiments import sensitivity_plans
-    from calib.program import record_plans
+    from rcci.calib.experiments import sensitivity_plans
+    from rcci.calib.program import record_plans
 
     notes: list[str] = []
     plans = sensitivity_plans(req.args.mass, req.args.radius or RADIUS_M, req.joints, robot=req.info, notes=notes)
@@ -59,7 +59,7 @@ def record(req: RecordRequest) -> None:
 
 def regen(ctx: RegenContext) -> list:
     """Without the mass on the shared simula; with it, a simula with the pulley load per joint."""
-    from calib.experiments import sensitivity_plans
+    from rcci.calib.experiments import sensitivity_plans
 
     o = ctx.options
     plans = ctx.per_joint("sensitivity", lambda j: sensitivity_plans(o.mass, o.radius or RADIUS_M, [j], robot=ctx.info,

@@ -1,11 +1,11 @@
 """Typical static friction at random halts (thesis 4.5.5, second method, Table 4.6)."""
 from __future__ import annotations
 
-from calib.fitting import FitOutcome
-from calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
-from calib.report import joint_truth
-from calib.static import fit_static
-from calib.tables import table_4_6
+from rcci.calib.fitting import FitOutcome
+from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
+from rcci.calib.report import joint_truth
+from rcci.calib.static import fit_static
+from rcci.calib.tables import table_4_6
 
 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
@@ -39,14 +39,14 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
 
 
 def record(req: RecordRequest) -> None:
-    from calib.experiments import static_plan
-    from calib.program import record_plans
+    from rcci.calib.experiments import static_plan
+    from rcci.calib.program import record_plans
 
     record_plans(req, [static_plan(req.info.lower, req.info.upper, halts=req.args.halts or 275)])
 
 
 def regen(ctx: RegenContext) -> list:
-    from calib.experiments import static_plan
+    from rcci.calib.experiments import static_plan
 
     halts = ctx.options.halts
     return [((), static_plan(ctx.info.lower, ctx.info.upper, **({} if halts is None else {"halts": halts})))]

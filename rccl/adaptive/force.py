@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models import JointFriction, load_robot
+from rcci.models import JointFriction, load_robot
 from rci.conversions import Conversions, friction_torque
 
 from ..transform import force_map

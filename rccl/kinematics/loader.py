@@ -16,14 +16,14 @@ class KinematicsNotFound(ValueError, ImportError):
 
 def load(robot: str) -> ModuleType:
     """The generated kinematics module of ``robot`` (functions in SI units, base frame of
-    the arm's DH table; the contract is ``models.kinematics``).
+    the arm's DH table; the contract is ``rcci.models.kinematics``).
 
     Raises KinematicsNotFound naming the robot and the robots there are (a data file each in
     ``models/`` or ``$RCCI_MODELS``) for an unknown name, or saying that the robot's module
     has not been generated (``make derive``). An import error inside an existing generated
     module is not hidden.
     """
-    from models import available_robots
+    from rcci.models import available_robots
 
     known = available_robots()
     if not isinstance(robot, str) or robot not in known:

@@ -5,7 +5,7 @@ computations, the gravity vector and the whole dynamics (eq. 4.6: inverse dynami
 base regressor), derived with SymPy from the DH table of
 puma560.toml (J. Lloyd 1985, chapters 3 and 4). SI units, radians; every
 function accepts one configuration or a batch along a leading axis. Contract:
-models.kinematics; runtime helpers: rccl.kinematics.runtime.
+rcci.models.kinematics; runtime helpers: rccl.kinematics.runtime.
 """
 # fmt: off
 # ruff: noqa

@@ -17,7 +17,7 @@ from typing import Any, Callable, ClassVar, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from models.kinematics import PUBLIC  # the contract's public functions, in binding order
+from rcci.models.kinematics import PUBLIC  # the contract's public functions, in binding order
 from rccl.kinematics import exceptions
 
 #: two solutions closer than this (rad or m, per joint) are the same solution: at a

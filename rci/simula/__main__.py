@@ -24,8 +24,8 @@ from contextlib import contextmanager
 from dataclasses import replace
 from typing import Iterator
 
-from models import ModelError
-from models import available_robots, load_robot
+from rcci.models import ModelError
+from rcci.models import available_robots, load_robot
 from ..rate import MAX_RATE_HZ, MIN_RATE_HZ
 from .arm import SimulatedArm
 from .control import ControlChannel
@@ -197,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     view = None
     if args.view:   # before the real-time set-up: the view's process must not inherit SCHED_FIFO 70
-        from ..view_feed import ViewError
+        from ..view_link import ViewError
         from .view import start_view
         try:
             view = start_view(arm, model.name, args.env, port=args.view_port)

@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from models import JointFriction, ModelError
-from models.params import SCHEMA, check_schema, read_toml
+from rcci.models import JointFriction, ModelError
+from rcci.models.params import SCHEMA, check_schema, read_toml
 
 from .exceptions import ParamsError
 
-PARAMS_SCHEMA = SCHEMA   # the one schema, models.params
+PARAMS_SCHEMA = SCHEMA   # the one schema, rcci.models.params
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,7 @@ def _vector(path: str, section: str, key: str, raw: Any, base: np.ndarray, *, no
 
 
 def read_params_file(path: str | Path) -> dict[str, Any]:
-    """A parameter file's TOML as a dict (``models.params``, the one reader); ParamsError
+    """A parameter file's TOML as a dict (``rcci.models.params``, the one reader); ParamsError
     names the file when it is not readable TOML."""
     try:
         return read_toml(path)

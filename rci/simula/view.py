@@ -1,17 +1,17 @@
-"""``simula --view``: the simulated arm shown live in a browser (rci.viewer), sampled without touching the loop.
+"""``simula --view``: the simulated arm shown live in a browser (rcci.view.scene), sampled without touching the loop.
 
-``start_view(arm, robot, env, port)`` starts the view in a child process (``rci.view_feed``)
+``start_view(arm, robot, env, port)`` starts the view in a child process (``rci.view_link``)
 and a thread that, 30 times a second, copies the arm's joint angles, its clock and its
 power into one message for it. The thread only reads: ``arm.q`` is replaced by a fresh
 array at every physics substep (never written in place), so the reference it takes is a
 consistent snapshot of one instant; simula's loop neither waits for the view nor knows
-it is there (the thread's scheduling: rci/view_feed.py). The environment's surfaces (``--env``) are drawn as they were given.
+it is there (the thread's scheduling: rci/view_link.py). The environment's surfaces (``--env``) are drawn as they were given.
 """
 from __future__ import annotations
 
 from typing import Sequence
 
-from ..view_feed import DEFAULT_HZ, ViewFeed
+from ..view_link import DEFAULT_HZ, ViewFeed
 
 
 def start_view(arm, robot: str, env: Sequence[str] = (), *, host: str = "127.0.0.1", port: int = 8080,

@@ -9,7 +9,7 @@ looks, which lets a status line tick and an arm creep), hides pop-up notificatio
 software, which is true and beside the point in a picture) and writes a PNG.
 
 The DevTools protocol is JSON over a websocket (``websockets``, which viser depends on).
-Used by ``python -m rci.view --screenshot`` and ``examples/view_demo.py`` (the picture in
+Used by ``python -m rcci.view.replay --screenshot`` and ``examples/view_demo.py`` (the picture in
 docs/viewer.png) and by tests/test_viewer.py.
 """
 from __future__ import annotations

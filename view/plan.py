@@ -1,10 +1,10 @@
-"""An RCCL program's arm, planned path and target shown live in a web browser (``rccl.viewer.show(arm)``).
+"""An RCCL program's arm, planned path and target shown live in a web browser (``rcci.view.plan.show(arm)``).
 
     with rccl.open(url, robot="puma260") as arm:
-        view = rccl.viewer.show(arm, env=["plane:z=-0.2"])    # prints the address
+        view = rcci.view.plan.show(arm, env=["plane:z=-0.2"])    # prints the address
         arm.move(p1); arm.move(p2); arm.waitfor(p2.end)
 
-``show`` starts the 3D view of ``rci.viewer`` in a child process (``rci.view_feed``) and a
+``show`` starts the 3D view of ``rcci.view.scene`` in a child process (``rci.view_link``) and a
 thread that, 30 times a second, reads the arm through its public state and sends:
 
 * the arm at the joint angles the robot reports (``arm.measured_q()``), so the view shows
@@ -24,7 +24,7 @@ so a request queued and started between two looks is still drawn. A request queu
 still waiting behind a later one when the view looks appears when it starts.
 
 Nothing here runs in the control task except that append: the sampling thread reads, the
-child process draws (see rci/view_feed.py). ``env`` takes simula's ``--env`` words to
+child process draws (see rci/view_link.py). ``env`` takes simula's ``--env`` words to
 draw the same surfaces; the view does not ask simula for them.
 """
 from __future__ import annotations
@@ -35,11 +35,11 @@ from typing import Sequence
 
 import numpy as np
 
-from rci.view_feed import DEFAULT_HZ, DEFAULT_VIEW_PORT, ViewFeed
+from rci.view_link import DEFAULT_HZ, DEFAULT_VIEW_PORT, ViewFeed
 
-from .drive import drive_coefficients, drive_basis
-from .exceptions import NotRunning
-from .transform import T6
+from rccl.drive import drive_coefficients, drive_basis
+from rccl.exceptions import NotRunning
+from rccl.transform import T6
 
 PATH_POINTS = 32          # points per request's polyline
 KEEP_REQUESTS = 50        # requests remembered for the path (the oldest done ones are dropped)
@@ -84,7 +84,7 @@ class PlanReader:
 
     def __init__(self, arm) -> None:
         if getattr(arm, "gen", None) is None:
-            raise NotRunning("rccl.viewer: the arm is not running; call it inside `with rccl.open(...) as arm:`")
+            raise NotRunning("rcci.view.plan: the arm is not running; call it inside `with rccl.open(...) as arm:`")
         self.arm = arm
         self.gen = arm.gen
         self._requests: collections.OrderedDict = collections.OrderedDict()   # serial -> Request
@@ -194,5 +194,5 @@ def show(arm, *, env: Sequence[str] = (), host: str = "127.0.0.1", port: int = D
     """
     watch = ArmWatch(arm, env=env, host=host, port=port, hz=hz)
     if not quiet:
-        print(f"rccl.viewer: {arm.robot} shown at {watch.url}", file=sys.stderr, flush=True)
+        print(f"rcci.view.plan: {arm.robot} shown at {watch.url}", file=sys.stderr, flush=True)
     return watch

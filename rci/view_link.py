@@ -1,7 +1,12 @@
-"""A live view served by a child process and fed over a pipe, so that the process being viewed never waits on it.
+"""The link to a live 3D view: a child process fed over a pipe, so that the process being viewed never waits on it.
 
-``ViewFeed("puma260", env=[...], port=8080)`` starts ``python -m rci.view_feed`` (a fresh
-interpreter running an ``rci.viewer.ArmView``: viser's server, its websocket and the scene
+The view itself is the package ``rcci.view`` (the scene, its process, replay, screenshots, an
+RCCL program's live plan); this module is only what a viewed process needs to feed it, the
+way ``rci.link`` is what a controller needs to reach a robot: simula (``simula --view``) and
+``rcci.view.plan.show`` use it, and it imports nothing of the view.
+
+``ViewFeed("puma260", env=[...], port=8080)`` starts ``python -m rcci.view.process`` (a fresh
+interpreter running an ``rcci.view.scene.ArmView``: viser's server, its websocket and the scene
 updates live there), waits for the address it prints and keeps it as ``feed.url``.
 ``feed.follow(sample)`` then calls ``sample()`` from a thread of its own ``hz`` times a
 second (30 by default) and writes what it returns, one JSON line, to the child's stdin::
@@ -35,7 +40,6 @@ never outlives the program it shows.
 """
 from __future__ import annotations
 
-import argparse
 import atexit
 import json
 import os
@@ -58,7 +62,7 @@ class ViewError(RuntimeError):
 FEED_PRIORITY = 1            # SCHED_FIFO priority of the sampling thread (see the module docstring)
 
 
-def _not_realtime() -> None:
+def not_realtime() -> None:
     """Drop a SCHED_FIFO/RR policy inherited from a real-time process (this thread only; quietly)."""
     try:
         if os.sched_getscheduler(0) != os.SCHED_OTHER:
@@ -70,7 +74,7 @@ def _not_realtime() -> None:
 def _lowest_realtime(priority: int) -> None:
     """This thread to SCHED_FIFO ``priority`` (0: an ordinary thread); quietly unchanged where not allowed."""
     if priority <= 0:
-        _not_realtime()
+        not_realtime()
         return
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
@@ -83,7 +87,7 @@ class ViewFeed:
 
     def __init__(self, robot: str = "puma260", *, env: Sequence[str] = (), host: str = "127.0.0.1",
                  port: int = DEFAULT_VIEW_PORT, title: str = "", start_timeout: float = START_TIMEOUT) -> None:
-        argv = [sys.executable, "-m", "rci.view_feed", "--robot", robot, "--host", host, "--port", str(port),
+        argv = [sys.executable, "-m", "rcci.view.process", "--robot", robot, "--host", host, "--port", str(port),
                 "--title", title]
         for spec in env:
             argv += ["--env", spec]
@@ -198,104 +202,3 @@ class ViewFeed:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-# ---------------------------------------------------------------------------------------------
-# the child: python -m rci.view_feed
-# ---------------------------------------------------------------------------------------------
-def apply(view, msg: dict) -> None:
-    """Apply one feed message to an ``ArmView``."""
-    if "q" in msg:
-        view.set_q(msg["q"])
-    if "status" in msg:
-        view.set_status(str(msg["status"]))
-    for name, polylines in (msg.get("paths") or {}).items():
-        view.set_path(name, [(pts, color) for pts, color in polylines])
-    if "target" in msg:
-        view.set_target(msg["target"])
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="python -m rci.view_feed",
-        description="Serve the 3D view of an arm and update it from JSON lines on stdin (started by "
-                    "rci.view_feed.ViewFeed for simula --view and rccl.viewer.show; prints 'view URL' "
-                    "when ready and exits when stdin closes).")
-    p.add_argument("--robot", default="puma260", help="robot model (models/ROBOT.toml and its URDF)")
-    p.add_argument("--host", default="127.0.0.1", help="address the view listens on (default loopback)")
-    p.add_argument("--port", type=int, default=DEFAULT_VIEW_PORT,
-                   help=f"HTTP/websocket port (default {DEFAULT_VIEW_PORT}; 0: any free port; a busy one: the next)")
-    p.add_argument("--env", action="append", default=[], metavar="SPEC",
-                   help="environment surface to draw (repeatable), simula's --env words: plane:z=..., box:...")
-    p.add_argument("--title", default="", help="the panel's title")
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    _not_realtime()
-    from .viewer import ArmView
-    try:
-        view = ArmView(args.robot, env=args.env, host=args.host, port=args.port, title=args.title)
-    except (ImportError, ValueError, OSError) as exc:
-        print(f"view: {exc}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # a bad robot name is a ModelError
-        print(f"view: {exc}", file=sys.stderr)
-        return 2
-    print(f"view {view.url}", flush=True)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)                                      # nobody reads stdout from here on
-    sys.stdout = open(1, "w", closefd=False)
-    try:
-        serve(view, sys.stdin.fileno())
-    except KeyboardInterrupt:
-        pass
-    finally:
-        view.close()
-    return 0
-
-
-def merge(pending: dict, msg: dict) -> None:
-    """Fold ``msg`` into ``pending``: the newest value of each key, paths by name."""
-    for key, value in msg.items():
-        if key == "paths":
-            pending.setdefault("paths", {}).update(value or {})
-        else:
-            pending[key] = value
-
-
-def serve(view, fd: int) -> None:
-    """Apply the messages arriving on ``fd`` until end of file; what queued up meanwhile is merged
-    first, so a view slower than its feed skips to the newest state instead of lagging behind."""
-    buf = b""
-    while True:
-        select.select([fd], [], [])
-        data = os.read(fd, 1 << 16)
-        if not data:
-            return
-        buf += data
-        while select.select([fd], [], [], 0)[0]:            # everything already there
-            more = os.read(fd, 1 << 16)
-            if not more:
-                break
-            buf += more
-        *lines, buf = buf.split(b"\n")
-        pending: dict = {}
-        for line in lines:
-            try:
-                msg = json.loads(line)
-                if not isinstance(msg, dict):
-                    raise ValueError("not a JSON object")
-                merge(pending, msg)
-            except ValueError as exc:
-                print(f"view: bad message dropped ({exc})", file=sys.stderr)
-        if pending:
-            try:
-                apply(view, pending)
-            except (ValueError, TypeError, KeyError) as exc:
-                print(f"view: bad message dropped ({exc})", file=sys.stderr)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

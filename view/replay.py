@@ -1,8 +1,8 @@
-"""``python -m rci.view LOG.rcilog``: replay a recorded log in the 3D browser view, with a time slider and a play button.
+"""``python -m rcci.view.replay LOG.rcilog``: replay a recorded log in the 3D browser view, with a time slider and a play button.
 
-    python -m rci.view run.rcilog                     # serves http://127.0.0.1:8080 until Ctrl-C
-    python -m rci.view calib/logs/kinematics.rcilog.xz --port 0 --speed 4
-    python -m rci.view run.rcilog --screenshot run.png --at 12.5   # a picture (headless Chromium), then exit
+    python -m rcci.view.replay run.rcilog                     # serves http://127.0.0.1:8080 until Ctrl-C
+    python -m rcci.view.replay calib/logs/kinematics.rcilog.xz --port 0 --speed 4
+    python -m rcci.view.replay run.rcilog --screenshot run.png --at 12.5   # a picture (headless Chromium), then exit
 
 The arm is drawn at the joint angles the robot reported in each recorded cycle (``how_pos``
 converted by ``rci.log_units``: the log's own robot, docs/log-format.md); the tool path
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .view_feed import DEFAULT_VIEW_PORT
+from rci.view_link import DEFAULT_VIEW_PORT
 
 PATH_POINTS = 1500        # the tool path is drawn through at most this many records
 PLAYED_COLOR = (190, 0, 150)
@@ -36,8 +36,8 @@ class Replay:
     """A log's joint angles over time, and where link 6 was and was sent, ready to draw."""
 
     def __init__(self, path: str | Path) -> None:
-        from .log_units import log_in_si
-        from .recorder import read_log
+        from rci.log_units import log_in_si
+        from rci.recorder import read_log
 
         self.log = read_log(path)
         self.name = Path(path).name
@@ -78,7 +78,7 @@ class ReplayView:
     """An ``ArmView`` driven by a ``Replay``: ``show(t)``, the panel's controls, a player thread."""
 
     def __init__(self, replay: Replay, *, env=(), host: str = "127.0.0.1", port: int = DEFAULT_VIEW_PORT) -> None:
-        from .viewer import ArmView
+        from .scene import ArmView
 
         self.replay = replay
         self.view = ArmView(replay.robot, env=env, host=host, port=port, title=f"replay {replay.name}",
@@ -163,7 +163,7 @@ def _size(text: str) -> tuple[int, int]:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m rci.view",
+        prog="python -m rcci.view.replay",
         description="Replay a recorded .rcilog in the 3D browser view (the arm, its tool path, the commanded "
                     "frame), with a time slider and a play button (docs/viewer.md). Needs pip install 'rcci[view]'.")
     p.add_argument("log", help="the log (.rcilog, or .rcilog.xz / .gz as in calib/logs/)")
@@ -189,10 +189,10 @@ def main(argv: list[str] | None = None) -> int:
         replay = Replay(args.log)
         rv = ReplayView(replay, env=args.env, host=args.host, port=args.port)
     except ImportError as exc:
-        print(f"rci.view: {exc}", file=sys.stderr)
+        print(f"rcci.view.replay: {exc}", file=sys.stderr)
         return 2
     except Exception as exc:  # noqa: BLE001 - a bad log, robot or environment word: say so, exit 2
-        print(f"rci.view: {exc}", file=sys.stderr)
+        print(f"rcci.view.replay: {exc}", file=sys.stderr)
         return 2
     rv.speed.value = args.speed
     try:
@@ -204,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 screenshot(rv.url, args.screenshot, size=args.size)
             except BrowserError as exc:
-                print(f"rci.view: {exc}", file=sys.stderr)
+                print(f"rcci.view.replay: {exc}", file=sys.stderr)
                 return 1
             print(f"wrote {args.screenshot} ({replay.name} at t = {rv.slider.value:.2f} s)")
             return 0

@@ -12,13 +12,13 @@
   ``rci.simula.environment.parse_environment``) as translucent blocks, clipped to the
   arm's reach where a side is unbounded;
 * named paths (polylines, each a colour) and a target frame (axes), set by whoever feeds
-  the view: ``rci.view_feed`` (simula, a program), ``rci.view`` (replay of a log).
+  the view: ``rci.view_link`` (simula, a program), ``rcci.view.replay`` (replay of a log).
 
 ``set_q`` moves the arm (the angles of the URDF's actuated joints, rad or m, in the
 order of the robot's joints, the same q as everywhere in the project). The view does no
 waiting and keeps no clock: whoever calls it chooses the rate (30 Hz is plenty).
 
-This module never runs inside a real-time loop: ``rci.view_feed`` serves it from a
+This module never runs inside a real-time loop: ``rci.view_link`` serves it from a
 separate process, so that viser's server thread never competes with a control loop
 for the interpreter lock.
 """
@@ -33,7 +33,7 @@ from typing import Sequence
 
 import numpy as np
 
-from models import load_robot
+from rcci.models import load_robot
 
 # the view's palette (RGB 0-255): the base dark, the arm orange, the wrist grey
 BASE_COLOR = (120, 128, 142)
@@ -221,7 +221,7 @@ def _box_extent(v: Visual) -> np.ndarray:
 
 def surface_blocks(specs: Sequence[str], reach: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """(lo, hi) of each block of an environment (``--env`` words), unbounded sides clipped at ``reach`` m."""
-    from .simula.environment import parse_environment
+    from rci.simula.environment import parse_environment
 
     env = parse_environment(list(specs))
     out = []
