@@ -14,10 +14,10 @@ Transport``; :func:`open_transport` finds it.
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from functools import cache
 from typing import Protocol, runtime_checkable
+
+from ..plugins import declared, module
 
 
 @runtime_checkable
@@ -50,17 +50,10 @@ FALLBACK = "serial_line"
 @cache
 def _kinds() -> dict[str, str]:
     """Address prefix -> module name, for every module of this package that declares SCHEME."""
-    found = {}
-    for info in pkgutil.iter_modules(__path__):
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        scheme = getattr(module, "SCHEME", None)
-        if scheme:
-            found[scheme] = info.name
-    return found
+    return declared(__name__, __path__, "SCHEME")
 
 
 def open_transport(url: str, *, timeout: float = 5.0, priority: int = 0) -> Transport:
     """The transport for ``url`` (module docstring), opened; DeviceError if it cannot be."""
     name = next((m for prefix, m in _kinds().items() if url.startswith(prefix)), FALLBACK)
-    module = importlib.import_module(f"{__name__}.{name}")
-    return module.open_transport(url, timeout=timeout, priority=priority)
+    return module(__name__, name).open_transport(url, timeout=timeout, priority=priority)

@@ -15,10 +15,10 @@ and ``open_listener(**options) -> Listener``; :func:`open_listener` finds it by 
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from functools import cache
 from typing import Protocol
+
+from ...plugins import declared, module
 
 
 class ClientTransport:
@@ -80,13 +80,7 @@ class UnknownListener(ValueError):
 @cache
 def kinds() -> dict[str, str]:
     """Listener name -> module name, for every module of this package that declares NAME."""
-    found = {}
-    for info in pkgutil.iter_modules(__path__):
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        name = getattr(module, "NAME", None)
-        if name:
-            found[name] = info.name
-    return found
+    return declared(__name__, __path__, "NAME")
 
 
 def open_listener(name: str, **options) -> Listener:
@@ -95,5 +89,4 @@ def open_listener(name: str, **options) -> Listener:
     module_name = kinds().get(name)
     if module_name is None:
         raise UnknownListener(f"no simula listener {name!r} (known: {', '.join(sorted(kinds()))})")
-    module = importlib.import_module(f"{__name__}.{module_name}")
-    return module.open_listener(**options)
+    return module(__name__, module_name).open_listener(**options)
