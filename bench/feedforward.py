@@ -55,6 +55,7 @@ class Run:
     saturated: int
     samples: int
     fault: str
+    speed: float = 0.0          # peak planned T6 speed (m/s)
 
     @property
     def joint_err(self) -> np.ndarray:
@@ -73,7 +74,7 @@ def corners(kin, q0: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def tour(url: str, robot: str, mode: str, rate: int, theta=None, gains=None) -> Run:
+def tour(url: str, robot: str, mode: str, rate: int, theta=None, gains=None, rotor=None) -> Run:
     """Run the tour in ``mode`` on the simula at ``url``; the recorded run."""
     with rccl.open(url, robot, rate_hz=rate, record=True, on_error="raise", timeout=10.0) as arm:
         kin = arm.kinematics
@@ -85,7 +86,7 @@ def tour(url: str, robot: str, mode: str, rate: int, theta=None, gains=None) -> 
         p.end.wait(fault=arm.check, timeout=WAIT)
         t_end = arm.gen.t + 0.3
         arm.rci.wait(WAIT, until=lambda: arm.gen.t >= t_end)
-        arm.feedforward(mode, theta=theta, gains=gains)
+        arm.feedforward(mode, theta=theta, gains=gains, rotor=rotor)
         lim = arm.limits
         arm.setmod("cartesian")
         arm.setvel(SPEED * lim.translational_velocity, SPEED * lim.rotational_velocity)
@@ -112,7 +113,9 @@ def tour(url: str, robot: str, mode: str, rate: int, theta=None, gains=None) -> 
     meas = np.array([x[2] for x in trace[1:]])       # the HOW after the command: where the arm got to
     fk = kin.fk
     cart = np.linalg.norm(fk(plan)[:, :3, 3] - fk(meas)[:, :3, 3], axis=1)
-    return Run(robot, mode, t - t[0], plan, meas, cart, saturated, len(t), fault)
+    p = fk(plan)[:, :3, 3]
+    speed = float((np.linalg.norm(np.diff(p, axis=0), axis=1) / np.diff(t)).max())
+    return Run(robot, mode, t - t[0], plan, meas, cart, saturated, len(t), fault, speed)
 
 
 def with_suppressed(fn) -> None:
@@ -122,27 +125,30 @@ def with_suppressed(fn) -> None:
         pass
 
 
-def run_one(robot: str, mode: str, rate: int, seed: int, theta=None, gains=None) -> Run:
+def run_one(robot: str, mode: str, rate: int, seed: int, theta=None, gains=None, rotor=None) -> Run:
     """A fresh lockstep ``simula --dynamic`` for one tour (every mode starts from the same state)."""
     from rci.simula.process import SimulaProcess
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         with SimulaProcess("-p", "--power-on", "--dynamic", "--lockstep-watchdog", "20",
                            robot=robot, lockstep=True, seed=seed) as sim:
-            return tour(sim.url, robot, mode, rate, theta, gains)
+            run = tour(sim.url, robot, mode, rate, theta, gains, rotor)
+    if rotor is not None:
+        run.mode = f"{mode}, no rotor"
+    return run
 
 
 def table(runs: list[Run]) -> list[str]:
     """Markdown rows: per run the RMS/max of the wrist-centre error (mm) and of each joint (mrad, mm)."""
     out = ["| arm | mode | cart RMS (mm) | cart max (mm) | joint RMS, 1..6 (mrad / mm) | joint max, 1..6 | "
-           "samples | DAC clipped | fault |", "|---|---|---:|---:|---|---|---:|---:|---|"]
+           "peak speed (m/s) | samples | DAC clipped | fault |", "|---|---|---:|---:|---|---|---:|---:|---:|---|"]
     for r in runs:
         e = r.joint_err * 1e3
         rms = np.sqrt(np.mean(e ** 2, axis=0))
         mx = np.abs(e).max(axis=0)
         out.append(f"| {r.robot} | {r.mode} | {np.sqrt(np.mean(r.cart_err ** 2)) * 1e3:.2f} | "
                    f"{r.cart_err.max() * 1e3:.2f} | {' '.join(f'{x:.2f}' for x in rms)} | "
-                   f"{' '.join(f'{x:.2f}' for x in mx)} | {r.samples} | {r.saturated} | {r.fault or '-'} |")
+                   f"{' '.join(f'{x:.2f}' for x in mx)} | {r.speed:.2f} | {r.samples} | {r.saturated} | {r.fault or '-'} |")
     return out
 
 
@@ -152,17 +158,18 @@ def plot(runs: list[Run], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     robots = list(dict.fromkeys(r.robot for r in runs))
-    fig, axes = plt.subplots(len(robots), 1, figsize=(9, 3.2 * len(robots)), squeeze=False)
-    colours = {"position": "tab:green", "gravity": "tab:red", "computed": "tab:blue"}
+    fig, axes = plt.subplots(len(robots), 1, figsize=(11, 3.2 * len(robots)), squeeze=False)
+    colours = {"position": "tab:green", "gravity": "tab:red", "computed": "tab:blue",
+               "computed, no rotor": "tab:purple"}
     for ax, robot in zip(axes[:, 0], robots):
         for r in runs:
             if r.robot == robot:
-                ax.semilogy(r.t, np.maximum(r.cart_err * 1e3, 1e-3), color=colours[r.mode], lw=1.0,
+                ax.semilogy(r.t, np.maximum(r.cart_err * 1e3, 1e-3), color=colours.get(r.mode, "k"), lw=1.0,
                             label=f"{r.mode} (RMS {np.sqrt(np.mean(r.cart_err ** 2)) * 1e3:.2f} mm)")
         ax.set_title(f"{robot}: planned vs measured T6 position over a fast Cartesian tour")
         ax.set_ylabel("error (mm)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axes[-1, 0].set_xlabel("time since the tour started (s)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -177,10 +184,19 @@ def report(runs: list[Run], command: str, rate: int, seed: int, wall: float, gai
              f"{load[1]:.1f} {load[2]:.1f} (2 cores); wall time {wall:.0f} s. Lockstep `simula --dynamic -p "
              f"--power-on --seed {seed}` (a fresh one per run), {rate} Hz, the tour of bench/feedforward.py "
              f"({len(TOUR['revolute'])} Cartesian lines at {SPEED:.0%} of the arm's Cartesian speed limits), "
-             f"PD natural frequency {gains.natural_hz:g} Hz, damping {gains.damping:g}; the data file's inertials "
-             "and the rotor estimate (rccl.feedforward).", "",
+             f"PD natural frequency {gains.hz(rate):g} Hz, damping {gains.damping:g}; the data file's inertials "
+             "and the rotor estimate (rccl.feedforward; simula holds the same estimate, so the rigid-body "
+             "model is the simulator's own up to the seed's friction draw: what is left is friction and "
+             "the loop's latency).", "",
              "Error of sample k: the plan q_k against the joints the next HOW reports. *cart*: the distance "
-             "between the planned and the measured T6 origin.", ""]
+             "between the planned and the measured T6 origin. *DAC clipped*: samples whose current command hit "
+             "the motor current limit. *no rotor*: computed torque with the data file's inertials only (the "
+             "motor rotors, which no data file gives, left out: a model error).", "",
+             "Reading it: simula's position servo is stiff and kinematic (docs/simula.md, Known limits): a POS "
+             "joint reaches its count at the end of the period unless its current or speed limit is hit, so "
+             "position mode's error is the encoder's rounding, not a servo's lag; it is the floor, not a rival. "
+             "The two current-mode rows are the comparison: the same PD, with and without the model's inertial "
+             "and Coriolis torques of the planned motion.", ""]
     lines += table(runs)
     lines += ["", "![tracking error](feedforward.png)", ""]
     return "\n".join(lines)
@@ -192,6 +208,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mode", action="append", choices=MODES)
     ap.add_argument("--rate", type=int, default=250, help="sample rate, Hz (default 250)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-rotor", action="store_true",
+                    help="add a computed-torque run per arm whose model leaves the motor rotors out")
     ap.add_argument("--hz", type=float, help="the PD's natural frequency, Hz (default: rccl.feedforward.Gains)")
     ap.add_argument("--report", type=Path, help="write the markdown report here")
     ap.add_argument("--plot", type=Path, help="write the PNG here")
@@ -203,6 +221,10 @@ def main(argv: list[str] | None = None) -> int:
     for robot in a.robot or ["puma260"]:
         for mode in a.mode or MODES:
             r = run_one(robot, mode, a.rate, a.seed, gains=gains)
+            runs.append(r)
+            print("\n".join(table([r])[2:]), flush=True)
+        if a.no_rotor:
+            r = run_one(robot, "computed", a.rate, a.seed, gains=gains, rotor=np.zeros(6))
             runs.append(r)
             print("\n".join(table([r])[2:]), flush=True)
     wall = time.monotonic() - t0
