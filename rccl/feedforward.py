@@ -50,6 +50,10 @@ MODES = ("position", "gravity", "computed")
 # computed-torque RMS error of 2.25, 0.60, 0.16, 0.08 mm; 20 Hz (rate/12.5) rings into the current limit
 # (284 of 791 samples clipped, 0.18 mm); 30 Hz, 726 clipped
 DEFAULT_HZ_PER_RATE = 1.0 / 20.0
+# ...and at most 12.5 Hz: the damping term differences encoder counts, and at a high rate one count per
+# period is a large rate; at 1 kHz (--rate 1000 --hz) 12 Hz clips no sample, 25 Hz clips 326 of 3158
+# (10 %), the uncapped 50 Hz 2527 (80 %): the PD chatters on the counts into the current limit
+DEFAULT_MAX_HZ = 12.5
 DAMPING = 1.0
 # estimate: rotor inertia per motor, kg*m^2 (joints 1-3, joints 4-6): small DC servo motors of the
 # PUMA class; no data file gives it. Reflected to the joints as G^T diag(J) G it outweighs the link
@@ -68,8 +72,8 @@ class FeedForwardError(MotionError):
 class Gains:
     """The joint PD of the current-mode servo: natural frequency (Hz) and damping ratio (1 = critical).
 
-    ``natural_hz`` None (default): 1/20 of the sample rate, following rate changes (12.5 Hz at
-    250 Hz, 1.8 Hz at the thesis's 36 Hz). Joint j's stiffness is ``D_jj (2 pi natural_hz)^2`` N*m/rad and its damping
+    ``natural_hz`` None (default): 1/20 of the sample rate, at most 12.5 Hz, following rate
+    changes (12.5 Hz at 250 Hz and above, 1.8 Hz at the thesis's 36 Hz). Joint j's stiffness is ``D_jj (2 pi natural_hz)^2`` N*m/rad and its damping
     ``2 damping (2 pi natural_hz) D_jj`` N*m*s/rad, ``D_jj`` the model's inertia of joint j
     at the planned joints (kg*m^2; kg for a prismatic joint, then N/m and N*s/m).
     """
@@ -95,7 +99,9 @@ class Gains:
 
     def hz(self, rate_hz: float) -> float:
         """The natural frequency (Hz) at sample rate ``rate_hz``."""
-        return DEFAULT_HZ_PER_RATE * rate_hz if self.natural_hz is None else float(self.natural_hz)
+        if self.natural_hz is None:
+            return min(DEFAULT_HZ_PER_RATE * float(rate_hz), DEFAULT_MAX_HZ)
+        return float(self.natural_hz)
 
 
 class DynamicsModel:
@@ -231,8 +237,13 @@ class FeedForwardControl:
         self.rate_hz = 36.0                                # of the plan's last period (the PD's default)
 
     def reset(self) -> None:
-        """Forget the planned history (after a fault or a switch back to position mode)."""
+        """Forget the planned history (after a fault: the plan starts again from the held arm)."""
         self._plan.clear()
+
+    def observe(self, t: float, q: np.ndarray) -> None:
+        """Record a position-mode sample of the plan, so a switch to current mode mid-motion starts with
+        the plan's rate and acceleration, not from rest."""
+        self.planned(t, q)
 
     def planned(self, t: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """Record the plan's sample (t s, q rad) and return (q_p, qd_p, qdd_p, q_prev) over the last period."""

@@ -196,7 +196,7 @@ class Arm(Planner):
                 if ff is not None and how.power:
                     cmd = self.ff_control.command(ff, gen.t, cmd.q, q_meas, qd)
                 else:
-                    self.ff_control.reset()
+                    self.ff_control.observe(gen.t, cmd.q)
             except (MotionError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
                 gen.freeze(exc)
         if cmd is None:     # stopped by a fault: every joint position-servoed (compliance, feed-forward off)
