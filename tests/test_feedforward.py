@@ -198,14 +198,22 @@ def test_nan_mid_motion_holds_the_arm(sim) -> None:
         arm.feedforward("position")
 
 
-@pytest.mark.parametrize("robot", ["puma260"])
+# the bound on computed torque's RMS error as a fraction of gravity-only's (measured, reports/feedforward.md:
+# 0.33, 0.31, 0.73, 0.28); the PUMA 560's error is its wrist's friction, which no inertial model removes
+RATIO = {"puma260": 0.5, "microbo": 0.5, "puma560": 0.9, "stanford": 0.5}
+
+
+@pytest.mark.parametrize("robot", [pytest.param(r, marks=() if r == "puma260" else pytest.mark.slow) for r in RATIO])
 def test_computed_torque_tracks_better_than_gravity_only(robot: str) -> None:
-    """The bench's fast tour at 250 Hz on lockstep simula --dynamic (deterministic): computed torque's
-    Cartesian RMS error is under half gravity-only's, with no fault in either."""
+    """The bench's fast tour at 250 Hz on lockstep simula --dynamic: computed torque's Cartesian RMS
+    error is under RATIO x gravity-only's, its largest error below gravity-only's, no fault, no sample
+    at the current limit. (Lockstep makes the arm deterministic; where the planning level queues each
+    line moves by a sample or two, the figures by a few hundredths of a millimetre.)"""
     grav = run_one(robot, "gravity", 250, 0)
     ct = run_one(robot, "computed", 250, 0)
     assert not grav.fault and not ct.fault, (grav.fault, ct.fault)
+    assert ct.saturated == 0 and grav.saturated == 0, (ct.saturated, grav.saturated)
     rms_g = float(np.sqrt(np.mean(grav.cart_err ** 2)))
     rms_c = float(np.sqrt(np.mean(ct.cart_err ** 2)))
-    assert rms_c < 0.5 * rms_g, (rms_c, rms_g)
+    assert rms_c < RATIO[robot] * rms_g, (rms_c, rms_g)
     assert ct.cart_err.max() < grav.cart_err.max()
