@@ -5,7 +5,9 @@ session on the robot link (``socket://host:port`` for simula, a serial device or
 robot), starts the control with the trajectory generator as its control function, and
 returns an ``Arm`` that carries the planning-level primitives (move, setvel, settime,
 setmod, setconf, stop, waitfor), the adaptive ones of 5.4 (limit, evalfn, add_check,
-comply, lock, cond) and the predefined position ``park``, whichever generator runs
+comply, lock, cond), the servo mode of the next motions (``feedforward``: position, or current
+mode with gravity-only or computed-torque feed-forward, ``rccl.feedforward``) and the
+predefined position ``park``, whichever generator runs
 (``trajectory="quartic"``, the thesis's, or ``"ruckig"``, jerk-limited): both implement
 ``rccl.generator.MotionGenerator``. Leaving the ``with`` block (or ``arm.close()``) is
 ``rccl_close``: it waits for the queued motions to finish, releases the control and closes
@@ -16,7 +18,8 @@ the robot's rate (``how.rate_hz`` is the rate at which the robot executes the CH
 answers this HOW, so a change takes effect for the generator in the same cycle as for the
 robot), the encoder counts and motor-current ADC values; runs the adaptive control
 (``rccl.adaptive.control``) around the generator's step, and issues POS for the
-position-servoed joints and CUR for the force-servoed ones. The generator's limits are the
+position-servoed joints and CUR for the force-servoed ones (or, for a feed-forward motion,
+CUR for every joint: ``rccl.feedforward.FeedForwardControl``). The generator's limits are the
 arm's less what encoder rounding adds at the running rate (``rccl.limits.for_link``), so
 the counts sent never trip RCI's R_REQVEL check.
 """
