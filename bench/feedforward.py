@@ -148,7 +148,8 @@ def table(runs: list[Run]) -> list[str]:
         mx = np.abs(e).max(axis=0)
         out.append(f"| {r.robot} | {r.mode} | {np.sqrt(np.mean(r.cart_err ** 2)) * 1e3:.2f} | "
                    f"{r.cart_err.max() * 1e3:.2f} | {' '.join(f'{x:.2f}' for x in rms)} | "
-                   f"{' '.join(f'{x:.2f}' for x in mx)} | {r.speed:.2f} | {r.samples} | {r.saturated} | {r.fault or '-'} |")
+                   f"{' '.join(f'{x:.2f}' for x in mx)} | {r.speed:.2f} | {r.samples} | {r.saturated} | "
+                   f"{r.fault or '-'} |")
     return out
 
 

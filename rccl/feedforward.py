@@ -73,7 +73,8 @@ class Gains:
     """The joint PD of the current-mode servo: natural frequency (Hz) and damping ratio (1 = critical).
 
     ``natural_hz`` None (default): 1/20 of the sample rate, at most 12.5 Hz, following rate
-    changes (12.5 Hz at 250 Hz and above, 1.8 Hz at the thesis's 36 Hz). Joint j's stiffness is ``D_jj (2 pi natural_hz)^2`` N*m/rad and its damping
+    changes (12.5 Hz at 250 Hz and above, 1.8 Hz at the thesis's 36 Hz). Joint j's stiffness is
+    ``D_jj (2 pi natural_hz)^2`` N*m/rad and its damping
     ``2 damping (2 pi natural_hz) D_jj`` N*m*s/rad, ``D_jj`` the model's inertia of joint j
     at the planned joints (kg*m^2; kg for a prismatic joint, then N/m and N*s/m).
     """
