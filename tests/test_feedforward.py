@@ -116,6 +116,12 @@ def test_bad_inputs_refused() -> None:
         Gains(natural_hz=4.0).check_rate(36, "feedforward('computed')")
     with pytest.raises(BadRequest, match="needs a DynamicsModel"):
         FeedForward("computed", None)
+    with pytest.raises(BadRequest, match="give theta or rotor, not both"):
+        make(kin, "computed", theta=np.ones(len(kin.BASE_PARAMETERS)), rotor=np.zeros(6))
+    with pytest.raises(BadRequest, match=r"rotor inertias must be \(6,\) or \(6, 6\) finite kg\*m\^2, got shape \(3,\)"):
+        make(kin, "computed", rotor=[0.1, 0.2, 0.3])
+    with pytest.raises(BadRequest, match="mode 3 is not one of"):
+        make(kin, 3)
 
 
 class _NaNModel(DynamicsModel):
@@ -217,3 +223,28 @@ def test_computed_torque_tracks_better_than_gravity_only(robot: str) -> None:
     rms_c = float(np.sqrt(np.mean(ct.cart_err ** 2)))
     assert rms_c < RATIO[robot] * rms_g, (rms_c, rms_g)
     assert ct.cart_err.max() < grav.cart_err.max()
+
+
+def test_control_end_mid_motion_holds_every_joint(sim) -> None:
+    """The control released while a feed-forward motion runs: simula holds every joint where it is
+    (no joint left in current mode, the arm no longer moving)."""
+    arm = _arm(sim)
+    try:
+        start = np.radians([10.0, 80.0, -170.0, 10.0, -60.0, 5.0])
+        p0 = makeposition("start", T6, EQ, Trsf("START", arm.kinematics.fk(start)), TL, T6)
+        arm.move(p0)
+        arm.waitfor(p0.end, timeout=60.0)
+        arm.feedforward("computed")
+        goal = arm.t6.copy()
+        goal[:3, 3] += [0.0, 0.0, 0.05]
+        arm.setmod("cartesian")
+        arm.setvel(0.2, 1.0)
+        arm.move(makeposition("up", T6, EQ, Trsf("UP", goal), TL, T6))
+        t_mid = arm.gen.t + 0.1
+        arm.rci.wait(60.0, until=lambda: arm.gen.t >= t_mid)
+        assert len(arm.last_command.current) == 6          # mid-motion, every joint current-servoed
+    finally:
+        arm.close(wait=False)
+    state = sim.command("state")["state"]
+    assert "cur" not in state["mode"], state["mode"]
+    assert max(abs(v) for v in state["qd"]) == 0.0, state["qd"]
