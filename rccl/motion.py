@@ -42,6 +42,7 @@ class MotionParams:
     travel_time: float | None = None      # explicit travel time (settime) overrides the velocities
     transition_time: float = DEFAULT_TRANSITION
     config: Any = None                    # requested arm configuration (setconf), None = keep current
+    feedforward: Any = None               # rccl.feedforward.FeedForward in current mode, None = position servo
 
     def setvel(self, translational: float, rotational: float) -> None:
         self.translational_velocity = _positive(translational, "setvel: translational velocity (m/s)")

@@ -5,7 +5,9 @@ session on the robot link (``socket://host:port`` for simula, a serial device or
 robot), starts the control with the trajectory generator as its control function, and
 returns an ``Arm`` that carries the planning-level primitives (move, setvel, settime,
 setmod, setconf, stop, waitfor), the adaptive ones of 5.4 (limit, evalfn, add_check,
-comply, lock, cond) and the predefined position ``park``, whichever generator runs
+comply, lock, cond), the servo mode of the next motions (``feedforward``: position, or current
+mode with gravity-only or computed-torque feed-forward, ``rccl.feedforward``) and the
+predefined position ``park``, whichever generator runs
 (``trajectory="quartic"``, the thesis's, or ``"ruckig"``, jerk-limited): both implement
 ``rccl.generator.MotionGenerator``. Leaving the ``with`` block (or ``arm.close()``) is
 ``rccl_close``: it waits for the queued motions to finish, releases the control and closes
@@ -16,7 +18,8 @@ the robot's rate (``how.rate_hz`` is the rate at which the robot executes the CH
 answers this HOW, so a change takes effect for the generator in the same cycle as for the
 robot), the encoder counts and motor-current ADC values; runs the adaptive control
 (``rccl.adaptive.control``) around the generator's step, and issues POS for the
-position-servoed joints and CUR for the force-servoed ones. The generator's limits are the
+position-servoed joints and CUR for the force-servoed ones (or, for a feed-forward motion,
+CUR for every joint: ``rccl.feedforward.FeedForwardControl``). The generator's limits are the
 arm's less what encoder rounding adds at the running rate (``rccl.limits.for_link``), so
 the counts sent never trip RCI's R_REQVEL check.
 """
@@ -38,7 +41,8 @@ from .adaptive.force import JointModel
 from .adaptive.limit import Limit
 from .adaptive.monitor import Monitor
 from .conditional import Conditional
-from .exceptions import MotionError, NotRunning, PowerOff
+from .exceptions import BadRequest, MotionError, NotRunning, PowerOff
+from .feedforward import FeedForward, FeedForwardControl, Gains, make as make_feedforward
 from .limits import Limits, for_link, load_limits
 from .motion import Request
 from .planner import Planner
@@ -97,6 +101,8 @@ class Arm(Planner):
             self._jerk = JerkLimits.from_limits(self._limits)
         self.conv = Conversions.for_robot(robot)
         self.adaptive = AdaptiveControl(self._kin.module, JointModel.for_robot(robot, self.conv))
+        self.ff_control = FeedForwardControl(self.adaptive.model)   # current-mode feed-forward (rccl.feedforward)
+        self._ff: FeedForward | None = None      # the servo mode of the motion running (None: position)
         self.rci = Session(url, robot, rate_hz=self.rate_hz, **rci_options)
         self.gen: MotionGenerator | None = None
         self.park: Position | None = None
@@ -189,9 +195,15 @@ class Arm(Planner):
         if gen.faulted is None:
             try:
                 cmd = self.adaptive.after(q_nom)
+                ff = self._servo_mode(gen)
+                if ff is not None and how.power:
+                    cmd = self.ff_control.command(ff, gen.t, cmd.q, q_meas, qd)
+                else:
+                    self.ff_control.observe(gen.t, cmd.q)
             except (MotionError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
                 gen.freeze(exc)
-        if cmd is None:     # stopped by a fault: every joint position-servoed (compliance off)
+        if cmd is None:     # stopped by a fault: every joint position-servoed (compliance, feed-forward off)
+            self.ff_control.reset()
             if self._fault_hold is None:
                 forced = self.last_command is not None and bool(self.last_command.current)
                 held = self.adaptive.hold(q_meas)     # where it was measured, after force servoing
@@ -216,6 +228,42 @@ class Arm(Planner):
             self.adc_trace.append(np.array(how.adcr, dtype=np.int64))
             self.clock_trace.append(how.time_ns * 1e-9)
 
+    def _servo_mode(self, gen: MotionGenerator) -> FeedForward | None:
+        """The feed-forward of the motion in progress (kept while the arm rests between motions)."""
+        req = gen.request
+        if req is not None:
+            ff = req.params.feedforward
+            self._ff = ff if ff is not None and ff.current else None
+        return self._ff
+
+    # -- feed-forward (rccl.feedforward), per motion like setvel --------------------------------
+    def feedforward(self, mode: str = "computed", theta=None, gains: Gains | None = None,
+                    rotor=None) -> FeedForward:
+        """The servo mode of the motions moved after this call: "position" (POS, default), "gravity"
+        (CUR: t_g + friction + PD) or "computed" (CUR: D qdd + c + t_g + friction of the planned motion + PD).
+
+        ``theta``: a base-parameter vector (``kinematics.BASE_PARAMETERS`` order, or a mapping of
+        those names) instead of the data file's inertials; ``rotor``: the motor rotors at the joints
+        (kg*m^2, (n,) or (n, n)) with the data file's inertials. ``gains``: ``rccl.feedforward.Gains``
+        (natural frequency Hz, damping ratio). Refused while compliance is on (both would set the
+        joints' currents). docs/adaptive.md, "Feed-forward".
+        """
+        ff = make_feedforward(self._kin.module, mode, theta, gains, rotor)
+        if ff.current:
+            ff.gains.check_rate(self.rate_hz, f"feedforward({mode!r})")
+            if self.adaptive.compliance.forces:
+                axes = sorted(self.adaptive.compliance.forces)
+                raise BadRequest(f"feedforward({mode!r}): compliance is on (axes {axes}); a joint cannot be "
+                                 "force-servoed and torque-fed at once: lock() them first")
+        self.params.feedforward = ff if ff.current else None
+        return ff
+
+    def _refuse_with_feedforward(self, what: str) -> None:
+        ff = self.params.feedforward
+        if ff is not None and ff.current:
+            raise BadRequest(f"{what}: the next motions run feed-forward in current mode ({ff.mode!r}); {what} "
+                             "would set the same joints' currents: call arm.feedforward('position') first")
+
     # -- 5.4 primitives (planning level), the same for every generator ------------------------
     def limit(self, spec: str, *values: float) -> Limit:
         """Force/torque or deviation limits (tool frame, SI) for the next motion only (5.4.1)."""
@@ -239,6 +287,10 @@ class Arm(Planner):
 
     def comply(self, spec: str, *values: float) -> None:
         """Make tool-frame force/torque components compliant with these values (N, N*m) from now on (5.4.3)."""
+        self._refuse_with_feedforward(f"comply({spec!r})")
+        if self._ff is not None and self.gen is not None and self.gen.busy:
+            raise BadRequest(f"comply({spec!r}): a motion in feed-forward current mode ({self._ff.mode!r}) is "
+                             "running; wait for it, then call arm.feedforward('position')")
         self.adaptive.compliance.comply(spec, *values)
 
     def lock(self, spec: str) -> None:
@@ -305,7 +357,25 @@ class Arm(Planner):
         if not self.powered:
             raise PowerOff(f"move({getattr(position, 'name', position)!r}): the arm's power is off, "
                            "it would not move; call arm.power_on() first")
+        self._vet_feedforward(getattr(position, "name", position))
         return Planner.move(self, position)
+
+    def _vet_feedforward(self, name) -> None:
+        """Refuse, before it is queued, a feed-forward motion with compliance or a force/torque check."""
+        from .adaptive.check import Estimate, estimates_of
+
+        ff = self.params.feedforward
+        if ff is None or not ff.current:
+            return
+        if self.adaptive.compliance.forces:
+            raise BadRequest(f"move({name!r}): compliance is on and the motion runs feed-forward ({ff.mode!r}); "
+                             "a joint cannot be force-servoed and torque-fed at once")
+        needs = estimates_of(self.gen.queue.pending) if self.gen is not None else Estimate.NONE
+        if Estimate.FORCE in needs or Estimate.TORQUE in needs:
+            raise BadRequest(f"move({name!r}): a force/torque check under feed-forward ({ff.mode!r}): the force "
+                             "estimate (4.37) takes the motor currents for gravity + friction + contact, and "
+                             "these currents also carry the feed-forward's inertial and PD torques, which it "
+                             "would read as a contact force; use a deviation limit, or position mode")
 
     def close(self, power_off: bool = False, wait: bool = True) -> None:
         """rccl_close: wait for queued motions to end (``wait``), release the control and close the link."""
