@@ -14,7 +14,7 @@ from rccl.adaptive.force import JointModel
 from rccl.feedforward import (DynamicsModel, FeedForward, FeedForwardControl, FeedForwardError, Gains,
                               make, rotor_estimate)
 from rccl.kinematics import load
-from models import load_robot
+from rcci.models import load_robot
 
 from bench.feedforward import run_one
 
