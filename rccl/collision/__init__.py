@@ -10,10 +10,10 @@ check), ``guard`` (what ``move()`` calls). docs/collision.md describes the whole
 """
 from __future__ import annotations
 
-from .geometry import Box, Capsule, CollisionGeometry, geometry_path, load_geometry
+from .geometry import LinkBox, Capsule, CollisionGeometry, geometry_path, load_geometry
 from .guard import EVERY_CYCLE, CollisionGuard
 from .watch import CollisionWatch
 from .world import ShapePose, CollisionWorld
 
-__all__ = ["Box", "Capsule", "CollisionGeometry", "geometry_path", "load_geometry", "CollisionGuard", "EVERY_CYCLE",
+__all__ = ["LinkBox", "Capsule", "CollisionGeometry", "geometry_path", "load_geometry", "CollisionGuard", "EVERY_CYCLE",
            "CollisionWatch", "ShapePose", "CollisionWorld"]

@@ -28,8 +28,6 @@ import numpy as np
 
 from ..exceptions import CollisionFileError
 
-#: where the shipped files live (beside the robot data files)
-COLLISION_DIR = Path(__file__).resolve().parents[2] / "models" / "collision"
 _UNITS = {"m": 1.0, "mm": 1e-3}
 
 
@@ -45,7 +43,7 @@ class Capsule:
 
 
 @dataclass(frozen=True)
-class Box:
+class LinkBox:
     """A box on one link frame, its edges along the frame's axes: ``center`` and full edge lengths ``size`` (m)."""
 
     name: str
@@ -61,14 +59,16 @@ class CollisionGeometry:
     robot: str
     path: Path
     capsules: tuple[Capsule, ...]
-    boxes: tuple[Box, ...]
+    boxes: tuple[LinkBox, ...]
     allowed: tuple[frozenset, ...]
     reasons: dict
 
 
 def geometry_path(robot: str) -> Path:
-    """The shipped geometry file of ``robot`` (models/collision/<robot>.toml)."""
-    return COLLISION_DIR / f"{robot}.toml"
+    """The shipped geometry file of ``robot`` (models/collision/<robot>.toml, beside the robot data files)."""
+    import models
+
+    return Path(models.__file__).resolve().parent / "collision" / f"{robot}.toml"
 
 
 def _fail(path: Path, key: str, what: str) -> CollisionFileError:
@@ -110,14 +110,14 @@ def _named(path: Path, where: str, entry, keys: tuple[str, ...]) -> tuple[str, s
     return name, frame
 
 
-def _box(path: Path, i: int, entry) -> Box:
+def _box(path: Path, i: int, entry) -> LinkBox:
     where = f"boxes[{i}]"
     name, frame = _named(path, where, entry, ("center", "size"))
     center = _quantity(path, f"{where}.center ({name})", entry["center"], (3,))
     size = _quantity(path, f"{where}.size ({name})", entry["size"], (3,))
     if not np.all(size > 0):
         raise _fail(path, f"{where}.size ({name})", f"{size.tolist()} m must all be > 0")
-    return Box(name, frame, center, size)
+    return LinkBox(name, frame, center, size)
 
 
 def _capsule(path: Path, i: int, entry) -> Capsule:

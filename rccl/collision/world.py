@@ -24,7 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..exceptions import CollisionFileError
-from .geometry import Box, Capsule, CollisionGeometry, geometry_path, load_geometry, segment_length
+from .geometry import Capsule, LinkBox, CollisionGeometry, geometry_path, load_geometry, segment_length
 
 #: m: how far an unbounded side of a box is cut (beyond any arm's reach; coal's Box is finite)
 FAR = 10.0
@@ -103,7 +103,7 @@ class CollisionWorld:
         self.model = pin.buildModelFromUrdf(str(load_robot(robot).urdf_path))
         self.data = self.model.createData()
         self.gmodel = pin.GeometryModel()
-        self.capsules: list[Capsule | Box] = list(geometry.capsules) + list(geometry.boxes)
+        self.capsules: list[Capsule | LinkBox] = list(geometry.capsules) + list(geometry.boxes)
         self._joint: list[int] = []
         for c in self.capsules:
             if not self.model.existFrame(c.frame):
