@@ -89,7 +89,7 @@ def bench_arm(robot: str, rng: np.random.Generator) -> dict:
         except Exception:          # noqa: BLE001 - a colliding mid-range pose still times the same samples
             pass
     path_s = (time.perf_counter() - t0) / runs
-    return {"pairs": len(w.pairs), "shapes": w.n_capsules, "dist": dist, "coll": coll, "near": near, "over": over,
+    return {"pairs": len(w.pairs), "shapes": w.n_shapes, "dist": dist, "coll": coll, "near": near, "over": over,
             "samples": len(s), "path_s": path_s}
 
 

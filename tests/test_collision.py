@@ -16,7 +16,7 @@ import pytest
 from models import load_robot
 from rccl.collision import CollisionGuard, CollisionWorld, geometry_path, load_geometry
 from rccl.collision.path import path_joints
-from rccl.collision.show import enclosure_gaps
+from rccl.collision.show import enclosure_gaps, skeleton_gaps
 from rccl.exceptions import CollisionFileError, PathCollision, TrajectoryFault
 from rccl.limits import load_limits
 from rccl.planner import Planner
@@ -72,6 +72,8 @@ def test_shipped_geometry_encloses_every_urdf_visual_and_explains_its_pairs(robo
     assert gaps, "the URDF has visuals"
     worst = max(gaps, key=lambda g: g[3])
     assert worst[3] <= 1e-4, worst             # every visual's sample points inside some shape (0.1 mm rounding)
+    skeleton = skeleton_gaps(world, q)         # the DH offsets joint to joint, and every centre of mass
+    assert len(skeleton) >= 10 and max(g for _, g in skeleton) <= 1e-4, max(skeleton, key=lambda g: g[1])
     # the ready pose is free of self-collision (within 0.5 mm: the PUMA 260's flange sits 0.9 mm from its forearm)
     assert world.nearest(q)[0] > 0.0
 

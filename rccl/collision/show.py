@@ -6,8 +6,10 @@
 For the pose it prints every link frame's origin (base frame, m), every shape (capsule end
 points and radius, or box centre and size, base frame) and the nearest checked pairs; then,
 for every URDF visual, how far its farthest sample point (cylinder rims, box corners, sphere
-poles) lies outside every collision shape (0 = enclosed). ``enclosure_gaps`` is that check
-as a function (tests/test_collision.py uses it).
+poles) lies outside every collision shape (0 = enclosed), and the same for the kinematic
+skeleton (the DH offsets from joint to joint) and the links' centres of mass.
+``enclosure_gaps`` and ``skeleton_gaps`` are those checks as functions (tests/test_collision.py
+uses them).
 """
 from __future__ import annotations
 
@@ -58,7 +60,7 @@ def visual_points(urdf_path: str) -> list[tuple[str, int, str, np.ndarray]]:
 def _outside(point: np.ndarray, world: CollisionWorld, poses) -> float:
     """How far (m) ``point`` (base frame) lies outside the nearest collision shape (<= 0: inside one)."""
     best = math.inf
-    for c, sp in zip(world.capsules, poses):
+    for c, sp in zip(world.shapes, poses):
         local = sp.pose[:3, :3].T @ (point - sp.pose[:3, 3])
         if isinstance(c, Capsule):
             half = sp.size[0] / 2
@@ -85,6 +87,32 @@ def enclosure_gaps(world: CollisionWorld, q: np.ndarray) -> list[tuple[str, int,
     return out
 
 
+def skeleton_gaps(world: CollisionWorld, q: np.ndarray, step: float = 0.005) -> list[tuple[str, float]]:
+    """(what, worst outside distance m) for the kinematic skeleton at joints ``q``: every moving link's
+    line from its joint's origin to the next joint's origin (the DH offsets a_i, d_i, sampled every
+    ``step`` m) and every link's centre of mass (the URDF's inertial origins)."""
+    m, d = world.model, world.data
+    pin.forwardKinematics(m, d, np.asarray(q, dtype=float))
+    poses = world.shape_poses(q)
+    out = []
+    pin.updateFramePlacements(m, d)
+    for j in range(2, m.njoints):     # each moving joint's parent joint, the fixed frames between, the joint
+        corners = [d.oMi[m.parents[j]].translation]
+        corners += [d.oMf[i].translation for i, f in enumerate(m.frames)
+                    if f.type == pin.FrameType.FIXED_JOINT and f.parentJoint == m.parents[j]]
+        corners.append(d.oMi[j].translation)
+        worst = -math.inf
+        for a, b in zip(corners[:-1], corners[1:]):
+            n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+            worst = max(worst, *(_outside(a + (b - a) * k / n, world, poses) for k in range(n + 1)))
+        out.append((f"{m.names[m.parents[j]]} -> {m.names[j]}", worst))
+    for j in range(1, m.njoints):
+        if m.inertias[j].mass > 0:
+            out.append((f"centre of mass on {m.names[j]}",
+                        _outside(d.oMi[j].act(m.inertias[j].lever), world, poses)))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     from models import load_robot
 
@@ -102,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         if f.type == pin.FrameType.BODY:
             print(f"  {f.name:14s} {np.array2string(world.data.oMf[world.model.getFrameId(f.name)].translation, precision=4)}")
     print("shapes:")
-    for c, sp in zip(world.capsules, world.shape_poses(q)):
+    for c, sp in zip(world.shapes, world.shape_poses(q)):
         if sp.kind == "capsule":
             half = sp.pose[:3, 2] * sp.size[0] / 2
             ends = f"{np.array2string(sp.pose[:3, 3] - half, precision=4)} - {np.array2string(sp.pose[:3, 3] + half, precision=4)}"
@@ -117,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     print("URDF visuals, farthest sample point outside every shape (mm; <= 0 enclosed):")
     for link, n, what, gap in enclosure_gaps(world, q):
         print(f"  {link:10s} visual {n} ({what}): {gap * 1e3:+.1f}")
+    print("DH skeleton (joint to joint) and centres of mass, farthest point outside every shape (mm):")
+    for what, gap in skeleton_gaps(world, q):
+        print(f"  {what}: {gap * 1e3:+.1f}")
     return 0
 
 

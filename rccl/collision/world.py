@@ -1,4 +1,4 @@
-"""The collision world of one arm: its capsules and the environment's surfaces as a Pinocchio GeometryModel (coal).
+"""The collision world of one arm: its link shapes and the environment's surfaces as a Pinocchio GeometryModel (coal).
 
 ``CollisionWorld(robot, env=["plane:z=-0.3", ...])`` builds the Pinocchio model from the
 robot's shipped URDF (as simula does), puts each capsule of models/collision/<robot>.toml
@@ -8,7 +8,7 @@ plane (solid below z) is a coal Halfspace, a box bounded on one side only is the
 beyond that face, any other box a coal Box (unbounded sides cut at ``FAR`` m). ``tool:``
 and ``conveyor:`` words carry no obstacle.
 
-Checked pairs: every two capsules on different bodies, except the file's allowed pairs;
+Checked pairs: every two link shapes on different bodies, except the file's allowed pairs;
 every capsule on a moving body against every obstacle (bodies fixed to the base, such as
 the pedestal standing on the table, are the set-up, not something a motion changes).
 
@@ -82,7 +82,7 @@ def _box_shape(lo: np.ndarray, hi: np.ndarray) -> tuple[coal.CollisionGeometry, 
 
 
 class CollisionWorld:
-    """One arm's capsules and its environment's obstacles, with the pairs to check.
+    """One arm's link shapes and its environment's obstacles, with the pairs to check.
 
     ``distances(q)`` gives every checked pair's distance (m); ``nearest(q)`` the closest pair;
     ``capsule_poses(q)`` where each capsule is (for a viewer); ``lever`` the per-joint bound
@@ -103,9 +103,9 @@ class CollisionWorld:
         self.model = pin.buildModelFromUrdf(str(load_robot(robot).urdf_path))
         self.data = self.model.createData()
         self.gmodel = pin.GeometryModel()
-        self.capsules: list[Capsule | LinkBox] = list(geometry.capsules) + list(geometry.boxes)
+        self.shapes: list[Capsule | LinkBox] = list(geometry.capsules) + list(geometry.boxes)
         self._joint: list[int] = []
-        for c in self.capsules:
+        for c in self.shapes:
             if not self.model.existFrame(c.frame):
                 key = f"capsules/boxes {c.name!r} frame"
                 raise CollisionFileError(f"{geometry.path}: {key}: {c.frame!r} is not a link of {robot}'s URDF")
@@ -119,25 +119,25 @@ class CollisionWorld:
                 shape = coal.Box(*c.size)
             self.gmodel.addGeometryObject(pin.GeometryObject(c.name, frame.parentJoint, fid, placement, shape))
             self._joint.append(frame.parentJoint)
-        self.n_capsules = len(self.capsules)
+        self.n_shapes = len(self.shapes)
         self.obstacle_names: list[str] = []
         for name, shape, placement in obstacles(self.env):
             self.gmodel.addGeometryObject(pin.GeometryObject(name, 0, 0, placement, shape))
             self.obstacle_names.append(name)
         self.pairs: list[tuple[str, str]] = []
-        for i in range(self.n_capsules):
-            for j in range(i + 1, self.n_capsules):
+        for i in range(self.n_shapes):
+            for j in range(i + 1, self.n_shapes):
                 if self._checked(i, j):
                     self._add_pair(i, j)
             if self._joint[i] != 0:
                 for k in range(len(self.obstacle_names)):
-                    self._add_pair(i, self.n_capsules + k)
+                    self._add_pair(i, self.n_shapes + k)
         self.gdata = pin.GeometryData(self.gmodel)
         self.lever = self._levers()
 
     # -- pairs ------------------------------------------------------------------------------
     def _checked(self, i: int, j: int) -> bool:
-        ci, cj = self.capsules[i], self.capsules[j]
+        ci, cj = self.shapes[i], self.shapes[j]
         if self._joint[i] == self._joint[j]:
             return False                                  # one rigid body
         names_i, names_j = {ci.name, ci.frame}, {cj.name, cj.frame}
@@ -149,7 +149,7 @@ class CollisionWorld:
 
     def describe(self, name: str) -> str:
         """A geometry object's name as a user reads it: a capsule with its link, or the environment word."""
-        for c in self.capsules:
+        for c in self.shapes:
             if c.name == name:
                 return f"{c.name} (on {c.frame})"
         return name
@@ -170,7 +170,7 @@ class CollisionWorld:
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         pin.updateGeometryPlacements(self.model, self.data, self.gmodel, self.gdata)
         out = []
-        for i, c in enumerate(self.capsules):
+        for i, c in enumerate(self.shapes):
             pose = self.gdata.oMg[i].homogeneous.copy()
             if isinstance(c, Capsule):
                 out.append(ShapePose(c.name, c.frame, "capsule", pose, (segment_length(c), c.radius)))
@@ -178,14 +178,14 @@ class CollisionWorld:
                 out.append(ShapePose(c.name, c.frame, "box", pose, tuple(float(x) for x in c.size)))
         return out
 
-    # -- how fast the capsules can move -----------------------------------------------------------
+    # -- how fast the shapes can move -----------------------------------------------------------
     def _levers(self) -> np.ndarray:
         """Per joint: a bound (m per rad, or 1 for a prismatic joint) on how far any capsule point
         moves per unit of that joint, over every configuration (triangle inequality along the chain:
         the joint offsets out to the capsule, the prismatic strokes between, the capsule's far end)."""
         m = self.model
         lever = np.zeros(m.nq)
-        for i, c in enumerate(self.capsules):
+        for i, c in enumerate(self.shapes):
             jid = self._joint[i]
             if jid == 0:
                 continue
