@@ -268,3 +268,30 @@ def test_functional_target_into_a_plane_is_stopped_and_the_arm_holds():
             k = guard.world.pairs.index(cause.pair)
             assert guard.world.distances(arm.measured_q())[k] > 0.0     # no contact where it holds
             arm.recover()
+
+
+def test_watch_rides_on_the_motions_asked_for_and_stops_only_when_closer():
+    from rccl.adaptive.check import Sample
+    from rccl.collision import CollisionWatch
+
+    gen, p = planner(every_cycle="all")
+    p.setmod("joint")
+    req = p.move(makeposition("here", T6, EQ, Trsf("HERE", KIN.fk(START)), TL, T6))
+    assert any(isinstance(c, CollisionWatch) for c in req.checks)          # "all": a const target too
+    gen, p = planner()
+    req = p.move(makeposition("here", T6, EQ, Trsf("HERE", KIN.fk(START)), TL, T6))
+    assert not any(isinstance(c, CollisionWatch) for c in req.checks)      # "functional": not a const one
+    watch = CollisionWatch(p.collision_guard.world, MARGIN, "move(x)")
+
+    def sample(q):
+        return Sample(0.1, 3, q, np.zeros(6), np.array(q, dtype=float), None, None, None)
+
+    ready = load_robot("puma260").poses["ready"]           # flange 0.9 mm from the forearm at the start
+    assert watch.ends(sample(ready)) is None
+    away = ready.copy()
+    away[4] += 0.05
+    assert watch.ends(sample(away)) is None                 # inside the margin but not closer than at the start
+    closer = ready.copy()
+    closer[4] -= 0.05
+    with pytest.raises(PathCollision, match=r"forearm \(on link3\) and flange \(on link6\).*trajectory time 0.100 s"):
+        watch.ends(sample(closer))
