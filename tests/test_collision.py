@@ -17,7 +17,7 @@ from models import load_robot
 from rccl.collision import CollisionGuard, CollisionWorld, geometry_path, load_geometry
 from rccl.collision.path import path_joints
 from rccl.collision.show import enclosure_gaps, skeleton_gaps
-from rccl.exceptions import CollisionFileError, PathCollision, TrajectoryFault
+from rccl.exceptions import BadRequest, CollisionFileError, PathCollision, TrajectoryFault
 from rccl.limits import load_limits
 from rccl.planner import Planner
 from rccl.position import EQ, TL, makeposition
@@ -137,6 +137,9 @@ def test_sampling_is_dense_enough_for_the_margin():
     steps = [world.displacement(b - a) for a, b in zip(qs[:-1], qs[1:])]
     assert 2 * max(steps) <= MARGIN * (1 + 1e-9)                   # two bodies' relative motion per interval
     assert len(s) == p.collision_guard.samples_checked > 100      # 1 rad of the waist at a 0.65 m lever
+    fine = CollisionGuard(world, 1e-5)                            # a margin the sampling cannot guarantee
+    with pytest.raises(BadRequest, match=r"move\(swing\): checking this path for a 0.01 mm clearance margin"):
+        fine.check_plan(req, req.profile, KIN, LIM)
 
 
 # --- the planned path -----------------------------------------------------------------------------

@@ -27,21 +27,26 @@ import math
 import numpy as np
 
 from ..drive import drive_coefficients
-from ..exceptions import PathCollision
+from ..exceptions import BadRequest, PathCollision
 from ..limits import Limits
 from ..motion import Request
 from ..segments import Kinematics, Plan
 from .world import CollisionWorld
 
 START_TOL = 1e-4          # m: how much closer a pair already inside the margin may come (numerical noise)
-MAX_SAMPLES = 20000       # samples of one path at most (a 2 m sweep at a 0.1 mm margin)
+MAX_SAMPLES = 20000       # samples of one path at most (1 m of point travel at a 0.1 mm margin)
 MIN_SAMPLES = 2           # the corner and the destination
 COARSE = 16               # Cartesian mode: IK samples that first measure the joint path's length
 
 
-def samples_needed(world: CollisionWorld, length_bound: float, margin: float) -> int:
-    """How many intervals make 2 D per interval <= margin for a path whose D over its whole length is ``length_bound``."""
-    return int(min(MAX_SAMPLES, max(MIN_SAMPLES, math.ceil(2.0 * length_bound / margin))))
+def samples_needed(length_bound: float, margin: float, where: str) -> int:
+    """How many intervals make 2 D per interval <= margin for a path whose D over its whole length is
+    ``length_bound`` (m); a BadRequest naming ``where`` if that is more than MAX_SAMPLES."""
+    n = max(MIN_SAMPLES, math.ceil(2.0 * length_bound / margin))
+    if n > MAX_SAMPLES:
+        raise BadRequest(f"{where}: checking this path for a {margin * 1e3:.2f} mm clearance margin would take {n} "
+                         f"samples (at most {MAX_SAMPLES}); use a larger margin or a shorter move")
+    return int(n)
 
 
 def path_joints(world: CollisionWorld, margin: float, kin: Kinematics, limits: Limits, req: Request,
@@ -49,12 +54,12 @@ def path_joints(world: CollisionWorld, margin: float, kin: Kinematics, limits: L
     """(fractions 0..1 along the motion, joints there (N, n)) of the planned path, spaced for ``margin``."""
     where = f"move({req.position.name})"
     if plan.mode == "joint" or plan.stationary:
-        n = samples_needed(world, world.displacement(plan.dq), margin)
+        n = samples_needed(world.displacement(plan.dq), margin, where)
         s = np.linspace(0.0, 1.0, n + 1)
         return s, plan.q_b[None, :] - s[:, None] * plan.dq[None, :]
     coarse = _cartesian(kin, limits, plan, COARSE, where)
     length = sum(world.displacement(b - a) for a, b in zip(coarse[:-1], coarse[1:]))
-    n = samples_needed(world, length, margin)
+    n = samples_needed(length, margin, where)
     return np.linspace(0.0, 1.0, n + 1), (coarse if n == COARSE else _cartesian(kin, limits, plan, n, where))
 
 
