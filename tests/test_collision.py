@@ -74,6 +74,11 @@ def test_shipped_geometry_encloses_every_urdf_visual_and_explains_its_pairs(robo
     assert worst[3] <= 1e-4, worst             # every visual's sample points inside some shape (0.1 mm rounding)
     skeleton = skeleton_gaps(world, q)         # the DH offsets joint to joint, and every centre of mass
     assert len(skeleton) >= 10 and max(g for _, g in skeleton) <= 1e-4, max(skeleton, key=lambda g: g[1])
+    # what a viewer draws: every shape, capsules with a unit z axis along their segment
+    from rccl.collision import shape_poses
+    drawn = shape_poses(robot, q)
+    assert [d.name for d in drawn] == [c.name for c in world.shapes]
+    assert all(np.allclose(d.pose[:3, :3].T @ d.pose[:3, :3], np.eye(3)) and len(d.size) in (2, 3) for d in drawn)
     # the ready pose is free of self-collision (within 0.5 mm: the PUMA 260's flange sits 0.9 mm from its forearm)
     assert world.nearest(q)[0] > 0.0
 

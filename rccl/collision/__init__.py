@@ -13,7 +13,7 @@ from __future__ import annotations
 from .geometry import LinkBox, Capsule, CollisionGeometry, geometry_path, load_geometry
 from .guard import EVERY_CYCLE, CollisionGuard
 from .watch import CollisionWatch
-from .world import ShapePose, CollisionWorld
+from .world import CollisionWorld, ShapePose, shape_poses
 
 __all__ = ["LinkBox", "Capsule", "CollisionGeometry", "geometry_path", "load_geometry", "CollisionGuard", "EVERY_CYCLE",
-           "CollisionWatch", "ShapePose", "CollisionWorld"]
+           "CollisionWatch", "ShapePose", "CollisionWorld", "shape_poses"]

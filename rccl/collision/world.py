@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import coal
 import numpy as np
@@ -212,3 +213,13 @@ class CollisionWorld:
     def displacement(self, dq: np.ndarray) -> float:
         """A bound (m) on how far any capsule point moves when the joints move by ``dq`` along a line."""
         return float(np.abs(np.asarray(dq, dtype=float)) @ self.lever)
+
+
+@lru_cache(maxsize=8)
+def _world_of(robot: str) -> CollisionWorld:
+    return CollisionWorld(robot)
+
+
+def shape_poses(robot: str, q: np.ndarray) -> list[ShapePose]:
+    """Each link shape of ``robot``'s shipped geometry at joints ``q`` (rad, m), base frame: what a viewer draws."""
+    return _world_of(robot).shape_poses(q)
