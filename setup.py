@@ -107,5 +107,5 @@ setup(
     # the generated C (for rebuilds and the staleness check) and the CasADi Function files
     # the robot data files and their URDFs ship inside rcci.models ($RCCI_MODELS overrides)
     package_data={"rccl.kinematics": ["_c/*.c", "_c/*.h", "casadi/*/*.casadi"],
-                  "rcci.models": ["*.toml", "urdf/*.urdf", "README.md"]},
+                  "rcci.models": ["*.toml", "urdf/*.urdf", "collision/*.toml", "README.md"]},
 )

@@ -20,8 +20,9 @@ docs/rccl.md maps every RCCL primitive of the thesis to its Python spelling.
 """
 from __future__ import annotations
 
-from .exceptions import (BadRequest, ConfigurationChange, ConstTransformError, MotionError, NotRunning, PowerOff,
-                         PositionError, RCCLError, SingularPath, TrajectoryFault, TransformError, UnreachableTarget)
+from .exceptions import (BadRequest, CollisionFileError, ConfigurationChange, ConstTransformError, MotionError, NotRunning,
+                         PathCollision, PowerOff, PositionError, RCCLError, SingularPath, TrajectoryFault, TransformError,
+                         UnreachableTarget)
 from .position import EQ, TL, Position, joint_position, makeposition
 from .sync import Event
 from .transform import (T6, Trsf, gentr_eul, gentr_noap, gentr_rot, gentr_rpy, gentr_trsl, t6, xunit, yunit,
@@ -38,5 +39,5 @@ __all__ = [
     "open", "makeposition", "joint_position", "Position", "EQ", "TL", "T6", "t6", "Trsf", "Event",
     "xunit", "yunit", "zunit", "gentr_trsl", "gentr_rot", "gentr_rpy", "gentr_eul", "gentr_noap", "RCCLError", "TransformError", "ConstTransformError", "PositionError",
     "MotionError", "BadRequest", "UnreachableTarget", "SingularPath", "ConfigurationChange", "TrajectoryFault",
-    "NotRunning", "PowerOff",
+    "NotRunning", "PowerOff", "PathCollision", "CollisionFileError",
 ]

@@ -52,3 +52,28 @@ class TrajectoryFault(MotionError):
 
 class NotRunning(RCCLError):
     """A motion primitive was called while RCCL is not open/controlling (rccl.open not entered)."""
+
+
+class PathCollision(MotionError):
+    """A motion would bring two links, or a link and an environment object, closer than the clearance margin.
+
+    ``pair`` names the two (link or capsule names, environment objects as ``env:<word>``),
+    ``distance`` is their distance there (m, negative: overlapping), ``margin`` the clearance
+    asked for (m), ``fraction`` where along the motion (0 start .. 1 end; None for a per-cycle
+    stop), ``time`` when (s: after the motion starts for a planned path, trajectory time for a
+    per-cycle stop) and ``q`` the joint values there (rad, m).
+    """
+
+    def __init__(self, message: str, pair: tuple[str, str], distance: float, margin: float,
+                 fraction: float | None, time: float | None, q) -> None:
+        super().__init__(message)
+        self.pair = pair
+        self.distance = distance
+        self.margin = margin
+        self.fraction = fraction
+        self.time = time
+        self.q = q
+
+
+class CollisionFileError(RCCLError, ValueError):
+    """A collision geometry file (models/collision/<robot>.toml) is malformed; the message names the file and key."""

@@ -4,7 +4,9 @@
 turns each ``move`` into a request packet, checks it *before* queueing (from where the
 previous request will leave the arm: unreachable targets, joint ranges, singular
 Cartesian paths, configuration changes in Cartesian mode all raise here, at the planning
-level, before any motion starts), and queues it for the trajectory generator. The
+level, before any motion starts; with ``collisions(...)`` on, so do paths that bring two
+links, or a link and an environment object, inside the clearance margin: rccl.collision),
+and queues it for the trajectory generator. The
 generator re-plans each request from the arm's actual state when it reaches it.
 
 Errors the trajectory level meets later (a variable target that moved out of reach, a
@@ -75,6 +77,8 @@ class Planner:
         self._pred_t6: np.ndarray | None = None
         self._pred_q: np.ndarray | None = None
         self.last: Request | None = None
+        # collision checking (rccl.collision.CollisionGuard), off until ``arm.collisions(...)``
+        self.collision_guard = None
 
     # -- errors from the trajectory level ---------------------------------------------
     def check(self) -> None:
@@ -138,6 +142,10 @@ class Planner:
             raise BadRequest(f"move: {position!r} is not a position (use makeposition)")
         req = Request(position, position.snapshot(), replace(self.params), next(self._serial))
         self._precheck(req)
+        if self.collision_guard is not None:          # the per-cycle watch, for the motions that get one
+            watch = self.collision_guard.watch_for(req)
+            if watch is not None:
+                req.checks.append(watch)
         position.end.expect()
         self.queue.put(req)
         self.last = req
@@ -197,6 +205,8 @@ class Planner:
         # the path check (reach, joint ranges, singularities along a Cartesian line), done once here;
         # the generator reuses it when the request starts from this corner (see plan_segment)
         plan = plan_path(self.kin, self.limits, self.gen.dt, req, self._pred_t6, self._pred_q)
+        if self.collision_guard is not None:          # self-collision and environment along the path
+            self.collision_guard.check_plan(req, plan, self.kin, self.limits)
         req.profile = plan
         self._pred_t6 = plan.t6_c
         self._pred_q = plan.q_dest

@@ -318,6 +318,40 @@ class Arm(Planner):
             raise SpecError(f"cond: the motion to {self.last.position.name} has already ended")
         return req
 
+    # -- collision checking (issue 28; rccl.collision, docs/collision.md) -----------------------
+    def collisions(self, env: list[str] | tuple[str, ...] = (), margin: float = 0.01,
+                   every_cycle: str = "functional", geometry: str | None = None):
+        """Check every later move for collisions; returns the ``rccl.collision.CollisionGuard``.
+
+        ``env``: simula's ``--env`` words (``plane:z=-0.3``, ``box:x0=..,z1=..``) as obstacles
+        fixed in the base frame; ``margin``: the clearance (m) every checked pair must keep;
+        ``every_cycle``: "functional" (motions with a functional or variable transform also
+        get a per-cycle check), "all" or "none"; ``geometry``: another geometry file than
+        models/collision/<robot>.toml. A move whose planned path comes closer raises
+        ``PathCollision`` before it is queued; a per-cycle check stops the arm (it holds) and
+        the next primitive raises a TrajectoryFault whose ``cause`` is the PathCollision.
+        ``arm.collisions_off()`` ends the checking.
+        """
+        from .collision import CollisionGuard, CollisionWorld
+        from .exceptions import BadRequest, CollisionFileError
+
+        if self.gen is None:
+            raise NotRunning("RCCL is not running: use rccl.open(...)")
+        if isinstance(env, str):
+            raise BadRequest(f"collisions(env={env!r}): give a list of environment words, e.g. [{env!r}]")
+        try:
+            world = CollisionWorld(self.robot, tuple(env), geometry)
+        except CollisionFileError:
+            raise
+        except ValueError as exc:          # a bad environment word (rci.simula.environment names it)
+            raise BadRequest(f"collisions(env={list(env)!r}): {exc}") from None
+        self.collision_guard = CollisionGuard(world, margin, every_cycle)
+        return self.collision_guard
+
+    def collisions_off(self) -> None:
+        """Stop checking later moves for collisions (motions already queued keep their per-cycle checks)."""
+        self.collision_guard = None
+
     # -- arm power (thesis A.4 power_on / power_off) ------------------------------------------
     @property
     def powered(self) -> bool:

@@ -36,7 +36,7 @@ from rccl import EQ, T6, TL, BadRequest, TrajectoryFault, Trsf, makeposition
 
 GENERATORS = ("quartic", "ruckig")
 FEATURES = ("plain", "functional", "force_limit", "deviation_limit", "monitor", "compliance", "conditional",
-            "event_flags", "rate_change", "feedforward")
+            "event_flags", "rate_change", "feedforward", "collision")
 ARMS = ("puma260", "microbo", "puma560", "stanford")
 LINKS = ("socket", "zenoh")
 
@@ -374,6 +374,75 @@ def feedforward(arm) -> str:
     expect(not arm.last_command.current, "a joint is still current-servoed in position mode")
     return (f"{full} of {len(trace)} cycles computed torque on 6 joints, {err * 1e3:.2f} mm off, "
             f"{arm.ff_control.saturated} clipped; comply refused; position mode restored")
+
+
+FLOOR = {"puma260": -0.40, "microbo": -0.08, "puma560": 0.0, "stanford": 0.0}   # m: the table under each base
+CLEARANCE = 0.005      # m, the collision cell's margin
+
+
+def _box_at(p: np.ndarray, half: float = 0.005) -> str:
+    """simula's word for a cube of side 2 ``half`` (m) centred on ``p`` (base frame)."""
+    return ",".join(f"{a}0={v - half:.4f},{a}1={v + half:.4f}" for a, v in zip("xyz", p)).join(("box:", ""))
+
+
+def collision(arm) -> str:
+    """arm.collisions(...) on: a line above the table is checked and reached; a line ending in a 10 mm box is
+    refused before it moves (PathCollision naming the box); a target drawn towards that box by a function
+    is stopped by the per-cycle check before the wrist reaches it, and the arm holds."""
+    from rccl import PathCollision
+    t6 = start(arm)
+    guard = arm.collisions(env=[f"plane:z={FLOOR[arm.robot]}"], margin=CLEARANCE)
+    p, goal = line_to(t6)
+    cartesian(arm)
+    arm.move(p)
+    checked = guard.samples_checked
+    wait(arm, p)
+    err = reached(arm, goal)
+    # the box: the nearest point along the line (10 mm steps) that leaves the arm 3 margins clear at the goal
+    from rccl.collision import CollisionWorld
+    q_goal = arm.q
+    for ahead in np.arange(0.03, 0.31, 0.01):
+        box = _box_at(goal[:3, 3] + ahead * DIRECTION)
+        world = CollisionWorld(arm.robot, (box,))
+        if min(d for d, pair in zip(world.distances(q_goal), world.pairs) if pair[1] == f"env:{box}") > 3 * CLEARANCE:
+            break
+    arm.collisions(env=[box], margin=CLEARANCE)
+    into, _ = line_to(goal, ahead, "into_box")
+    q0 = arm.q
+    try:
+        arm.move(into)
+        raise Failed("the line into the box was accepted")
+    except PathCollision as exc:
+        expect(exc.pair[1] == f"env:{box}", f"the refusal named {exc.pair}, not the box")
+        refusal = exc
+    expect(np.array_equal(arm.q, q0) and not arm.gen.busy, "the arm moved after the refusal")
+    t0 = arm.gen.t
+
+    def towards(tr):                 # 10 mm/s along the line, into the box
+        m = goal.copy()
+        m[:3, 3] += 0.01 * (arm.gen.t - t0) * DIRECTION
+        tr.set(m)
+
+    f = Trsf("TOWARDS", goal)
+    f.bind(towards)
+    drawn = makeposition("drawn", T6, EQ, f, TL, T6)
+    arm.settime(0.2, 4.0)
+    arm.move(drawn)
+    try:
+        wait(arm, drawn)
+        raise Failed("the per-cycle check did not stop the target drawn into the box")
+    except TrajectoryFault as exc:
+        expect(isinstance(exc.cause, PathCollision) and exc.cause.pair[1] == f"env:{box}",
+               f"the motion ended with {exc!r}, not the per-cycle collision stop")
+        stop = exc.cause
+    held, n0 = arm.q, len(arm.trace)
+    arm.rci.wait(WAIT, until=lambda: len(arm.trace) >= n0 + 10)       # ten cycles (the frozen generator's t stands)
+    expect(np.array_equal(arm.q, held), "the arm did not hold after the per-cycle stop")
+    arm.recover()
+    arm.collisions_off()
+    return (f"line reached {err * 1e3:.2f} mm off ({checked} samples checked); a line {ahead * 1e3:.0f} mm into a "
+            f"box refused at {refusal.fraction * 100:.0f}% ({refusal.pair[0]}, {refusal.distance * 1e3:.1f} mm); a "
+            f"target drawn into it stopped {stop.distance * 1e3:.1f} mm from it, the arm holds")
 
 
 RUNNERS: dict[str, Callable] = {f: globals()[f] for f in FEATURES}

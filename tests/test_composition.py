@@ -21,6 +21,7 @@ SUBSET = {
     ("quartic", "event_flags", "puma260", "socket"), ("quartic", "rate_change", "puma260", "socket"),
     ("ruckig", "monitor", "microbo", "zenoh"), ("ruckig", "deviation_limit", "microbo", "zenoh"),
     ("ruckig", "plain", "stanford", "socket"), ("quartic", "feedforward", "puma560", "socket"),
+    ("quartic", "collision", "puma260", "socket"), ("ruckig", "collision", "stanford", "socket"),
 }
 CELLS = [pytest.param(g, f, a, lk, id=f"{a}-{lk}-{g}-{f}",
                       marks=() if (g, f, a, lk) in SUBSET else (pytest.mark.slow, pytest.mark.matrix))
