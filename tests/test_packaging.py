@@ -51,7 +51,8 @@ CLIENT = textwrap.dedent('''
         raise AssertionError(f"the installed project provides a top-level {generic!r}")
     data = rcci.models.models_dir()
     assert prefix in data.parents and (data / "puma260.toml").is_file() \\
-        and (data / "urdf" / "puma260.urdf").is_file(), f"robot files not in the wheel: {data}"
+        and (data / "urdf" / "puma260.urdf").is_file() and (data / "collision" / "puma260.toml").is_file(), \
+        f"robot files not in the wheel: {data}"
 
     simula = str(Path(sys.executable).parent / "simula")
     goal = np.radians([10.0, 70.0, -160.0, 0.0, -50.0, 10.0])
