@@ -71,6 +71,9 @@ bench: $(STAMP)
 	$(PY) bench/rccl_cycle.py
 	$(PY) bench/rccl_adaptive.py
 	$(PY) bench/calib_fit.py
+	$(PY) -m bench.feedforward --robot puma260 --robot microbo --robot puma560 --robot stanford --no-rotor \
+	    --report reports/feedforward.md --plot reports/feedforward.png
+	$(PY) -m bench.collision
 	$(PY) -m pip install --quiet --no-deps -e .   # rebuild the C kernels from the current generated C
 	$(PY) -m bench.run
 
