@@ -357,6 +357,8 @@ def main(argv: list[str] | None = None) -> int:
         "cycle that dequeues the next request and times it; the path was checked by `move()` at the",
         "planning level); they are also shown on their own, beside the worst of the other cycles.",
         "`move()` is the planning level's cost of one request (path check included), not part of a cycle.",
+        "The last section times, in the same run, the whole control function every Arm runs each cycle (the",
+        "adaptive control and the HOW/CHG conversions around the step): what a cycle costs the user's budget.",
         "",
         "| robot | mode | targets | mean (us) | median (us) | p99 (us) | max (us) | segment starts: n, mean, max (us) "
         "| other cycles: p99, max (us) | move() (us) | Table 5.1 row | VAX 750 | VAX / mean | VAX / p99 |",
