@@ -115,12 +115,12 @@ class LinklessArm:
             arm.move(p)
 
 
-def _timed(fn: Callable, out: np.ndarray, index: list[int], clock: Callable[[], int]) -> Callable:
-    """``fn`` wrapped to add its CPU time (ns) into ``out[index[0]]``."""
-    def wrapper(*args, **kwargs):
+def _timed(fn: Callable, acc: list[int], clock: Callable[[], int]) -> Callable:
+    """``fn`` (called with positional arguments only) wrapped to add its CPU time (ns) into ``acc[0]``."""
+    def wrapper(*args):
         t0 = clock()
-        r = fn(*args, **kwargs)
-        out[index[0]] += clock() - t0
+        r = fn(*args)
+        acc[0] += clock() - t0
         return r
     return wrapper
 
@@ -138,30 +138,30 @@ def run(robot: str, trajectory: str, mode: str, feature: str, positions_of: Call
     total = np.empty(cycles)
     step = np.zeros(cycles)
     adaptive = np.zeros(cycles)
-    k = [0]
+    in_step, in_adaptive = [0], [0]        # this cycle's ns, summed by the wrappers
+    gen, ctl = arm.gen, arm.adaptive
     if split:
-        gen, ctl = arm.gen, arm.adaptive
-        gen.step = _timed(gen.step, step, k, clock)
-        ctl.before = _timed(ctl.before, adaptive, k, clock)
-        ctl.after = _timed(ctl.after, adaptive, k, clock)
+        gen.step = _timed(gen.step, in_step, clock)
+        ctl.before = _timed(ctl.before, in_adaptive, clock)
+        ctl.after = _timed(ctl.after, in_adaptive, clock)
     cycle = arm._cycle
-    gen = arm.gen
     # the first cycle of each motion: its before() sees a request the previous cycle's did not (the
     # motion's checks are set up there: a force limit is vetted against the estimate's error bar)
     first = np.zeros(cycles, dtype=bool)
     seen = gen.request
     gc.disable()
     try:
-        while k[0] < cycles:
+        for k in range(cycles):
             if len(arm.queue) < 2:
                 la.queue(positions, feature)
             la.next_how()
             req = gen.request
-            first[k[0]], seen = req is not None and req is not seen, req
+            first[k], seen = req is not None and req is not seen, req
+            in_step[0] = in_adaptive[0] = 0
             t0 = clock()
             cycle()
-            total[k[0]] = clock() - t0
-            k[0] += 1
+            total[k] = clock() - t0
+            step[k], adaptive[k] = in_step[0], in_adaptive[0]
     finally:
         gc.enable()
     if arm.control_error is not None or gen.errors or gen.faulted is not None:

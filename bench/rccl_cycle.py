@@ -219,7 +219,7 @@ def control_table(rows: list[dict], jerk_rows: list[dict], control: list[dict], 
     """The whole control function's rows (uninstrumented pass) with the split of the instrumented one."""
     alone = {("quartic", r["mode"]): r for r in rows if r["robot"] == "puma260" and r["targets"] == "const"}
     alone.update({("ruckig", r["mode"]): r for r in jerk_rows if r["targets"] == "const"})
-    parts = {(r["trajectory"], r["mode"], r["feature"]): r for r in split}
+    parts = {_key(r): r for r in split}
     out = [CONTROL_HEADING, "",
            "What one control cycle costs the user's budget: `rccl.session.Arm._cycle`, the control function",
            "`rccl.open` gives RCI for every arm and generator, timed whole (HOW's encoder counts to joint angles,",
@@ -239,22 +239,31 @@ def control_table(rows: list[dict], jerk_rows: list[dict], control: list[dict], 
            "*step alone* repeats the step-only figures of the same generator, mode and tour from the tables",
            "above. The split columns come from a second, instrumented pass over the same rows (best of",
            f"{repeats} likewise): the step, the adaptive control (`before` + `after`) and the rest (conversions,",
-           "CHG, bookkeeping) each timed inside every cycle; that pass adds six clock reads per cycle (a pair",
-           f"of `thread_time_ns` reads costs {clock_pair_us:.2f} us here), which land mostly in *rest*; the",
-           "whole-cycle columns are from the pass without them.",
+           "CHG, bookkeeping) each timed inside every cycle by wrapping the three calls. That timing costs",
+           "time of its own (six clock reads per cycle, a pair of `thread_time_ns` reads costs "
+           f"{clock_pair_us:.2f} us here, and the",
+           "wrappers' calls): the instrumented pass's whole-cycle median is "
+           f"{_span([parts[k]['median'] - r['median'] for k, r in ((_key(r), r) for r in control)])} us above "
+           "the uninstrumented one's over the rows,",
+           "and it lands in *rest*, mostly (the step and the adaptive control hold one clock read's worth",
+           "each). The whole-cycle columns are from the pass without it.",
            "",
            "| generator | mode | attached | mean (us) | median (us) | p99 (us) | max (us) | step alone: median, p99 (us) "
-           "| split, step: median, p99 (us) | split, adaptive control: median, p99 (us) | split, rest: median, p99 (us) |",
+           "| split, step: median, p99 (us) | split, adaptive control: median, p99 (us) | split, rest (with the "
+           "instrumentation): median, p99 (us) |",
            "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in control:
-        key = (r["trajectory"], r["mode"], r["feature"])
-        a, p = alone[(r["trajectory"], r["mode"])], parts[key]
+        a, p = alone[(r["trajectory"], r["mode"])], parts[_key(r)]
         out.append(f"| {r['trajectory']} | {r['mode']} | {r['feature']} | {r['mean']:.1f} | {r['median']:.1f} | "
                    f"{r['p99']:.1f} | {r['max']:.1f} | {a['median']:.1f}, {a['p99']:.1f} | "
                    f"{p['step_median']:.1f}, {p['step_p99']:.1f} | {p['adaptive_median']:.1f}, "
                    f"{p['adaptive_p99']:.1f} | {p['rest_median']:.1f}, {p['rest_p99']:.1f} |")
-    out += [""] + adaptive_cost_text(split) + [""] + ruckig_control_verdict(control, jerk_rows, load) + [""]
+    out += [""] + adaptive_cost_text(control, split, alone) + [""] + ruckig_control_verdict(control, jerk_rows, load) + [""]
     return out
+
+
+def _key(r: dict) -> tuple[str, str, str]:
+    return r["trajectory"], r["mode"], r["feature"]
 
 
 def _span(values: list[float]) -> str:
@@ -262,17 +271,28 @@ def _span(values: list[float]) -> str:
     return f"{lo:.1f}" if f"{lo:.1f}" == f"{hi:.1f}" else f"{lo:.1f}-{hi:.1f}"
 
 
-def adaptive_cost_text(split: list[dict]) -> list[str]:
+def adaptive_cost_text(control: list[dict], split: list[dict], alone: dict) -> list[str]:
     """What the adaptive control costs per cycle, per attached feature, over both generators and modes."""
+    whole = {_key(r): r for r in control}
     out = ["What the adaptive control (`before` + `after`) costs per cycle, over both generators and modes "
-           "(instrumented pass):"]
+           "(instrumented pass), and what attaching a feature adds to the whole cycle's median (uninstrumented "
+           "pass, against the same generator and mode with nothing attached):"]
     for feature in arm_cycle.FEATURES:
         rs = [r for r in split if r["feature"] == feature]
-        beyond = [r["beyond_step_median"] for r in rs]
-        out.append(f"- *{feature}*: median {_span([r['adaptive_median'] for r in rs])} us, p99 "
-                   f"{_span([r['adaptive_p99'] for r in rs])} us; everything the control function does "
-                   f"beside the step (adaptive control and rest): median {_span(beyond)} us, p99 "
-                   f"{_span([r['beyond_step_p99'] for r in rs])} us.")
+        text = (f"- *{feature}*: median {_span([r['adaptive_median'] for r in rs])} us, p99 "
+                f"{_span([r['adaptive_p99'] for r in rs])} us")
+        if feature != "none":
+            added = [whole[(r["trajectory"], r["mode"], feature)]["median"]
+                     - whole[(r["trajectory"], r["mode"], "none")]["median"] for r in rs]
+            text += f"; the whole cycle's median {_span(added)} us above nothing attached"
+        out.append(text + ".")
+    none = [r for r in split if r["feature"] == "none"]
+    rest = [whole[_key(r)]["median"] - alone[(r["trajectory"], r["mode"])]["median"] - r["adaptive_median"]
+            for r in none]
+    out.append("With nothing attached, the whole cycle's median less the step's alone and the adaptive "
+               f"control's leaves {_span(rest)} us for the rest of the control function (HOW's counts to joint "
+               "angles, the POS commands into CHG, bookkeeping): a difference of medians, an estimate free of the "
+               "instrumentation that inflates the *rest* column.")
     every = {g: sum(r["cycles"] for r in split if r["trajectory"] == g)
              / max(1, sum(r["firsts"] for r in split if r["trajectory"] == g)) for g in GENERATORS}
     out.append("About one cycle in " + ", ".join(f"{n:.0f} ({g})" for g, n in every.items())
@@ -297,11 +317,13 @@ def ruckig_control_verdict(control: list[dict], jerk_rows: list[dict], load: tup
             f"control function, Ruckig joint mode, const targets: {each}. The step alone on the same tour: p99 "
             f"{step['p99']:.1f} us, **{'met' if step['p99'] <= RUCKIG_TARGET_US else 'NOT met'}**.",
             "",
-            f"All the figures of this report's cycle tables were taken with the machine loaded by other work: "
-            f"load average (1 min) {load[0]:.2f} before the run, {load[1]:.2f} when the control-function rows "
-            f"started, {load[2]:.2f} after, on {os.cpu_count()} cores. Best of several runs removes part of the "
-            "interference from the means; the p99 and max columns are inflated by it and a quiet machine would "
-            "give lower ones (the medians are the least affected)."]
+            (f"All the figures of this report's cycle tables were taken with the machine loaded by other work: "
+             f"load average (1 min) {load[0]:.2f} before the run, {load[1]:.2f} when the control-function rows "
+             f"started, {load[2]:.2f} after, on {os.cpu_count()} cores. Best of several runs removes part of the "
+             "interference from the means; the p99 and max columns are inflated by it and a quiet machine would "
+             "give lower ones (the medians are the least affected)." if max(load) >= 1.0 else
+             f"Load average (1 min) {load[0]:.2f} before the run, {load[1]:.2f} when the control-function rows "
+             f"started, {load[2]:.2f} after, on {os.cpu_count()} cores: a quiet machine.")]
 
 
 def keep_other_sections(old: str, own: tuple[str, ...]) -> str:
