@@ -7,7 +7,11 @@ Cartesian mode, over a tour of moves with transitions and holds, and writes
 segment (dequeue and time the next request) on their own, the machine's load average
 before and after, and the ratio to the VAX 750 of Table 5.1 (joint 12.0 ms, Cartesian
 15.5 ms). The jerk-limited generator (``rccl.jerk``, Ruckig) runs the same tour in the same
-run, in its own table beside the quartic's p99.
+run, in its own table beside the quartic's p99. Then, in the same run, the whole RCCL control
+function as every Arm runs it (``rccl.session.Arm._cycle``: HOW to joint angles, the adaptive
+control around the step, the command to CHG; ``bench/arm_cycle.py`` drives it with synthetic
+HOW records, no link), for both generators, with no adaptive feature attached, with a force
+limit and with a monitor: what one control cycle costs the user's budget.
 
     .venv/bin/python bench/rccl_cycle.py            # writes reports/bench-rccl.md
     .venv/bin/python bench/rccl_cycle.py --cycles 20000 --out -   # print only
@@ -20,6 +24,7 @@ import gc
 import math
 import os
 import platform
+import re
 import sys
 import time
 from pathlib import Path
@@ -29,6 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench import arm_cycle  # noqa: E402
 from bench.output import emit  # noqa: E402
 from rccl.limits import load_limits  # noqa: E402
 from rccl.planner import Planner  # noqa: E402
@@ -55,6 +61,11 @@ ROWS = (("puma260", "joint", "const"), ("puma260", "joint", "variable"), ("puma2
 # the jerk-limited generator (rccl.jerk), on the same tour in the same run
 RUCKIG_ROWS = (("puma260", "joint", "const"), ("puma260", "joint", "variable"), ("puma260", "cartesian", "const"))
 GENERATORS = {"quartic": TrajectoryGenerator, "ruckig": JerkLimitedGenerator}
+# the whole control function (Arm._cycle), PUMA 260 const tour: generator x mode x attached feature
+CONTROL_ROWS = tuple((trajectory, mode, feature) for trajectory in GENERATORS for mode in ("joint", "cartesian")
+                     for feature in arm_cycle.FEATURES)
+JERK_HEADING = "## Jerk-limited generator (Ruckig, `rccl.jerk`)"
+CONTROL_HEADING = "## The whole control function per cycle (`Arm._cycle`: adaptive control around the step)"
 
 
 def tour(kin, robot: str, targets: str):
@@ -85,6 +96,15 @@ def tour(kin, robot: str, targets: str):
 def best_of(robot: str, mode: str, cycles: int, targets: str, repeats: int, trajectory: str = "quartic") -> dict:
     """The run with the lowest mean of ``repeats`` identical runs (the others met more interference)."""
     runs = [run(robot, mode, cycles, targets, trajectory) for _ in range(repeats)]
+    best = min(runs, key=lambda r: r["mean"])
+    best["repeats"] = repeats
+    return best
+
+
+def best_control(trajectory: str, mode: str, feature: str, cycles: int, repeats: int, split: bool) -> dict:
+    """The control function's run with the lowest mean of ``repeats`` (PUMA 260, const tour)."""
+    runs = [arm_cycle.run("puma260", trajectory, mode, feature, lambda kin: tour(kin, "puma260", "const"),
+                          START["puma260"], RATE_HZ, cycles, split=split) for _ in range(repeats)]
     best = min(runs, key=lambda r: r["mean"])
     best["repeats"] = repeats
     return best
@@ -171,7 +191,7 @@ def profile(cycles: int) -> int:
 def jerk_table(rows: list[dict], jerk_rows: list[dict]) -> list[str]:
     """The jerk-limited generator's rows beside the quartic's on the same tour (same run, same columns)."""
     quartic = {(r["robot"], r["mode"], r["targets"]): r for r in rows}
-    out = ["## Jerk-limited generator (Ruckig, `rccl.jerk`)", "",
+    out = [JERK_HEADING, "",
            "The same tour, timed the same way in the same run, with `JerkLimitedGenerator.step()` (Ruckig's online",
            "update for the 6 joints, or for the tool's 6 coordinates plus one inverse kinematics call in Cartesian",
            "mode). Queued positions blend (a queued one becomes Ruckig's target while the arm still moves); the "
@@ -194,6 +214,125 @@ def jerk_table(rows: list[dict], jerk_rows: list[dict]) -> list[str]:
     return out
 
 
+def control_table(rows: list[dict], jerk_rows: list[dict], control: list[dict], split: list[dict],
+                  load: tuple, clock_pair_us: float, cycles: int, repeats: int) -> list[str]:
+    """The whole control function's rows (uninstrumented pass) with the split of the instrumented one."""
+    alone = {("quartic", r["mode"]): r for r in rows if r["robot"] == "puma260" and r["targets"] == "const"}
+    alone.update({("ruckig", r["mode"]): r for r in jerk_rows if r["targets"] == "const"})
+    parts = {_key(r): r for r in split}
+    out = [CONTROL_HEADING, "",
+           "What one control cycle costs the user's budget: `rccl.session.Arm._cycle`, the control function",
+           "`rccl.open` gives RCI for every arm and generator, timed whole (HOW's encoder counts to joint angles,",
+           "`AdaptiveControl.before` (checks, estimates, compliance), the generator's `step()`,",
+           "`AdaptiveControl.after` (the command) and the POS commands written into CHG). No link and no",
+           "simulator: `bench/arm_cycle.py` builds the Arm without opening it and writes a synthetic HOW before",
+           "each cycle, untimed (the robot follows its commands: last cycle's POS counts with -1..1 count of",
+           "noise; motor ADC = gravity torques there plus noise; powered, calibrated, 36 Hz). PUMA 260, the",
+           f"const tour above, {cycles} cycles per run, best of {repeats} runs per row (lowest mean), the same",
+           "clock and garbage-collector setting as the step-only tables. *Attached* to every motion of the tour:",
+           "*none*; *force limit* `arm.limit(\"fx fy fz\", "
+           f"{arm_cycle.FORCE_LIMIT_N:g}, ...)` (net torques 4.37, tool force 4.56 through J6^-1 with",
+           "the condition check 4.57; the bound vetted against the estimate's error bar once per motion);",
+           "*monitor* `arm.evalfn(fn)` with a function that watches the net joint torques (4.37). No check",
+           "fires on the tour (the bench fails if one does).",
+           "",
+           "*step alone* repeats the step-only figures of the same generator, mode and tour from the tables",
+           "above. The split columns come from a second, instrumented pass over the same rows (best of",
+           f"{repeats} likewise): the step, the adaptive control (`before` + `after`) and the rest (conversions,",
+           "CHG, bookkeeping) each timed inside every cycle by wrapping the three calls. That timing costs",
+           "time of its own (six clock reads per cycle, a pair of `thread_time_ns` reads costs "
+           f"{clock_pair_us:.2f} us here, and the",
+           "wrappers' calls): the instrumented pass's whole-cycle median is "
+           f"{_span([parts[k]['median'] - r['median'] for k, r in ((_key(r), r) for r in control)])} us above "
+           "the uninstrumented one's over the rows,",
+           "and it lands in *rest*, mostly (the step and the adaptive control hold one clock read's worth",
+           "each). The whole-cycle columns are from the pass without it.",
+           "",
+           "| generator | mode | attached | mean (us) | median (us) | p99 (us) | max (us) | step alone: median, p99 (us) "
+           "| split, step: median, p99 (us) | split, adaptive control: median, p99 (us) | split, rest (with the "
+           "instrumentation): median, p99 (us) |",
+           "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in control:
+        a, p = alone[(r["trajectory"], r["mode"])], parts[_key(r)]
+        out.append(f"| {r['trajectory']} | {r['mode']} | {r['feature']} | {r['mean']:.1f} | {r['median']:.1f} | "
+                   f"{r['p99']:.1f} | {r['max']:.1f} | {a['median']:.1f}, {a['p99']:.1f} | "
+                   f"{p['step_median']:.1f}, {p['step_p99']:.1f} | {p['adaptive_median']:.1f}, "
+                   f"{p['adaptive_p99']:.1f} | {p['rest_median']:.1f}, {p['rest_p99']:.1f} |")
+    out += [""] + adaptive_cost_text(control, split, alone) + [""] + ruckig_control_verdict(control, jerk_rows, load) + [""]
+    return out
+
+
+def _key(r: dict) -> tuple[str, str, str]:
+    return r["trajectory"], r["mode"], r["feature"]
+
+
+def _span(values: list[float]) -> str:
+    lo, hi = min(values), max(values)
+    return f"{lo:.1f}" if f"{lo:.1f}" == f"{hi:.1f}" else f"{lo:.1f}-{hi:.1f}"
+
+
+def adaptive_cost_text(control: list[dict], split: list[dict], alone: dict) -> list[str]:
+    """What the adaptive control costs per cycle, per attached feature, over both generators and modes."""
+    whole = {_key(r): r for r in control}
+    out = ["What the adaptive control (`before` + `after`) costs per cycle, over both generators and modes "
+           "(instrumented pass), and what attaching a feature adds to the whole cycle's median (uninstrumented "
+           "pass, against the same generator and mode with nothing attached):"]
+    for feature in arm_cycle.FEATURES:
+        rs = [r for r in split if r["feature"] == feature]
+        text = (f"- *{feature}*: median {_span([r['adaptive_median'] for r in rs])} us, p99 "
+                f"{_span([r['adaptive_p99'] for r in rs])} us")
+        if feature != "none":
+            added = [whole[(r["trajectory"], r["mode"], feature)]["median"]
+                     - whole[(r["trajectory"], r["mode"], "none")]["median"] for r in rs]
+            text += f"; the whole cycle's median {_span(added)} us above nothing attached"
+        out.append(text + ".")
+    none = [r for r in split if r["feature"] == "none"]
+    rest = [whole[_key(r)]["median"] - alone[(r["trajectory"], r["mode"])]["median"] - r["adaptive_median"]
+            for r in none]
+    out.append("With nothing attached, the whole cycle's median less the step's alone and the adaptive "
+               f"control's leaves {_span(rest)} us for the rest of the control function (HOW's counts to joint "
+               "angles, the POS commands into CHG, bookkeeping): a difference of medians, an estimate free of the "
+               "instrumentation that inflates the *rest* column.")
+    every = {g: sum(r["cycles"] for r in split if r["trajectory"] == g)
+             / max(1, sum(r["firsts"] for r in split if r["trajectory"] == g)) for g in GENERATORS}
+    out.append("About one cycle in " + ", ".join(f"{n:.0f} ({g})" for g, n in every.items())
+               + " is the first of a motion, where its checks are set up (a "
+               "force limit is vetted against the estimate's error bar there, `ForceEstimator.error_bar`); the "
+               "adaptive control's median on those cycles: " + "; ".join(
+                   f"{f} {_span([r['adaptive_first_median'] for r in split if r['feature'] == f])} us"
+                   for f in arm_cycle.FEATURES)
+               + "; its p99 over the other cycles only: " + "; ".join(
+                   f"{f} {_span([r['adaptive_other_p99'] for r in split if r['feature'] == f])} us"
+                   for f in arm_cycle.FEATURES) + ".")
+    return out
+
+
+def ruckig_control_verdict(control: list[dict], jerk_rows: list[dict], load: tuple) -> list[str]:
+    """Issue 18's target on the whole control function, with the load it was measured under."""
+    step = next(r for r in jerk_rows if (r["mode"], r["targets"]) == ("joint", "const"))
+    joint = [r for r in control if (r["trajectory"], r["mode"]) == ("ruckig", "joint")]
+    each = "; ".join(f"{r['feature']} attached: p99 {r['p99']:.1f} us, "
+                     f"**{'met' if r['p99'] <= RUCKIG_TARGET_US else 'NOT met'}**" for r in joint)
+    return [f"Target (issue 18: a Ruckig cycle for 6 joints <= {RUCKIG_TARGET_US:.0f} us p99) on the whole "
+            f"control function, Ruckig joint mode, const targets: {each}. The step alone on the same tour: p99 "
+            f"{step['p99']:.1f} us, **{'met' if step['p99'] <= RUCKIG_TARGET_US else 'NOT met'}**.",
+            "",
+            (f"All the figures of this report's cycle tables were taken with the machine loaded by other work: "
+             f"load average (1 min) {load[0]:.2f} before the run, {load[1]:.2f} when the control-function rows "
+             f"started, {load[2]:.2f} after, on {os.cpu_count()} cores. Best of several runs removes part of the "
+             "interference from the means; the p99 and max columns are inflated by it and a quiet machine would "
+             "give lower ones (the medians are the least affected)." if max(load) >= 1.0 else
+             f"Load average (1 min) {load[0]:.2f} before the run, {load[1]:.2f} when the control-function rows "
+             f"started, {load[2]:.2f} after, on {os.cpu_count()} cores: a quiet machine.")]
+
+
+def keep_other_sections(old: str, own: tuple[str, ...]) -> str:
+    """The ``## `` sections of ``old`` written by other scripts (bench/rccl_blend.py, bench/rccl_rate.py ...),
+    in their order: every one except the title's and this script's own ``own`` headings."""
+    parts = re.split(r"(?m)^(?=## )", old)
+    return "".join(p for p in parts[1:] if p.splitlines()[0] not in own)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=5000, help="cycles per run")
@@ -210,6 +349,10 @@ def main(argv: list[str] | None = None) -> int:
     load_before = os.getloadavg()
     rows = [best_of(robot, mode, args.cycles, targets, args.repeats) for robot, mode, targets in ROWS]
     jerk_rows = [best_of(robot, mode, args.cycles, targets, args.repeats, "ruckig") for robot, mode, targets in RUCKIG_ROWS]
+    load_control = os.getloadavg()
+    control = [best_control(t, m, f, args.cycles, args.repeats, split=False) for t, m, f in CONTROL_ROWS]
+    split = [best_control(t, m, f, args.cycles, args.repeats, split=True) for t, m, f in CONTROL_ROWS]
+    clock_pair_us = arm_cycle.clock_pair_ns() / 1e3
     load_after = os.getloadavg()
     lines = [
         "# RCCL trajectory generator: cost per control cycle",
@@ -226,7 +369,8 @@ def main(argv: list[str] | None = None) -> int:
         f"{load_before[0]:.2f}, {load_before[1]:.2f}, {load_before[2]:.2f}; after: "
         f"{load_after[0]:.2f}, {load_after[1]:.2f}, {load_after[2]:.2f}"
         + (" (quiet before the run; the run itself keeps one core busy)." if load_before[0] < 1.0 else
-           " (**not quiet**: other work shared the cores, figures are indicative)."),
+           " (**not quiet**: other work shared the cores; the figures were taken under that load and are "
+           "indicative, the p99 and max above all)."),
         "",
         "Targets: *const* positions are solved once per segment; *variable* ones re-solve the position",
         "equation every cycle (in joint mode also the inverse kinematics of the moving target);",
@@ -235,6 +379,8 @@ def main(argv: list[str] | None = None) -> int:
         "cycle that dequeues the next request and times it; the path was checked by `move()` at the",
         "planning level); they are also shown on their own, beside the worst of the other cycles.",
         "`move()` is the planning level's cost of one request (path check included), not part of a cycle.",
+        "The last section times, in the same run, the whole control function every Arm runs each cycle (the",
+        "adaptive control and the HOW/CHG conversions around the step): what a cycle costs the user's budget.",
         "",
         "| robot | mode | targets | mean (us) | median (us) | p99 (us) | max (us) | segment starts: n, mean, max (us) "
         "| other cycles: p99, max (us) | move() (us) | Table 5.1 row | VAX 750 | VAX / mean | VAX / p99 |",
@@ -261,12 +407,13 @@ def main(argv: list[str] | None = None) -> int:
         "shared machine include interrupts and cache misses).",
         ""]
     lines += jerk_table(rows, jerk_rows)
+    lines += control_table(rows, jerk_rows, control, split, (load_before[0], load_control[0], load_after[0]),
+                           clock_pair_us, args.cycles, args.repeats)
     text = "\n".join(lines)
-    if args.out != "-" and Path(args.out).exists():   # keep bench/rccl_blend.py's section of the report
-        from bench.rccl_blend import HEADING
-        old = Path(args.out).read_text()
-        if HEADING in old:
-            text = text.rstrip("\n") + "\n\n" + old[old.index(HEADING):]
+    if args.out != "-" and Path(args.out).exists():   # keep the sections other scripts wrote (blend, rate)
+        others = keep_other_sections(Path(args.out).read_text(), (JERK_HEADING, CONTROL_HEADING))
+        if others:
+            text = text.rstrip("\n") + "\n\n" + others
     emit(text, args.out)
     return 0
 
