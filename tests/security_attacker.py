@@ -8,7 +8,9 @@ on simula's own record):
 ``observer CONFIG KEY OWNER``    a valid certificate of the cell that is not the controller's
 ``insider CONFIG KEY OWNER SEQ`` the controller's own credentials, but not the owner's connection
 ``link CONFIG KEY``              try to open a controller's link with these credentials
-``flood-hello CONFIG KEY N``     N hello queries as fast as it can send them
+``flood-hello CONFIG KEY N S``   N hello queries as fast as it can send them, and more until S seconds
+                                 have passed; a line ``{"flooding": ...}`` once 1000 are sent
+``link-on-go CONFIG KEY``        a controller ready to start: it asks when told (a line on stdin)
 ``flood-frames CONFIG KEY OWNER N``    N garbage, N truncated-CHG and oversized publications on the owner's key
 
 KEY is the robot's key (``lab/puma``), OWNER the owner's connection id.
@@ -136,16 +138,32 @@ def insider(config: str, key: str, owner: str, seq: int) -> dict:
     return out
 
 
-def flood_hello(config: str, key: str, n: int) -> dict:
+def flood_hello(config: str, key: str, n: int, min_s: float) -> dict:
+    """Hello queries from one session (bad public keys) as fast as it can: ``n``, and more
+    until ``min_s`` seconds have passed (so that a controller can ask in the middle of it)."""
     s = open_session(config=config)
     t0 = time.monotonic()
-    for i in range(n):
+    sent = 0
+    while sent < n or time.monotonic() - t0 < min_s:
         s.get(f"rcci/{key}/hello", lambda reply: None,
-              payload=json.dumps({"id": f"{i:012x}", "key": "00" * 32}).encode(), timeout=1.0)
-    sent_s = time.monotonic() - t0
+              payload=json.dumps({"id": f"{sent:012x}", "key": "00" * 32}).encode(), timeout=1.0)
+        sent += 1
+        if sent == 1000:
+            print(json.dumps({"flooding": time.monotonic()}), flush=True)
+    t_end = time.monotonic()
     time.sleep(1.0)
     s.close()
-    return {"sent": n, "seconds": sent_s}
+    return {"sent": sent, "seconds": t_end - t0, "t_end": t_end}
+
+
+def link_on_go(config: str, key: str) -> dict:
+    """A controller started ahead (its imports done), which asks for the robot when a line
+    comes on stdin: how long it took to be answered (``time.monotonic()``, one clock per host)."""
+    print(json.dumps({"ready": True}), flush=True)
+    sys.stdin.readline()
+    t_asked = time.monotonic()
+    link = _try_link(f"zenoh/{key}?config={config}")
+    return {"link": link, "t_asked": t_asked, "t_answered": time.monotonic()}
 
 
 def flood_frames(config: str, key: str, owner: str, n: int) -> dict:
@@ -179,7 +197,9 @@ def main(argv: list[str]) -> int:
     elif kind == "link":
         out = {"link": _try_link(f"zenoh/{args[1]}?config={args[0]}")}
     elif kind == "flood-hello":
-        out = flood_hello(args[0], args[1], int(args[2]))
+        out = flood_hello(args[0], args[1], int(args[2]), float(args[3]))
+    elif kind == "link-on-go":
+        out = link_on_go(args[0], args[1])
     elif kind == "flood-frames":
         out = flood_frames(args[0], args[1], args[2], int(args[3]))
     else:
