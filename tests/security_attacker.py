@@ -13,6 +13,13 @@ on simula's own record):
 ``link-on-go CONFIG KEY``        a controller ready to start: it asks when told (a line on stdin)
 ``flood-frames CONFIG KEY OWNER N``    N garbage, N truncated-CHG and oversized publications on the owner's key
 
+``arm-attacks INSIDER OBSERVER FOREIGN CELL PLANNER SERIAL N``
+                                 on a workcell's bus: with the planning level's own credentials
+                                 (INSIDER), the holder's id copied: requests and start_ev of the
+                                 held motion SERIAL; with an observer's (OBSERVER): a shared value,
+                                 start_ev, forged flags, a request; with another CA's (FOREIGN): join;
+                                 then N ``info`` requests as fast as it can send them (INSIDER)
+
 KEY is the robot's key (``lab/puma``), OWNER the owner's connection id.
 """
 from __future__ import annotations
@@ -186,6 +193,57 @@ def flood_frames(config: str, key: str, owner: str, n: int) -> dict:
     return {"sent": 2 * n + 3, "seconds": sent_s}
 
 
+def _ask(session, key: str, payload: dict) -> dict | None:
+    from rci.bus import decode, encode
+    replies = [r for r in session.get(key, payload=encode(payload), timeout=3.0) if r.ok is not None]
+    return decode(replies[0].ok.payload.to_bytes()) if replies else None
+
+
+def arm_attacks(insider: str, observer: str, foreign: str, cell: str, planner: str, serial: int, n: int) -> dict:
+    """What tests/test_security_arm_netns.py tries against an arm process held by ``planner``."""
+    from rci.bus import encode
+    request = f"rcci/{cell}/arm/puma/request"
+    out: dict = {}
+    s = open_session(config=insider, client=True)
+    who = {"planner": planner, "silence": 0.5}                      # the holder's id, copied from the bus
+    far = {"name": "far", "joints": [0.5, 0.0, 0.0, 0.0, 0.0, 0.0]}
+    out["refusals"] = [_ask(s, request, {"op": op, **who, **extra}) for op, extra in (
+        ("move", {"position": far, "start": None}), ("abort", {}), ("close", {}), ("free", {"serials": [serial]}))]
+    out["refusals"].append(_ask(s, request, {**who, "sealed": "00" * 60}))               # a made-up seal
+    out["refusals"].append(_ask(s, request, {"op": "hold", "planner": "intruder", "key": "11" * 32}))
+    acks: list = []
+    sub = s.declare_subscriber(f"rcci/{cell}/arm/puma/ack", lambda smp: acks.append(1))
+    for mac in ({}, {"puma": "00" * 16}):                             # start_ev of the held motion, no key
+        s.put(f"rcci/{cell}/flags/set", encode({"flag": "start", "code": 5, "efts": [["puma", serial]],
+                                                "planner": planner, "seq": 10_000 + len(mac), "mac": mac}))
+    # an observer of the cell: it reads, and writes nothing
+    o = open_session(config=observer, client=True)
+    o.put(f"rcci/{cell}/shared/plan", encode(99))
+    o.put(f"rcci/{cell}/flags/set", encode({"flag": "start", "code": 5, "efts": [["puma", serial]],
+                                            "planner": planner, "seq": 20_000, "mac": {}}))
+    o.put(f"rcci/{cell}/flags/puma/{serial}", encode({"arm": "puma", "serial": serial, "status": 1, "start": 5,
+                                                      "version": 10**6}))
+    out["observer_info"] = _ask(o, request, {"op": "info", "planner": "observer"})
+    out["observer_flags_query"] = sum(1 for r in o.get(f"rcci/{cell}/flags/puma/*", timeout=2.0) if r.ok is not None)
+    time.sleep(0.5)
+    out["acks"] = len(acks)
+    sub.undeclare()
+    o.close()
+    try:
+        open_session(config=foreign, client=True).close()
+        out["foreign"] = "joined"
+    except Exception as exc:
+        out["foreign"] = f"{type(exc).__name__}: {exc}"
+    payload = encode({"op": "info", "planner": planner, "silence": 0.5})
+    t0 = time.monotonic()
+    for _ in range(n):
+        s.get(request, lambda _: None, timeout=1.0, payload=payload)
+    out["flood_s"] = time.monotonic() - t0
+    time.sleep(1.0)
+    s.close()
+    return out
+
+
 def main(argv: list[str]) -> int:
     kind, args = argv[0], argv[1:]
     if kind == "nocert":
@@ -198,6 +256,8 @@ def main(argv: list[str]) -> int:
         out = {"link": _try_link(f"zenoh/{args[1]}?config={args[0]}")}
     elif kind == "flood-hello":
         out = flood_hello(args[0], args[1], int(args[2]), float(args[3]))
+    elif kind == "arm-attacks":
+        out = arm_attacks(*args[:5], int(args[5]), int(args[6]))
     elif kind == "link-on-go":
         out = link_on_go(args[0], args[1])
     elif kind == "flood-frames":

@@ -1,0 +1,131 @@
+"""An arm process on a secured workcell bus, attacked from another host (issue 26): two network namespaces.
+
+Namespace A is the workcell: simula (a socket link inside A), the planning level, which is
+the bus's hub (tests/security_holder.py: mutual TLS, the workcell's access control written
+by ``python -m rci.bus.keys --cell``), and its arm process (``python -m rccl.bus.arm``, an
+identity of its own). From namespace B (another host, over a veth pair) one attacker
+process (tests/security_attacker.py ``arm-attacks``) uses, in turn, a copy of the planning
+level's own credentials (copied-id requests, forged start_ev of a held motion), an
+observer's (a shared value, start_ev, forged flags, a request: the access control drops
+them all), another CA's (it does not join), and then floods the arm process with 20,000
+``info`` requests. Asserted from simula's own record (its control channel, inside A): the
+arm did not move and its control went on; from the arm process's reports and the holder:
+what was refused, counted and reported, and that the holder drives the arm after it all.
+"""
+from __future__ import annotations
+
+import json
+import select
+import subprocess
+import sys
+import threading
+import uuid
+
+import numpy as np
+import pytest
+
+from rccl.events import DONE
+from rci.bus.keys import make_cell
+from rci.simula.process import ToolProcess
+from test_security_netns import ROOT, STILL_RAD, Control
+from test_zenoh_netns import ADDR_A, _namespaces, _remove_all
+
+CELL = "seccell"
+HUB_PORT = 7448
+N_INFO = 20_000
+
+
+@pytest.fixture(scope="module")
+def workcell(tmp_path_factory):
+    tag = uuid.uuid4().hex[:6]
+    made: list[str] = []
+    try:
+        made += _namespaces(tag)
+        d = tmp_path_factory.mktemp("workcell")
+        keys = make_cell(d / "cell", [], [ADDR_A], workcell=CELL, tasks=["puma"], shared={"plan": ["planning"]},
+                         bus_port=HUB_PORT)
+        foreign = make_cell(d / "foreign", [], [ADDR_A], workcell=CELL, tasks=["puma"], bus_port=HUB_PORT)
+        # a copy of the planning level's credentials, used from another host: a client of the hub
+        insider = json.loads(keys["bus planning"].read_text())
+        insider.pop("access_control")
+        insider["connect"] = insider.pop("listen")
+        keys["insider"] = d / "insider.json5"
+        keys["insider"].write_text(json.dumps(insider))
+        keys["foreign"] = foreign["bus puma"]
+        yield made[0], made[1], keys
+    finally:
+        _remove_all(tag, made)
+
+
+def _json_line(proc: subprocess.Popen, timeout: float, what: str) -> dict:
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    line = proc.stdout.readline() if ready else ""
+    if not line:
+        proc.kill()
+        raise AssertionError(f"no line from {what} within {timeout} s: {proc.stderr.read()[-3000:]}")
+    return json.loads(line)
+
+
+def test_a_copied_id_an_observer_a_foreign_identity_and_a_request_flood_from_another_host_move_nothing(workcell):
+    ns_a, ns_b, keys = workcell
+    sim = ToolProcess(["ip", "netns", "exec", ns_a, sys.executable, "-m", "rci.simula", "--robot", "puma260", "-p",
+                       "--power-on", "--watchdog-time", "0.25", "--port", "0"]).start()
+    holder = None
+    try:
+        ctl = Control(ns_a, sim.control_url)
+        holder = subprocess.Popen(["ip", "netns", "exec", ns_a, sys.executable, str(ROOT / "tests" / "security_holder.py"),
+                                   sim.url, CELL, f"tls/{ADDR_A}:{HUB_PORT}", str(keys["bus planning"]),
+                                   str(keys["bus puma"])], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        ready = _json_line(holder, 60, "the holder")
+        assert ready["first"] == DONE, ready
+        state = ctl("state")
+        waist = [state["state"]["q"][0]]
+        box: dict = {}
+
+        def attack() -> None:
+            out = subprocess.run(["ip", "netns", "exec", ns_b, sys.executable, str(ROOT / "tests" / "security_attacker.py"),
+                                  "arm-attacks", str(keys["insider"]), str(keys["bus observer"]), str(keys["foreign"]),
+                                  CELL, ready["planner"], str(ready["held"]), str(N_INFO)],
+                                 capture_output=True, text=True, timeout=120, cwd=ROOT)
+            assert out.returncode == 0, out.stderr[-3000:]
+            box["result"] = json.loads(out.stdout.strip().splitlines()[-1])
+
+        attacker = threading.Thread(target=attack)
+        attacker.start()
+        while attacker.is_alive():                   # simula's record of joint 1 all through the attacks
+            state = ctl("state")
+            assert state["owner"]["running"], f"the arm's control ended during the attacks: {ctl('events')}"
+            waist.append(state["state"]["q"][0])
+            attacker.join(0.05)
+        assert "result" in box, "the attacks failed (their error is above)"
+        r = box["result"]
+        moved = max(abs(q - waist[0]) for q in waist)
+        assert moved < STILL_RAD, f"joint 1 moved {np.degrees(moved):.4f} deg during the attacks"
+        holder.stdin.write("over\n")
+        holder.stdin.flush()
+        end = _json_line(holder, 60, "the holder")
+        assert holder.wait(15) == 0, holder.stderr.read()[-3000:]
+    finally:
+        if holder is not None and holder.poll() is None:
+            holder.kill()
+        sim.stop()
+    # the planning level's credentials with its id copied: refused (ArmHeld), its start_ev ignored
+    assert [x and x.get("type") for x in r["refusals"]] == ["ArmHeld"] * 6, r["refusals"]
+    assert "only the planning level that holds this arm" in r["refusals"][0]["error"]
+    assert f"is held by the planning level {ready['planner']}" in r["refusals"][-1]["error"]
+    assert r["acks"] == 0, r
+    # an observer: read (the flags, by query), asked nothing, wrote nothing: its shared value, start_ev and
+    # forged flags never reached the holder or the arm (the held motion is still queued, its start not set)
+    assert r["observer_info"] is None and r["observer_flags_query"] >= 1, r
+    assert end["plan"] == 1, end
+    assert end["held_flags"]["start"] == 0 and end["held_flags"]["status"] >= 0, end["held_flags"]
+    assert "cannot open a Zenoh session" in r["foreign"], r
+    # one report line for the 8 refused (6 requests + 2 start_ev: the observer's never arrived), one for the flood
+    refused = [x for x in end["lines"] if "not from the planning level that holds the arm" in x]
+    assert len(refused) == 1 and "8 rejected" in refused[0], end["lines"]
+    flood = [x for x in end["lines"] if "a flood of requests" in x]
+    assert len(flood) == 1, end["lines"]
+    assert int(flood[0].split(": ", 2)[2].split(" rejected")[0]) >= N_INFO // 2, flood
+    # the holder drives the arm after it all, and releases it
+    assert end["back"] == DONE and end["arm_exit"] == 0, end
