@@ -7,7 +7,6 @@ on simula's own record):
 ``nocert ENDPOINT KEY``          no certificate: a plain TCP and a TLS session to the robot's endpoint
 ``observer CONFIG KEY OWNER``    a valid certificate of the cell that is not the controller's
 ``insider CONFIG KEY OWNER SEQ`` the controller's own credentials, but not the owner's connection
-``link CONFIG KEY``              try to open a controller's link with these credentials
 ``flood-hello CONFIG KEY N S``   N hello queries as fast as it can send them, and more until S seconds
                                  have passed; a line ``{"flooding": ...}`` once 1000 are sent
 ``link-on-go CONFIG KEY``        a controller ready to start: it asks when told (a line on stdin)
@@ -58,8 +57,17 @@ def _owners(session, key: str, timeout: float = 1.0) -> list[str]:
     return ids
 
 
-def _try_link(url: str) -> str:
-    """Try to take the robot with a controller of our own; what happened, in words."""
+REFUSED_WITHIN_S = 2.0    # a controller the robot never answers gives up after this (one it serves: ms)
+
+
+def _try_link(url: str, hello_s: float = 5.0) -> str:
+    """Try to take the robot with a controller of our own, asking at most ``hello_s`` for an
+    answer to its hello (the link's default is 5 s); what happened, in words."""
+    import functools
+
+    import rci.session
+    from rci.link import open_link
+    rci.session.open_link = functools.partial(open_link, connect_timeout=hello_s)
     s = Session(url, "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False,
                 realtime=False, start_timeout=2.0)
     try:
@@ -91,7 +99,7 @@ def nocert(endpoint: str, key: str) -> dict:
         out[f"{scheme}_ids_seen"] = len(_owners(s, key))
         out[f"{scheme}_put"] = _inject(s, key, "0" * 12, 1, 10)
         s.close()
-        out[f"{scheme}_link"] = _try_link(f"zenoh/{key}?connect={scheme}/{host_port}")
+        out[f"{scheme}_link"] = _try_link(f"zenoh/{key}?connect={scheme}/{host_port}", REFUSED_WITHIN_S)
     return out
 
 
@@ -106,7 +114,7 @@ def observer(config: str, key: str, owner: str) -> dict:
     time.sleep(0.5)
     sub.undeclare()
     s.close()
-    out["link"] = _try_link(f"zenoh/{key}?config={config}")
+    out["link"] = _try_link(f"zenoh/{key}?config={config}", REFUSED_WITHIN_S)
     return out
 
 
@@ -252,8 +260,6 @@ def main(argv: list[str]) -> int:
         out = observer(*args)
     elif kind == "insider":
         out = insider(args[0], args[1], args[2], int(args[3]))
-    elif kind == "link":
-        out = {"link": _try_link(f"zenoh/{args[1]}?config={args[0]}")}
     elif kind == "flood-hello":
         out = flood_hello(args[0], args[1], int(args[2]), float(args[3]))
     elif kind == "arm-attacks":
