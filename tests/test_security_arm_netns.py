@@ -110,6 +110,9 @@ def test_a_copied_id_an_observer_a_foreign_identity_and_a_request_flood_from_ano
         if holder is not None and holder.poll() is None:
             holder.kill()
         sim.stop()
+    print(f"\narm attacks: refusals {[x and x.get('type') for x in r['refusals']]}, acks {r['acks']}, "
+          f"observer info {r['observer_info']}, foreign {r['foreign'][:40]!r}; arm reports {end['lines']}; "
+          f"back {end['back']} in {end['back_s']:.2f} s")        # the figures of docs/security.md (pytest -s)
     # the planning level's credentials with its id copied: refused (ArmHeld), its start_ev ignored
     assert [x and x.get("type") for x in r["refusals"]] == ["ArmHeld"] * 6, r["refusals"]
     assert "only the planning level that holds this arm" in r["refusals"][0]["error"]

@@ -287,6 +287,9 @@ def test_a_flood_of_hellos_ends_no_control_and_locks_no_controller_out(cell):
     (hello, after, flooding), end, bus, waist = _secured_run(cell, flood)
     _still(waist)
     _owner_went_on(end)
+    print(f"\nhello flood: {hello['sent']} sent in {hello['seconds']:.1f} s; a controller asking during it answered "
+          f"in {after['t_answered'] - after['t_asked']:.2f} s; at the robot: {bus['hello_asked']} asked, "
+          f"{bus['hello_refused']} refused, {bus['hello_dropped']} dropped; {bus['reports']}")   # docs/security.md (pytest -s)
     assert hello["sent"] >= n, hello
     # asked during the flood and answered during it, within the bound docs/security.md promises
     assert flooding <= after["t_asked"] and after["t_answered"] < hello["t_end"], (flooding, after, hello)
