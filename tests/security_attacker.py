@@ -17,7 +17,8 @@ on simula's own record):
                                  (INSIDER), the holder's id copied: requests and start_ev of the
                                  held motion SERIAL; with an observer's (OBSERVER): a shared value,
                                  start_ev, forged flags, a request; with another CA's (FOREIGN): join;
-                                 then N ``info`` requests as fast as it can send them (INSIDER)
+                                 then N ``info`` requests as fast as it can send them (INSIDER),
+                                 a line ``{"flooding": ...}`` once 1000 are sent
 
 KEY is the robot's key (``lab/puma``), OWNER the owner's connection id.
 """
@@ -244,9 +245,12 @@ def arm_attacks(insider: str, observer: str, foreign: str, cell: str, planner: s
         out["foreign"] = f"{type(exc).__name__}: {exc}"
     payload = encode({"op": "info", "planner": planner, "silence": 0.5})
     t0 = time.monotonic()
-    for _ in range(n):
+    for i in range(n):
         s.get(request, lambda _: None, timeout=1.0, payload=payload)
-    out["flood_s"] = time.monotonic() - t0
+        if i == 1000:
+            print(json.dumps({"flooding": time.monotonic()}), flush=True)
+    out["t_flood_end"] = time.monotonic()
+    out["flood_s"] = out["t_flood_end"] - t0
     time.sleep(1.0)
     s.close()
     return out

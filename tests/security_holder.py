@@ -7,9 +7,10 @@ the hub's configuration: mutual TLS, the workcell's access control) and one arm 
 (``python -m rccl.bus.arm puma``, with its own identity) driving simula over a socket. It
 takes the arm (a first motion), queues a second one held (waiting for its start flag),
 writes the shared value it owns, and prints one JSON line (its planner id, the serials);
-then, on a line on stdin (the attacks are over), it stops the held motion, moves the arm
-back, releases it and prints a last JSON line: what it saw, and every line the arm process
-printed meanwhile (its reports).
+then, on a line on stdin (in the middle of a flood of requests), it stops the held motion,
+moves the arm back and prints a JSON line (when); on another line (the attacks are over), it
+waits for the arm process's report of the flood, releases the arm and prints a last JSON
+line: what it saw, and every line the arm process printed meanwhile (its reports).
 """
 from __future__ import annotations
 
@@ -52,18 +53,23 @@ def main(sim_url: str, cell: str, hub: str, hub_config: str, arm_config: str) ->
         held = ev.move_ev(puma, _waist(puma, 0.3, "held back"), start=None)   # waits for its start flag
         bus.shared["plan"] = 1
         print(json.dumps({"planner": ev.id, "first": first, "held": held.serial}), flush=True)
-        sys.stdin.readline()
+        sys.stdin.readline()                                          # the attacks are on: drive the arm
         out: dict = {"plan": bus.shared.get("plan"), "held_flags": ev.flags("puma", held.serial)}
         t0 = time.monotonic()
         ev.stop_ev(-5, held)
         back = ev.move_ev(puma, _waist(puma, -0.05, "back"))
-        out["back"] = ev.wait_ev(back, timeout=10.0)
-        out["back_s"] = time.monotonic() - t0
+        during = {"back": ev.wait_ev(back, timeout=10.0), "t_asked": t0, "t_done": time.monotonic()}
+        print(json.dumps(during), flush=True)
+        sys.stdin.readline()                                          # the attacks are over: release the arm
+        deadline = time.monotonic() + 10.0                            # once the arm process reported the flood
+        while not any("a flood of requests" in x for x in lines) and time.monotonic() < deadline:
+            time.sleep(0.1)
         puma.close()                                                  # the arm process releases the arm and ends
         out["arm_exit"] = proc.wait(15)
         ev.close()
         reader.join(5)
         out["lines"] = lines
+        out["back"] = during["back"]
     print(json.dumps(out), flush=True)
     return 0 if out["back"] == DONE else 1
 

@@ -14,7 +14,7 @@ from contextlib import ExitStack
 import pytest
 
 from rci.bus.frames import OVERHEAD, Handshake, KeyAgreementError, Opener, Sealer
-from rci.bus.guard import BoundedWorker, Episodes, TokenBucket
+from rci.bus.guard import BoundedWorker, Episodes, Lanes, TokenBucket
 from rci.bus.keys import make_cell
 from rci.bus.link import ZenohAddress
 from rci.bus.session import CONFIG_ENV, ZenohLinkError, configured_endpoints, load_config, open_session
@@ -56,6 +56,25 @@ def test_a_sealed_frame_opens_once_and_anything_else_is_dropped_and_counted():
     assert opener.rejected.counts == {"out of sequence": 2, "bad MAC": 2, "too short": 1, "oversized": 1}
     assert opener.open(nxt) == b"\xA5\x5A a CHG"                  # the owner's frames go on
     assert opener.open(sealer.seal(b"still")) == b"still"
+
+
+def test_a_peek_proves_the_sender_without_using_up_its_frame():
+    (down, _), _ = _pair()
+    sealer, opener = Sealer(down), Opener(down)
+    first, second = sealer.seal(b"one"), sealer.seal(b"two")
+    assert opener.peek(second) and opener.peek(first)             # both still to come, both the sender's
+    assert opener.open(first) == b"one" and not opener.peek(first)     # once opened, a replay does not pass
+    assert not opener.peek(first[:8] + bytes(len(first) - 8)) and not opener.peek(b"short")
+    assert not opener.peek((5).to_bytes(8, "big") + Sealer(os.urandom(32)).seal(b"x")[8:])   # another key
+    assert opener.rejected.total == 0 and opener.open(second) == b"two"     # peeking counted and changed nothing
+
+
+def test_the_first_lane_goes_ahead_of_a_flood_in_the_other():
+    lanes = Lanes(2, 4)
+    assert [lanes.offer(i) for i in range(100)] == [True] * 4 + [False] * 96      # a flood: 4 kept
+    assert lanes.offer("holder", first=True) and lanes.offer("holder 2", first=True)
+    assert not lanes.offer("holder 3", first=True) and lanes.dropped == 97
+    assert [lanes.take(0.1) for _ in range(7)] == ["holder", "holder 2", 0, 1, 2, 3, None]
 
 
 def test_a_token_bucket_allows_its_rate():
