@@ -132,6 +132,20 @@ def test_a_user_configuration_file_is_read_and_a_missing_one_named(tmp_path, mon
     assert a.config == str(conf) and ZenohAddress.parse(a.url()) == a
 
 
+def test_a_per_session_limit_is_added_to_the_files_and_the_files_own_wins(tmp_path):
+    from rci.bus.session import _add_downsampling, per_session_limit
+
+    conf_file = tmp_path / "robot.json5"
+    conf_file.write_text('{ downsampling: [{ id: "mine", flows: ["ingress"], messages: ["put"], '
+                         'rules: [{ key_expr: "a/b", freq: 1.0 }] }, { id: "hello", flows: ["ingress"], '
+                         'messages: ["query"], rules: [{ key_expr: "rcci/x/hello", freq: 1.0 }] }] }')
+    conf = load_config(conf_file)
+    _add_downsampling(conf, (per_session_limit("hello", "rcci/x/hello", 5.0),
+                             per_session_limit("other", "rcci/x/other", 2.0)))
+    got = {e["id"]: e["rules"][0]["freq"] for e in json.loads(conf.get_json("downsampling"))}
+    assert got == {"mine": 1.0, "hello": 1.0, "other": 2.0}
+
+
 def test_the_cell_command_writes_a_ca_identities_and_configurations(tmp_path):
     from cryptography import x509
     from cryptography.x509.oid import NameOID

@@ -6,7 +6,10 @@ control: ``python -m rci.bus.keys``); in B, the owner (a control holding the arm
 for a few seconds) and one attacker process at a time (tests/security_attacker.py). Each
 test asserts, from simula's own record (its control channel, reached inside namespace A),
 that the arm did not move, that the owner's control went on (simula: still running, the
-same owner; the owner: no termination, every cycle run), and what was reported.
+same owner; the owner: no termination, every cycle run), and what was reported; in the
+hello flood, that a new controller asking in the middle of it is answered at once (the
+fairness rule: at most HELLO_PER_SESSION_HZ hellos a second from any one session).
+Figures for docs/security.md: ``pytest -s`` prints them.
 """
 from __future__ import annotations
 
