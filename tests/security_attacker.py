@@ -7,9 +7,18 @@ on simula's own record):
 ``nocert ENDPOINT KEY``          no certificate: a plain TCP and a TLS session to the robot's endpoint
 ``observer CONFIG KEY OWNER``    a valid certificate of the cell that is not the controller's
 ``insider CONFIG KEY OWNER SEQ`` the controller's own credentials, but not the owner's connection
-``link CONFIG KEY``              try to open a controller's link with these credentials
-``flood-hello CONFIG KEY N``     N hello queries as fast as it can send them
+``flood-hello CONFIG KEY N S``   N hello queries as fast as it can send them, and more until S seconds
+                                 have passed; a line ``{"flooding": ...}`` once 1000 are sent
+``link-on-go CONFIG KEY``        a controller ready to start: it asks when told (a line on stdin)
 ``flood-frames CONFIG KEY OWNER N``    N garbage, N truncated-CHG and oversized publications on the owner's key
+
+``arm-attacks INSIDER OBSERVER FOREIGN CELL PLANNER SERIAL N``
+                                 on a workcell's bus: with the planning level's own credentials
+                                 (INSIDER), the holder's id copied: requests and start_ev of the
+                                 held motion SERIAL; with an observer's (OBSERVER): a shared value,
+                                 start_ev, forged flags, a request; with another CA's (FOREIGN): join;
+                                 then N ``info`` requests as fast as it can send them (INSIDER),
+                                 a line ``{"flooding": ...}`` once 1000 are sent
 
 KEY is the robot's key (``lab/puma``), OWNER the owner's connection id.
 """
@@ -49,8 +58,17 @@ def _owners(session, key: str, timeout: float = 1.0) -> list[str]:
     return ids
 
 
-def _try_link(url: str) -> str:
-    """Try to take the robot with a controller of our own; what happened, in words."""
+REFUSED_WITHIN_S = 2.0    # a controller the robot never answers gives up after this (one it serves: ms)
+
+
+def _try_link(url: str, hello_s: float = 5.0) -> str:
+    """Try to take the robot with a controller of our own, asking at most ``hello_s`` for an
+    answer to its hello (the link's default is 5 s); what happened, in words."""
+    import functools
+
+    import rci.session
+    from rci.link import open_link
+    rci.session.open_link = functools.partial(open_link, connect_timeout=hello_s)
     s = Session(url, "puma260", rate_hz=50, on_error="raise", signals=False, lock_memory=False,
                 realtime=False, start_timeout=2.0)
     try:
@@ -82,7 +100,7 @@ def nocert(endpoint: str, key: str) -> dict:
         out[f"{scheme}_ids_seen"] = len(_owners(s, key))
         out[f"{scheme}_put"] = _inject(s, key, "0" * 12, 1, 10)
         s.close()
-        out[f"{scheme}_link"] = _try_link(f"zenoh/{key}?connect={scheme}/{host_port}")
+        out[f"{scheme}_link"] = _try_link(f"zenoh/{key}?connect={scheme}/{host_port}", REFUSED_WITHIN_S)
     return out
 
 
@@ -97,7 +115,7 @@ def observer(config: str, key: str, owner: str) -> dict:
     time.sleep(0.5)
     sub.undeclare()
     s.close()
-    out["link"] = _try_link(f"zenoh/{key}?config={config}")
+    out["link"] = _try_link(f"zenoh/{key}?config={config}", REFUSED_WITHIN_S)
     return out
 
 
@@ -136,16 +154,32 @@ def insider(config: str, key: str, owner: str, seq: int) -> dict:
     return out
 
 
-def flood_hello(config: str, key: str, n: int) -> dict:
+def flood_hello(config: str, key: str, n: int, min_s: float) -> dict:
+    """Hello queries from one session (bad public keys) as fast as it can: ``n``, and more
+    until ``min_s`` seconds have passed (so that a controller can ask in the middle of it)."""
     s = open_session(config=config)
     t0 = time.monotonic()
-    for i in range(n):
+    sent = 0
+    while sent < n or time.monotonic() - t0 < min_s:
         s.get(f"rcci/{key}/hello", lambda reply: None,
-              payload=json.dumps({"id": f"{i:012x}", "key": "00" * 32}).encode(), timeout=1.0)
-    sent_s = time.monotonic() - t0
+              payload=json.dumps({"id": f"{sent:012x}", "key": "00" * 32}).encode(), timeout=1.0)
+        sent += 1
+        if sent == 1000:
+            print(json.dumps({"flooding": time.monotonic()}), flush=True)
+    t_end = time.monotonic()
     time.sleep(1.0)
     s.close()
-    return {"sent": n, "seconds": sent_s}
+    return {"sent": sent, "seconds": t_end - t0, "t_end": t_end}
+
+
+def link_on_go(config: str, key: str) -> dict:
+    """A controller started ahead (its imports done), which asks for the robot when a line
+    comes on stdin: how long it took to be answered (``time.monotonic()``, one clock per host)."""
+    print(json.dumps({"ready": True}), flush=True)
+    sys.stdin.readline()
+    t_asked = time.monotonic()
+    link = _try_link(f"zenoh/{key}?config={config}")
+    return {"link": link, "t_asked": t_asked, "t_answered": time.monotonic()}
 
 
 def flood_frames(config: str, key: str, owner: str, n: int) -> dict:
@@ -168,6 +202,60 @@ def flood_frames(config: str, key: str, owner: str, n: int) -> dict:
     return {"sent": 2 * n + 3, "seconds": sent_s}
 
 
+def _ask(session, key: str, payload: dict) -> dict | None:
+    from rci.bus import decode, encode
+    replies = [r for r in session.get(key, payload=encode(payload), timeout=3.0) if r.ok is not None]
+    return decode(replies[0].ok.payload.to_bytes()) if replies else None
+
+
+def arm_attacks(insider: str, observer: str, foreign: str, cell: str, planner: str, serial: int, n: int) -> dict:
+    """What tests/test_security_arm_netns.py tries against an arm process held by ``planner``."""
+    from rci.bus import encode
+    request = f"rcci/{cell}/arm/puma/request"
+    out: dict = {}
+    s = open_session(config=insider, client=True)
+    who = {"planner": planner, "silence": 0.5}                      # the holder's id, copied from the bus
+    far = {"name": "far", "joints": [0.5, 0.0, 0.0, 0.0, 0.0, 0.0]}
+    out["refusals"] = [_ask(s, request, {"op": op, **who, **extra}) for op, extra in (
+        ("move", {"position": far, "start": None}), ("abort", {}), ("close", {}), ("free", {"serials": [serial]}))]
+    out["refusals"].append(_ask(s, request, {**who, "sealed": "00" * 60}))               # a made-up seal
+    out["refusals"].append(_ask(s, request, {"op": "hold", "planner": "intruder", "key": "11" * 32}))
+    acks: list = []
+    sub = s.declare_subscriber(f"rcci/{cell}/arm/puma/ack", lambda smp: acks.append(1))
+    for mac in ({}, {"puma": "00" * 16}):                             # start_ev of the held motion, no key
+        s.put(f"rcci/{cell}/flags/set", encode({"flag": "start", "code": 5, "efts": [["puma", serial]],
+                                                "planner": planner, "seq": 10_000 + len(mac), "mac": mac}))
+    # an observer of the cell: it reads, and writes nothing
+    o = open_session(config=observer, client=True)
+    o.put(f"rcci/{cell}/shared/plan", encode(99))
+    o.put(f"rcci/{cell}/flags/set", encode({"flag": "start", "code": 5, "efts": [["puma", serial]],
+                                            "planner": planner, "seq": 20_000, "mac": {}}))
+    o.put(f"rcci/{cell}/flags/puma/{serial}", encode({"arm": "puma", "serial": serial, "status": 1, "start": 5,
+                                                      "version": 10**6}))
+    out["observer_info"] = _ask(o, request, {"op": "info", "planner": "observer"})
+    out["observer_flags_query"] = sum(1 for r in o.get(f"rcci/{cell}/flags/puma/*", timeout=2.0) if r.ok is not None)
+    time.sleep(0.5)
+    out["acks"] = len(acks)
+    sub.undeclare()
+    o.close()
+    try:
+        open_session(config=foreign, client=True).close()
+        out["foreign"] = "joined"
+    except Exception as exc:
+        out["foreign"] = f"{type(exc).__name__}: {exc}"
+    payload = encode({"op": "info", "planner": planner, "silence": 0.5})
+    t0 = time.monotonic()
+    for i in range(n):
+        s.get(request, lambda _: None, timeout=1.0, payload=payload)
+        if i == 1000:
+            print(json.dumps({"flooding": time.monotonic()}), flush=True)
+    out["t_flood_end"] = time.monotonic()
+    out["flood_s"] = out["t_flood_end"] - t0
+    time.sleep(1.0)
+    s.close()
+    return out
+
+
 def main(argv: list[str]) -> int:
     kind, args = argv[0], argv[1:]
     if kind == "nocert":
@@ -176,10 +264,12 @@ def main(argv: list[str]) -> int:
         out = observer(*args)
     elif kind == "insider":
         out = insider(args[0], args[1], args[2], int(args[3]))
-    elif kind == "link":
-        out = {"link": _try_link(f"zenoh/{args[1]}?config={args[0]}")}
     elif kind == "flood-hello":
-        out = flood_hello(args[0], args[1], int(args[2]))
+        out = flood_hello(args[0], args[1], int(args[2]), float(args[3]))
+    elif kind == "arm-attacks":
+        out = arm_attacks(*args[:5], int(args[5]), int(args[6]))
+    elif kind == "link-on-go":
+        out = link_on_go(args[0], args[1])
     elif kind == "flood-frames":
         out = flood_frames(args[0], args[1], args[2], int(args[3]))
     else:

@@ -9,11 +9,12 @@ import os
 import stat
 import threading
 import time
+from contextlib import ExitStack
 
 import pytest
 
 from rci.bus.frames import OVERHEAD, Handshake, KeyAgreementError, Opener, Sealer
-from rci.bus.guard import BoundedWorker, Episodes, TokenBucket
+from rci.bus.guard import BoundedWorker, Episodes, Lanes, TokenBucket
 from rci.bus.keys import make_cell
 from rci.bus.link import ZenohAddress
 from rci.bus.session import CONFIG_ENV, ZenohLinkError, configured_endpoints, load_config, open_session
@@ -55,6 +56,25 @@ def test_a_sealed_frame_opens_once_and_anything_else_is_dropped_and_counted():
     assert opener.rejected.counts == {"out of sequence": 2, "bad MAC": 2, "too short": 1, "oversized": 1}
     assert opener.open(nxt) == b"\xA5\x5A a CHG"                  # the owner's frames go on
     assert opener.open(sealer.seal(b"still")) == b"still"
+
+
+def test_a_peek_proves_the_sender_without_using_up_its_frame():
+    (down, _), _ = _pair()
+    sealer, opener = Sealer(down), Opener(down)
+    first, second = sealer.seal(b"one"), sealer.seal(b"two")
+    assert opener.peek(second) and opener.peek(first)             # both still to come, both the sender's
+    assert opener.open(first) == b"one" and not opener.peek(first)     # once opened, a replay does not pass
+    assert not opener.peek(first[:8] + bytes(len(first) - 8)) and not opener.peek(b"short")
+    assert not opener.peek((5).to_bytes(8, "big") + Sealer(os.urandom(32)).seal(b"x")[8:])   # another key
+    assert opener.rejected.total == 0 and opener.open(second) == b"two"     # peeking counted and changed nothing
+
+
+def test_the_first_lane_goes_ahead_of_a_flood_in_the_other():
+    lanes = Lanes(2, 4)
+    assert [lanes.offer(i) for i in range(100)] == [True] * 4 + [False] * 96      # a flood: 4 kept
+    assert lanes.offer("holder", first=True) and lanes.offer("holder 2", first=True)
+    assert not lanes.offer("holder 3", first=True) and lanes.dropped == 97
+    assert [lanes.take(0.1) for _ in range(7)] == ["holder", "holder 2", 0, 1, 2, 3, None]
 
 
 def test_a_token_bucket_allows_its_rate():
@@ -112,6 +132,20 @@ def test_a_user_configuration_file_is_read_and_a_missing_one_named(tmp_path, mon
     assert a.config == str(conf) and ZenohAddress.parse(a.url()) == a
 
 
+def test_a_per_session_limit_is_added_to_the_files_and_the_files_own_wins(tmp_path):
+    from rci.bus.session import _add_downsampling, per_session_limit
+
+    conf_file = tmp_path / "robot.json5"
+    conf_file.write_text('{ downsampling: [{ id: "mine", flows: ["ingress"], messages: ["put"], '
+                         'rules: [{ key_expr: "a/b", freq: 1.0 }] }, { id: "hello", flows: ["ingress"], '
+                         'messages: ["query"], rules: [{ key_expr: "rcci/x/hello", freq: 1.0 }] }] }')
+    conf = load_config(conf_file)
+    _add_downsampling(conf, (per_session_limit("hello", "rcci/x/hello", 5.0),
+                             per_session_limit("other", "rcci/x/other", 2.0)))
+    got = {e["id"]: e["rules"][0]["freq"] for e in json.loads(conf.get_json("downsampling"))}
+    assert got == {"mine": 1.0, "hello": 1.0, "other": 2.0}
+
+
 def test_the_cell_command_writes_a_ca_identities_and_configurations(tmp_path):
     from cryptography import x509
     from cryptography.x509.oid import NameOID
@@ -133,6 +167,29 @@ def test_the_cell_command_writes_a_ca_identities_and_configurations(tmp_path):
     assert acl["default_permission"] == "deny" and acl["subjects"][0]["cert_common_names"] == ["controller"]
     assert json.loads(written["monitor"].read_text())["connect"]["endpoints"] == ["tls/10.0.0.1:7448"]
     load_config(written["robot"])                 # Zenoh accepts the files
+
+
+def test_the_cell_command_writes_the_workcell_bus_access_control(tmp_path, capsys):
+    from rci.bus.keys import main
+
+    assert main([str(tmp_path), "--cell", "lab", "--task", "puma", "--shared", "puma_q=puma",
+                 "--bus-host", "10.0.0.2"]) == 0
+    hub = json.loads((tmp_path / "bus-planning.json5").read_text())
+    assert hub["listen"]["endpoints"] == ["tls/10.0.0.2:7448"]
+    spoke = json.loads((tmp_path / "bus-puma.json5").read_text())
+    assert spoke["connect"]["endpoints"] == ["tls/10.0.0.2:7448"] and "access_control" not in spoke
+    acl = hub["access_control"]
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert acl["default_permission"] == "deny"
+    assert "rcci/lab/shared/puma_q" in rules["puma: put"]["key_exprs"]
+    assert "rcci/lab/flags/set" in rules["planning: put"]["key_exprs"]
+    assert not any("flags/set" in k for r in rules.values() if r["id"].startswith("puma") for k in r["key_exprs"])
+    load_config(tmp_path / "bus-planning.json5")
+    for argv, said in (([], "--robot KEY"), (["--cell", "lab", "--shared", "x=nobody"], "not the planner nor"),
+                       (["--cell", "lab", "--task", "controller"], "a plain name other than")):
+        with pytest.raises(SystemExit):
+            main([str(tmp_path / "bad"), *argv])
+        assert said in capsys.readouterr().err
 
 
 def test_over_tls_on_loopback_the_controller_is_served_and_an_observer_is_not(tmp_path):
@@ -159,3 +216,50 @@ def test_over_tls_on_loopback_the_controller_is_served_and_an_observer_is_not(tm
     finally:
         robot.close()
     assert answers == {"controller": [b"here"], "observer": []}
+
+
+def test_on_the_workcell_bus_only_a_keys_writer_writes_it(tmp_path):
+    """The workcell's access control (python -m rci.bus.keys --cell), on loopback over mutual
+    TLS: the hub (the planning level) and an arm process's task write their own keys; an
+    observer of the cell writes none (shared value, start_ev, an arm's flags, a channel, a
+    request), nor does a task write another's; an identity of another CA does not join."""
+    from rci.bus import Bus
+    from rci.bus.session import free_endpoint
+    from rci.workcell_data import MultiError
+
+    port = int(free_endpoint().rsplit(":", 1)[1])
+    keys = make_cell(tmp_path / "cell", [], ["127.0.0.1"], workcell="c", tasks=["puma"],
+                     shared={"puma_q": ["puma"], "plan": ["planning"]}, bus_port=port)
+    with ExitStack() as stack:
+        hub, puma, obs = (stack.enter_context(Bus("c", tasks=(task,), config=str(keys[f"bus {task}"])))
+                          for task in ("planning", "puma", "observer"))
+        heard: dict[str, list[bytes]] = {"hub": [], "puma": []}
+        for who, bus in (("hub", hub), ("puma", puma)):
+            bus.session.declare_subscriber("rcci/c/flags/**", lambda s, w=who: heard[w].append(s.payload.to_bytes()))
+        puma.session.declare_queryable("rcci/c/arm/puma/request", lambda q: q.reply(q.key_expr, b"info"))
+        to_hub = {sender: (bus.channel(sender, "planning"), hub.channel(sender, "planning"))
+                  for sender, bus in (("puma", puma), ("observer", obs))}
+        time.sleep(0.5)                           # the declarations reach the hub
+        puma.shared["puma_q"] = 1.0               # owners write
+        hub.shared["plan"] = 3
+        obs.shared["puma_q"] = 99.0               # an observer writes nothing ...
+        obs.shared["plan"] = 99
+        puma.shared["plan"] = 98                  # ... nor does a task write a value it does not own
+        for bus, key in ((obs, "set"), (obs, "puma/7"), (puma, "set"), (puma, "puma/7"), (hub, "set")):
+            bus.session.put(f"rcci/c/flags/{key}", f"{key} by {bus.tasks}".encode())
+        for sender, (send, _) in to_hub.items():
+            send.send({"from": sender})
+        time.sleep(1.0)
+        assert (hub.shared["puma_q"], hub.shared["plan"]) == (1.0, 3)
+        assert sorted(heard["hub"]) == [b"puma/7 by frozenset({'puma'})", b"set by frozenset({'planning'})"]
+        assert b"set by frozenset({'observer'})" not in heard["puma"] and b"puma/7 by frozenset({'observer'})" \
+            not in heard["puma"] and b"set by frozenset({'planning'})" in heard["puma"]
+        assert [recv.receive(0.5) for _, recv in to_hub.values()] == [{"from": "puma"}, None]
+        ask = lambda bus: [r.ok.payload.to_bytes() for r in bus.session.get("rcci/c/arm/puma/request", timeout=1.0)
+                           if r.ok is not None]   # noqa: E731
+        assert ask(hub) == [b"info"] and ask(obs) == []            # only the planning level asks the arm
+        late = stack.enter_context(Bus("c", tasks=("observer",), config=str(keys["bus observer"])))
+        assert (late.shared.get("puma_q"), late.shared.get("plan")) == (1.0, 3)    # members read the owners' values
+        other = make_cell(tmp_path / "other", [], ["127.0.0.1"], workcell="c", tasks=["puma"], bus_port=port)
+        with pytest.raises(MultiError, match="cannot open a Zenoh session"):
+            Bus("c", tasks=("puma",), config=str(other["bus puma"]))

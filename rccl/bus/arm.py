@@ -21,7 +21,8 @@ to ``rccl.events`` under its name, and then:
   says why (``rcci/CELL/arm/ARM/held``, and a line on stdout) and refuses what that
   planning level asks afterwards (``PlannerLost``); obeys only the planning level that
   holds the arm (``rccl.bus.hold``: sealed requests, start_ev / stop_ev with a MAC; anything
-  else refused, counted and reported once per flood); when this process finds itself stalled
+  else refused, counted and reported once per flood), and answers its requests ahead of
+  anyone else's (a flood of others' requests delays the holder's by one answer at most); when this process finds itself stalled
   longer than a planning level's silence, it aborts that planning level's motions too;
 * publishes ``rcci/CELL/arm/ARM/fault`` and ends (exit status 1) when its arm's control
   ends with a fault.
@@ -48,7 +49,7 @@ import time
 from typing import Any
 
 from rci.bus import Bus, decode, encode
-from rci.bus.guard import Episodes, TokenBucket
+from rci.bus.guard import Episodes, Lanes, TokenBucket
 from rci.bus.link import undeclare
 
 from .. import events as ev
@@ -60,6 +61,7 @@ from ..events import ABORTED, FAULT, EventError
 
 POLL_S = 0.05          # the serving thread looks at the arm's faults this often (s)
 REQUEST_QUEUE = 32     # requests waiting for the serving thread; more are dropped (counted, reported once)
+HOLDER_QUEUE = 8       # ... and the holder's own (sealed by it), answered ahead of the others
 REQUEST_RATE = 200.0   # requests answered a second at most
 GONE_TOLD = 16         # the heartbeat names this many of the planning levels given up last
 BUS_PRIORITY = 70      # SCHED_FIFO of the flags' way out and in (below the control thread's 80)
@@ -104,13 +106,13 @@ class ArmServer:
         self._waiting: dict[tuple[str, int], list[tuple[ev.EFT, int]]] = {}
         self._out: queue.Queue = queue.Queue()
         # a bounded hand-over: a flood of requests costs a Zenoh thread (normal priority: see run())
-        # one put each and this process's serving thread at most REQUEST_RATE answers a second
-        self._requests: queue.Queue = queue.Queue(maxsize=REQUEST_QUEUE)
+        # one put each and this process's serving thread at most REQUEST_RATE answers a second;
+        # the holder's own requests (their seal checked) in a lane of their own, taken first
+        self._requests = Lanes(HOLDER_QUEUE, REQUEST_QUEUE)
         self._request_bucket = TokenBucket(REQUEST_RATE, REQUEST_QUEUE)
-        self.requests_dropped = 0
         self.hold = ArmHold(self.cell, self.name)         # the planning level that holds this arm, its keys
         self._floods = [Episodes(f"{name}: a flood of requests (more than {REQUEST_QUEUE} waiting, at most "
-                                 f"{REQUEST_RATE:.0f}/s answered)", lambda: self.requests_dropped, lambda: "dropped"),
+                                 f"{REQUEST_RATE:.0f}/s answered)", lambda: self._requests.dropped, lambda: "dropped"),
                         Episodes(f"{name}: requests and start_ev/stop_ev messages not from the planning level that "
                                  "holds the arm", lambda: self.hold.refused, lambda: "refused")]
         self._stop = threading.Event()
@@ -370,11 +372,9 @@ class ArmServer:
 
     # -- requests -------------------------------------------------------------------------------
     def _offer_request(self, query) -> None:
-        """On a Zenoh thread: queue a request for the serving thread, or drop it (counted)."""
-        try:
-            self._requests.put_nowait(query)
-        except queue.Full:
-            self.requests_dropped += 1
+        """On a Zenoh thread: queue a request for the serving thread (the holder's ahead), or drop it (counted)."""
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        self._requests.offer(query, first=self.hold.from_holder(payload))
 
     def _answer(self, query) -> None:
         try:
@@ -398,12 +398,13 @@ class ArmServer:
                 raise PlannerLost(f"arm {self.name!r} gave the planning level {planner} up ({why}): the motions it "
                                   "queued here were aborted, the arm holds; a new planning level (a new BusEvents) "
                                   "drives it")
-        if op == "info":
-            return {"robot": self.arm.robot, "rate_hz": self.arm.rate_hz, "q": self.arm.q}
         if op == "hold":
             return self.hold.take(r, lambda p: p in self._planners_gone)
-        r = self.hold.open(r)                         # the holder's own request, or ArmHeld
-        op = r.get("op")
+        if op != "info":
+            r = self.hold.open(r)                     # the holder's own request, or ArmHeld
+            op = r.get("op")
+        if op == "info":                              # anyone's, or the holder's sealed
+            return {"robot": self.arm.robot, "rate_hz": self.arm.rate_hz, "q": self.arm.q}
         if op == "release":
             self.hold.release(str(planner))
             return {"released": True}
@@ -455,10 +456,7 @@ class ArmServer:
     def serve(self) -> None:
         """Answer requests until ``close`` (or ``stop()``); raise the arm's fault after publishing it."""
         while not self._stop.is_set():
-            try:
-                query = self._requests.get(timeout=POLL_S)
-            except queue.Empty:
-                query = None
+            query = self._requests.take(POLL_S)
             if query is not None and not self._request_bucket.take():
                 time.sleep(self._request_bucket.wait_time())
                 self._request_bucket.take()

@@ -92,6 +92,41 @@ class BoundedWorker:
         self._thread.join(2.0)
 
 
+class Lanes:
+    """Items handed over by callbacks in two lanes for one thread to take: the first lane
+    (what is proved to come from the one sender that matters, e.g. the planning level that
+    holds an arm) is taken ahead of the other, so a flood in the other lane delays it by one
+    item at most. Each lane holds at most its capacity; what does not fit is dropped and
+    counted in ``dropped``."""
+
+    def __init__(self, first_capacity: int, other_capacity: int) -> None:
+        self._lanes: tuple[deque, deque] = (deque(), deque())
+        self._capacity = (int(first_capacity), int(other_capacity))
+        self._ready = threading.Condition()
+        self.dropped = 0
+
+    def offer(self, item: Any, first: bool = False) -> bool:
+        """Hand ``item`` over (a Zenoh callback's only work); False if it was dropped."""
+        lane = 0 if first else 1
+        with self._ready:
+            if len(self._lanes[lane]) >= self._capacity[lane]:
+                self.dropped += 1
+                return False
+            self._lanes[lane].append(item)
+            self._ready.notify()
+        return True
+
+    def take(self, timeout: float) -> Any:
+        """The next item, the first lane's before the other's; None after ``timeout`` s without one."""
+        with self._ready:
+            if not (self._lanes[0] or self._lanes[1]):
+                self._ready.wait(timeout)
+            for lane in self._lanes:
+                if lane:
+                    return lane.popleft()
+        return None
+
+
 class Episodes:
     """Reports a flood once, with its count: ``poll()`` returns one line when a count that
     rose has stayed still for ``quiet_s`` (the episode is over), else None.

@@ -56,7 +56,7 @@ from urllib.parse import parse_qs
 from .frames import Handshake, KeyAgreementError, Opener, Rejections, Sealer
 from .guard import BoundedWorker, Episodes
 from .session import (DEFAULT_ENDPOINT, ZenohLinkError, configured_endpoints, free_endpoint,  # noqa: F401 - API
-                      load_config, open_session, undeclare)
+                      load_config, open_session, per_session_limit, undeclare)
 
 log = logging.getLogger(__name__)
 
@@ -66,6 +66,10 @@ HELLO_RETRY_S = 0.5       # a controller asks again after this long without an a
 HELLO_PAUSE_S = 0.05      # ... and pauses this long after a query that ended unanswered
 HELLO_QUEUE = 16          # hellos waiting for the robot's hello worker; more are dropped
 HELLO_RATE = 100.0        # hellos the robot answers a second at most (a key agreement each)
+HELLO_PER_SESSION_HZ = 5.0   # hellos that reach the robot from one Zenoh session a second at most (the
+                             # fairness rule: Zenoh drops the rest where they come in; a controller asks
+                             # every HELLO_RETRY_S, 2 a second, so its asks always pass)
+HELLO_LIMIT_ID = "rcci robot hello per session"     # its id in the Zenoh configuration (a file may redefine it)
 MAX_OFFERS = 16           # connections answered that have not sent a frame yet
 OFFER_TTL_S = 5.0         # ... forgotten after this long
 REPORT_S = 0.25          # the robot looks at its counts of dropped publications this often
@@ -371,15 +375,18 @@ class RobotEndpoint:
     server picks up with :meth:`accept` once its first authenticated frame has come in
     (a hello that is never followed by a frame costs a slot for ``OFFER_TTL_S`` at most).
 
-    Everything a peer can send is bounded here, on Zenoh's threads: a hello is queued (at
+    Everything a peer can send is bounded here: Zenoh lets at most ``HELLO_PER_SESSION_HZ``
+    hellos a second in from each session connected to the robot (the fairness rule: a flood
+    from one session leaves every other session's hellos their way in), a hello is queued (at
     most ``HELLO_QUEUE``, the rest dropped and counted), a publication on a connection's
     ``down`` key is checked (rci.bus.frames) and dropped unless it is that connection's;
     ``report()`` says once per flood how many were dropped and why."""
 
     def __init__(self, address: ZenohAddress, priority: int = 0) -> None:
         self.address = address
+        hello_limit = per_session_limit(HELLO_LIMIT_ID, address.keyexpr("hello"), HELLO_PER_SESSION_HZ)
         self.session = open_session(address.connect, address.listen, address.lease_ms, priority,
-                                    config=address.config, default_listen=(DEFAULT_ENDPOINT,))
+                                    config=address.config, default_listen=(DEFAULT_ENDPOINT,), limits=(hello_limit,))
         self._wake = _Pipe()
         self._new: deque[Connection] = deque()
         self._live: dict[str, Connection] = {}

@@ -122,16 +122,39 @@ def _json_list(items: tuple[str, ...]) -> str:
     return json.dumps(list(items))
 
 
+def per_session_limit(rule_id: str, key_expr: str, per_s: float, messages: tuple[str, ...] = ("query",)) -> dict:
+    """A Zenoh ``downsampling`` entry: at most ``per_s`` of ``messages`` a second on ``key_expr``
+    from each Zenoh session connected to this one (ingress). Zenoh keeps the count per transport,
+    that is per connected session, authenticated by its link (TLS): a sender cannot spend another
+    session's share, whatever it writes into its messages (docs/security.md, "Fairness")."""
+    return {"id": rule_id, "flows": ["ingress"], "messages": list(messages),
+            "rules": [{"key_expr": key_expr, "freq": float(per_s)}]}
+
+
+def _add_downsampling(conf, entries: tuple[dict, ...]) -> None:
+    """Append ``entries`` to the file's ``downsampling`` list; an entry whose id the file
+    already has is the file's (the user's word wins)."""
+    if not entries:
+        return
+    try:
+        present = json.loads(conf.get_json("downsampling")) or []
+    except Exception:
+        present = []
+    ids = {e.get("id") for e in present if isinstance(e, dict)}
+    conf.insert_json5("downsampling", json.dumps(present + [e for e in entries if e["id"] not in ids]))
+
+
 def open_session(connect: tuple[str, ...] = (), listen: tuple[str, ...] = (), lease_ms: int | None = None,
                  priority: int = 0, router: bool = False, client: bool = False,
                  config: str | os.PathLike | None = None, default_connect: tuple[str, ...] = (),
-                 default_listen: tuple[str, ...] = ()):
+                 default_listen: tuple[str, ...] = (), limits: tuple[dict, ...] = ()):
     """A Zenoh session: the user's configuration file (``config``, or ``$RCI_ZENOH_CONFIG``)
     with the project's settings on top (module docstring); its threads real-time at
     ``priority`` if > 0 and allowed. ``connect`` / ``listen`` replace the file's endpoints;
     ``default_connect`` / ``default_listen`` apply where neither gives any (loopback by the
     callers). ``router``: the session also routes between the sessions connected to it (the
-    process the others connect to, in a workcell); ``client``: a client of such a router."""
+    process the others connect to, in a workcell); ``client``: a client of such a router.
+    ``limits``: per-session rate limits (``per_session_limit``) added to the file's."""
     import zenoh
 
     conf = load_config(config)
@@ -147,6 +170,7 @@ def open_session(connect: tuple[str, ...] = (), listen: tuple[str, ...] = (), le
     # 256 -> 181 us); every session of the link uses it, so peers agree
     conf.insert_json5("transport/unicast/lowlatency", "true")
     conf.insert_json5("transport/unicast/qos/enabled", "false")
+    _add_downsampling(conf, tuple(limits))
     if lease_ms is not None:
         conf.insert_json5("transport/link/tx/lease", str(int(lease_ms)))
         conf.insert_json5("transport/link/tx/keep_alive", "4")
