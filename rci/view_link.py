@@ -86,9 +86,10 @@ class ViewFeed:
     """A view in a child process; ``url``, ``send(**msg)``, ``follow(sample, hz)``, ``close()``."""
 
     def __init__(self, robot: str = "puma260", *, env: Sequence[str] = (), host: str = "127.0.0.1",
-                 port: int = DEFAULT_VIEW_PORT, title: str = "", start_timeout: float = START_TIMEOUT) -> None:
+                 port: int = DEFAULT_VIEW_PORT, title: str = "", start_timeout: float = START_TIMEOUT,
+                 collision: bool = False) -> None:
         argv = [sys.executable, "-m", "rcci.view.process", "--robot", robot, "--host", host, "--port", str(port),
-                "--title", title]
+                "--title", title] + (["--collision"] if collision else [])
         for spec in env:
             argv += ["--env", spec]
         self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)

@@ -162,10 +162,11 @@ class ArmWatch:
     """The live view of one RCCL arm: ``url``, ``close()``; made by :func:`show`."""
 
     def __init__(self, arm, *, env: Sequence[str] = (), host: str = "127.0.0.1", port: int = DEFAULT_VIEW_PORT,
-                 hz: float = DEFAULT_HZ) -> None:
+                 hz: float = DEFAULT_HZ, collision: bool = False) -> None:
         self.reader = PlanReader(arm)
         try:
-            self.feed = ViewFeed(arm.robot, env=env, host=host, port=port, title=f"RCCL {arm.robot}")
+            self.feed = ViewFeed(arm.robot, env=env, host=host, port=port, title=f"RCCL {arm.robot}",
+                                 collision=collision)
         except BaseException:
             self.reader.detach()
             raise
@@ -185,14 +186,15 @@ class ArmWatch:
 
 
 def show(arm, *, env: Sequence[str] = (), host: str = "127.0.0.1", port: int = DEFAULT_VIEW_PORT,
-         hz: float = DEFAULT_HZ, quiet: bool = False) -> ArmWatch:
+         hz: float = DEFAULT_HZ, quiet: bool = False, collision: bool = False) -> ArmWatch:
     """Show ``arm`` (an open RCCL arm) live in a browser; prints the address (stderr) unless ``quiet``.
 
     ``env``: simula's ``--env`` words (``plane:z=...``, ``box:...``) to draw those surfaces;
-    ``port``: the view's HTTP port (0: any free one); ``hz``: updates per second. The view
+    ``port``: the view's HTTP port (0: any free one); ``hz``: updates per second; ``collision``:
+    also draw the arm's collision shapes (what ``arm.collisions(...)`` checks against). The view
     lives until ``close()`` or the end of the program. Needs ``pip install 'rcci[view]'``.
     """
-    watch = ArmWatch(arm, env=env, host=host, port=port, hz=hz)
+    watch = ArmWatch(arm, env=env, host=host, port=port, hz=hz, collision=collision)
     if not quiet:
         print(f"rcci.view.plan: {arm.robot} shown at {watch.url}", file=sys.stderr, flush=True)
     return watch

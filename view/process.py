@@ -41,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env", action="append", default=[], metavar="SPEC",
                    help="environment surface to draw (repeatable), simula's --env words: plane:z=..., box:...")
     p.add_argument("--title", default="", help="the panel's title")
+    p.add_argument("--collision", action="store_true",
+                   help="also draw the arm's collision shapes (models/collision/ROBOT.toml; docs/collision.md)")
     return p
 
 
@@ -49,7 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     not_realtime()
     from .scene import ArmView
     try:
-        view = ArmView(args.robot, env=args.env, host=args.host, port=args.port, title=args.title)
+        view = ArmView(args.robot, env=args.env, host=args.host, port=args.port, title=args.title,
+                       collision=args.collision)
     except (ImportError, ValueError, OSError) as exc:
         print(f"view: {exc}", file=sys.stderr)
         return 2

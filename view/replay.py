@@ -77,12 +77,13 @@ class Replay:
 class ReplayView:
     """An ``ArmView`` driven by a ``Replay``: ``show(t)``, the panel's controls, a player thread."""
 
-    def __init__(self, replay: Replay, *, env=(), host: str = "127.0.0.1", port: int = DEFAULT_VIEW_PORT) -> None:
+    def __init__(self, replay: Replay, *, env=(), host: str = "127.0.0.1", port: int = DEFAULT_VIEW_PORT,
+                 collision: bool = False) -> None:
         from .scene import ArmView
 
         self.replay = replay
         self.view = ArmView(replay.robot, env=env, host=host, port=port, title=f"replay {replay.name}",
-                            q=replay.q[0])
+                            q=replay.q[0], collision=collision)
         tree = self.view.tree
         self._tip = tree.joints[-1].child if tree.joints else tree.root     # link 6 (the last link)
         step = max(1, len(replay.q) // PATH_POINTS)
@@ -172,6 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"HTTP port (default {DEFAULT_VIEW_PORT}; 0: any free one; a busy one: the next free)")
     p.add_argument("--env", action="append", default=[], metavar="SPEC",
                    help="environment surface to draw (repeatable), simula's --env words: plane:z=..., box:...")
+    p.add_argument("--collision", action="store_true",
+                   help="also draw the arm's collision shapes (models/collision/ROBOT.toml; docs/collision.md)")
     p.add_argument("--play", action="store_true", help="start playing at once")
     p.add_argument("--speed", choices=SPEEDS, default="1", help="playing speed (default 1: real time)")
     p.add_argument("--screenshot", metavar="PNG",
@@ -187,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         replay = Replay(args.log)
-        rv = ReplayView(replay, env=args.env, host=args.host, port=args.port)
+        rv = ReplayView(replay, env=args.env, host=args.host, port=args.port, collision=args.collision)
     except ImportError as exc:
         print(f"rcci.view.replay: {exc}", file=sys.stderr)
         return 2

@@ -41,6 +41,8 @@ ARM_COLOR = (232, 116, 30)
 WRIST_COLOR = (150, 154, 160)
 SURFACE_COLOR = (70, 130, 200)
 SURFACE_OPACITY = 0.35
+COLLISION_COLOR = (60, 200, 90)      # the collision shapes (rccl.collision), drawn on request
+COLLISION_OPACITY = 0.3
 GRID_COLOR = (200, 200, 200)
 SECTION_COLOR = (150, 150, 150)
 ROD_RADIUS = 0.02          # m, the rod drawn for a link without visual geometry
@@ -243,7 +245,9 @@ class ArmView:
     """A viser server showing one arm; ``set_q``, ``set_path``, ``set_target``, ``set_status``; ``close``."""
 
     def __init__(self, robot: str = "puma260", *, env: Sequence[str] = (), host: str = "127.0.0.1",
-                 port: int = 8080, title: str = "", q: Sequence[float] | None = None) -> None:
+                 port: int = 8080, title: str = "", q: Sequence[float] | None = None, collision: bool = False) -> None:
+        """``collision``: also draw the arm's collision shapes (models/collision/<robot>.toml, what
+        ``rccl.collision`` checks paths against), translucent green, riding on their links."""
         viser = require_viser()
         self._tf = viser.transforms
         model = load_robot(robot)
@@ -270,6 +274,7 @@ class ArmView:
                       + REACH_MARGIN)
         self._draw_ground()
         self._draw_arm()
+        self.collision_shapes = self._draw_collision(q0, poses) if collision else 0
         blocks = surface_blocks(env, self.reach)
         for i, (lo, hi) in enumerate(blocks):
             self.server.scene.add_box(f"/env/block{i}", color=SURFACE_COLOR, dimensions=tuple(hi - lo),
@@ -322,6 +327,29 @@ class ArmView:
                     mesh = trimesh.load(v.mesh, force="mesh")
                     mesh.apply_scale(v.size)
                     scene.add_mesh_simple(name, mesh.vertices, mesh.faces, color=color, wxyz=wxyz, position=pos)
+
+    def _draw_collision(self, q0: np.ndarray, poses: dict) -> int:
+        """The collision shapes under their links' nodes (so ``set_q`` moves them); how many were drawn."""
+        import trimesh
+
+        from rccl.collision import shape_poses
+
+        scene = self.server.scene
+        shapes = shape_poses(self.robot, q0)
+        self.collision_placements: list[tuple[str, np.ndarray]] = []    # (link, the shape in the link's frame)
+        for i, s in enumerate(shapes):
+            local = np.linalg.inv(poses[s.frame]) @ s.pose         # the shape in its link's frame
+            self.collision_placements.append((s.frame, local))
+            name, wxyz, pos = f"/arm/{s.frame}/collision{i}", self._tf.SO3.from_matrix(local[:3, :3]).wxyz, \
+                tuple(local[:3, 3])
+            if s.kind == "capsule":
+                mesh = trimesh.creation.capsule(height=s.size[0], radius=s.size[1], count=[16, 16])
+                scene.add_mesh_simple(name, mesh.vertices, mesh.faces, color=COLLISION_COLOR,
+                                      opacity=COLLISION_OPACITY, wxyz=wxyz, position=pos)
+            else:
+                scene.add_box(name, color=COLLISION_COLOR, dimensions=tuple(s.size), opacity=COLLISION_OPACITY,
+                              wxyz=wxyz, position=pos)
+        return len(shapes)
 
     # -- what callers change -------------------------------------------------------------------
     @property
