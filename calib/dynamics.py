@@ -64,17 +64,15 @@ def _role(trace) -> str:
 def heldout_figures(trace, drive, robot: str, x: np.ndarray) -> Heldout:
     """Measured against predicted torque on one log (module docstring)."""
     from calib.drive import FILTER_TAU
-    from calib.identification import _lowpass
+    from calib.identification import CUTOFF_HZ, EDGE_S, lowpass
 
     t, q_raw, tau = measurement(trace, drive)
     rate = 1.0 / float(np.mean(np.diff(t)))
-    lp = _lowpass(rate)
+    lp = lowpass(rate)
     q = lp(q_raw)
     qd = np.gradient(q, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
-    from calib.identification import CUTOFF_HZ, EDGE_S
-
     noise = np.std(tau - lp(tau), axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
     inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
     moving = (np.abs(qd) >= STILL_SPEED) & inner[:, None]

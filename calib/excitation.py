@@ -11,7 +11,9 @@ a periodic motion that starts and ends at rest (sum_l a_jl = 0, sum_l l b_jl = 0
 limit is linear in (q0, a, b), so IPOPT gets them as linear constraints on a grid of
 ``LIMIT_POINTS`` instants per period: the joint ranges (less ``RANGE_MARGIN``), ``SPEED_SHARE``
 of each joint's velocity limit and an acceleration limit (:func:`acceleration_limits`: the
-data files give none).
+data files give none). Between the grid's instants a limit may be passed a little: the
+result is checked on ``CHECK_POINTS`` instants and, where needed, its oscillation (the a and b
+coefficients) scaled down until it holds everywhere (the rest conditions are linear: they hold).
 
 The objective is a smooth stand-in for the condition number: with the stacked regressor's
 columns scaled to unit length (A D^-1, D the column norms, so that the result does not depend on
@@ -37,7 +39,8 @@ import numpy as np
 
 from calib.exceptions import CalibError
 
-LIMIT_POINTS = 100          # instants per period where the limits are imposed (GRID_SHARE of each)
+LIMIT_POINTS = 40           # instants per period where IPOPT sees the limits
+CHECK_POINTS = 2000         # instants per period where the result is checked (and scaled into them)
 DESIGN_POINTS = 40          # instants per period in the stacked regressor of the objective
 RANGE_MARGIN = 0.1          # rad (m) kept from each end of a joint's range
 SPEED_SHARE = 0.35          # of each joint's velocity limit
@@ -96,6 +99,15 @@ class Excitation:
         return {"robot": self.robot, "base_hz": self.base_hz, "offset": [float(x) for x in self.offset],
                 "a": self.a.tolist(), "b": self.b.tolist(), "seed": self.seed,
                 "cond_scaled": self.cond_scaled, "cond_raw": self.cond_raw}
+
+
+def retimed(exc: Excitation, factor: float) -> Excitation:
+    """The same path played ``factor`` times slower (speeds / factor, accelerations / factor^2):
+    a second trajectory without a second design (its limits still hold for factor >= 1)."""
+    if factor < 1:
+        raise CalibError(f"retimed: factor {factor} < 1 would pass the speed limits")
+    return Excitation(exc.robot, exc.base_hz / factor, exc.offset, exc.a / factor, exc.b / factor, exc.seed,
+                      exc.cond_scaled, exc.cond_raw, exc.iterations, exc.seconds)
 
 
 def fourier_state(t: np.ndarray, base_hz: float, offset: np.ndarray, a: np.ndarray, b: np.ndarray):
@@ -294,16 +306,34 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
     solver = ca.nlpsol("excitation", "ipopt", nlp, opts)
     sol = solver(x0=_start(robot, seed, n, L, base_hz), lbg=lo, ubg=hi)
     xs = np.asarray(sol["x"]).ravel()
-    y = C @ xs
-    slack = max(float(np.max(lo - y)), float(np.max(y - hi)))
-    if slack > 1e-6:
-        raise CalibError(f"robot {robot}: the excitation design (seed {seed}) ends {slack:.2e} outside its "
-                         f"limits ({solver.stats()['return_status']})")
-    exc = Excitation(robot, base_hz, xs[:n], xs[n:n + n * L].reshape(n, L), xs[n + n * L:].reshape(n, L),
+    q0, a, b = xs[:n], xs[n:n + n * L].reshape(n, L), xs[n + n * L:].reshape(n, L)
+    shrink = _shrink(robot, base_hz, q0, a, b)
+    exc = Excitation(robot, base_hz, q0, a * shrink, b * shrink,
                      seed, 0.0, 0.0, int(solver.stats()["iter_count"]), 0.0)
     cs, cr = condition_numbers(exc)
     return Excitation(exc.robot, base_hz, exc.offset, exc.a, exc.b, seed, cs, cr, exc.iterations,
                       time.monotonic() - t0)
+
+
+def _shrink(robot: str, base_hz: float, q0: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """The largest factor <= 1 on (a, b) that keeps the motion inside every limit at CHECK_POINTS
+    instants; CalibError when the offset itself is outside the range."""
+    from models import load_robot
+
+    m = load_robot(robot)
+    lo = np.asarray(m.lower, float) + RANGE_MARGIN
+    hi = np.asarray(m.upper, float) - RANGE_MARGIN
+    if np.any(q0 < lo) or np.any(q0 > hi):
+        raise CalibError(f"robot {robot}: the excitation's mean pose {np.round(q0, 3).tolist()} is outside the "
+                         "joint ranges less their margin")
+    t = np.arange(CHECK_POINTS) / (CHECK_POINTS * base_hz)
+    q, qd, qdd = fourier_state(t, base_hz, q0, a, b)
+    osc = q - q0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pos = np.where(osc > 0, (hi - q0) / osc, np.where(osc < 0, (lo - q0) / osc, np.inf))
+        vel = SPEED_SHARE * np.asarray(m.max_velocity, float) / np.abs(qd)
+        acc = acceleration_limits(robot) / np.abs(qdd)
+    return float(min(1.0, np.nanmin(pos), np.nanmin(vel), np.nanmin(acc)))
 
 
 def condition_numbers(exc: Excitation, points: int = 400) -> tuple[float, float]:

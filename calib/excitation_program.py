@@ -54,15 +54,17 @@ class ExcitationPlan:
     rate_hz: int = EXCITATION_RATE_HZ
 
 
-def excitation_plans(robot: str, seeds: tuple[int, int] = (FIT_SEED, HELDOUT_SEED)) -> list[ExcitationPlan]:
-    """The trajectory to fit (``seeds[0]``, PERIODS periods) and the held-out one (``seeds[1]``),
-    each designed by calib.excitation (CasADi + IPOPT)."""
+def excitation_plans(robot: str, seeds: tuple[int, int] = (FIT_SEED, HELDOUT_SEED),
+                     designs: tuple[Excitation, Excitation] | None = None,
+                     periods: tuple[int, int] = (PERIODS, HELDOUT_PERIODS)) -> list[ExcitationPlan]:
+    """The trajectory to fit (``seeds[0]``, ``periods[0]`` periods) and the held-out one
+    (``seeds[1]``), each designed by calib.excitation (CasADi + IPOPT) unless ``designs`` gives them."""
+    excs = designs or tuple(design(robot, seed=s) for s in seeds)
     plans = []
-    for role, seed, periods in (("fit", seeds[0], PERIODS), ("heldout", seeds[1], HELDOUT_PERIODS)):
-        exc = design(robot, seed=seed)
-        meta = {"experiment": "dynamics", "role": role, "excitation": exc.as_meta(), "periods": periods,
+    for role, exc, n in zip(("fit", "heldout"), excs, periods):
+        meta = {"experiment": "dynamics", "role": role, "excitation": exc.as_meta(), "periods": n,
                 "design_seconds": exc.seconds, "log_set": [f"dynamics-{r}" for r in ("fit", "heldout") if r != role]}
-        plans.append(ExcitationPlan(f"dynamics-{role}", exc, periods, meta))
+        plans.append(ExcitationPlan(f"dynamics-{role}", exc, n, meta))
     return plans
 
 

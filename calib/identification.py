@@ -113,7 +113,8 @@ class Rows:
                     np.concatenate([p.joint for p in parts]), noise, sum(p.seconds for p in parts))
 
 
-def _lowpass(rate_hz: float):
+def lowpass(rate_hz: float):
+    """The zero-phase Butterworth low-pass of the module docstring at ``rate_hz``, along axis 0."""
     from scipy.signal import butter, sosfiltfilt
 
     if rate_hz <= 4 * CUTOFF_HZ:
@@ -155,7 +156,7 @@ def rows_of_trace(trace, drive, robot: str) -> Rows:
 
     t, q_raw, tau = measurement(trace, drive)
     rate = 1.0 / float(np.mean(np.diff(t)))
-    lp = _lowpass(rate)
+    lp = lowpass(rate)
     q = lp(q_raw)
     qd = np.gradient(q, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)

@@ -94,7 +94,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
 def plot(out: FitOutcome, folder: str, prefix: str) -> list[str]:
     from calib.dynamics_plots import heldout_plot
 
-    return [heldout_plot(h, folder, f"{prefix.rstrip('-j')}-heldout-{k}") for k, h in enumerate(out.results.heldout)]
+    stem = prefix[:-2] if prefix.endswith("-j") else prefix     # the per-joint kinds' "-j"
+    return [heldout_plot(h, folder, f"{stem}-heldout-{k}") for k, h in enumerate(out.results.heldout)]
 
 
 def record(req: RecordRequest) -> None:
@@ -108,31 +109,10 @@ def record(req: RecordRequest) -> None:
 
 def regen(ctx: RegenContext) -> list:
     """Both excitations on a simula of their own, started with --dynamic (and --warm)."""
+    from calib.regen import record_dynamics
     from calib.registry import OwnSimula
 
     return [(("own",), OwnSimula("dynamics", lambda: record_dynamics(ctx), ("dynamics-fit", "dynamics-heldout")))]
-
-
-def record_dynamics(ctx: RegenContext) -> None:
-    """The excitation logs not yet in the context's folder, on a fresh lockstep simula."""
-    import time
-
-    from calib.excitation_program import excitation_plans, run_excitation
-    from calib.regen import _report_log, _simula_args, _store, finished
-    from calib.truth import truth_meta
-    from rci.simula.process import SimulaProcess
-
-    args = _simula_args(ctx.params, ["--dynamic", "--warm"])
-    plans = [p for p in excitation_plans(ctx.info.name) if not (ctx.resume and finished(ctx.out_dir, p.name))]
-    if not plans:
-        return
-    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
-        for plan in plans:
-            t0 = time.monotonic()
-            raw = os.path.join(ctx.work, plan.name + ".rcilog")
-            n = run_excitation(sim.url, plan, raw, ctx.info.name,
-                               extra_meta={"truth": truth_meta(ctx.seed, ctx.params, args)})
-            _report_log(plan.name, n, _store(raw, ctx.out_dir), t0)
 
 
 KIND = FitKind(

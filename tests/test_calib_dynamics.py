@@ -1,0 +1,141 @@
+"""The dynamics identification (issue 27 item 5): the excitation design meets its limits and
+its condition goal; excitations recorded in current mode on a lockstep simula --dynamic with a
+hidden truth (masses, inertias, rotors, friction, sensitivities, gravity and DH table moved)
+give base parameters whose printed intervals hold the truth's, and predict a held-out
+trajectory's torque within twice the current noise; bad logs are refused with clear errors."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from calib.dynamics import GOAL_RMS_NOISE, coverage, fit_dynamics, truth_vector
+from calib.exceptions import LogError
+from calib.excitation import (CHECK_POINTS, RANGE_MARGIN, SPEED_SHARE, acceleration_limits, condition_numbers,
+                              design, retimed)
+from calib.hidden_truth import write_hidden_truth
+from calib.logs import load_trace
+from calib.robot import robot_info
+from models import load_robot
+
+ROBOT = "puma260"
+COND_GOAL = 100.0
+
+
+@pytest.fixture(scope="module")
+def excitation():
+    return design(ROBOT, seed=0)
+
+
+def test_design_meets_limits_and_condition(excitation) -> None:
+    m = load_robot(ROBOT)
+    t = np.arange(3 * CHECK_POINTS) * excitation.period / (3 * CHECK_POINTS)
+    q, qd, qdd = excitation.state(t)
+    assert np.all(q >= np.asarray(m.lower) + RANGE_MARGIN - 1e-9)
+    assert np.all(q <= np.asarray(m.upper) - RANGE_MARGIN + 1e-9)
+    assert np.all(np.abs(qd) <= SPEED_SHARE * np.asarray(m.max_velocity) + 1e-9)
+    assert np.all(np.abs(qdd) <= acceleration_limits(ROBOT) + 1e-9)
+    q0, qd0, qdd0 = excitation.state(np.array([0.0, excitation.period]))
+    assert np.allclose(qd0, 0.0, atol=1e-9) and np.allclose(qdd0, 0.0, atol=1e-9)   # at rest at both ends
+    assert np.allclose(q0[0], q0[1])
+    assert excitation.cond_scaled <= COND_GOAL
+    assert condition_numbers(excitation) == pytest.approx((excitation.cond_scaled, excitation.cond_raw))
+    # every joint moves both ways (the per-direction friction columns need it)
+    assert np.all((qd > 0.1).any(axis=0)) and np.all((qd < -0.1).any(axis=0))
+
+
+def _record(tmp, plans, truth_file: str, seed: int) -> list[str]:
+    from calib.excitation_program import run_excitation
+    from calib.truth import truth_meta
+    from rci.simula.process import SimulaProcess
+
+    args = ["--params", truth_file, "--dynamic", "--warm"]
+    paths = []
+    with SimulaProcess("-p", *args, robot=ROBOT, lockstep=True, seed=seed) as sim:
+        for plan in plans:
+            path = os.path.join(tmp, plan.name + ".rcilog")
+            n = run_excitation(sim.url, plan, path, ROBOT, extra_meta={"truth": truth_meta(seed, truth_file, args)})
+            assert n > 0.9 * plan.periods * plan.excitation.period * plan.rate_hz
+            paths.append(path)
+    return paths
+
+
+def _truth_drive(truth_file: str):
+    """The drive with the truth's torque sensitivities, standing for a `calib fit sensitivity`
+    on logs of the same truth (the sensitivity fit is tested in test_calib_fits)."""
+    import tomllib
+
+    with open(truth_file, "rb") as f:
+        sigma = tomllib.load(f)["motors"]["torque_sensitivity"]
+    return robot_info(ROBOT).drive.with_sigma(np.asarray(sigma, float))
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory, excitation):
+    """A short fit log (one period) and a held-out log (the same path 1.3 x slower: other speeds
+    and accelerations), against a hidden truth with moved inertials."""
+    from calib.excitation_program import excitation_plans
+
+    tmp = str(tmp_path_factory.mktemp("dyn"))
+    truth_file = os.path.join(tmp, "truth.toml")
+    write_hidden_truth(truth_file, ROBOT, seed=11, inertials=True)
+    plans = excitation_plans(ROBOT, designs=(excitation, retimed(excitation, 1.3)), periods=(1, 1))
+    return _record(tmp, plans, truth_file, seed=4), truth_file
+
+
+def test_fit_recovers_hidden_truth(recorded) -> None:
+    paths, truth_file = recorded
+    traces = [load_trace(p) for p in paths]
+    res = fit_dynamics(traces, _truth_drive(truth_file), ROBOT)
+    truth = truth_vector(traces, ROBOT)
+    nominal = truth_vector([_as_data_file(traces[0])], ROBOT)
+    assert np.abs(truth - nominal).max() > 1e-3          # the truth is not the data file's
+    inside, total, mask = coverage(res, truth)
+    # measured on this short log: all but a few of 66 (joint 2's friction, whose Table 4.4
+    # variation along the path the model has no column for, is the usual miss)
+    assert inside >= total - 6, [n for n, ok in zip(res.names, mask) if not ok]
+    nb = len(res.names) - 24
+    assert mask[:nb].sum() >= nb - 3
+    assert res.wls.cond_scaled <= COND_GOAL
+    h = res.heldout[0]
+    assert np.all(h.rms_moving <= GOAL_RMS_NOISE * h.noise), (h.rms_moving, h.noise)
+    # the consistent variant: positive masses and rotor inertias, triangle inequalities
+    c = res.consistent
+    assert np.all(c.masses > 0) and np.all(c.rotor > 0)
+    for row in c.inertia:
+        ev = np.linalg.eigvalsh(np.array([[row[0], row[3], row[4]], [row[3], row[1], row[5]],
+                                          [row[4], row[5], row[2]]]))
+        assert ev.min() > -1e-12 and ev[2] <= ev[0] + ev[1] + 1e-12
+    assert c.cost_ratio < 1.5
+
+
+def _as_data_file(trace):
+    """A copy of ``trace`` that says it was recorded against the data file."""
+    import copy
+
+    other = copy.copy(trace)
+    other.meta = dict(trace.meta, truth={"kind": "simula", "seed": 0, "params_file": None, "params_toml": None})
+    return other
+
+
+def test_short_and_malformed_logs_refused(recorded, tmp_path) -> None:
+    import copy
+
+    from calib.__main__ import main
+
+    paths, truth_file = recorded
+    tr = load_trace(paths[0])
+    short = copy.copy(tr)
+    short.t, short.counts, short.adc = tr.t[:300], tr.counts[:300], tr.adc[:300]
+    with pytest.raises(LogError, match="dynamics fit needs at least 5 s"):
+        fit_dynamics([short], _truth_drive(truth_file), ROBOT)
+    nameless = copy.copy(tr)
+    nameless.meta = {k: v for k, v in tr.meta.items() if k != "role"}
+    with pytest.raises(LogError, match="metadata 'role' = None"):
+        fit_dynamics([nameless], _truth_drive(truth_file), ROBOT)
+    bad = tmp_path / "dynamics-fit.rcilog"
+    bad.write_bytes(b"not a log at all\n" * 10)
+    assert main(["fit", "dynamics", str(bad), "-q"]) == 2
+    # the fit needs the torque sensitivities: refused without them, naming the cure
+    assert main(["fit", "dynamics", paths[0], "-q"]) == 2
