@@ -4,7 +4,7 @@ held-out validation (measured against predicted torque on a log the fit did not 
 
 Held-out figures, per joint: the RMS of (measured - predicted) joint torque at the log's own
 rate, the prediction passed through the same current-sense filter as the measurement (no
-low-pass on either), over the instants where the joint moves (|qd| >= STILL_SPEED) and over
+low-pass on either), over the instants where the joint moves (|qd| >= calib.identification.still_speeds) and over
 all; set against the noise of the measured torque (calib.identification.Rows.noise: the sd of
 the measurement minus its zero-phase low-pass, scaled to the whole band). The goal is RMS <= 2x
 noise.
@@ -18,7 +18,7 @@ import numpy as np
 
 from calib.consistent import ConsistentResult, fit_consistent
 from calib.exceptions import CalibError, LogError
-from calib.identification import (STILL_SPEED, Rows, WlsResult, column_names, current_filter,
+from calib.identification import (Rows, WlsResult, column_names, current_filter,
                                   measurement, regressor_columns, rows_of_trace, wls)
 
 GOAL_RMS_NOISE = 2.0
@@ -75,7 +75,9 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray) -> Heldout:
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
     noise = np.std(tau - lp(tau), axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
     inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
-    moving = (np.abs(qd) >= STILL_SPEED) & inner[:, None]
+    from calib.identification import still_speeds
+
+    moving = (np.abs(qd) >= still_speeds(robot)) & inner[:, None]
     err = tau - pred
     rms_m = np.array([np.sqrt(np.mean(err[moving[:, j], j] ** 2)) if moving[:, j].any() else np.nan
                       for j in range(err.shape[1])])

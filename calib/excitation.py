@@ -42,12 +42,17 @@ from calib.exceptions import CalibError
 LIMIT_POINTS = 40           # instants per period where IPOPT sees the limits
 CHECK_POINTS = 2000         # instants per period where the result is checked (and scaled into them)
 DESIGN_POINTS = 40          # instants per period in the stacked regressor of the objective
-RANGE_MARGIN = 0.1          # rad (m) kept from each end of a joint's range
+RANGE_MARGIN = 0.1          # rad (m) kept from each end of a joint's range, at most RANGE_SHARE of it
+RANGE_SHARE = 0.1
 SPEED_SHARE = 0.35          # of each joint's velocity limit
 ACCEL_S = 0.4               # s: the acceleration limit is the speed limit reached in this time
 SIGN_SPEED = 0.05           # rad/s, the tanh's width standing for sign(qd) in the design
 BASE_HZ = 0.1               # Hz: a 10 s period
 HARMONICS = 5
+ROUND_ITER = 40             # IPOPT iterations per round of the design
+ROUNDS = 3                  # at most, while the condition number is above COND_TARGET
+COND_TARGET = 50.0          # unit columns: half the goal of 100
+RANK_COND = 1e8             # above: a column is a combination of others on every motion
 
 
 def casadi_kernel(robot: str, name: str):
@@ -60,6 +65,17 @@ def casadi_kernel(robot: str, name: str):
     if not os.path.exists(path):
         raise CalibError(f"robot {robot}: no generated CasADi kernel {name} ({path}); run `make derive`")
     return ca.Function.load(path)
+
+
+def range_limits(robot: str) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) per joint the excitation keeps within: the range less RANGE_MARGIN at each
+    end, or less RANGE_SHARE of it where that is smaller (a short slide)."""
+    from models import load_robot
+
+    m = load_robot(robot)
+    lo, hi = np.asarray(m.lower, float), np.asarray(m.upper, float)
+    margin = np.minimum(RANGE_MARGIN, RANGE_SHARE * (hi - lo))
+    return lo + margin, hi - margin
 
 
 def acceleration_limits(robot: str) -> np.ndarray:
@@ -251,8 +267,8 @@ def _limits(robot: str, base_hz: float, L: int):
     n = m.n_joints
     t = np.arange(LIMIT_POINTS) / (LIMIT_POINTS * base_hz)
     P, V, Acc = _basis(t, base_hz, n, L)
-    lo = np.tile(np.asarray(m.lower, float) + RANGE_MARGIN, len(t))
-    hi = np.tile(np.asarray(m.upper, float) - RANGE_MARGIN, len(t))
+    low, high = range_limits(robot)
+    lo, hi = np.tile(low, len(t)), np.tile(high, len(t))
     vmax = np.tile(SPEED_SHARE * np.asarray(m.max_velocity, float), len(t))
     amax = np.tile(acceleration_limits(robot), len(t))
     P0, V0, A0 = _basis(np.zeros(1), base_hz, n, L)
@@ -285,8 +301,10 @@ def _start(robot: str, seed: int, n: int, L: int, base_hz: float) -> np.ndarray:
 
 
 def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harmonics: int = HARMONICS,
-           max_iter: int = 40) -> Excitation:
-    """Design the excitation of ``robot`` (deterministic for ``seed``), CasADi + IPOPT."""
+           max_iter: int = ROUND_ITER, rounds: int = ROUNDS) -> Excitation:
+    """Design the excitation of ``robot`` (deterministic for ``seed``), CasADi + IPOPT: rounds of
+    ``max_iter`` iterations, each from the last, until the condition number (unit columns) is
+    at most COND_TARGET or ``rounds`` are done."""
     import casadi as ca
 
     from models import load_robot
@@ -298,20 +316,32 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
     obj = _objective(problem, nx)
     C, lo, hi = _limits(robot, base_hz, L)
     x = ca.MX.sym("x", nx)
-    nlp = {"x": x, "f": obj(x), "g": ca.mtimes(ca.DM(C), x)}
+    from scipy.sparse import csc_matrix
+
+    # sparse: each limit row involves one joint's coefficients only (IPOPT's KKT stays sparse)
+    nlp = {"x": x, "f": obj(x), "g": ca.mtimes(ca.DM(csc_matrix(C)), x)}
     opts = {"ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": max_iter,
             "ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-6,
             "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
             "ipopt.jac_c_constant": "yes", "ipopt.jac_d_constant": "yes", "ipopt.mu_strategy": "adaptive"}
     solver = ca.nlpsol("excitation", "ipopt", nlp, opts)
-    sol = solver(x0=_start(robot, seed, n, L, base_hz), lbg=lo, ubg=hi)
-    xs = np.asarray(sol["x"]).ravel()
-    q0, a, b = xs[:n], xs[n:n + n * L].reshape(n, L), xs[n + n * L:].reshape(n, L)
-    shrink = _shrink(robot, base_hz, q0, a, b)
-    exc = Excitation(robot, base_hz, q0, a * shrink, b * shrink,
-                     seed, 0.0, 0.0, int(solver.stats()["iter_count"]), 0.0)
-    cs, cr = condition_numbers(exc)
-    return Excitation(exc.robot, base_hz, exc.offset, exc.a, exc.b, seed, cs, cr, exc.iterations,
+    xs, iters = _start(robot, seed, n, L, base_hz), 0
+    for _ in range(rounds):
+        sol = solver(x0=xs, lbg=lo, ubg=hi)
+        xs = np.asarray(sol["x"]).ravel()
+        iters += int(solver.stats()["iter_count"])
+        q0, a, b = xs[:n], xs[n:n + n * L].reshape(n, L), xs[n + n * L:].reshape(n, L)
+        shrink = _shrink(robot, base_hz, q0, a, b)
+        exc = Excitation(robot, base_hz, q0, a * shrink, b * shrink, seed, 0.0, 0.0, iters, 0.0)
+        cs, cr = condition_numbers(exc)
+        if cs <= COND_TARGET or solver.stats()["return_status"] == "Solve_Succeeded":
+            break
+    if cs > RANK_COND:
+        from calib.identification import inseparable
+
+        raise CalibError(f"robot {robot}: no excitation identifies every column of the fit (condition number "
+                         f"{cs:.1e}): {inseparable(robot)}")
+    return Excitation(exc.robot, base_hz, exc.offset, exc.a, exc.b, seed, cs, cr, iters,
                       time.monotonic() - t0)
 
 
@@ -321,8 +351,7 @@ def _shrink(robot: str, base_hz: float, q0: np.ndarray, a: np.ndarray, b: np.nda
     from models import load_robot
 
     m = load_robot(robot)
-    lo = np.asarray(m.lower, float) + RANGE_MARGIN
-    hi = np.asarray(m.upper, float) - RANGE_MARGIN
+    lo, hi = range_limits(robot)
     if np.any(q0 < lo) or np.any(q0 > hi):
         raise CalibError(f"robot {robot}: the excitation's mean pose {np.round(q0, 3).tolist()} is outside the "
                          "joint ranges less their margin")
@@ -333,20 +362,25 @@ def _shrink(robot: str, base_hz: float, q0: np.ndarray, a: np.ndarray, b: np.nda
         pos = np.where(osc > 0, (hi - q0) / osc, np.where(osc < 0, (lo - q0) / osc, np.inf))
         vel = SPEED_SHARE * np.asarray(m.max_velocity, float) / np.abs(qd)
         acc = acceleration_limits(robot) / np.abs(qdd)
-    return float(min(1.0, np.nanmin(pos), np.nanmin(vel), np.nanmin(acc)))
+    # 0.1 % below the tightest: between the check instants a peak can rise by ~(pi L / CHECK_POINTS)^2 / 2
+    return float(min(1.0, np.nanmin(pos), np.nanmin(vel), np.nanmin(acc)) * (1 - 1e-3))
 
 
 def condition_numbers(exc: Excitation, points: int = 400) -> tuple[float, float]:
     """Condition numbers of the fit's stacked regressor (calib.identification, per-direction
-    friction columns) over one period at ``points`` instants: columns scaled to unit length,
-    and as they come."""
-    from calib.identification import regressor_columns, regressor_width
+    friction columns) over one period at ``points`` instants, with the rows the fit uses (a
+    joint's equation where it moves faster than its still speed): columns scaled to unit
+    length, and as they come."""
+    from calib.identification import regressor_columns, regressor_width, still_speeds
 
     t = np.arange(points) * exc.period / points
     q, qd, qdd = exc.state(t)
-    A = regressor_columns(exc.robot, q, qd, qdd).reshape(-1, regressor_width(exc.robot))
-    raw = np.linalg.cond(A)
-    return float(np.linalg.cond(A / np.linalg.norm(A, axis=0))), float(raw)
+    Y = regressor_columns(exc.robot, q, qd, qdd)
+    A = Y[np.abs(qd) >= still_speeds(exc.robot)].reshape(-1, regressor_width(exc.robot))
+    norms = np.linalg.norm(A, axis=0)
+    if np.any(norms == 0):
+        return float("inf"), float("inf")
+    return float(np.linalg.cond(A / norms)), float(np.linalg.cond(A))
 
 
 def torque_share(exc: Excitation, points: int = 400) -> np.ndarray:

@@ -38,8 +38,38 @@ ORDER = 4
 CUTOFF_HZ = 4.0          # Hz: 8 x the excitation's highest harmonic (0.5 Hz)
 DECIMATE_HZ = 20.0       # Hz: rows kept after the low-pass (5 x the cut-off)
 EDGE_S = 1.0             # s trimmed at each end (the zero-phase filter's start-up)
-STILL_SPEED = 0.1        # rad/s (m/s)
+STILL_SPEED = 0.1        # rad/s (m/s), or a tenth of the excitation's speed limit where smaller (slides)
 MIN_SECONDS = 5.0        # a log shorter than this is refused
+
+
+def still_speeds(robot: str) -> np.ndarray:
+    """Per joint, the speed under which its equation is left out (module docstring)."""
+    from calib.excitation import SPEED_SHARE
+    from models import load_robot
+
+    return np.minimum(STILL_SPEED, 0.1 * SPEED_SHARE * np.asarray(load_robot(robot).max_velocity, float))
+
+
+def inseparable(robot: str, samples: int = 400) -> str:
+    """Which columns of the fit no motion separates (a null vector of the unit-column regressor
+    on random states, moving joints only), in words."""
+    from models import load_robot
+
+    m = load_robot(robot)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(m.lower, m.upper, (samples, len(m.lower)))
+    qd = rng.choice((-1.0, 1.0), q.shape) * rng.uniform(0.2, 1.0, q.shape)
+    A = regressor_columns(robot, q, qd, rng.normal(size=q.shape)).reshape(-1, regressor_width(robot))
+    nrm = np.linalg.norm(A, axis=0)
+    names = column_names(robot)
+    dead = [names[k] for k in np.flatnonzero(nrm == 0)]
+    if dead:
+        return f"no equation depends on {', '.join(dead)}"
+    v = np.linalg.svd(A / nrm, full_matrices=False)[2][-1]
+    big = [f"{v[k]:+.2f} {names[k]}" for k in np.argsort(-np.abs(v)) if abs(v[k]) > 0.05]
+    return ("on every motion the columns combine to zero as " + " ".join(big)
+            + " (e.g. the weight of a vertical slide is a constant force, which the per-direction "
+              "Coulomb friction of that joint also is)")
 
 
 def rotor_coupling_motors(G: np.ndarray) -> list[int]:
@@ -172,8 +202,9 @@ def rows_of_trace(trace, drive, robot: str) -> Rows:
     rail = np.abs(trace.adc) >= ADC_RAIL                       # (N, n) motors
     joint_rail = (rail.astype(float) @ (G != 0).astype(float)) > 0
     A, y, js = [], [], []
+    still = still_speeds(robot)
     for j in range(n):
-        ok = keep[(np.abs(qd[keep, j]) >= STILL_SPEED) & ~joint_rail[keep, j]]
+        ok = keep[(np.abs(qd[keep, j]) >= still[j]) & ~joint_rail[keep, j]]
         A.append(Yf[ok, j, :])
         y.append(tf[ok, j])
         js.append(np.full(len(ok), j))
@@ -238,6 +269,11 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     As = Aw / scale
     U, s, Vt = np.linalg.svd(As, full_matrices=False)
     cond = float(s[0] / s[-1])
+    if cond > 1e8:
+        v = Vt[-1]
+        big = " ".join(f"{v[k]:+.2f} {names[k]}" for k in np.argsort(-np.abs(v)) if abs(v[k]) > 0.05)
+        raise CalibError(f"the dynamics logs do not separate the columns {big} (condition number {cond:.1e}): "
+                         "record an excitation that moves every joint both ways")
     xs = Vt.T @ ((U.T @ yw) / s)
     x = xs / scale
     res = yw - Aw @ x

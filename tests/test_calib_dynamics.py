@@ -12,8 +12,8 @@ import pytest
 
 from calib.dynamics import GOAL_RMS_NOISE, coverage, fit_dynamics, truth_vector
 from calib.exceptions import LogError
-from calib.excitation import (CHECK_POINTS, RANGE_MARGIN, SPEED_SHARE, acceleration_limits, condition_numbers,
-                              design, retimed)
+from calib.excitation import (CHECK_POINTS, SPEED_SHARE, acceleration_limits, condition_numbers, design,
+                              range_limits, retimed)
 from calib.hidden_truth import write_hidden_truth
 from calib.logs import load_trace
 from calib.robot import robot_info
@@ -32,8 +32,9 @@ def test_design_meets_limits_and_condition(excitation) -> None:
     m = load_robot(ROBOT)
     t = np.arange(3 * CHECK_POINTS) * excitation.period / (3 * CHECK_POINTS)
     q, qd, qdd = excitation.state(t)
-    assert np.all(q >= np.asarray(m.lower) + RANGE_MARGIN - 1e-9)
-    assert np.all(q <= np.asarray(m.upper) - RANGE_MARGIN + 1e-9)
+    lo, hi = range_limits(ROBOT)
+    assert np.all(lo > np.asarray(m.lower)) and np.all(hi < np.asarray(m.upper))
+    assert np.all(q >= lo - 1e-9) and np.all(q <= hi + 1e-9)
     assert np.all(np.abs(qd) <= SPEED_SHARE * np.asarray(m.max_velocity) + 1e-9)
     assert np.all(np.abs(qdd) <= acceleration_limits(ROBOT) + 1e-9)
     q0, qd0, qdd0 = excitation.state(np.array([0.0, excitation.period]))

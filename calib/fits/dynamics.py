@@ -61,9 +61,10 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     res = out.results
     logs = [t for t in ctx.traces if t.experiment == "dynamics"]
     truth = truth_vector(logs, res.robot)
+    ex = logs[0].meta.get("excitation", {}) if logs else {}
     L = ["## Dynamics: base parameters (thesis 4.6) and friction, from excitation logs", "",
-         "The excitation (calib.excitation): a Fourier series of 5 harmonics of 0.1 Hz per joint, "
-         "designed with CasADi + IPOPT for the condition number of the stacked regressor with its "
+         f"The excitation (calib.excitation): a Fourier series of {len(ex.get('a', [[]])[0])} harmonics of "
+         f"{ex.get('base_hz', float('nan')):g} Hz per joint, designed with CasADi + IPOPT for the condition number of the stacked regressor with its "
          "columns scaled to unit length, recorded in current mode on simula --dynamic "
          "(calib.excitation_program). The fit (calib.identification): zero-phase low-pass of the "
          "encoder angles, the model side through the current-sense filter, weighted least squares, "
