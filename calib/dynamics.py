@@ -61,7 +61,7 @@ def _role(trace) -> str:
     return role
 
 
-def heldout_figures(trace, drive, robot: str, x: np.ndarray) -> Heldout:
+def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray | None = None) -> Heldout:
     """Measured against predicted torque on one log (module docstring)."""
     from calib.drive import FILTER_TAU
     from calib.identification import CUTOFF_HZ, EDGE_S, lowpass
@@ -69,7 +69,7 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray) -> Heldout:
     t, q_raw, tau = measurement(trace, drive)
     rate = 1.0 / float(np.mean(np.diff(t)))
     lp = lowpass(rate)
-    q = lp(q_raw)
+    q = lp(q_raw) + (0.0 if offset is None else np.asarray(offset, float))
     qd = np.gradient(q, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
@@ -85,8 +85,10 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray) -> Heldout:
     return Heldout(trace.path, t, tau, pred, moving, rms_m, rms_a, noise)
 
 
-def fit_dynamics(traces, drive, robot: str, consistent: bool = True) -> DynamicsResult:
-    """Fit the ``fit`` logs among ``traces``, validate on the ``heldout`` ones."""
+def fit_dynamics(traces, drive, robot: str, consistent: bool = True,
+                 offset: np.ndarray | None = None) -> DynamicsResult:
+    """Fit the ``fit`` logs among ``traces``, validate on the ``heldout`` ones; ``offset`` the
+    fitted joint offsets (rad) when the parameter file has a kinematic calibration."""
     t0 = time.monotonic()
     names = column_names(robot)
     fit_logs = [tr for tr in traces if _role(tr) == "fit"]
@@ -97,7 +99,7 @@ def fit_dynamics(traces, drive, robot: str, consistent: bool = True) -> Dynamics
                          + ", ".join(tr.path for tr in traces) + " (the held-out log only validates)")
     if not held:
         notes.append("no held-out log (role 'heldout'): the fit is not validated on another trajectory")
-    rows = Rows.stack([rows_of_trace(tr, drive, robot) for tr in fit_logs])
+    rows = Rows.stack([rows_of_trace(tr, drive, robot, offset) for tr in fit_logs])
     res = wls(rows, names)
     cons = None
     if consistent:
@@ -107,7 +109,7 @@ def fit_dynamics(traces, drive, robot: str, consistent: bool = True) -> Dynamics
         cons = fit_consistent(robot, res.value, Aw.T @ Aw, float(r @ r))
         if cons.status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
             notes.append(f"the physically consistent fit ended with IPOPT status {cons.status}")
-    heldout = [heldout_figures(tr, drive, robot, res.value) for tr in held]
+    heldout = [heldout_figures(tr, drive, robot, res.value, offset) for tr in held]
     seconds = time.monotonic() - t0
     design = sum(float(tr.meta.get("design_seconds", 0.0)) for tr in traces)
     conds = [float(tr.meta.get("excitation", {}).get("cond_scaled", np.nan)) for tr in traces]

@@ -23,7 +23,8 @@ of each cycle's interval, averaged over its two ends, enter the same recursion),
 sides through the same zero-phase low-pass, decimated to ``DECIMATE_HZ`` and trimmed by
 ``EDGE_S`` at both ends. Joint j's equation at an instant is left out when |qd_j| <
 ``STILL_SPEED`` (sticking, breakaway: friction there is not a function of qd) or when an ADC
-channel of its motors is at its rail.
+channel of its motors is at its rail, and ``STILL_WINDOW_S`` either side of such an instant
+(the low-pass spreads the stick over its neighbours).
 """
 from __future__ import annotations
 
@@ -39,6 +40,7 @@ CUTOFF_HZ = 4.0          # Hz: 8 x the excitation's highest harmonic (0.5 Hz)
 DECIMATE_HZ = 20.0       # Hz: rows kept after the low-pass (5 x the cut-off)
 EDGE_S = 1.0             # s trimmed at each end (the zero-phase filter's start-up)
 STILL_SPEED = 0.1        # rad/s (m/s), or a tenth of the excitation's speed limit where smaller (slides)
+STILL_WINDOW_S = 0.15   # s either side of a slow instant also left out (the low-pass smears it)
 MIN_SECONDS = 5.0        # a log shorter than this is refused
 
 
@@ -179,15 +181,17 @@ def measurement(trace, drive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, drive.joint_angles(trace.counts), drive.joint_torques(trace.adc)
 
 
-def rows_of_trace(trace, drive, robot: str) -> Rows:
-    """The stacked equations of one excitation log (module docstring)."""
+def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) -> Rows:
+    """The stacked equations of one excitation log (module docstring); ``offset`` (rad, per
+    joint) the fitted joint offsets (d theta of ``[kinematics]``) added to the encoder angles
+    (the regressor is the arm's at its true angles, as the gravity fit's)."""
     from calib.drive import FILTER_TAU
     from calib.logs import ADC_RAIL
 
     t, q_raw, tau = measurement(trace, drive)
     rate = 1.0 / float(np.mean(np.diff(t)))
     lp = lowpass(rate)
-    q = lp(q_raw)
+    q = lp(q_raw) + (0.0 if offset is None else np.asarray(offset, float))
     qd = np.gradient(q, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)
     Y = regressor_columns(robot, q, qd, qdd)
@@ -202,13 +206,24 @@ def rows_of_trace(trace, drive, robot: str) -> Rows:
     rail = np.abs(trace.adc) >= ADC_RAIL                       # (N, n) motors
     joint_rail = (rail.astype(float) @ (G != 0).astype(float)) > 0
     A, y, js = [], [], []
-    still = still_speeds(robot)
+    slow = _dilate(np.abs(qd) < still_speeds(robot), int(round(STILL_WINDOW_S * rate)))
     for j in range(n):
-        ok = keep[(np.abs(qd[keep, j]) >= still[j]) & ~joint_rail[keep, j]]
+        ok = keep[~slow[keep, j] & ~joint_rail[keep, j]]
         A.append(Yf[ok, j, :])
         y.append(tf[ok, j])
         js.append(np.full(len(ok), j))
     return Rows(np.vstack(A), np.concatenate(y), np.concatenate(js), noise, float(t[-1] - t[0] - 2 * EDGE_S))
+
+
+def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
+    """``mask`` (N, n) widened by ``k`` rows either side, per column."""
+    if k <= 0:
+        return mask
+    c = np.cumsum(np.vstack([np.zeros((1, mask.shape[1])), mask.astype(float)]), axis=0)
+    N = len(mask)
+    lo = np.clip(np.arange(N) - k, 0, N)
+    hi = np.clip(np.arange(N) + k + 1, 0, N)
+    return (c[hi] - c[lo]) > 0
 
 
 @dataclass

@@ -18,7 +18,15 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     from calib.dynamics import fit_dynamics
 
     drive = info.drive.with_sigma(inputs.sigma(list(range(len(info.lower)))))
-    res = fit_dynamics(traces, drive, info.name)
+    kin = params.get("kinematics", {})
+    offset = None
+    if "dtheta" in kin:
+        offset = np.nan_to_num(np.asarray(kin["dtheta"], dtype=float))
+    else:
+        notes.append("no fitted joint offsets ([kinematics] dtheta) in the parameter file: the regressor is "
+                     "evaluated at the encoder angles (fit kinematics first: an offset turns the links' "
+                     "first moments into each other)")
+    res = fit_dynamics(traces, drive, info.name, offset=offset)
     notes += res.notes
     sec: dict = {"names": list(res.names), "values": [float(v) for v in res.wls.value],
                  "errors": [float(e) for e in res.wls.error],
