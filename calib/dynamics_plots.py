@@ -30,6 +30,7 @@ def heldout_plot(h, folder: str, name: str) -> str:
     fig.tight_layout()
     path = os.path.join(folder, name + ".png")
     try:
+        os.makedirs(folder, exist_ok=True)
         fig.savefig(path)
     except OSError as exc:
         raise CalibError(f"{path}: cannot write the plot: {exc.strerror}") from None

@@ -50,7 +50,7 @@ SIGN_SPEED = 0.05           # rad/s, the tanh's width standing for sign(qd) in t
 BASE_HZ = 0.1               # Hz: a 10 s period
 HARMONICS = 5
 ROUND_ITER = 40             # IPOPT iterations per round of the design
-ROUNDS = 3                  # at most, while the condition number is above COND_TARGET
+ROUNDS = 5                  # at most, while the condition number is above COND_TARGET
 COND_TARGET = 50.0          # unit columns: half the goal of 100
 RANK_COND = 1e8             # above: a column is a combination of others on every motion
 
@@ -325,17 +325,20 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
             "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
             "ipopt.jac_c_constant": "yes", "ipopt.jac_d_constant": "yes", "ipopt.mu_strategy": "adaptive"}
     solver = ca.nlpsol("excitation", "ipopt", nlp, opts)
-    xs, iters = _start(robot, seed, n, L, base_hz), 0
+    xs, iters, best = _start(robot, seed, n, L, base_hz), 0, None
     for _ in range(rounds):
         sol = solver(x0=xs, lbg=lo, ubg=hi)
         xs = np.asarray(sol["x"]).ravel()
         iters += int(solver.stats()["iter_count"])
         q0, a, b = xs[:n], xs[n:n + n * L].reshape(n, L), xs[n + n * L:].reshape(n, L)
         shrink = _shrink(robot, base_hz, q0, a, b)
-        exc = Excitation(robot, base_hz, q0, a * shrink, b * shrink, seed, 0.0, 0.0, iters, 0.0)
-        cs, cr = condition_numbers(exc)
-        if cs <= COND_TARGET or solver.stats()["return_status"] == "Solve_Succeeded":
+        trial = Excitation(robot, base_hz, q0, a * shrink, b * shrink, seed, 0.0, 0.0, iters, 0.0)
+        c = condition_numbers(trial)
+        if best is None or c[0] < best[1][0]:      # the surrogate is not the condition number:
+            best = (trial, c)                      # keep the round that did best
+        if c[0] <= COND_TARGET or solver.stats()["return_status"] == "Solve_Succeeded":
             break
+    exc, (cs, cr) = best
     if cs > RANK_COND:
         from calib.identification import inseparable
 

@@ -9,7 +9,7 @@ encoder angles (gains from the data file's inertia at the start and an estimate 
 inertias, ``WN_HZ`` and ``ZETA``), through G^-T and K_dac. The controller only keeps the arm near
 the plan; the fit reads what was measured (encoder counts and the motor currents of the ADC),
 never the commands. The recorder runs from the first CUR cycle to the end of the last period;
-then the joints go back to POS at the trajectory's end (its start, at rest).
+then the joints go back to POS where they are (the trajectory's end, its start, at rest).
 
 On simula this needs ``--dynamic`` (the full mass matrix and Coriolis terms in current mode);
 ``calib record dynamics --simula`` starts it so, with ``--warm`` standing for a warmed-up arm
@@ -133,9 +133,10 @@ def run_excitation(url: str, plan: ExcitationPlan, log_path: str, robot: str = "
             return
         k = state["cur"] = state["cur"] + 1
         if k >= steps:
-            if k == steps:
-                session.record(None)
-            command_joints(session, conv, q_d[-1])
+            if k == steps:                       # hand over to POS where the arm is (not where it
+                session.record(None)             # was planned to be: a step there may be too fast)
+                state["hold"] = q
+            command_joints(session, conv, state["hold"])
             if k >= steps + int(0.5 * rate):
                 done.set()
             return

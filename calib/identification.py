@@ -39,17 +39,17 @@ ORDER = 4
 CUTOFF_HZ = 4.0          # Hz: 8 x the excitation's highest harmonic (0.5 Hz)
 DECIMATE_HZ = 20.0       # Hz: rows kept after the low-pass (5 x the cut-off)
 EDGE_S = 1.0             # s trimmed at each end (the zero-phase filter's start-up)
-STILL_SPEED = 0.1        # rad/s (m/s), or a tenth of the excitation's speed limit where smaller (slides)
+STILL_SPEED = 0.1        # rad/s (m/s), or STILL_SHARE of the joint's velocity limit where smaller (slides)
+STILL_SHARE = 0.035      # a tenth of the share of it the excitation uses (calib.excitation.SPEED_SHARE)
 STILL_WINDOW_S = 0.15   # s either side of a slow instant also left out (the low-pass smears it)
 MIN_SECONDS = 5.0        # a log shorter than this is refused
 
 
 def still_speeds(robot: str) -> np.ndarray:
     """Per joint, the speed under which its equation is left out (module docstring)."""
-    from calib.excitation import SPEED_SHARE
     from models import load_robot
 
-    return np.minimum(STILL_SPEED, 0.1 * SPEED_SHARE * np.asarray(load_robot(robot).max_velocity, float))
+    return np.minimum(STILL_SPEED, STILL_SHARE * np.asarray(load_robot(robot).max_velocity, float))
 
 
 def inseparable(robot: str, samples: int = 400) -> str:

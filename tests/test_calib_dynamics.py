@@ -42,6 +42,9 @@ def test_design_meets_limits_and_condition(excitation) -> None:
     assert np.allclose(q0[0], q0[1])
     assert excitation.cond_scaled <= COND_GOAL
     assert condition_numbers(excitation) == pytest.approx((excitation.cond_scaled, excitation.cond_raw))
+    from calib.identification import STILL_SHARE
+
+    assert STILL_SHARE == pytest.approx(0.1 * SPEED_SHARE)     # the fit's still speed follows the design's
     # every joint moves both ways (the per-direction friction columns need it)
     assert np.all((qd > 0.1).any(axis=0)) and np.all((qd < -0.1).any(axis=0))
 

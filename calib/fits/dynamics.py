@@ -27,11 +27,15 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
                      "evaluated at the encoder angles (fit kinematics first: an offset turns the links' "
                      "first moments into each other)")
     res = fit_dynamics(traces, drive, info.name, offset=offset)
+    scale = inputs.sigma_scale_error(list(range(len(info.lower))))
+    if scale > 0:     # every torque scales with the sensitivities: so does every parameter
+        res.wls.error = np.sqrt(res.wls.error ** 2 + (scale * res.wls.value) ** 2)
     notes += res.notes
     sec: dict = {"names": list(res.names), "values": [float(v) for v in res.wls.value],
                  "errors": [float(e) for e in res.wls.error],
                  "error_is": f"99.73 % (Student's t x sd, dof {res.wls.dof}; sd from the weighted residuals, "
-                             "each joint's share inflated by its residuals' autocorrelation; docs/calib.md)",
+                             "each joint's share inflated by its residuals' autocorrelation; with the fitted "
+                             "sensitivities' scale error; docs/calib.md)",
                  "unit": "SI: kg m^2, kg m, N m, N m s/rad (names: calib.identification.column_names)"}
     if res.consistent is not None:
         sec["consistent_values"] = [float(v) for v in res.consistent.value]
