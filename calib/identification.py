@@ -52,6 +52,22 @@ def still_speeds(robot: str) -> np.ndarray:
     return np.minimum(STILL_SPEED, STILL_SHARE * np.asarray(load_robot(robot).max_velocity, float))
 
 
+def identifiable(robot: str) -> str | None:
+    """None when random moving states separate every column of the fit, else why not
+    (:func:`inseparable`): checked before an arm's excitation is designed or recorded."""
+    from models import load_robot
+
+    m = load_robot(robot)
+    rng = np.random.default_rng(1)
+    q = rng.uniform(m.lower, m.upper, (400, len(m.lower)))
+    qd = rng.choice((-1.0, 1.0), q.shape) * rng.uniform(0.2, 1.0, q.shape)
+    A = regressor_columns(robot, q, qd, rng.normal(size=q.shape)).reshape(-1, regressor_width(robot))
+    nrm = np.linalg.norm(A, axis=0)
+    if np.all(nrm > 0) and np.linalg.cond(A / nrm) < 1e8:
+        return None
+    return inseparable(robot)
+
+
 def inseparable(robot: str, samples: int = 400) -> str:
     """Which columns of the fit no motion separates (a null vector of the unit-column regressor
     on random states, moving joints only), in words."""

@@ -147,3 +147,77 @@ def test_short_and_malformed_logs_refused(recorded, tmp_path) -> None:
     assert main(["fit", "dynamics", str(bad), "-q"]) == 2
     # the fit needs the torque sensitivities: refused without them, naming the cure
     assert main(["fit", "dynamics", paths[0], "-q"]) == 2
+
+
+def test_simula_reads_inertials_and_refuses_bad_ones(tmp_path) -> None:
+    from calib.dynamics_truth import link_inertials, simula_arm, truth_parameters
+    from models.params import SCHEMA
+    from rci.simula.exceptions import ParamsError
+    from rci.simula.params import apply_params, truth_from_model
+
+    head = {"calib": {"schema": SCHEMA, "robot": ROBOT}}
+    data = {**head, "inertials": {"mass_scale": [1.0, 1.1, 1.0, 1.0, 1.0, 1.0],
+                                  "inertia_scale": [1.0, 1.0, 1.3, 1.0, 1.0, 1.0]}}
+    m0, _, i0 = link_inertials(simula_arm(ROBOT, None))
+    m1, _, i1 = link_inertials(simula_arm(ROBOT, data))
+    assert m1[1] == pytest.approx(1.1 * m0[1]) and m1[0] == pytest.approx(m0[0])
+    assert np.allclose(i1[2], 1.3 * i0[2]) and np.allclose(i1[1], 1.1 * i0[1])
+    assert not np.allclose(truth_parameters(ROBOT, data), truth_parameters(ROBOT, None))
+    base = truth_from_model(load_robot(ROBOT))
+    with pytest.raises(ParamsError, match=r"\[inertials\] unknown key\(s\) \['masses'\]"):
+        apply_params({**head, "inertials": {"masses": [1.0] * 6}}, "f.toml", ROBOT, base)
+    with pytest.raises(ParamsError, match=r"f.toml: \[inertials\] mass_scale\[2\]: -1.0 is not a valid value"):
+        apply_params({**head, "inertials": {"mass_scale": [1.0, 1.0, -1.0, 1.0, 1.0, 1.0]}}, "f.toml", ROBOT, base)
+
+
+def test_record_refuses_an_arm_it_cannot_identify_and_foreign_options(tmp_path, capsys) -> None:
+    from calib.__main__ import main
+
+    assert main(["record", "dynamics", "--simula", "--seed 3", "--robot", "microbo", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert "robot microbo: the dynamics fit cannot identify" in err and "M2" in err and "FC2+" in err
+    assert main(["record", "dynamics", "--simula", "--seed 3", "--rate", "100", "--out", str(tmp_path / "b")]) == 2
+    assert "--rate does not apply" in capsys.readouterr().err
+    assert not os.path.exists(tmp_path / "b")
+
+
+@pytest.mark.slow
+def test_campaign_through_the_cli_on_a_hidden_truth(tmp_path) -> None:
+    """`calib hidden-truth --inertials`, `calib record dynamics --simula`, `calib fit dynamics -p`
+    (the truth's sensitivities and joint offsets in the file, standing for their fits), the
+    section of `calib report`: the whole command chain at full length (two designs)."""
+    import tomllib
+
+    from calib.__main__ import main
+    from calib.params import dumps
+    from models.params import SCHEMA
+
+    truth = str(tmp_path / "truth.toml")
+    assert main(["hidden-truth", "--seed", "5", "--inertials", "-o", truth]) == 0
+    out = str(tmp_path / "logs")
+    assert main(["record", "dynamics", "--simula", f"--seed 7 --params {truth}", "--out", out, "-q"]) == 0
+    with open(truth, "rb") as f:
+        data = tomllib.load(f)
+    params = tmp_path / "fitted.toml"
+    params.write_text(dumps({"calib": {"schema": SCHEMA, "robot": ROBOT},
+                             "motors": {"torque_sensitivity": data["motors"]["torque_sensitivity"]},
+                             "kinematics": {"dtheta": data["kinematics"]["dtheta"]}}))
+    logs = [os.path.join(out, f"dynamics-{r}.rcilog.xz") for r in ("fit", "heldout")]
+    assert main(["fit", "dynamics", *logs, "-p", str(params), "--plots", str(tmp_path / "plots"), "-q"]) == 0
+    fitted = tomllib.loads(params.read_text())
+    assert "simula puma260 seed 7" in fitted["calib"]["truth_dynamics"]
+    assert len(fitted["dynamics"]["values"]) == len(fitted["dynamics"]["names"]) == 66
+    assert os.path.exists(tmp_path / "plots" / "calib-dynamics-heldout-0.png")
+    traces = [load_trace(p) for p in logs]
+    drive = robot_info(ROBOT).drive.with_sigma(np.asarray(data["motors"]["torque_sensitivity"], float))
+    res = fit_dynamics(traces, drive, ROBOT, offset=np.asarray(data["kinematics"]["dtheta"], float))
+    assert all(c <= COND_GOAL for c in res.cond_design)
+    inside, total, _ = coverage(res, truth_vector(traces, ROBOT))
+    assert inside >= total - 6                 # measured 61 of 66 (reports/identification.md)
+    h = res.heldout[0]
+    assert np.all(h.rms_moving <= GOAL_RMS_NOISE * h.noise)
+    report = str(tmp_path / "report" / "calibration.md")
+    assert main(["report", "--logs", out, "--params", str(params), "--out", report, "--no-accuracy", "-q"]) == 0
+    with open(report) as f:
+        text = f.read()
+    assert "## Dynamics: base parameters" in text and "truth inside the printed interval" in text

@@ -111,9 +111,20 @@ def plot(out: FitOutcome, folder: str, prefix: str) -> list[str]:
     return [heldout_plot(h, folder, f"{stem}-heldout-{k}") for k, h in enumerate(out.results.heldout)]
 
 
+def _supported(robot: str) -> None:
+    """CalibError (before any design or recording) for an arm whose columns no motion separates."""
+    from calib.exceptions import CalibError
+    from calib.identification import identifiable
+
+    why = identifiable(robot)
+    if why is not None:
+        raise CalibError(f"robot {robot}: the dynamics fit cannot identify its parameters: {why}")
+
+
 def record(req: RecordRequest) -> None:
     from calib.excitation_program import excitation_plans, run_excitation
 
+    _supported(req.robot)
     for plan in excitation_plans(req.robot):
         path = os.path.join(req.out, plan.name + ".rcilog")
         n = run_excitation(req.url, plan, path, req.robot, extra_meta=req.extra_meta)
@@ -124,6 +135,8 @@ def regen(ctx: RegenContext) -> list:
     """Both excitations on a simula of their own, started with --dynamic (and --warm)."""
     from calib.regen import record_dynamics
     from calib.registry import OwnSimula
+
+    _supported(ctx.info.name)
 
     return [(("own",), OwnSimula("dynamics", lambda: record_dynamics(ctx), ("dynamics-fit", "dynamics-heldout")))]
 
