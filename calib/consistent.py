@@ -87,7 +87,7 @@ def fit_consistent(robot: str, x_wls: np.ndarray, H: np.ndarray, rss: float,
     import casadi as ca
 
     from calib.excitation import casadi_kernel
-    from calib.identification import column_names, rotor_coupling_motors
+    from calib.identification import rotor_coupling_motors
     from calib.robot import robot_info
     from models import load_robot
 
@@ -96,8 +96,6 @@ def fit_consistent(robot: str, x_wls: np.ndarray, H: np.ndarray, rss: float,
     n = model.n_joints
     G = np.asarray(robot_info(robot).drive.G, float)
     coupled = rotor_coupling_motors(G)
-    names = column_names(robot)
-    nb = len(names) - len(coupled) - 4 * n
     th = ca.SX.sym("theta", 10 * n)
     r = ca.SX.sym("r", n)                     # log rotor inertias per motor
     fr = ca.SX.sym("f", 4 * n)

@@ -41,6 +41,8 @@ def test_design_meets_limits_and_condition(excitation) -> None:
     assert np.allclose(qd0, 0.0, atol=1e-9) and np.allclose(qdd0, 0.0, atol=1e-9)   # at rest at both ends
     assert np.allclose(q0[0], q0[1])
     assert excitation.cond_scaled <= COND_GOAL
+    again = design(ROBOT, seed=0)                               # deterministic given the seed
+    assert np.array_equal(again.a, excitation.a) and np.array_equal(again.b, excitation.b)
     assert condition_numbers(excitation) == pytest.approx((excitation.cond_scaled, excitation.cond_raw))
     from calib.identification import STILL_SHARE
 
