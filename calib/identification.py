@@ -41,6 +41,7 @@ DECIMATE_HZ = 20.0       # Hz: rows kept after the low-pass (5 x the cut-off)
 EDGE_S = 1.0             # s trimmed at each end (the zero-phase filter's start-up)
 STILL_SPEED = 0.1        # rad/s (m/s), or STILL_SHARE of the joint's velocity limit where smaller (slides)
 STILL_SHARE = 0.035      # a tenth of the share of it the excitation uses (calib.excitation.SPEED_SHARE)
+JACKKNIFE_BLOCKS = 10    # spans of time of the block jackknife (jackknife_error)
 STILL_WINDOW_S = 0.15   # s either side of a slow instant also left out (the low-pass smears it)
 MIN_SECONDS = 5.0        # a log shorter than this is refused
 
@@ -153,12 +154,15 @@ class Rows:
     joint: np.ndarray       # (m,) 0-based
     noise: np.ndarray       # (n,) per-joint sd of the raw measured torque's noise (N m)
     seconds: float          # span of the logs used
+    time: np.ndarray        # (m,) s of each row from the first log's first row used (logs end to end)
 
     @staticmethod
     def stack(parts: "list[Rows]") -> "Rows":
         noise = np.sqrt(np.mean([p.noise ** 2 for p in parts], axis=0))
+        start = np.concatenate([[0.0], np.cumsum([p.seconds for p in parts])[:-1]])
         return Rows(np.vstack([p.A for p in parts]), np.concatenate([p.y for p in parts]),
-                    np.concatenate([p.joint for p in parts]), noise, sum(p.seconds for p in parts))
+                    np.concatenate([p.joint for p in parts]), noise, sum(p.seconds for p in parts),
+                    np.concatenate([p.time + s for p, s in zip(parts, start)]))
 
 
 def lowpass(rate_hz: float):
@@ -221,14 +225,16 @@ def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) ->
     G = _gear(robot)
     rail = np.abs(trace.adc) >= ADC_RAIL                       # (N, n) motors
     joint_rail = (rail.astype(float) @ (G != 0).astype(float)) > 0
-    A, y, js = [], [], []
+    A, y, js, ts = [], [], [], []
     slow = _dilate(np.abs(qd) < still_speeds(robot), int(round(STILL_WINDOW_S * rate)))
     for j in range(n):
         ok = keep[~slow[keep, j] & ~joint_rail[keep, j]]
         A.append(Yf[ok, j, :])
         y.append(tf[ok, j])
         js.append(np.full(len(ok), j))
-    return Rows(np.vstack(A), np.concatenate(y), np.concatenate(js), noise, float(t[-1] - t[0] - 2 * EDGE_S))
+        ts.append(t[ok] - t[0] - EDGE_S)
+    return Rows(np.vstack(A), np.concatenate(y), np.concatenate(js), noise, float(t[-1] - t[0] - 2 * EDGE_S),
+                np.concatenate(ts))
 
 
 def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
@@ -257,6 +263,7 @@ class WlsResult:
     factor: float                # coverage factor (Student's t, 99.73 %)
     rows: int
     cond_scaled: float           # condition number of the weighted, unit-column regressor
+    jackknife: np.ndarray        # the block jackknife's 99.73 % half-widths (``error`` is the larger)
 
 
 def _inflation(r: np.ndarray, lags: int = 20) -> float:
@@ -278,8 +285,8 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     """Two-pass weighted least squares: ordinary LS for each joint's residual sd, then rows
     weighted by 1/sd_j^2. Covariance s^2 (A^T W A)^-1 with each joint's rows' share of it
     inflated by that joint's residual autocorrelation (``_inflation``: the rows of a filtered,
-    decimated signal are not independent); half-widths = Student's t (99.73 %, dof = rows -
-    parameters) x sd."""
+    decimated signal are not independent); half-widths: the larger of Student's t (99.73 %, dof
+    = effective rows - parameters) x sd and the block jackknife's (``jackknife_error``)."""
     from calib.lsq import coverage_factor
 
     A, y, js = rows.A, rows.y, rows.joint
@@ -316,4 +323,25 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     eff = int(max(p + 1, round(sum(np.sum(js == j) / infl[j] for j in range(n)))))
     factor = coverage_factor(eff - p)
     resid_sd = np.array([np.std((y - A @ x)[js == j]) for j in range(n)])
-    return WlsResult(names, x, factor * sd, sd, cov, resid_sd, infl, eff - p, factor, m, cond)
+    jk = jackknife_error(rows, sd_j)
+    return WlsResult(names, x, np.maximum(factor * sd, jk), sd, cov, resid_sd, infl, eff - p, factor, m, cond, jk)
+
+
+def jackknife_error(rows: Rows, joint_sd: np.ndarray, blocks: int = JACKKNIFE_BLOCKS) -> np.ndarray:
+    """99.73 % half-widths from the delete-one-block jackknife over ``blocks`` equal spans of
+    time (Student's t with blocks - 1 degrees of freedom): what changes from one stretch of the
+    trajectory to another (friction that varies with position, sticking) widens it."""
+    from calib.lsq import coverage_factor
+
+    k = np.minimum((rows.time / max(rows.seconds, 1e-9) * blocks).astype(int), blocks - 1)
+    w = 1.0 / joint_sd[rows.joint]
+    est = []
+    for b in range(blocks):
+        m = k != b
+        if np.count_nonzero(m) <= rows.A.shape[1]:
+            return np.zeros(rows.A.shape[1])
+        x, *_ = np.linalg.lstsq(rows.A[m] * w[m, None], rows.y[m] * w[m], rcond=None)
+        est.append(x)
+    est = np.array(est)
+    sd = np.sqrt((blocks - 1) / blocks * ((est - est.mean(axis=0)) ** 2).sum(axis=0))
+    return coverage_factor(blocks - 1) * sd

@@ -33,9 +33,10 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     notes += res.notes
     sec: dict = {"names": list(res.names), "values": [float(v) for v in res.wls.value],
                  "errors": [float(e) for e in res.wls.error],
-                 "error_is": f"99.73 % (Student's t x sd, dof {res.wls.dof}; sd from the weighted residuals, "
-                             "each joint's share inflated by its residuals' autocorrelation; with the fitted "
-                             "sensitivities' scale error; docs/calib.md)",
+                 "error_is": f"99.73 %: the larger of Student's t x sd (dof {res.wls.dof}; sd from the weighted "
+                             "residuals, each joint's share inflated by its residuals' autocorrelation) and "
+                             "the jackknife over 10 spans of time; with the fitted sensitivities' scale "
+                             "error; docs/calib.md",
                  "unit": "SI: kg m^2, kg m, N m, N m s/rad (names: calib.identification.column_names)"}
     if res.consistent is not None:
         sec["consistent_values"] = [float(v) for v in res.consistent.value]
@@ -80,7 +81,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "columns scaled to unit length, recorded in current mode on simula --dynamic "
          "(calib.excitation_program). The fit (calib.identification): zero-phase low-pass of the "
          "encoder angles, the model side through the current-sense filter, weighted least squares, "
-         f"intervals 99.73 % (Student's t x sd, the sd inflated by the residuals' autocorrelation). "
+         f"intervals 99.73 % (the larger of Student's t x sd, the sd inflated by the residuals' "
+         "autocorrelation, and a jackknife over 10 spans of time). "
          "What the generated base regressor lacks (the wrist motors' rotor coupling, friction) is "
          "computed in calib.identification.", "",
          f"- condition number of the designed excitations (unit columns): "
