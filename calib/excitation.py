@@ -19,9 +19,11 @@ The objective is a smooth stand-in for the condition number: with the stacked re
 columns scaled to unit length (A D^-1, D the column norms, so that the result does not depend on
 the units of the parameters), it minimises -log det((A D^-1)^T (A D^-1)) / p, which is zero
 only when the scaled columns are orthogonal (condition number 1) and grows as the smallest
-singular value falls. Its value and gradient come from numpy through a CasADi callback
-(``_Objective``): the Jacobian of the stacked regressor with respect to the coefficients is
-CasADi's, the rest is d(-log det C)/dA = -2 A (G^-1 - diag(G)^-1) / p with G = A^T A.
+singular value falls, on ``DESIGN_POINTS`` instants per period. Its value and gradient come
+from numpy through a CasADi callback (:func:`_objective`): d(-log det C)/dA = -2 A (G^-1 -
+diag(G)^-1) / p with G = A^T A, carried back to the coefficients by CasADi's reverse mode through
+the generated regressor (a vector-Jacobian product, mapped over the instants). The limits are a
+sparse matrix (each row holds one joint's coefficients), which keeps IPOPT's steps cheap.
 
 The regressor is the one the fit uses (calib.identification.regressor_columns): the generated
 base regressor, the coupling of the wrist motors' rotor inertias and the friction columns,
