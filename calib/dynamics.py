@@ -73,8 +73,8 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray 
     qd = np.gradient(q, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
-    noise = np.std(tau - lp(tau), axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
     inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
+    noise = np.std((tau - lp(tau))[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
     from calib.identification import still_speeds
 
     moving = (np.abs(qd) >= still_speeds(robot)) & inner[:, None]

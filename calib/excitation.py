@@ -318,10 +318,12 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
     obj = _objective(problem, nx)
     C, lo, hi = _limits(robot, base_hz, L)
     x = ca.MX.sym("x", nx)
-    from scipy.sparse import csc_matrix
-
     # sparse: each limit row involves one joint's coefficients only (IPOPT's KKT stays sparse)
-    nlp = {"x": x, "f": obj(x), "g": ca.mtimes(ca.DM(csc_matrix(C)), x)}
+    c, r = np.nonzero(C.T)                  # column-major, the order of CasADi's nonzeros
+    Cs = ca.DM(ca.Sparsity.triplet(C.shape[0], C.shape[1], r.tolist(), c.tolist()), C[r, c])
+    if not np.array_equal(np.asarray(Cs.full()), C):
+        raise CalibError("excitation design: the sparse limit matrix differs from the dense one")
+    nlp = {"x": x, "f": obj(x), "g": ca.mtimes(Cs, x)}
     opts = {"ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": max_iter,
             "ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-6,
             "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,

@@ -107,7 +107,8 @@ def run_excitation(url: str, plan: ExcitationPlan, log_path: str, robot: str = "
     q_d, v_d, a_d = exc.state(t)
     ff = _feedforward(robot, info, q_d, v_d, a_d)
     kp, kd = _gains(robot, exc, conv)
-    lim = np.asarray(info.drive.sigma, float) * _max_current(robot)
+    # 1 % inside the current limit, whole DAC counts (the link's check refuses a count above it)
+    dac_lim = np.floor(0.99 * np.abs(np.asarray(info.drive.sigma, float) * _max_current(robot) * conv.k_dac))
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
     meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate,
@@ -158,8 +159,8 @@ def run_excitation(url: str, plan: ExcitationPlan, log_path: str, robot: str = "
             done.set()
             return
         tau = ff[k] + kp * err + kd * (v_d[k] - state["v"])
-        ts = np.clip(conv.joint_to_motor_torques(tau), -lim, lim)
-        dac = np.clip(np.rint(ts * conv.k_dac), DAC_MIN, DAC_MAX).astype(int)
+        dac = np.clip(np.rint(conv.joint_to_motor_torques(tau) * conv.k_dac), -dac_lim, dac_lim)
+        dac = np.clip(dac, DAC_MIN, DAC_MAX).astype(int)
         for j in range(len(kp)):
             session.chg.motion[j].issue(CUR, int(dac[j]))
 

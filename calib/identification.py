@@ -15,7 +15,7 @@ The model (joint level, SI, thesis 4.6 plus friction 4.27)::
   (N m), ``FV<j>+``/``FV<j>-`` viscous (N m s/rad).
 
 Processing of a log (:func:`rows_of_trace`): encoder angles through a zero-phase Butterworth
-low-pass (``ORDER``, cut-off ``CUTOFF_HZ``, scipy ``filtfilt``), velocities and accelerations
+low-pass (``ORDER``, cut-off ``CUTOFF_HZ``, forward and backward: calib.filters), velocities and accelerations
 by central differences of the filtered angles; the measured torque G^T sigma i from the ADC
 (calib.drive); the model side passed through the current-sense filter of Appendix C (a
 first-order lag of ``drive.FILTER_TAU`` that the ADC reading went through: the regressor rows
@@ -166,24 +166,23 @@ class Rows:
 
 
 def lowpass(rate_hz: float):
-    """The zero-phase Butterworth low-pass of the module docstring at ``rate_hz``, along axis 0."""
-    from scipy.signal import butter, sosfiltfilt
+    """The zero-phase Butterworth low-pass of the module docstring at ``rate_hz``, along axis 0
+    (calib.filters)."""
+    from calib.filters import zero_phase_lowpass
 
     if rate_hz <= 4 * CUTOFF_HZ:
         raise CalibError(f"a dynamics log needs a rate above {4 * CUTOFF_HZ:g} Hz, not {rate_hz:g} Hz")
-    sos = butter(ORDER, CUTOFF_HZ, fs=rate_hz, output="sos")
-    return lambda x: sosfiltfilt(sos, x, axis=0)
+    return lambda x: zero_phase_lowpass(x, ORDER, CUTOFF_HZ, rate_hz)
 
 
 def current_filter(x: np.ndarray, rate_hz: float, tau: float) -> np.ndarray:
     """Model side of the current-sense filter: rows of each cycle's interval (mean of its two
     ends) through the first-order lag ``tau`` (s) sampled at ``rate_hz``; row 0 at rest."""
-    from scipy.signal import lfilter
+    from calib.filters import first_order_lag
 
     a = float(np.exp(-1.0 / (rate_hz * tau))) if tau > 0 else 0.0
-    mid = np.concatenate([x[:1], 0.5 * (x[1:] + x[:-1])])
-    out, _ = lfilter([1.0 - a], [1.0, -a], mid[1:], axis=0, zi=a * x[:1])
-    return np.concatenate([x[:1], out])
+    mid = 0.5 * (x[1:] + x[:-1])
+    return np.concatenate([x[:1], first_order_lag(mid, a, x[0])])
 
 
 def measurement(trace, drive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -218,7 +217,8 @@ def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) ->
     N, n, p = Y.shape
     Yf = lp(current_filter(Y.reshape(N, n * p), rate, FILTER_TAU)).reshape(N, n, p)
     tf = lp(tau)
-    noise = np.std(tau - tf, axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
+    inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
+    noise = np.std((tau - tf)[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
     step = max(1, int(round(rate / DECIMATE_HZ)))
     keep = np.arange(0, N, step)
     keep = keep[(t[keep] >= t[0] + EDGE_S) & (t[keep] <= t[-1] - EDGE_S)]

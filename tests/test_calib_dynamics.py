@@ -221,3 +221,20 @@ def test_campaign_through_the_cli_on_a_hidden_truth(tmp_path) -> None:
     with open(report) as f:
         text = f.read()
     assert "## Dynamics: base parameters" in text and "truth inside the printed interval" in text
+
+
+def test_zero_phase_lowpass_and_lag() -> None:
+    """calib.filters: DC passes, a sine at the cut-off comes out at half its amplitude (the
+    Butterworth's 1/sqrt(2), squared by the two passes), with no shift; the lag's recursion."""
+    from calib.filters import first_order_lag, zero_phase_lowpass
+
+    rate, fc = 200.0, 4.0
+    t = np.arange(4000) / rate
+    x = np.column_stack([np.full(len(t), 2.5), np.sin(2 * np.pi * fc * t), np.sin(2 * np.pi * 0.2 * t)])
+    y = zero_phase_lowpass(x, 4, fc, rate)
+    mid = slice(400, -400)
+    assert np.allclose(y[mid, 0], 2.5, atol=1e-9)
+    assert np.abs(y[mid, 1]).max() == pytest.approx(0.5, abs=0.01)
+    assert np.allclose(y[mid, 2], x[mid, 2], atol=1e-3)              # in band: unchanged, unshifted
+    lag = first_order_lag(np.ones(50), 0.9, np.zeros(1))
+    assert np.allclose(lag, 1 - 0.9 ** np.arange(1, 51))
