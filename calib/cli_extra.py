@@ -98,7 +98,8 @@ OPTIONS = {"joints": ("friction", "sensitivity", "breakaway"), "mass": ("sensiti
            "rate": ("friction", "sensitivity", "gravity", "static"), "halts": ("static",),
            "touches": ("kinematics",)}
 WHY_NOT = {"rate": "its rate is part of the program's design (kinematics: 250 Hz, 6 um of approach per "
-                   "cycle; breakaway: the ramp's readings)",
+                   "cycle; breakaway: the ramp's readings; dynamics: 200 Hz, its controller's gains and "
+                   "the fit's filters)",
            "joints": "its programs move every joint (static halts, kinematic touches) or are chosen to "
                      "identify every coefficient together (gravity sweeps)"}
 

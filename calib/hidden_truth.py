@@ -7,6 +7,12 @@ gravity coefficients are 3-10 % away, and whose DH table has errors of Table 3.1
 (0.1-0.5 mm, 0.05-0.25 deg) with random signs. ``calib hidden-truth`` writes one; a test or
 a user then records against it (``calib record ... --simula "--params FILE --seed N"``)
 and scores the fits against it in ``calib report``.
+
+With ``inertials`` (``calib hidden-truth --inertials``) the file also moves what the dynamics
+identification fits: each link's mass by 5-15 % and its rotational inertia about the centre
+of mass by 10-30 % more (``[inertials]``, rci.simula.params), and the motors' rotor inertias by
+10-30 % (``[simula]``), drawn from a generator of their own so that the other tables are
+those of the same seed without it.
 """
 from __future__ import annotations
 
@@ -26,7 +32,23 @@ def _factors(rng: np.random.Generator, n: int, span: tuple[float, float]) -> np.
     return 1.0 + rng.choice((-1.0, 1.0), n) * rng.uniform(*span, n)
 
 
+MASS_RANGE = (0.05, 0.15)          # relative distance of the link masses (--inertials)
+INERTIA_RANGE = (0.10, 0.30)       # ... of their rotational inertias and of the rotors'
 HOLD_SHARE = 0.8   # a valid truth holds the arm still anywhere in its ranges under this share of max_current
+
+
+def hidden_inertials(robot: str, seed: int) -> dict:
+    """The ``[inertials]`` and ``[simula]`` rotor tables of the module docstring for ``seed``."""
+    from rci.simula.params import Disturbances
+
+    rng = np.random.default_rng([seed, 27])
+    n = load_robot(robot).n_joints
+    d = Disturbances()
+    rot = _factors(rng, 2, INERTIA_RANGE)
+    return {"inertials": {"mass_scale": [float(x) for x in np.round(_factors(rng, n, MASS_RANGE), 4)],
+                          "inertia_scale": [float(x) for x in np.round(_factors(rng, n, INERTIA_RANGE), 4)]},
+            "simula": {"rotor_inertia_arm": float(round(d.rotor_inertia_arm * rot[0], 10)),
+                       "rotor_inertia_wrist": float(round(d.rotor_inertia_wrist * rot[1], 10))}}
 
 
 def hidden_truth(robot: str, seed: int) -> dict:
@@ -92,12 +114,17 @@ def _draw(robot: str, seed: int, rng: np.random.Generator) -> dict:
             "kinematics": {k: [float(x) for x in np.round(v, 8)] for k, v in kin.items()}}
 
 
-def write_hidden_truth(path: str, robot: str, seed: int) -> dict:
-    """Write :func:`hidden_truth` to ``path`` (atomically) and return its tables."""
+def write_hidden_truth(path: str, robot: str, seed: int, inertials: bool = False) -> dict:
+    """Write :func:`hidden_truth` (with :func:`hidden_inertials` if ``inertials``) to ``path``
+    (atomically) and return its tables."""
     from rcci.calib.params import atomic_write
 
     data = hidden_truth(robot, seed)
-    atomic_write(path, f"# a hidden truth of {robot} (calib hidden-truth --seed {seed}); docs/calib.md\n\n"
+    if inertials:
+        data.update(hidden_inertials(robot, seed))
+        data["calib"]["hidden_truth"] += "; link masses 5-15 %, inertias and rotors 10-30 %"
+    flag = " --inertials" if inertials else ""
+    atomic_write(path, f"# a hidden truth of {robot} (calib hidden-truth --seed {seed}{flag}); docs/calib.md\n\n"
                        + dumps(data))
     return data
 
@@ -108,6 +135,8 @@ def add_hidden_truth(sub) -> None:
     p.add_argument("--robot", default="puma260")
     p.add_argument("--seed", type=int, required=True, help="the draw (one seed, one truth)")
     p.add_argument("-o", "--out", required=True, metavar="FILE", help="parameter file to write")
+    p.add_argument("--inertials", action="store_true",
+                   help="also move the link masses, inertias and rotor inertias (for `calib fit dynamics`)")
     p.set_defaults(func=_main)
 
 
@@ -119,7 +148,7 @@ def _main(args) -> int:
     robot_info(args.robot)              # an arm calib cannot model is refused
     writable_params(args.out)
     try:
-        write_hidden_truth(args.out, args.robot, args.seed)
+        write_hidden_truth(args.out, args.robot, args.seed, inertials=args.inertials)
     except ValueError as exc:
         raise CalibError(str(exc)) from None
     print(f"wrote {args.out}: a truth of {args.robot} (seed {args.seed}); record against it with "

@@ -118,6 +118,26 @@ def record_breakaway(ctx: RegenContext) -> None:
             _report_log(plan.name, n, _store(raw, ctx.out_dir), t0)
 
 
+def record_dynamics(ctx: RegenContext) -> None:
+    """The excitation logs (rcci.calib.excitation_program) not yet in the context's folder, on a fresh
+    lockstep simula started with --dynamic (current mode with the full dynamics) and --warm."""
+    from rcci.calib.excitation_program import excitation_plans, run_excitation
+    from rcci.calib.truth import truth_meta
+    from rci.simula.process import SimulaProcess
+
+    args = _simula_args(ctx.params, ["--dynamic", "--warm"])
+    plans = [p for p in excitation_plans(ctx.info.name) if not (ctx.resume and finished(ctx.out_dir, p.name))]
+    if not plans:
+        return
+    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
+        for plan in plans:
+            t0 = time.monotonic()
+            raw = os.path.join(ctx.work, plan.name + ".rcilog")
+            n = run_excitation(sim.url, plan, raw, ctx.info.name,
+                               extra_meta={"truth": truth_meta(ctx.seed, ctx.params, args)})
+            _report_log(plan.name, n, _store(raw, ctx.out_dir), t0)
+
+
 def record_kinematics(out_path: str, seed: int, params: str | None,
                       touches_per_face: int = KINEMATIC_TOUCHES, plan_seed: int = 1985,
                       robot: str = "puma260") -> int:

@@ -45,11 +45,17 @@ def test_an_unknown_kind_is_refused_with_the_known_ones():
         registry.kind("torque")
 
 
+#: kinds whose logs calib/logs/ does not ship, and why
+NOT_SHIPPED = {"dynamics": "validated against a hidden truth with moved inertials (bench.identification, "
+                           "reports/identification.md); the shipped logs' truth keeps the URDF's"}
+
+
 def test_every_shipped_log_names_a_registered_kind():
     from rcci.calib.logs import load_trace
 
     seen = {load_trace(p).experiment for p in sorted(glob.glob(os.path.join(LOG_DIR, "*.rcilog.*")))}
-    assert seen == set(registry.names())
+    assert seen <= set(registry.names())
+    assert set(registry.names()) - set(NOT_SHIPPED) <= seen
 
 
 def test_the_cli_offers_the_registered_kinds_and_their_titles():

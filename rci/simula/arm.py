@@ -142,6 +142,19 @@ def _tune_gravity(pmodel: pin.Model, model, coeffs: dict[str, float]) -> None:
         pmodel.inertias[jid] = pin.Inertia(body.mass, lever, body.inertia)
 
 
+def scale_inertials(pmodel: pin.Model, mass_scale: np.ndarray | None, inertia_scale: np.ndarray | None) -> None:
+    """The parameter file's ``[inertials]``: joint k's body gets k's mass factor (centre of mass
+    kept, rotational inertia about it scaled alike) and, on top, its rotational-inertia factor."""
+    if mass_scale is None and inertia_scale is None:
+        return
+    n = pmodel.njoints - 1
+    ms = np.ones(n) if mass_scale is None else np.asarray(mass_scale, float)
+    js = np.ones(n) if inertia_scale is None else np.asarray(inertia_scale, float)
+    for k in range(n):
+        body = pmodel.inertias[k + 1]
+        pmodel.inertias[k + 1] = pin.Inertia(body.mass * ms[k], body.lever, body.inertia * ms[k] * js[k])
+
+
 def _dh_fixed(d: float, a: float, alpha: float) -> pin.SE3:
     """The fixed part of a DH step, Tz(d) Tx(a) Rx(alpha) (thesis eq. 3.3)."""
     return pin.SE3(pin.utils.rotate("x", alpha), np.array([a, 0.0, d]))
@@ -208,6 +221,7 @@ class SimulatedArm:
         _tune_gravity(self.pm, model, truth.gravity_coeffs)
         if truth.dh_errors is not None:
             apply_dh_errors(self.pm, model, truth.dh_errors)
+        scale_inertials(self.pm, truth.mass_scale, truth.inertia_scale)
         self.pd = self.pm.createData()
         seq = np.random.SeedSequence(seed)
         s_fric, s_noise, s_start = seq.spawn(3)

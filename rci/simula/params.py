@@ -7,7 +7,9 @@ coefficients of eq. 4.27 and the variation of Table 4.4 (``[friction]``), the gr
 loading coefficients of eq. 4.24 (``[gravity_coeffs]``), the typical static friction of
 Table 4.6 (``[static_friction]``), errors of the Denavit-Hartenberg table (``[kinematics]``,
 thesis 3.83: the simulated arm's links differ from the nominal model the controller
-uses), and simula's own disturbance settings (``[simula]``).
+uses), the links' inertials (``[inertials]``: per-link factors on the URDF's masses and
+rotational inertias, so that the dynamics' base parameters differ from the data file's),
+and simula's own disturbance settings (``[simula]``).
 A NaN entry (a joint calib did not fit) keeps the data-file value.
 """
 from __future__ import annotations
@@ -63,6 +65,11 @@ class Truth(JointFriction):
     # (n, 4) errors of each joint's DH parameters (d theta rad, d d m, d a m, d alpha rad),
     # added to the data file's table (thesis 3.83); zero: the arm is the nominal model
     dh_errors: np.ndarray | None = None
+    # per-link factors on the URDF's inertials ([inertials]): the mass (centre of mass kept,
+    # the rotational inertia about it scaled alike) and, on top, the rotational inertia about
+    # the centre of mass; None: the URDF's
+    mass_scale: np.ndarray | None = None
+    inertia_scale: np.ndarray | None = None
 
 
 def truth_from_model(model) -> Truth:
@@ -130,7 +137,10 @@ def apply_params(data: dict[str, Any], path: str, robot: str, truth: Truth) -> T
         raise ParamsError(str(exc)) from None
     if head.get("robot") != robot:
         raise ParamsError(f"{path}: parameters are for robot {head.get('robot')!r}, simula runs {robot!r}")
-    known = {"calib", "motors", "friction", "gravity_coeffs", "static_friction", "simula", "kinematics"}
+    # [dynamics] (calib's identified base parameters) describes the arm too, but as combinations
+    # simula cannot build links from: it is accepted and not used
+    known = {"calib", "motors", "friction", "gravity_coeffs", "static_friction", "simula", "kinematics",
+             "inertials", "dynamics"}
     unknown = set(data) - known
     if unknown:
         raise ParamsError(f"{path}: unknown section(s) {sorted(unknown)} (known: {sorted(known)})")
@@ -172,6 +182,16 @@ def apply_params(data: dict[str, Any], path: str, robot: str, truth: Truth) -> T
                 col = _vector(path, "kinematics", key, kin[key], np.full(n, np.nan), nonneg=False)
                 base[:, c] = np.where(np.isfinite(col), col, base[:, c])
         kw["dh_errors"] = base
+    inert = data.get("inertials", {})
+    bad = set(inert) - {"mass_scale", "inertia_scale"}
+    if bad:
+        raise ParamsError(f"{path}: [inertials] unknown key(s) {sorted(bad)} (known: inertia_scale, mass_scale)")
+    for key in ("mass_scale", "inertia_scale"):
+        if key in inert:
+            v = _vector(path, "inertials", key, inert[key], np.ones(len(truth.sigma)), nonneg=True)
+            if np.any(v <= 0):
+                raise ParamsError(f"{path}: [inertials] {key} must be positive factors")
+            kw[key] = v
     sim = data.get("simula", {})
     if sim:
         names = {f.name: f for f in fields(Disturbances)}
