@@ -74,6 +74,9 @@ bench: $(STAMP)
 	$(PY) -m bench.feedforward --robot puma260 --robot microbo --robot puma560 --robot stanford --no-rotor \
 	    --report reports/feedforward.md --plot reports/feedforward.png
 	$(PY) -m bench.collision
+	$(PY) -m bench.identification --robot puma260 --out reports/identification.md
+	$(PY) -m bench.identification --robot puma560 --out reports/identification-puma560.md
+	$(PY) -m bench.identification --robot stanford --out reports/identification-stanford.md
 	$(PY) -m pip install --quiet --no-deps -e .   # rebuild the C kernels from the current generated C
 	$(PY) -m bench.run
 

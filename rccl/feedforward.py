@@ -32,6 +32,7 @@ position servoed where it was measured (``rccl.session``).
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -111,7 +112,8 @@ class DynamicsModel:
     ``theta`` None: the data file's inertials (the generated ``inverse_dynamics``) plus the motor
     rotors reflected to the joints, ``rotor @ qdd`` (``rotor``: (n, n) kg*m^2, default
     ``rotor_estimate(conv)``; zeros to leave them out). Else a base parameter vector
-    (``kin.BASE_PARAMETERS`` order, or a mapping name -> value), e.g. fitted by ``calib``: the
+    (``kin.BASE_PARAMETERS`` order, a mapping name -> value, or the path of a parameter file that
+    ``calib fit dynamics`` wrote: the identified model, issue 27 item 5): the
     torque is ``kin.base_regressor(q, qd, qdd) @ theta``, rotor inertias included as its IA
     terms (``rotor`` must then be None).
     """
@@ -180,9 +182,39 @@ def _rotor_matrix(rotor, n: int) -> np.ndarray:
     return r
 
 
+def fitted_base_parameters(path: str | os.PathLike, kin) -> dict[str, float]:
+    """The base parameters of ``kin``'s arm that ``calib fit dynamics`` wrote into the parameter file
+    ``path`` (its ``[dynamics]`` table: ``names``, ``values``; the friction and rotor-coupling columns
+    it fits beside them are left out: the feed-forward's friction is the data file's), by name.
+    A BadRequest names the file and what it lacks."""
+    from rcci.models.params import read_params
+    from rcci.models.exceptions import ModelError
+
+    try:
+        data = read_params(path)
+    except (OSError, ModelError) as exc:
+        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r}: {exc}") from None
+    robot = data.get("calib", {}).get("robot")
+    if robot is not None and robot != kin.ROBOT:
+        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r} is of the {robot}, not the {kin.ROBOT}")
+    dyn = data.get("dynamics")
+    if not isinstance(dyn, Mapping) or "names" not in dyn or "values" not in dyn:
+        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r} has no [dynamics] names and values "
+                         "(run calib fit dynamics LOGS -p FILE first: docs/calib.md)")
+    fitted = dict(zip(dyn["names"], dyn["values"]))
+    missing = [n for n in kin.BASE_PARAMETERS if n not in fitted]
+    if missing:
+        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r}: [dynamics] lacks the base parameters "
+                         f"{missing} of the {kin.ROBOT}")
+    return {n: fitted[n] for n in kin.BASE_PARAMETERS}
+
+
 def base_vector(kin, theta) -> np.ndarray:
-    """``theta`` as a float array in ``kin.BASE_PARAMETERS`` order; a BadRequest names what is wrong."""
+    """``theta`` as a float array in ``kin.BASE_PARAMETERS`` order (a sequence, a mapping name -> value,
+    or the path of a parameter file with calib's ``[dynamics]``); a BadRequest names what is wrong."""
     names = tuple(kin.BASE_PARAMETERS)
+    if isinstance(theta, (str, os.PathLike)):
+        theta = fitted_base_parameters(theta, kin)
     if isinstance(theta, Mapping):
         missing = [n for n in names if n not in theta]
         extra = [k for k in theta if k not in names]

@@ -78,6 +78,39 @@ def test_torque_is_inverse_dynamics_plus_friction_plus_pd(robot: str) -> None:
                                rtol=1e-9, atol=1e-9)
 
 
+def test_an_identified_model_is_read_from_calibs_parameter_file(tmp_path) -> None:
+    """theta= the path of a parameter file with calib fit dynamics' [dynamics] table: its base parameters by
+    name (the friction and rotor-coupling columns fitted beside them are left out), in the regressor's order."""
+    kin = load("puma260")
+    names = list(kin.BASE_PARAMETERS)
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=len(names))
+    order = rng.permutation(len(names))                       # the file's order need not be the regressor's
+    listed = [names[i] for i in order] + ["FC1+", "FV1", "JM5"]
+    numbers = [float(values[i]) for i in order] + [0.4, 0.1, 1e-5]
+
+    def params(robot: str, with_dynamics: bool = True) -> str:
+        text = f'[calib]\nschema = "rcci-calib-params/1"\nrobot = "{robot}"\n'
+        if with_dynamics:
+            text += "[dynamics]\nnames = [" + ", ".join(f'"{n}"' for n in listed) + "]\nvalues = [" + \
+                ", ".join(repr(v) for v in numbers) + "]\n"
+        path = tmp_path / f"{robot}-{with_dynamics}.toml"
+        path.write_text(text)
+        return str(path)
+
+    model = DynamicsModel(kin, theta=params("puma260"))
+    np.testing.assert_array_equal(model.theta, values)
+    q, qd, qdd = (rng.uniform(-1, 1, 6) for _ in range(3))
+    np.testing.assert_allclose(model.torques(q, qd, qdd), np.asarray(kin.base_regressor(q, qd, qdd)) @ values,
+                               rtol=1e-12, atol=1e-12)
+    with pytest.raises(BadRequest, match="is of the microbo, not the puma260"):
+        DynamicsModel(kin, theta=params("microbo"))
+    with pytest.raises(BadRequest, match=r"has no \[dynamics\]"):
+        DynamicsModel(kin, theta=params("puma260", with_dynamics=False))
+    with pytest.raises(BadRequest, match="no-such.toml"):
+        DynamicsModel(kin, theta=str(tmp_path / "no-such.toml"))
+
+
 def test_gravity_mode_is_gravity_plus_friction() -> None:
     kin = load("puma260")
     jm = JointModel.for_robot("puma260")
