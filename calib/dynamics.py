@@ -18,8 +18,8 @@ import numpy as np
 
 from rcci.calib.consistent import ConsistentResult, fit_consistent
 from rcci.calib.exceptions import CalibError, LogError
-from rcci.calib.identification import (Rows, WlsResult, column_names, current_filter,
-                                  measurement, regressor_columns, rows_of_trace, wls)
+from rcci.calib.identification import (Rows, WlsResult, column_names, current_filter, regressor_columns,
+                                       rows_of_trace, wls)
 
 GOAL_RMS_NOISE = 2.0
 
@@ -64,18 +64,12 @@ def _role(trace) -> str:
 def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray | None = None) -> Heldout:
     """Measured against predicted torque on one log (module docstring)."""
     from rcci.calib.drive import FILTER_TAU
-    from rcci.calib.identification import CUTOFF_HZ, EDGE_S, lowpass
+    from rcci.calib.identification import EDGE_S, current_noise, joint_motion, still_speeds
 
-    t, q_raw, tau = measurement(trace, drive)
-    rate = 1.0 / float(np.mean(np.diff(t)))
-    lp = lowpass(rate)
-    q = lp(q_raw) + (0.0 if offset is None else np.asarray(offset, float))
-    qd = np.gradient(q, t, axis=0)
-    qdd = np.gradient(qd, t, axis=0)
+    t, rate, lp, q, qd, qdd, tau = joint_motion(trace, drive, offset)
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
     inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
-    noise = np.std((tau - lp(tau))[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
-    from rcci.calib.identification import still_speeds
+    noise = current_noise(t, tau, lp, rate)
 
     moving = (np.abs(qd) >= still_speeds(robot)) & inner[:, None]
     err = tau - pred

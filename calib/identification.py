@@ -200,6 +200,27 @@ def measurement(trace, drive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, drive.joint_angles(trace.counts), drive.joint_torques(trace.adc)
 
 
+def joint_motion(trace, drive, offset: np.ndarray | None = None):
+    """One excitation log as the fit and the held-out check both read it: times t (s), the sample
+    rate (Hz), the low-pass filter at that rate, the filtered joint angles q (rad, ``offset`` added:
+    the fitted joint offsets), their rates qd and accelerations qdd (central differences), and the
+    measured joint torques tau (N m, unfiltered)."""
+    t, q_raw, tau = measurement(trace, drive)
+    rate = 1.0 / float(np.mean(np.diff(t)))
+    lp = lowpass(rate)
+    q = lp(q_raw) + (0.0 if offset is None else np.asarray(offset, float))
+    qd = np.gradient(q, t, axis=0)
+    qdd = np.gradient(qd, t, axis=0)
+    return t, rate, lp, q, qd, qdd, tau
+
+
+def current_noise(t: np.ndarray, tau: np.ndarray, lp, rate: float) -> np.ndarray:
+    """Per joint, the sd (N m) of the measured torque's noise: what the low-pass removes inside the
+    log's edges, scaled up for the band it keeps."""
+    inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
+    return np.std((tau - lp(tau))[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
+
+
 def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) -> Rows:
     """The stacked equations of one excitation log (module docstring); ``offset`` (rad, per
     joint) the fitted joint offsets (d theta of ``[kinematics]``) added to the encoder angles
@@ -207,18 +228,12 @@ def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) ->
     from rcci.calib.drive import FILTER_TAU
     from rcci.calib.logs import ADC_RAIL
 
-    t, q_raw, tau = measurement(trace, drive)
-    rate = 1.0 / float(np.mean(np.diff(t)))
-    lp = lowpass(rate)
-    q = lp(q_raw) + (0.0 if offset is None else np.asarray(offset, float))
-    qd = np.gradient(q, t, axis=0)
-    qdd = np.gradient(qd, t, axis=0)
+    t, rate, lp, q, qd, qdd, tau = joint_motion(trace, drive, offset)
     Y = regressor_columns(robot, q, qd, qdd)
     N, n, p = Y.shape
     Yf = lp(current_filter(Y.reshape(N, n * p), rate, FILTER_TAU)).reshape(N, n, p)
     tf = lp(tau)
-    inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
-    noise = np.std((tau - tf)[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
+    noise = current_noise(t, tau, lp, rate)
     step = max(1, int(round(rate / DECIMATE_HZ)))
     keep = np.arange(0, N, step)
     keep = keep[(t[keep] >= t[0] + EDGE_S) & (t[keep] <= t[-1] - EDGE_S)]
