@@ -210,8 +210,15 @@ def test_overrunning_user_function(rt_robot):
 
 
 def test_an_isolated_overrun_is_counted_not_fatal(rt_robot):
-    """The lateness policy: one slow cycle is survived and reported in the timing summary."""
-    s = session(rt_robot.url, rate_hz=50, overrun="error")
+    """The lateness policy: one slow cycle is survived and reported in the timing summary.
+
+    The limit is 10 late cycles in a row, not the default 3: the one 1.5-period overrun under test
+    makes 1-2 late cycles, and with both cores busy (the suite's rule) the machine's own delays to
+    the control thread and to simula can add a few more (a fresh-clone run at load 3-4 saw a run of
+    5, ended by the default limit): how many late cycles one overrun makes depends on the machine,
+    what the policy does with them does not. The strict end is test_late_limit_is_configurable_and_checked's
+    (late_limit=1)."""
+    s = session(rt_robot.url, rate_hz=50, overrun="error", late_limit=10)
     with s:
         state = {"n": 0}
 
@@ -225,7 +232,7 @@ def test_an_isolated_overrun_is_counted_not_fatal(rt_robot):
         s.release()
     summary = s.timing.summary()
     assert summary.overruns >= 1 and summary.late_cycles >= 1
-    assert summary.late_run_max < summary.late_limit == 3
+    assert summary.late_run_max < summary.late_limit == 10
 
 
 def test_late_limit_is_configurable_and_checked(rt_robot):
