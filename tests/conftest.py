@@ -9,8 +9,9 @@ settings test in a full run). This fixture fails the test that leaves one, by na
 Every control task starts with one full ``gc.collect()`` (rci.realtime.GCControl), whose cost
 grows with every object the test process still holds. A module whose caches keep millions of
 objects alive (pdoc's documentation objects of test_api_docs, the ASTs of test_architecture:
-2.2 million objects, 1.5-2.5 s per collection at load 5) made every later control test pay it
-at each control start (tests/test_rci_blame.py went from 4 s alone to 150 s in the suite). The
+2.2 million objects, 1.5-7.5 s per collection at load 5-8) made every later control test pay
+it at each control start (tests/test_rci_blame.py: 4 s alone; in the suite its 12 slowest
+cases took 118 s, all 20 took 12 s once the caches were emptied). The
 second fixture empties those caches when the module ends.
 """
 from __future__ import annotations
