@@ -16,14 +16,22 @@ import rccl.kinematics
 from bench import cpp_pinocchio
 
 ROBOTS = cpp_pinocchio.robots()
+#: the default suite's robot (the first, as the model-file test below): the Pinocchio object and
+#: this robot's kernels are compiled once; every other robot's kernels (a -O3 compile each, about
+#: 20 s at load 8) run under ``-m slow``
+DEFAULT_ROBOT = ROBOTS[0]
 
 
 def test_every_robot_with_kernels_is_compared():
     assert {"puma260", "microbo", "puma560"} <= set(ROBOTS)
 
 
-@pytest.mark.parametrize("robot", ROBOTS)
+@pytest.mark.parametrize("robot", [pytest.param(r, marks=() if r == DEFAULT_ROBOT else pytest.mark.slow)
+                                   for r in ROBOTS])
 def test_pinocchio_cpp_agrees_with_the_generated_kernels(robot):
+    """The default suite compares the first robot (the microbo: revolute and prismatic joints,
+    the Pinocchio object's compile and one kernel build); ``-m slow`` adds the PUMA 260, PUMA 560
+    and Stanford arms, each its own -O3 kernel compile and link."""
     mod = rccl.kinematics.load(robot)
     rng = np.random.default_rng(5)
     q = np.vstack([np.zeros(6), cpp_pinocchio.random_q(robot, 11, rng)])
