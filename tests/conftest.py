@@ -6,8 +6,9 @@ rci.realtime.GCControl) left over by one test makes later tests fail for reasons
 not theirs (issue 13, item 8: a hung control thread from an earlier test failed the GC
 settings test in a full run). This fixture fails the test that leaves one, by name.
 
-Every control task starts with one full ``gc.collect()`` (rci.realtime.GCControl), whose cost
-grows with every object the test process still holds. A module whose caches keep millions of
+Every control task used to start with one full ``gc.collect()`` (rci.realtime.GCControl: now the
+young generations only), whose cost grows with every object the test process still holds. A
+module whose caches keep millions of
 objects alive (pdoc's documentation objects of test_api_docs, the ASTs of test_architecture:
 2.2 million objects, 1.5-7.5 s per collection at load 5-8) made every later control test pay
 it at each control start (tests/test_rci_blame.py: 4 s alone; in the suite its 12 slowest
