@@ -242,8 +242,9 @@ class Arm(Planner):
         """The servo mode of the motions moved after this call: "position" (POS, default), "gravity"
         (CUR: t_g + friction + PD) or "computed" (CUR: D qdd + c + t_g + friction of the planned motion + PD).
 
-        ``theta``: a base-parameter vector (``kinematics.BASE_PARAMETERS`` order, or a mapping of
-        those names) instead of the data file's inertials; ``rotor``: the motor rotors at the joints
+        ``theta``: a base-parameter vector (``kinematics.BASE_PARAMETERS`` order, a mapping of
+        those names, or the path of the parameter file ``calib fit dynamics`` wrote: the identified
+        model) instead of the data file's inertials; ``rotor``: the motor rotors at the joints
         (kg*m^2, (n,) or (n, n)) with the data file's inertials. ``gains``: ``rccl.feedforward.Gains``
         (natural frequency Hz, damping ratio). Refused while compliance is on (both would set the
         joints' currents). docs/adaptive.md, "Feed-forward".
