@@ -108,8 +108,11 @@ def test_a_rate_change_mid_motion_keeps_the_tool_speed_and_the_duration(sim, kin
         assert run["speed"].max() <= SPEED * 1.001, run["speed"].max()
         assert run["window"].max() <= SPEED * 1.05, run["window"].max()
         assert run["acc"].max() <= TRANS_ACC, run["acc"].max()
-    # the move lasts as programmed: within one 36 Hz period of the same move without a change
-    assert abs(changed["duration"] - steady["duration"]) <= 1.0 / 36 + 1e-3, (changed["duration"], steady["duration"])
+    # the move lasts as programmed: within two 36 Hz periods of the same move without a change, one for
+    # each end (a move starts at the cycle that dequeues it and ends at a cycle boundary of the rate
+    # then running; Ruckig's ends 22 ms later than the steady move whenever the changes come, and a
+    # fresh-clone run under load saw 50 ms); the defect was a 5 s move over in 1.65 s
+    assert abs(changed["duration"] - steady["duration"]) <= 2.0 / 36 + 1e-3, (changed["duration"], steady["duration"])
     # and the speed through the changes is the cruise speed (the quartic cruises at setvel)
     clock = changed["clock"]
     t_250 = clock[0] + 0.75
