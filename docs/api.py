@@ -13,6 +13,7 @@ leaves a docstring behind is caught (tests/test_api_docs.py).
 from __future__ import annotations
 
 import argparse
+import gc
 import html
 import importlib
 import pkgutil
@@ -98,6 +99,7 @@ def build(out: Path, packages: tuple[str, ...] = PACKAGES) -> list[str]:
     import rci
     for lazy in rci.__all__:          # rci.open and rci.Session are imported on first use (rci.__getattr__)
         setattr(rci, lazy, getattr(rci, lazy))
+    gc.collect()                      # what earlier code left to the collector is not the build's to report
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         pdoc.pdoc(*names, output_directory=out)
@@ -106,8 +108,10 @@ def build(out: Path, packages: tuple[str, ...] = PACKAGES) -> list[str]:
         text = str(w.message)
         if issubclass(w.category, DeprecationWarning) or "has already been added" in text:
             continue                  # a package's spec adds its submodules, which are also listed: harmless
-        # an annotation naming a type imported only for type checkers is shown as written
-        (notes if text.startswith("Error parsing type annotation") else problems).append(f"pdoc: {text}")
+        # an annotation naming a type imported only for type checkers is shown as written; a
+        # ResourceWarning is the collector finding some object's unclosed file, not a reference
+        note = text.startswith("Error parsing type annotation") or issubclass(w.category, ResourceWarning)
+        (notes if note else problems).append(f"pdoc: {text}")
     for n in notes:
         print(n, file=sys.stderr)
     return problems + check(out, packages)

@@ -460,8 +460,8 @@ class JerkLimitedGenerator:
         req.ended = end
         req.finished_t = self.t
         self.ended.append((req, end))
-        req.finish()
-        follow_early_end(self.queue, req, end)    # 5.6.1: a matching conditional branch runs next
+        # 5.6.1: a matching conditional branch runs next, chosen before the end wakes the program
+        req.finish(then=lambda: follow_early_end(self.queue, req, end))
 
     def _brake_sample(self) -> np.ndarray:
         inp, out = self._inp, self._out

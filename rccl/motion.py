@@ -92,10 +92,17 @@ class Request:
     def mode(self) -> str:
         return self.params.mode
 
-    def finish(self, error: BaseException | None = None) -> None:
-        """Mark complete (trajectory level); signals the position's ``end`` unless it is a repetition."""
+    def finish(self, error: BaseException | None = None, then: Callable[[], None] | None = None) -> None:
+        """Mark complete (trajectory level); signals the position's ``end`` unless it is a repetition.
+
+        ``then`` runs once the status is final (no branch attaches after it: attach_conditional)
+        and before anyone waiting on this request or its end is woken: the trajectory level
+        chooses and queues a conditional branch there, so a program woken by the end sees
+        ``chosen`` already set."""
         self.status = "failed" if error is not None else "done"
         self.error = error
+        if then is not None:
+            then()
         if not self.repeat:
             self.position.end.signal()
         with self._finish_lock:

@@ -394,8 +394,7 @@ class TrajectoryGenerator:
             req.ended = end
             req.finished_t = self.t
             self.ended.append((req, end))
-            req.finish()
-            self._ended_early(req, end)
+            req.finish(then=lambda: self._ended_early(req, end))
 
     def _ended_early(self, req: Request, end: MotionEnd) -> None:
         """Called after ``req`` was ended by ``end``: its matching conditional branch runs next (5.6.1)."""
