@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .chg import POS
+
 ADC_MIN, ADC_MAX = -2048, 2047   # 12-bit two's complement (how.adcr)
 DAC_MIN, DAC_MAX = -2048, 2047   # 12-bit signed (chg CUR value)
 
@@ -170,8 +172,6 @@ class Conversions:
         """POS commands for every joint of ``chg`` (an ``rci.chg.Chg``): the angles ``q`` (rad;
         m on prismatic joints) in whole encoder counts. The one place a program turns a joint
         vector into position commands."""
-        from .chg import POS
-
         motion = chg.motion
         for i, c in enumerate(self.angles_to_counts_int(q).tolist()):
             motion[i].issue(POS, c)

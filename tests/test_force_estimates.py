@@ -57,6 +57,20 @@ def test_puma260_error_bar_is_the_thesis_figure():
     assert JointModel.for_robot("puma260").static_error_source.endswith("(Table 4.6)")
 
 
+def test_error_bar_takes_the_force_map_the_adaptive_control_holds():
+    """The adaptive control passes its cached F(T6->tool) (``ToolMaps``) to the error bar where a
+    motion starts; the bar is the one computed from the tool transform itself."""
+    from rccl.adaptive.deviation import ToolMaps
+
+    kin = _kin("puma560")
+    q = np.asarray(load_robot("puma560").poses["ready"], float)
+    est = ForceEstimator(kin, JointModel.for_robot("puma560"))
+    jinv = np.linalg.inv(kin.jacobian6(q))
+    tool = trsl(0.02, -0.01, PROBE)
+    np.testing.assert_allclose(est.error_bar(jinv, tool, ToolMaps().of(tool).f), est.error_bar(jinv, tool),
+                               rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize("robot", ROBOTS[1:])
 def test_arms_without_table_4_6_estimate_their_static_friction_and_say_so(robot):
     m = JointModel.for_robot(robot)

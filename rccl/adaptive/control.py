@@ -150,7 +150,8 @@ class AdaptiveControl:
             self.estimator.check_condition(q, self.condition if jinv is not None else np.inf)
             if req is not self._vetted:          # once, where the motion starts: can the estimate support its limits?
                 self._vetted = req
-                vet_limits(req.checks, self.estimator.error_bar(jinv, tool), f"{self.kin.ROBOT} limit")
+                vet_limits(req.checks, self.estimator.error_bar(jinv, tool, maps.f),
+                           f"{self.kin.ROBOT} limit")
             force = maps.f @ (t_a @ jinv)            # F(T6->tool) J6^-T t_a (4.56, 1.22)
         if want_dev:
             # measured minus planned (nominal) path: along compliant axes this is what the comply

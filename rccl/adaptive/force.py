@@ -251,12 +251,14 @@ class ForceEstimator:
                 f"force estimate at q = {np.round(q, 4).tolist()} rad: Jacobian condition number {condition:.3g} > "
                 f"{MAX_CONDITION:g} (1-norm); a torque error would be amplified that much (4.57)")
 
-    def error_bar(self, jac6_inv: np.ndarray, t6_to_tool: np.ndarray) -> np.ndarray:
+    def error_bar(self, jac6_inv: np.ndarray, t6_to_tool: np.ndarray,
+                  fmap: np.ndarray | None = None) -> np.ndarray:
         """Per tool-frame component (N, N*m), the free-air error of the force estimate here that
         the model's torque errors (``JointModel.torque_error``, one standard deviation per joint)
         add up to through the lever of each joint: |F(T6->tool) J6^-T| e (thesis 6.2's figure:
-        0.5 N*m of static friction, about 4.5 N at the PUMA 260's best configuration)."""
-        m = force_map(t6_to_tool) @ np.asarray(jac6_inv).T
+        0.5 N*m of static friction, about 4.5 N at the PUMA 260's best configuration).
+        ``fmap``: F(T6->tool) when the caller already holds it (the adaptive control's tool maps)."""
+        m = (force_map(t6_to_tool) if fmap is None else fmap) @ np.asarray(jac6_inv).T
         return np.abs(m) @ self.model.torque_error()
 
     def force_bound(self, jac6: np.ndarray, t6_to_tool: np.ndarray, torque_error: np.ndarray) -> np.ndarray:
