@@ -43,12 +43,13 @@ from __future__ import annotations
 import atexit
 import json
 import os
-import select
 import subprocess
 import sys
 import threading
 import time
 from typing import Callable, Sequence
+
+from .child_output import Silent, first_lines
 
 DEFAULT_VIEW_PORT = 8080      # viser's; a busy port moves the view to the next free one (the URL says which)
 DEFAULT_HZ = 30.0
@@ -101,20 +102,14 @@ class ViewFeed:
         atexit.register(self.close)
 
     def _read_url(self, timeout: float) -> str:
-        fd = self.proc.stdout.fileno()
-        buf = b""
-        deadline = time.monotonic() + timeout
-        while b"\n" not in buf:
-            ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
-            if not ready:
-                self.close()
-                raise ViewError(f"the view did not start within {timeout} s")
-            data = os.read(fd, 4096)
-            if not data:
-                code = self.proc.wait()
-                raise ViewError(f"the view exited with code {code} before it was ready (see its message above)")
-            buf += data
-        line = buf.split(b"\n", 1)[0].decode().strip()
+        try:
+            (line,), _ = first_lines(self.proc, 1, timeout)
+        except Silent as e:
+            if e.exit_code is not None:
+                raise ViewError(f"the view exited with code {e.exit_code} before it was ready "
+                                "(see its message above)") from None
+            self.close()
+            raise ViewError(f"the view did not start within {timeout} s") from None
         if not line.startswith("view "):
             self.close()
             raise ViewError(f"the view said {line!r} instead of its address")

@@ -10,14 +10,12 @@ that prints its address and control channel that way (``rci.simula.proxy``).
 from __future__ import annotations
 
 import json
-import os
-import select
 import socket
 import subprocess
 import sys
 import threading
-import time
 
+from ..child_output import Silent, first_lines
 from .exceptions import StartError
 
 
@@ -36,24 +34,17 @@ class ToolProcess:
 
     def start(self) -> "ToolProcess":
         self.proc = subprocess.Popen(self.argv, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, bufsize=0)
-        fd = self.proc.stdout.fileno()
-        deadline = time.monotonic() + self.start_timeout
         want = 1 if "--no-control" in self.argv else 2
-        buf = b""
-        while buf.count(b"\n") < want:
-            left = deadline - time.monotonic()
-            ready, _, _ = select.select([fd], [], [], max(0.0, left))
-            if not ready:
-                self.stop()
-                raise StartError(f"{self.argv[2]} did not print its address within {self.start_timeout} s: {self.argv}")
-            data = os.read(fd, 4096)
-            if not data:
-                code = self.proc.wait()
-                raise StartError(f"{self.argv[2]} exited with code {code} before printing its address: {self.argv}")
-            buf += data
-        lines = buf.decode().split("\n")
-        head = [x.strip() for x in lines[:want]]
-        self.lines.extend(x for x in lines[want:] if x)
+        try:
+            head, rest = first_lines(self.proc, want, self.start_timeout)
+        except Silent as e:
+            if e.exit_code is not None:
+                raise StartError(f"{self.argv[2]} exited with code {e.exit_code} before printing its address: "
+                                 f"{self.argv}") from None
+            self.stop()
+            raise StartError(f"{self.argv[2]} did not print its address within {self.start_timeout} s: "
+                             f"{self.argv}") from None
+        self.lines.extend(rest)
         self.url = head[0]
         if len(head) > 1 and head[1].startswith("control "):
             self.control_url = head[1].split(" ", 1)[1]
