@@ -101,7 +101,7 @@ def _fit(args: argparse.Namespace) -> int:
     print_outcome(outcome)
     if args.params:
         update_params(args.params, robot, outcome.sections, _command(), args.kind, outcome.assumed,
-                      outcome.truth)
+                      outcome.truth, [tr.path for tr in traces])
         print(f"\nwrote {args.params}" + (" (with [calib] assumed)" if outcome.assumed else ""))
     if args.plots and kind.plot:
         for path in kind.plot(outcome, args.plots, f"calib-{kind.name}-j"):

@@ -9,6 +9,7 @@ the first cycle of the path itself, so a log holds exactly the experiment.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,12 +86,15 @@ def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
 
 def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
              realtime: bool = False, extra_meta: dict | None = None,
-             timeout: float | None = 5.0) -> RunInfo:
+             timeout: float | None = 5.0, on_cycle: Callable[[int, int], None] | None = None) -> RunInfo:
     """Run ``plan`` on the robot (or simula) at ``url`` and record it into ``log_path``.
 
     ``timeout`` (s without a HOW before R_TIMEOUT) is generous by default because a
     lockstep simula on a busy machine may take much longer than a period per cycle;
     pass None for the session's default of two periods when driving a real arm.
+    ``on_cycle(k, n)``, if given, is called once per second of the program (every ``rate_hz``
+    cycles, in the control loop: it must be quick) with the cycles done of all ``n`` (approach,
+    warm-up and path): rcci.calib.progress.Steps.within shows it.
     """
     conv = Conversions.for_robot(robot)
     speed = approach_speed(robot)
@@ -120,6 +124,8 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
         sp = state["setpoints"]
         if k == state["recording_from"]:
             session.record(rec)
+        if on_cycle is not None and k % rate_hz == 0:
+            on_cycle(min(k, len(sp)), len(sp))
         if k >= len(sp):
             done.set()
             k = len(sp) - 1
