@@ -1,7 +1,7 @@
-"""Issue 30, items 2 and 3 and the campaign: every `calib record --simula` option reaches the
-plans or is refused, progress shows on a terminal (a bar) and elsewhere (a line per log and
-lines during a long one), and `calib record all` interrupted after its first log records
-only what is missing when run again.
+"""Issue 30, item 2 and the campaign: every `calib record --simula` option reaches the plans or
+is refused, `calib record all` interrupted after its first log records only what is missing
+when run again (and shows a line per log on stderr, not a terminal), and `calib report`
+prints its coverage table (progress itself: tests/test_calib_progress.py).
 
 The recordings run on lockstep simulas of a hidden truth (rcci.calib.hidden_truth seed 1:
 sensitivities and friction 10-30 % off the data file) with simula seed 4, not the shipped 1985.
@@ -17,10 +17,8 @@ import time
 
 import pytest
 
-from rcci.calib import progress as progress_mod
 from rcci.calib.hidden_truth import write_hidden_truth
 from rcci.calib.logs import load_trace
-from rcci.calib.progress import Steps, mode, progress
 from rcci.calib.regen import campaign_plans
 from rcci.calib.registry import OwnSimula, RecordOptions, RegenContext
 from rcci.calib.robot import robot_info
@@ -69,62 +67,6 @@ def test_options_of_the_other_path_are_refused(words, why, tmp_path, capsys):
     assert main([*words, "--out", str(tmp_path / "x")]) == 2
     assert why in capsys.readouterr().err
     assert not os.path.exists(tmp_path / "x")
-
-
-def test_lines_per_step_and_during_a_step_when_not_a_terminal():
-    out = io.StringIO()
-    assert mode(None, out) == "lines" and mode(False, out) == "off" and mode(True, out) == "bar"
-    with Steps(2, "recording", stream=out, every_s=0.05) as steps:
-        steps.start("friction-j1")
-        steps.within(500, 2000)
-        time.sleep(0.3)
-        steps.finish()
-        steps.start("friction-j2")
-        steps.finish()
-    text = out.getvalue()
-    assert "recording [1/2] friction-j1 (started at 0.0 min)" in text
-    assert "recording [1/2] friction-j1: 25 % of 2000 cycles" in text
-    assert "recording [2/2] friction-j2" in text
-    quiet = io.StringIO()
-    with Steps(1, "recording", enabled=False, stream=quiet, every_s=0.01) as steps:
-        steps.start("static")
-        time.sleep(0.05)
-    assert quiet.getvalue() == ""
-
-
-def _read_all(fd: int) -> bytes:
-    import select
-
-    data = b""
-    while select.select([fd], [], [], 0.2)[0]:
-        chunk = os.read(fd, 65536)
-        if not chunk:
-            break
-        data += chunk
-    return data
-
-
-def test_a_bar_is_drawn_on_a_terminal(monkeypatch):
-    """On a pseudo-terminal (not in CI) both the log reading and the campaign draw a rich bar: the
-    old force_terminal=bool(None) drew nothing anywhere."""
-    monkeypatch.delenv("CI", raising=False)
-    master, slave = os.openpty()
-    term = os.fdopen(slave, "w", encoding="utf-8")
-    try:
-        assert mode(None, term) == "bar"
-        assert list(progress([1, 2], 2, "reading logs", stream=term, name=str)) == [1, 2]
-        with Steps(1, "recording", stream=term) as steps:
-            steps.start("friction-j5")
-            steps.within(300, 600)
-            time.sleep(0.3)                   # rich refreshes at 10 Hz
-            steps.finish()
-        term.flush()
-        drawn = _read_all(master).decode("utf-8", "replace")
-    finally:
-        term.close()
-        os.close(master)
-    assert "reading logs" in drawn and "recording: friction-j5" in drawn
-    assert "friction-j5 (cycles)" in drawn and "300/600" in drawn and "━" in drawn
 
 
 def _calib(args: list[str], out: str, err: str) -> subprocess.Popen:
@@ -188,3 +130,15 @@ def test_report_prints_its_coverage_table(tmp_path):
     assert "Coverage of the printed intervals:" in run.stdout
     assert "| 4.1 | 1 | 1 | 100 % | 1/1 |" in run.stdout
     assert "| 4.1 | 1 | 1 | 100 % | 1/1 |" in (tmp_path / "r.md").read_text()
+
+
+def test_the_shipped_report_says_the_codes_touch_speed_and_table_4_1s_kinds_of_error():
+    """Issue 30 item 6: reports/calibration.md (rebuilt by `calib report`) quotes the measuring
+    approach from rcci.calib.touch.SLOW, and Table 4.1's columns say which error is a spread (1 sd)
+    and which an a priori bound, unlike the 99.73 % intervals of the other tables."""
+    from rcci.calib.touch import SLOW
+
+    text = open(os.path.join(ROOT, "reports", "calibration.md"), encoding="utf-8").read()
+    assert f"approaching each face along its normal at {1e3 * SLOW:.1f} mm/s (rcci.calib.touch.SLOW)" in text
+    assert "fit std (1 sd)" in text and "fit indep. error (a priori bound)" in text
+    assert "not a 99.73 % interval" in text
