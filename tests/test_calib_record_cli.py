@@ -142,3 +142,15 @@ def test_the_shipped_report_says_the_codes_touch_speed_and_table_4_1s_kinds_of_e
     assert f"approaching each face along its normal at {1e3 * SLOW:.1f} mm/s (rcci.calib.touch.SLOW)" in text
     assert "fit std (1 sd)" in text and "fit indep. error (a priori bound)" in text
     assert "not a 99.73 % interval" in text
+
+
+def test_pose_files_into_a_missing_folder_are_refused_before_the_fit(tmp_path, capsys):
+    """Item 6 for `calib fit kinematics POSES.csv -p`: the folder is checked before the file is
+    read (a file that would fail to parse shows the order), as for logs."""
+    from rcci.calib.__main__ import main
+
+    poses = tmp_path / "poses.csv"
+    poses.write_text("1,2,3\n")
+    assert main(["fit", "kinematics", str(poses), "-p", str(tmp_path / "no" / "p.toml")]) == 2
+    err = capsys.readouterr().err
+    assert "does not exist" in err and "nothing was fitted" in err and "record 1" not in err
