@@ -32,6 +32,10 @@ from rcci.calib.robot import robot_info
 from rcci.calib.truth import truth_meta
 
 KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable errors
+# s without a HOW before a recording on a lockstep simula gives up (R_TIMEOUT): a lockstep simula
+# is never late, only slow, and at a load of 19 on 2 cores one stalled 5 s (the run_plan default)
+# in the PUMA 260 campaign of docs/calib.md; a dead simula is seen by its exit, not by this
+LOCKSTEP_TIMEOUT_S = 120.0
 
 
 def _store(raw: str, out_dir: str) -> str:
@@ -61,7 +65,7 @@ def _run(url: str, plan: MeasurementPlan, out_dir: str, work: str, seed: int, pa
     raw = os.path.join(work, plan.name + ".rcilog")
     info = run_plan(url, plan, raw, robot, rate_hz=rate or plan.rate_hz,
                     extra_meta={"truth": truth_meta(seed, params, _simula_args(params, plan.simula_args))},
-                    on_cycle=on_cycle)
+                    on_cycle=on_cycle, timeout=LOCKSTEP_TIMEOUT_S)
     _report_log(plan.name, info.records, _store(raw, out_dir), t0)
 
 
