@@ -79,7 +79,7 @@ def test_a_recording_says_how_far_it_is_while_it_runs(tmp_path, monkeypatch, cap
     monkeypatch.setattr(progress_mod, "LINE_EVERY_S", 0.2)
     monkeypatch.delenv("CI", raising=False)
     done = regen(str(tmp_path / "logs"), 4, ("static",), truth, quiet=False,
-                 options=RecordOptions(halts=2, rate=12))
+                 options=RecordOptions(halts=2, rate=6))
     err = capsys.readouterr().err
     assert done["recorded"] == ["static"]
     assert "recording [1/1] static (started at 0.0 min)" in err
