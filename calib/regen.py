@@ -32,10 +32,18 @@ from rcci.calib.robot import robot_info
 from rcci.calib.truth import truth_meta
 
 KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable errors
-# s without a HOW before a recording on a lockstep simula gives up (R_TIMEOUT): a lockstep simula
-# is never late, only slow, and at a load of 19 on 2 cores one stalled 5 s (the run_plan default)
-# in the PUMA 260 campaign of docs/calib.md; a dead simula is seen by its exit, not by this
+# s a recording on a lockstep simula waits for the other side: the session for a HOW (R_TIMEOUT)
+# and simula for a CHG (its --lockstep-watchdog, 3 s by default). Lockstep is never late, only
+# slow: at a load of 19-21 on 2 cores the PUMA 260 campaign of docs/calib.md stopped once on each
+# (5 s without a HOW, the run_plan default; 3 s without a CHG). A dead simula is seen by its exit
+# and a dead client by its closed connection, not by these.
 LOCKSTEP_TIMEOUT_S = 120.0
+
+
+def _process_args(args: list[str]) -> list[str]:
+    """The words a campaign's simula is started with: ``args`` (those the logs' truth metadata
+    records) and the lockstep watchdog's patience (LOCKSTEP_TIMEOUT_S), which is not a truth."""
+    return [*args, f"--lockstep-watchdog={LOCKSTEP_TIMEOUT_S:g}"]
 
 
 def _store(raw: str, out_dir: str) -> str:
@@ -83,7 +91,7 @@ class _Simula:
         from rci.simula.process import SimulaProcess
 
         self.robot = robot
-        self.make = lambda: SimulaProcess("-p", *_simula_args(params, list(args)), robot=robot,
+        self.make = lambda: SimulaProcess("-p", *_process_args(_simula_args(params, list(args))), robot=robot,
                                           lockstep=True, seed=seed)
         self.sim = self.make().start()
 
@@ -115,7 +123,7 @@ def record_breakaway(ctx: RegenContext) -> None:
             if not (ctx.resume and finished(ctx.out_dir, p.name))]
     if not todo:
         return
-    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
+    with SimulaProcess("-p", *_process_args(args), robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
         for plan in todo:
             t0 = time.monotonic()
             raw = os.path.join(ctx.work, plan.name + ".rcilog")
@@ -134,7 +142,7 @@ def record_dynamics(ctx: RegenContext) -> None:
     plans = [p for p in excitation_plans(ctx.info.name) if not (ctx.resume and finished(ctx.out_dir, p.name))]
     if not plans:
         return
-    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
+    with SimulaProcess("-p", *_process_args(args), robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
         for plan in plans:
             t0 = time.monotonic()
             raw = os.path.join(ctx.work, plan.name + ".rcilog")
@@ -155,7 +163,7 @@ def record_kinematics(out_path: str, seed: int, params: str | None,
     plan = touch_plan(touches_per_face, seed=plan_seed, robot=robot)
     env = [w for word in simula_words(plan.fixture, plan.tip) for w in ("--env", word)]
     args = _simula_args(params, env)
-    with SimulaProcess("-p", *args, robot=robot, lockstep=True, seed=seed) as sim:
+    with SimulaProcess("-p", *_process_args(args), robot=robot, lockstep=True, seed=seed) as sim:
         return run_touches(sim.url, plan, out_path, robot, extra_meta={"truth": truth_meta(seed, params, args)})
 
 
