@@ -36,14 +36,17 @@ KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable
 # and simula for a CHG (its --lockstep-watchdog, 3 s by default). Lockstep is never late, only
 # slow: at a load of 19-21 on 2 cores the PUMA 260 campaign of docs/calib.md stopped once on each
 # (5 s without a HOW, the run_plan default; 3 s without a CHG). A dead simula is seen by its exit
-# and a dead client by its closed connection, not by these.
+# and a dead client by its closed connection, not by these. simula's is kept shorter: on Ctrl-C,
+# RCI's release of a control in the middle of a lockstep exchange waits for simula to end it,
+# so the campaign stops that many seconds after the Ctrl-C (120 s made a user wait 2 minutes)
 LOCKSTEP_TIMEOUT_S = 120.0
+LOCKSTEP_WATCHDOG_S = 15.0
 
 
 def _process_args(args: list[str]) -> list[str]:
     """The words a campaign's simula is started with: ``args`` (those the logs' truth metadata
-    records) and the lockstep watchdog's patience (LOCKSTEP_TIMEOUT_S), which is not a truth."""
-    return [*args, f"--lockstep-watchdog={LOCKSTEP_TIMEOUT_S:g}"]
+    records) and the lockstep watchdog's patience (LOCKSTEP_WATCHDOG_S), which is not a truth."""
+    return [*args, f"--lockstep-watchdog={LOCKSTEP_WATCHDOG_S:g}"]
 
 
 def _store(raw: str, out_dir: str) -> str:

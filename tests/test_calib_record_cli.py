@@ -97,7 +97,7 @@ def test_record_all_resumes_after_an_interrupt(truth, tmp_path):
     run = _calib(args, o1, e1)
     _wait_for(lambda: os.path.exists(first), run, "first log")
     run.send_signal(signal.SIGINT)
-    assert run.wait(60) == 130
+    assert run.wait(90) == 130
     stamp = os.stat(first).st_mtime_ns
     err = open(e1).read()
     assert "recording [1/" in err and "] kinematics" in err and "calib: interrupted" in err
@@ -107,7 +107,7 @@ def test_record_all_resumes_after_an_interrupt(truth, tmp_path):
     again = _calib(args, o2, e2)
     _wait_for(lambda: "] breakaway" in open(e2).read(), again, "the second program")
     again.send_signal(signal.SIGINT)
-    assert again.wait(60) == 130
+    assert again.wait(90) == 130
     out, err = open(o2).read(), open(e2).read()
     assert "1 log(s) already in" in out and "not recorded again: kinematics" in out
     assert "] kinematics" not in err and "recording [1/" in err
