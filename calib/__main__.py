@@ -24,13 +24,14 @@ def _fit_files(args: argparse.Namespace, kind) -> int:
     by default the thesis's PUMA 260, said in the output."""
     robot = args.robot or DEFAULT_ROBOT
     robot_info(robot)            # a robot calib cannot model is refused before the fit
+    if args.params:              # and a parameter file it could not write (the result is kept)
+        writable_params(args.params)
+        _existing_params(args.params, robot)
     _, table, sections = kind.fit_files(args.logs, robot)
     how = "--robot" if args.robot else "the default; --robot names another arm"
     print(f"calib fit {kind.name}: {len(args.logs)} file(s) of robot {robot} ({how})\n")
     print(table)
     if args.params:
-        writable_params(args.params)
-        _existing_params(args.params, robot)
         update_params(args.params, robot, sections, _command(), kind.name, [])
         print(f"\nwrote {args.params}")
     return 0
@@ -101,7 +102,7 @@ def _fit(args: argparse.Namespace) -> int:
     print_outcome(outcome)
     if args.params:
         update_params(args.params, robot, outcome.sections, _command(), args.kind, outcome.assumed,
-                      outcome.truth)
+                      outcome.truth, [tr.path for tr in traces])
         print(f"\nwrote {args.params}" + (" (with [calib] assumed)" if outcome.assumed else ""))
     if args.plots and kind.plot:
         for path in kind.plot(outcome, args.plots, f"calib-{kind.name}-j"):

@@ -37,14 +37,14 @@ def fit_all(paths: list[str], params_path: str, quiet: bool = True, assume_dataf
         params = read_params(params_path) if os.path.exists(params_path) else None
         out = run_fit(kind, sel, info, params, assume_datafile=assume_datafile, params_name=params_path)
         update_params(params_path, info.name, out.sections, f"calib fit {kind} ({len(sel)} logs)", kind,
-                      out.assumed, out.truth)
+                      out.assumed, out.truth, [t.path for t in sel])
         outcomes[kind] = out
     return {"info": info, "outcomes": outcomes, "traces": traces}
 
 
 def _report(args: argparse.Namespace) -> int:
     from rcci.calib.params import atomic_write
-    from rcci.calib.report import render
+    from rcci.calib.report import coverage_table, render
     from rcci.calib.truth import truth_of
 
     paths = sorted(glob.glob(os.path.join(args.logs, "*.rcilog*")))
@@ -62,14 +62,20 @@ def _report(args: argparse.Namespace) -> int:
                  for name, out in outcomes.items() if registry.kind(name).plot}
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         rel = [os.path.relpath(os.path.abspath(p), root) for p in paths]
-        text = render(info, truth_of(res["traces"], info), outcomes, "calib report", _regen_command(res["traces"]),
+        truth, rows = truth_of(res["traces"], info), {}
+        text = render(info, truth, outcomes, "calib report", _regen_command(res["traces"]),
                       rel, {k: [os.path.relpath(p, out_dir) for p in v] for k, v in plots.items()},
-                      res["traces"], params, quiet=args.quiet, no_accuracy=args.no_accuracy)
+                      res["traces"], params, quiet=args.quiet, no_accuracy=args.no_accuracy, rows=rows)
     atomic_write(args.out, text)
     for kind, out in outcomes.items():
         print(out.table + "\n")
         for note in out.notes:
             print(f"warning: {note}\n")
+    if rows:      # the logs' truth is known (simula's): how many values lie inside their intervals
+        table = coverage_table(rows)
+        print("\n".join([table[0].lstrip("# ") + ":"] + table[2:]))
+    else:
+        print("coverage: not measured (the logs carry no truth to score against: recorded on a robot)\n")
     n_plots = sum(len(v) for v in plots.values())
     print(f"wrote {args.out}" + (f" and {n_plots} plots" if n_plots else ""))
     if args.params:
@@ -152,7 +158,13 @@ def _record(args: argparse.Namespace) -> int:
     kinds = registry.names("record_order") if args.kind == "all" else (args.kind,)
     options = record_options(args, kinds)
     if args.simula is not None:
+        if args.against is not None:
+            raise CalibError("calib record --simula: --against does not apply: the logs say the truth of "
+                             "the simulas calib starts (their --seed and --params); --against is for --url")
         return _record_on_own_simula(args, kinds, options)
+    if args.fresh:
+        raise CalibError("calib record --url: --fresh does not apply: it records again the logs of a "
+                         "--simula campaign; on a robot every run is recorded (choose another --out)")
     if args.kind == "all":
         raise CalibError("calib record all: only with --simula (on a robot, hang the pulley's mass and "
                          "mount the touch fixture for each kind: record the kinds one by one)")
@@ -160,7 +172,7 @@ def _record(args: argparse.Namespace) -> int:
     os.makedirs(args.out, exist_ok=True)
     joints = list(options.joints or range(1, len(info.lower) + 1))
     request = RecordRequest(args.url, args.out, args.robot, info, joints, args,
-                            {"truth": parse_against(args.against)})
+                            {"truth": parse_against(args.against or "robot")})
     registry.kind(args.kind).record(request)
     return 0
 
@@ -213,7 +225,7 @@ def add_commands(sub: Any) -> None:
     rec.add_argument("kind", choices=registry.names() + ("all",),
                      help="one kind, or all (with --simula: the whole campaign, resumable)")
     rec.add_argument("--url", help="robot link, e.g. socket://127.0.0.1:7600 (simula's default) or /dev/ttyUSB0")
-    rec.add_argument("--against", default="robot", metavar="TRUTH",
+    rec.add_argument("--against", default=None, metavar="TRUTH",
                      help="with --url, what the log says it was recorded against: 'robot' (default: no "
                           "ground truth) or 'simula:seed=N[,params=FILE]' for a simula you started so")
     rec.add_argument("--simula", metavar="ARGS",

@@ -34,13 +34,14 @@ def read_params(path: str) -> dict[str, Any]:
 
 def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any]],
                   command: str, kind: str | None = None, assumed: list[str] | None = None,
-                  truth: str = "") -> dict[str, Any]:
+                  truth: str = "", logs: list[str] | None = None) -> dict[str, Any]:
     """Merge ``sections`` into the file at ``path`` (created if absent), atomically.
 
     ``[calib] truth_KIND`` says what the logs of fit ``kind`` were recorded against
     (rcci.calib.truth.truth_label: the robot, or the simula's seed and parameter file with its
     hash), so that every value's origin is in the file and a later fit that takes it as an
-    input can warn when its own logs are of another truth (rcci.calib.fitting.Inputs).
+    input can warn when its own logs are of another truth (rcci.calib.fitting.Inputs);
+    ``[calib] logs_KIND`` names the logs (file names) the fit's values came from.
 
     ``[calib] assumed`` lists the values fits took from the robot data file instead of an
     earlier fit (``--assume-datafile``); the entries of fit ``kind`` are replaced by
@@ -65,6 +66,8 @@ def update_params(path: str, robot: str, sections: Mapping[str, Mapping[str, Any
             del data["calib"]["assumed"]
     if kind is not None and truth:
         data["calib"][f"truth_{kind}"] = truth
+    if kind is not None and logs:
+        data["calib"][f"logs_{kind}"] = [os.path.basename(p) for p in logs]
     for name, body in sections.items():
         data[name] = dict(body)
     head = ("# Calibration parameters fitted by `calib` (docs/calib.md); rebuilt by the\n"

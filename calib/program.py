@@ -9,6 +9,7 @@ the first cycle of the path itself, so a log holds exactly the experiment.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,12 +86,15 @@ def command_joints(session: Session, conv: Conversions, q: np.ndarray) -> None:
 
 def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma260", rate_hz: int = 36,
              realtime: bool = False, extra_meta: dict | None = None,
-             timeout: float | None = 5.0) -> RunInfo:
+             timeout: float | None = 5.0, on_cycle: Callable[[int, int], None] | None = None) -> RunInfo:
     """Run ``plan`` on the robot (or simula) at ``url`` and record it into ``log_path``.
 
     ``timeout`` (s without a HOW before R_TIMEOUT) is generous by default because a
     lockstep simula on a busy machine may take much longer than a period per cycle;
     pass None for the session's default of two periods when driving a real arm.
+    ``on_cycle(k, n)``, if given, is called once per second of the program (every ``rate_hz``
+    cycles, in the control loop: it must be quick) with the cycles done of all ``n`` (approach,
+    warm-up and path): rcci.calib.progress.Steps.within shows it.
     """
     conv = Conversions.for_robot(robot)
     speed = approach_speed(robot)
@@ -98,32 +102,37 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
     meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate_hz})
-    state = {"k": -1, "setpoints": None, "recording_from": 0}
+    # everything but the approach (which starts where the arm is) is sampled before the control
+    # starts: at 1 kHz a friction log is 10^5 setpoints, and building them in the first cycle took
+    # over 2 s at a load of 20 (R_OVERRUN: rci ends a control function hung that long)
+    parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
+    first = parts[0][0] if parts else body[0]
+    last = parts[0][-1] if parts else first
+    settle = Path((PathSegment(last, body[0], speed, ACCEL, 0.5),)).sample(rate_hz)
+    tail = np.vstack([*parts, settle, body])
+    state = {"k": -1, "approach": None, "recording_from": 0}
     done = threading.Event()
     rec, session = open_measurement(url, robot, rate_hz, log_path, meta, timeout, realtime)
 
     def f1() -> None:
         how, chg = session.how, session.chg
-        if state["setpoints"] is None:
+        if state["approach"] is None:
             here = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
-            parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
-            first = parts[0][0] if parts else body[0]
-            last = parts[0][-1] if parts else first
-            approach = approach_path(here, plan.via, first, ACCEL, speed).sample(rate_hz)
-            settle = Path((PathSegment(last, body[0], speed, ACCEL, 0.5),)).sample(rate_hz)
-            lead = np.vstack([approach, *parts, settle])
-            state["setpoints"] = np.vstack([lead, body])
-            state["recording_from"] = len(lead)
+            state["approach"] = approach_path(here, plan.via, first, ACCEL, speed).sample(rate_hz)
+            state["recording_from"] = len(state["approach"]) + len(tail) - len(body)
             if not how.state & codes.POWER_ON:
                 chg.power_on.issue()
         k = state["k"] = state["k"] + 1
-        sp = state["setpoints"]
+        approach = state["approach"]
+        n = len(approach) + len(tail)
         if k == state["recording_from"]:
             session.record(rec)
-        if k >= len(sp):
+        if on_cycle is not None and k % rate_hz == 0:
+            on_cycle(min(k, n), n)
+        if k >= n:
             done.set()
-            k = len(sp) - 1
-        command_joints(session, conv, sp[k])
+            k = n - 1
+        command_joints(session, conv, approach[k] if k < len(approach) else tail[k - len(approach)])
 
     drive_recorded(session, f1, done, rec, plan.name, url, lambda: f"after {max(state['k'], 0)} cycles")
     return RunInfo(log_path, rec.written, state["k"] + 1)

@@ -32,6 +32,21 @@ from rcci.calib.robot import robot_info
 from rcci.calib.truth import truth_meta
 
 KINEMATIC_TOUCHES = 16  # per face of the corner: 48 touches for 22 identifiable errors
+# s a recording on a lockstep simula waits for the other side: the session for a HOW (R_TIMEOUT)
+# and simula for a CHG (its --lockstep-watchdog, 3 s by default). Lockstep is never late, only
+# slow: at a load of 19-21 on 2 cores the PUMA 260 campaign of docs/calib.md stopped once on each
+# (5 s without a HOW, the run_plan default; 3 s without a CHG). A dead simula is seen by its exit
+# and a dead client by its closed connection, not by these. simula's is kept shorter: on Ctrl-C,
+# RCI's release of a control in the middle of a lockstep exchange waits for simula to end it,
+# so the campaign stops that many seconds after the Ctrl-C (120 s made a user wait 2 minutes)
+LOCKSTEP_TIMEOUT_S = 120.0
+LOCKSTEP_WATCHDOG_S = 15.0
+
+
+def _process_args(args: list[str]) -> list[str]:
+    """The words a campaign's simula is started with: ``args`` (those the logs' truth metadata
+    records) and the lockstep watchdog's patience (LOCKSTEP_WATCHDOG_S), which is not a truth."""
+    return [*args, f"--lockstep-watchdog={LOCKSTEP_WATCHDOG_S:g}"]
 
 
 def _store(raw: str, out_dir: str) -> str:
@@ -56,11 +71,12 @@ def _simula_args(params: str | None, extra: list[str]) -> list[str]:
 
 
 def _run(url: str, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None,
-         robot: str, rate: int | None = None) -> None:
+         robot: str, rate: int | None = None, on_cycle=None) -> None:
     t0 = time.monotonic()
     raw = os.path.join(work, plan.name + ".rcilog")
     info = run_plan(url, plan, raw, robot, rate_hz=rate or plan.rate_hz,
-                    extra_meta={"truth": truth_meta(seed, params, _simula_args(params, plan.simula_args))})
+                    extra_meta={"truth": truth_meta(seed, params, _simula_args(params, plan.simula_args))},
+                    on_cycle=on_cycle, timeout=LOCKSTEP_TIMEOUT_S)
     _report_log(plan.name, info.records, _store(raw, out_dir), t0)
 
 
@@ -78,21 +94,21 @@ class _Simula:
         from rci.simula.process import SimulaProcess
 
         self.robot = robot
-        self.make = lambda: SimulaProcess("-p", *_simula_args(params, list(args)), robot=robot,
+        self.make = lambda: SimulaProcess("-p", *_process_args(_simula_args(params, list(args))), robot=robot,
                                           lockstep=True, seed=seed)
         self.sim = self.make().start()
 
     def run(self, plan: MeasurementPlan, out_dir: str, work: str, seed: int, params: str | None,
-            rate: int | None = None) -> None:
+            rate: int | None = None, on_cycle=None) -> None:
         try:
-            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot, rate)
+            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot, rate, on_cycle)
         except CalibError as exc:
             if self.sim.proc is None or self.sim.proc.poll() is None:
                 raise                                    # simula is alive: a real error
             print(f"{plan.name}: simula exited ({exc}); starting it again", flush=True)
             self.sim.stop()
             self.sim = self.make().start()
-            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot, rate)
+            _run(self.sim.url, plan, out_dir, work, seed, params, self.robot, rate, on_cycle)
 
     def stop(self) -> None:
         self.sim.stop()
@@ -110,7 +126,7 @@ def record_breakaway(ctx: RegenContext) -> None:
             if not (ctx.resume and finished(ctx.out_dir, p.name))]
     if not todo:
         return
-    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
+    with SimulaProcess("-p", *_process_args(args), robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
         for plan in todo:
             t0 = time.monotonic()
             raw = os.path.join(ctx.work, plan.name + ".rcilog")
@@ -129,7 +145,7 @@ def record_dynamics(ctx: RegenContext) -> None:
     plans = [p for p in excitation_plans(ctx.info.name) if not (ctx.resume and finished(ctx.out_dir, p.name))]
     if not plans:
         return
-    with SimulaProcess("-p", *args, robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
+    with SimulaProcess("-p", *_process_args(args), robot=ctx.info.name, lockstep=True, seed=ctx.seed) as sim:
         for plan in plans:
             t0 = time.monotonic()
             raw = os.path.join(ctx.work, plan.name + ".rcilog")
@@ -150,7 +166,7 @@ def record_kinematics(out_path: str, seed: int, params: str | None,
     plan = touch_plan(touches_per_face, seed=plan_seed, robot=robot)
     env = [w for word in simula_words(plan.fixture, plan.tip) for w in ("--env", word)]
     args = _simula_args(params, env)
-    with SimulaProcess("-p", *args, robot=robot, lockstep=True, seed=seed) as sim:
+    with SimulaProcess("-p", *_process_args(args), robot=robot, lockstep=True, seed=seed) as sim:
         return run_touches(sim.url, plan, out_path, robot, extra_meta={"truth": truth_meta(seed, params, args)})
 
 
@@ -168,18 +184,26 @@ def record_kinematics_log(ctx: RegenContext) -> None:
 def campaign_plans(ctx: RegenContext, kinds: tuple[str, ...], skip_refused: bool = False
                    ) -> tuple[list[tuple[tuple[str, ...], Any]], dict[str, str]]:
     """Every program of ``kinds`` in record_order, as (simula args, plan or OwnSimula), and the
-    kinds refused with the reason (only with ``skip_refused``: else the refusal is raised)."""
+    kinds refused with the reason (only with ``skip_refused``: else the refusal is raised).
+    ``ctx.options.rate`` (--rate) is set on every MeasurementPlan (the kinds that take it: the
+    others, whose programs are OwnSimula, were refused it by rcci.calib.cli_extra.record_options)."""
     plans: list[tuple[tuple[str, ...], Any]] = []
     refused: dict[str, str] = {}
     for kind in registry.kinds("record_order"):
         if kind.name not in kinds:
             continue
         try:
-            plans += kind.regen(ctx)
+            mine = kind.regen(ctx)
         except CalibError as exc:
             if not skip_refused:
                 raise
             refused[kind.name] = str(exc)
+            continue
+        if ctx.options.rate is not None:      # --rate: the kinds that take it (cli_extra.OPTIONS)
+            for _, plan in mine:
+                if isinstance(plan, MeasurementPlan):
+                    plan.rate_hz = ctx.options.rate
+        plans += mine
     return plans, refused
 
 
@@ -187,14 +211,14 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
           quiet: bool = False, robot: str = "puma260", options: RecordOptions | None = None,
           skip_refused: bool = False, resume: bool = False) -> dict[str, Any]:
     """Record every log of ``kinds`` of ``robot`` (default the thesis's arm) into ``out_dir``
-    (against simula with ``params``), with a progress bar naming the program in hand unless
-    ``quiet`` (rcci.calib.progress). With ``resume``, logs already in ``out_dir`` are not recorded
+    (against simula with ``params``), with its progress unless ``quiet`` (rcci.calib.progress.Steps:
+    a bar naming the program in hand on a terminal, lines on stderr elsewhere). With ``resume``, logs already in ``out_dir`` are not recorded
     again (a campaign resumes after an interruption). Every program is planned before the first is recorded, so a
     refusal costs no recording; with ``skip_refused`` a kind the arm cannot support is left out
     and its reason returned. On an error the raw logs of ``out_dir/.work`` are kept (the error
     names the partial log). Returns {"recorded": names, "skipped": names, "refused": {kind:
     reason}, "notes": [...], "seconds": wall time}."""
-    from rcci.calib.progress import progress
+    from rcci.calib.progress import Steps
 
     t0 = time.monotonic()
     info = robot_info(robot)
@@ -218,18 +242,20 @@ def regen(out_dir: str, seed: int, kinds: tuple[str, ...], params: str | None = 
     sims: dict[tuple[str, ...], _Simula] = {}
     ok = False
     try:
-        # in record_order: programs that share a simula keep its state (position, warmth)
-        for args, plan in progress(todo, len(todo), "recording", enabled=False if quiet else None,
-                                   name=lambda item: item[1].name):
-            if isinstance(plan, OwnSimula):
-                plan.run()
-                continue
-            if args not in sims:
-                if args:           # a pulley simula lives for its one program
-                    for key in [k for k in sims if k]:
-                        sims.pop(key).stop()
-                sims[args] = _Simula(args, seed, params, robot)
-            sims[args].run(plan, out_dir, work, seed, params, ctx.options.rate)
+        with Steps(len(todo), "recording", enabled=False if quiet else None) as steps:
+            # in record_order: programs that share a simula keep its state (position, warmth)
+            for args, plan in todo:
+                steps.start(plan.name)
+                if isinstance(plan, OwnSimula):
+                    plan.run()
+                else:
+                    if args not in sims:
+                        if args:           # a pulley simula lives for its one program
+                            for key in [k for k in sims if k]:
+                                sims.pop(key).stop()
+                        sims[args] = _Simula(args, seed, params, robot)
+                    sims[args].run(plan, out_dir, work, seed, params, ctx.options.rate, steps.within)
+                steps.finish()
         ok = True
     finally:
         for sim in sims.values():

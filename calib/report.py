@@ -70,9 +70,11 @@ class _Checks:
 
 def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitOutcome]", command: str,
            regen: str, logs: list[str], plots: dict[str, list[str]], traces: "list[Trace]",
-           params_path: str, quiet: bool = True, no_accuracy: bool = False) -> str:
+           params_path: str, quiet: bool = True, no_accuracy: bool = False,
+           rows: dict[str, list[bool]] | None = None) -> str:
     """The Markdown report (``truth`` None: logs of a robot, no scoring): a section per kind
-    fitted (rcci.calib.registry, in ``report_order``), then the warnings and the summary."""
+    fitted (rcci.calib.registry, in ``report_order``), then the warnings and the summary.
+    ``rows``, if given, receives the checks per table (for :func:`coverage_table`)."""
     if truth is None:
         against = ("The logs were recorded against a robot (their metadata says so): there is no "
                    "ground truth, and the tables show the fits alone.")
@@ -120,6 +122,8 @@ def render(info: RobotInfo, truth: GroundTruth | None, outcomes: "dict[str, FitO
           "* 4.43 gives sigma_i (A+ - A'+ - A- + A'-) = 2 W_mass with A the ampere-radians of motor i; "
           "with G lower triangular only motor i both turns and carries the pulley's torque, so "
           "the wrist's coupling does not enter.", ""]
+    if rows is not None:
+        rows.update(check.rows)
     if check.rows:
         L += coverage_table(check.rows)
         tabs = ", ".join(f"{t} ({sum(v)}/{len(v)})" for t, v in sorted(check.rows.items()))

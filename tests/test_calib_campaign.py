@@ -147,6 +147,7 @@ def _fits_name_their_truth(out: str, static_log: str, tmp: str) -> None:
     assert _calib("fit", "sensitivity", *shipped, "-p", params, "-q").returncode == 0
     text = open(params, encoding="utf-8").read()
     assert "truth_sensitivity = \"simula puma260 seed 1985 on" in text
+    assert 'logs_sensitivity = ["sensitivity-j5-loaded.rcilog.xz", "sensitivity-j5-unloaded.rcilog.xz"]' in text
     mixed = _calib("fit", "static", static_log, "-p", params, "--assume-datafile", "-q")
     assert mixed.returncode == 0, mixed.stderr
     assert "mixes two truths" in mixed.stdout and "seed 1985" in mixed.stdout and "seed 4" in mixed.stdout

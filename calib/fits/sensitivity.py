@@ -32,8 +32,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "the mass, the drum radius and the current scale V_g / R_i combined, an a priori bound, not "
          "a 99.73 % interval; the fit std is one standard deviation of the trials (the 99.73 % error "
          "of the mean that later fits inherit is Student's t x std / sqrt(trials)).", "",
-         "| joint | thesis mean | thesis indep. error | truth | fit mean | fit std | trials | fit indep. error "
-         "| abs(fit - truth) | within thesis bound | within fit error |",
+         "| joint | thesis mean | thesis indep. error (a priori bound) | truth | fit mean | fit std (1 sd) | trials "
+         "| fit indep. error (a priori bound) | abs(fit - truth) | within thesis bound | within fit error |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in out.results:
         j = r.joint - 1
