@@ -109,6 +109,36 @@ CORNER = Fixture((
 ))
 
 
+def scaled_corner(scale: float, shoulder_m: float) -> Fixture:
+    """CORNER scaled by ``scale`` about the shoulder and raised by ``shoulder_m`` (m): the PUMA
+    260's cell for a larger arm whose base frame is on its mounting surface, not at its shoulder."""
+    faces = []
+    for f in CORNER.faces:
+        region = tuple((a * scale + (shoulder_m if i == 2 else 0.0), b * scale + (shoulder_m if i == 2 else 0.0))
+                       for i, (a, b) in enumerate(f.region))
+        faces.append(Face(f.name, f.normal, f.offset * scale + f.normal[2] * shoulder_m, region))
+    return Fixture(tuple(faces))
+
+
+# Each arm's calibration corner, a plan parameter (calib's own per-arm data: the robot data files
+# hold no cell). The PUMA 260's corner is out of a larger arm's reach with the probe held to
+# TILT_DEG: the PUMA 560's base frame is on its mounting surface, 0.672 m below the shoulder
+# (models/puma560.toml d1), so the PUMA 260's table 0.20 m below the frame is under its pedestal;
+# the corner scaled by its upper arm's ratio (0.4318 / 0.2032 m, 2.1) about its shoulder puts
+# the table 0.25 m above the mounting surface and the walls 0.76 m in front and 0.63 m to the
+# right: 16 touches per face in every configuration group. The Stanford arm's boom (0.3-1.27 m)
+# cannot bend back to a table close below its shoulder (0.412 m, d1); 2.5 times the corner about
+# the shoulder (table at -0.09 m, walls 0.9 and 0.75 m away) gives it 16 + 8 + 16 touches.
+FIXTURES = {"puma260": lambda: CORNER,
+            "puma560": lambda: scaled_corner(2.1, 0.672),
+            "stanford": lambda: scaled_corner(2.5, 0.412)}
+
+
+def fixture_for(robot: str) -> Fixture:
+    """The calibration corner of ``robot`` (FIXTURES); CORNER for an arm without one of its own."""
+    return FIXTURES.get(robot, lambda: CORNER)()
+
+
 def simula_words(fixture: Fixture = CORNER, tip=TIP, bit: int = PROBE_BIT,
                  noise: float = PROBE_NOISE) -> list[str]:
     """simula ``--env`` words for the fixture and the probe."""
@@ -256,14 +286,16 @@ def joint_line(qa: np.ndarray, qb: np.ndarray, rate_hz: float, speed: float = JO
     return qa + s[:, None] * (qb - qa)
 
 
-def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER,
+def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None = None,
                tip=TIP, robot: str = "puma260", name: str = "kinematics") -> TouchPlan:
-    """``n_per_face`` touches on each face of ``fixture``, shared among CONFIGS (a
-    configuration that reaches few points of a face leaves its share to the others),
-    grouped by face and configuration (so that the arm changes configuration at a hub only)."""
+    """``n_per_face`` touches on each face of ``fixture`` (default the arm's, ``fixture_for``),
+    shared among CONFIGS (a configuration that reaches few points of a face leaves its share
+    to the others), grouped by face and configuration (so that the arm changes configuration
+    at a hub only)."""
     from rcci.models import load_robot
     from rccl.kinematics import load
 
+    fixture = fixture_for(robot) if fixture is None else fixture
     kin = load(robot)
     model = load_robot(robot)
     lower, upper = np.asarray(model.lower), np.asarray(model.upper)

@@ -50,7 +50,9 @@ def test_table_4_7_does_not_serve_the_puma560_and_ten_sweeps_do():
             s = path.sample(36)
             assert np.all(s >= info.lower) and np.all(s <= info.upper), p.name
     assert unidentified(np.array(A), info.gravity_names) == []
-    assert len(plans(info)) == 12            # what `calib record gravity` records: two to spare
+    # what `calib record gravity` records: eight to spare, the fit's degrees of freedom
+    # (a sweep is one observation: rcci.calib.gravity.sweep_observations)
+    assert len(plans(info)) == 18
 
 
 def test_coefficients_no_sweep_can_measure_are_named():
@@ -82,8 +84,9 @@ def test_calib_fit_gravity_on_the_puma560(tmp_path, capsys):
                 run_plan(sim.url, plan, str(tmp_path / f"{plan.name}.rcilog"), ROBOT, rate_hz=36,
                          extra_meta={"truth": truth_meta(5, str(truth_file), args)})
 
-    # the ten sweeps on two simulas side by side (each lockstep pair keeps about one CPU busy)
-    sweeps = plans(info, SPEED_DEG, extra=0)
+    # twelve sweeps (two beyond the fewest: the error needs residual degrees of freedom) on two
+    # simulas side by side (each lockstep pair keeps about one CPU busy)
+    sweeps = plans(info, SPEED_DEG, extra=2)
     with ThreadPoolExecutor(max_workers=2) as pool:
         for done in [pool.submit(record, sweeps[k::2]) for k in range(2)]:
             done.result()
@@ -91,7 +94,7 @@ def test_calib_fit_gravity_on_the_puma560(tmp_path, capsys):
     params = str(tmp_path / "fitted.toml")
     assert main(["fit", "gravity", *logs, "--assume-datafile", "-q", "-p", params]) == 0
     printed = capsys.readouterr().out
-    assert f"10 log(s) of robot {ROBOT}" in printed
+    assert f"12 log(s) of robot {ROBOT}" in printed
     from rcci.calib.params import read_params
 
     fitted = read_params(params)
