@@ -126,9 +126,10 @@ def scaled_corner(scale: float, shoulder_m: float) -> Fixture:
 # (models/puma560.toml d1), so the PUMA 260's table 0.20 m below the frame is under its pedestal;
 # the corner scaled by its upper arm's ratio (0.4318 / 0.2032 m, 2.1) about its shoulder puts
 # the table 0.25 m above the mounting surface and the walls 0.76 m in front and 0.63 m to the
-# right: 16 touches per face in every configuration group. The Stanford arm's boom (0.3-1.27 m)
-# cannot bend back to a table close below its shoulder (0.412 m, d1); 2.5 times the corner about
-# the shoulder (table at -0.09 m, walls 0.9 and 0.75 m away) gives it 16 + 8 + 16 touches.
+# right: 16 touches per face. The Stanford arm's boom (0.3-1.27 m) reaches the PUMA 260's corner
+# (0.2 m below its mounting surface) in few configurations: 24 of 48 touches (8 per face); 2.5
+# times the corner about its shoulder (0.412 m, d1: table at -0.09 m, walls 0.9 and 0.75 m away)
+# gives it 40 (16 + 8 + 16). tests/test_calib_fixtures.py counts them.
 FIXTURES = {"puma260": lambda: CORNER,
             "puma560": lambda: scaled_corner(2.1, 0.672),
             "stanford": lambda: scaled_corner(2.5, 0.412)}
@@ -305,17 +306,14 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None =
     for fi, face in enumerate(fixture.faces):
         on_face = 0
         for c, config in enumerate(CONFIGS):
-            group: list[Touch] = []
             want = (n_per_face - on_face) // (len(CONFIGS) - c)
-            for _ in range(1500):
-                if len(group) >= want:
-                    break
-                p = np.array([rng.uniform(*r) for r in face.region])
-                R = _rotation(-np.asarray(face.normal, float), np.radians(rng.uniform(0, TILT_DEG)),
-                              rng.uniform(0, 2 * np.pi), rng.uniform(-np.pi, np.pi))
-                t = Touch(fi, p, R, config)
-                if _reachable(kin, t, fixture, tip, lower, upper, margin):
-                    group.append(t)
+            group = _draw_group(kin, rng, fi, fixture, config, want, tip, lower, upper, margin)
+            on_face += len(group)
+            touches += _nearest_first(group, face.hub)
+        # a few touches per face leave the first configurations no share (1 // 4 == 0): when the
+        # ones tried reach no point, the face gets its touches from any configuration that does
+        for config in CONFIGS if on_face == 0 else ():
+            group = _draw_group(kin, rng, fi, fixture, config, n_per_face - on_face, tip, lower, upper, margin)
             on_face += len(group)
             touches += _nearest_first(group, face.hub)
         if on_face == 0:
@@ -325,6 +323,23 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None =
             "probe_bit": PROBE_BIT, "plan_seed": seed, "touches": len(touches),
             "slow_speed": SLOW, "simula_env": simula_words(fixture, tip)}
     return TouchPlan(name, fixture, touches, tuple(tip), PROBE_BIT, TOUCH_RATE_HZ, meta)
+
+
+def _draw_group(kin, rng, fi: int, fixture: Fixture, config, want: int, tip, lower, upper,
+                margin) -> list[Touch]:
+    """Up to ``want`` reachable touches of face ``fi`` in ``config``, from 1500 random draws at most."""
+    face = fixture.faces[fi]
+    group: list[Touch] = []
+    for _ in range(1500):
+        if len(group) >= want:
+            break
+        p = np.array([rng.uniform(*r) for r in face.region])
+        R = _rotation(-np.asarray(face.normal, float), np.radians(rng.uniform(0, TILT_DEG)),
+                      rng.uniform(0, 2 * np.pi), rng.uniform(-np.pi, np.pi))
+        t = Touch(fi, p, R, config)
+        if _reachable(kin, t, fixture, tip, lower, upper, margin):
+            group.append(t)
+    return group
 
 
 def _reachable(kin, t: Touch, fixture: Fixture, tip, lower, upper, margin) -> bool:
