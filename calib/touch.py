@@ -25,6 +25,7 @@ or a joint move between the faces' hubs, 10 cm in front of each face (``Face.hub
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -226,11 +227,38 @@ def _solve(kin, T: np.ndarray, config, q_ref: np.ndarray | None, lower: np.ndarr
     return q
 
 
+LINE_RATE_SHARE = 0.5   # a straight line's joint rates stay under this share of each joint's limit
+
+
 def cartesian_line(kin, A: np.ndarray, B: np.ndarray, config, q_start: np.ndarray, rate_hz: float,
                    tip, linear: float = LINEAR, angular: float = ANGULAR, steady: bool = False) -> np.ndarray:
     """Joint setpoints (N, 6) moving the tip on a straight line from pose A to pose B (T6,
     4x4), link 6 turning about one axis, with a smooth (cosine) speed profile, or with
-    ``steady`` at constant speed after a 50 ms start (the approaches); nominal IK."""
+    ``steady`` at constant speed after a 50 ms start (the approaches); nominal IK. A line
+    whose joint rates would pass LINE_RATE_SHARE of the arm's velocity limits (near the
+    wrist's singularity: the PUMA 560's joint 6 asked 4.08 rad/s of its 4) is run slower."""
+    vmax = _line_rates(kin.ROBOT)
+    out = _line(kin, A, B, config, q_start, rate_hz, tip, linear, angular, steady)
+    for _ in range(4):
+        over = float((np.abs(np.diff(out, axis=0)) * rate_hz / vmax).max(initial=0.0))
+        if over <= 1.0:
+            break
+        linear, angular = linear / (1.2 * over), angular / (1.2 * over)
+        out = _line(kin, A, B, config, q_start, rate_hz, tip, linear, angular, steady)
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _line_rates(robot: str) -> np.ndarray:
+    """LINE_RATE_SHARE of each joint's velocity limit (rad/s, m/s) for ``robot``."""
+    from rcci.models import load_robot
+
+    return LINE_RATE_SHARE * np.asarray(load_robot(robot).max_velocity, float)
+
+
+def _line(kin, A: np.ndarray, B: np.ndarray, config, q_start: np.ndarray, rate_hz: float,
+          tip, linear: float, angular: float, steady: bool) -> np.ndarray:
+    """cartesian_line at the speeds given."""
     tool = tool_transform(tip)
     PA, PB = A @ tool, B @ tool
     rv = rotation_vector(PA[:3, :3].T @ PB[:3, :3])
