@@ -220,11 +220,29 @@ def sweep_observations(rows: Sequence[GravityRow], compensated: bool,
 def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str,
            noise: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, int]:
     """(coefficients, their sd from the residuals, number of observations), one
-    observation per sweep (``sweep_observations``), weighted by 1 / noise[joint]."""
+    observation per sweep (``sweep_observations``), weighted by 1 / noise[joint]; the sd is
+    ``robust_sd``'s."""
     A, y, joint = sweep_observations(rows, compensated, k)
     w = np.ones(len(y)) if noise is None else 1.0 / noise[joint - 1]
     fit = bounded_lsq(A * w[:, None], y * w, what=what)
-    return fit.x, fit.std, len(y)
+    return fit.x, robust_sd(A * w[:, None], y * w, fit.x), len(y)
+
+
+def robust_sd(A: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Standard deviations of the least-squares ``x`` of y ~ A x from each observation's own
+    residual (the heteroscedasticity-consistent "HC3" sandwich: residual r_i / (1 - h_i), h_i
+    the observation's leverage), not from one variance pooled over all.
+
+    The weights (each joint's friction) say only roughly how much error a joint's sweeps carry:
+    on the PUMA 560 the residuals per unit of friction differ between joints by 2-4x from
+    seed to seed (joint 4's twice joint 2's on hidden truth 1), so a pooled variance gives the
+    coefficients that joint 4's sweeps alone measure (cz4) an interval 2-3x too narrow. An
+    observation that alone fixes a combination (h_i = 1) makes that combination's sd infinite."""
+    H_inv = np.linalg.inv(A.T @ A)
+    lev = np.einsum("ij,jk,ik->i", A, H_inv, A)
+    r = (y - A @ x) / np.maximum(1.0 - lev, 1e-12)
+    meat = (A * r[:, None]).T @ (A * r[:, None])
+    return np.sqrt(np.diag(H_inv @ meat @ H_inv))
 
 
 def sweep_friction(passes: Sequence[SweepPass], traces: list[Trace], drive: Drive) -> np.ndarray:
@@ -261,7 +279,8 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     directions)^2): the thesis's combination of measurement uncertainty and direction, with
     the fit's part a 99.73 % interval as everywhere in calib (t = rcci.calib.lsq.coverage_factor
     of the fit's degrees of freedom, sweeps less coefficients: a sweep's two directions are one
-    observation, ``sweep_observations``; the thesis printed 2 sd); friction_error = how much the
+    observation, ``sweep_observations``; the sd from each observation's own residual,
+    ``robust_sd``; the thesis printed 2 sd); friction_error = how much the
     result moves without the repeat (4.49). FitError naming them when the sweeps leave
     coefficients open (rcci.calib.poses.unidentified).
     """

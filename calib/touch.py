@@ -25,6 +25,7 @@ or a joint move between the faces' hubs, 10 cm in front of each face (``Face.hub
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 
@@ -210,6 +211,16 @@ def _rotation(approach: np.ndarray, tilt: float, tilt_dir: float, spin: float) -
     return np.column_stack([x, y, z])
 
 
+def arm_configs(kin) -> tuple[tuple[int, ...], ...]:
+    """The configurations touches are made in on the arm of ``kin``: CONFIGS on an arm with
+    arm, elbow and wrist solutions; both wrists on one whose inverse kinematics has a wrist
+    choice only (the Microbo: a cylindrical arm, thesis 3.4)."""
+    signs = [dataclasses.astuple(c) for c in kin.CONFIGS]
+    if all(len(c) == 3 for c in signs):
+        return CONFIGS
+    return tuple(tuple(int(x) for x in c) for c in signs)
+
+
 def _config(kin, signs):
     return kin.Config(*signs)
 
@@ -326,6 +337,7 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None =
 
     fixture = fixture_for(robot) if fixture is None else fixture
     kin = load(robot)
+    configs = arm_configs(kin)
     model = load_robot(robot)
     lower, upper = np.asarray(model.lower), np.asarray(model.upper)
     rng = np.random.default_rng(seed)
@@ -333,14 +345,14 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None =
     touches: list[Touch] = []
     for fi, face in enumerate(fixture.faces):
         on_face = 0
-        for c, config in enumerate(CONFIGS):
-            want = (n_per_face - on_face) // (len(CONFIGS) - c)
+        for c, config in enumerate(configs):
+            want = (n_per_face - on_face) // (len(configs) - c)
             group = _draw_group(kin, rng, fi, fixture, config, want, tip, lower, upper, margin)
             on_face += len(group)
             touches += _nearest_first(group, face.hub)
         # a few touches per face leave the first configurations no share (1 // 4 == 0): when the
         # ones tried reach no point, the face gets its touches from any configuration that does
-        for config in CONFIGS if on_face == 0 else ():
+        for config in configs if on_face == 0 else ():
             group = _draw_group(kin, rng, fi, fixture, config, n_per_face - on_face, tip, lower, upper, margin)
             on_face += len(group)
             touches += _nearest_first(group, face.hub)
