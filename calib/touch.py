@@ -132,7 +132,16 @@ def scaled_corner(scale: float, shoulder_m: float) -> Fixture:
 # (0.2 m below its mounting surface) in few configurations: 24 of 48 touches (8 per face); 2.5
 # times the corner about its shoulder (0.412 m, d1: table at -0.09 m, walls 0.9 and 0.75 m away)
 # gives it 40 (16 + 8 + 16). tests/test_calib_fixtures.py counts them.
-FIXTURES = {"puma260": lambda: CORNER,
+# The Microbo (a cylindrical arm: a vertical slide of 0.05-0.35 m, a radial one of 0.2-0.5 m,
+# models/microbo.toml) reaches no point of the PUMA 260's table, 0.2 m below its base frame;
+# its corner is a table 8 cm above the base frame with walls 0.45 m in front and 0.35 m to
+# the right, inside the slides' reach: 16 touches per face in both wrist configurations.
+MICROBO_CORNER = Fixture((
+    Face("floor", (0.0, 0.0, 1.0), 0.08, ((0.22, 0.40), (-0.25, 0.10), (0.08, 0.08))),
+    Face("front", (-1.0, 0.0, 0.0), -0.45, ((0.45, 0.45), (-0.20, 0.10), (0.14, 0.30))),
+    Face("right", (0.0, 1.0, 0.0), -0.35, ((0.05, 0.35), (-0.35, -0.35), (0.14, 0.30))),
+))
+FIXTURES = {"puma260": lambda: CORNER, "microbo": lambda: MICROBO_CORNER,
             "puma560": lambda: scaled_corner(2.1, 0.672),
             "stanford": lambda: scaled_corner(2.5, 0.412)}
 
@@ -345,14 +354,17 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None =
     touches: list[Touch] = []
     for fi, face in enumerate(fixture.faces):
         on_face = 0
+        unasked = []
         for c, config in enumerate(configs):
             want = (n_per_face - on_face) // (len(configs) - c)
+            if want == 0:
+                unasked.append(config)
             group = _draw_group(kin, rng, fi, fixture, config, want, tip, lower, upper, margin)
             on_face += len(group)
             touches += _nearest_first(group, face.hub)
         # a few touches per face leave the first configurations no share (1 // 4 == 0): when the
-        # ones tried reach no point, the face gets its touches from any configuration that does
-        for config in configs if on_face == 0 else ():
+        # ones tried reach no point, the face gets its touches from those not yet asked
+        for config in unasked if on_face == 0 else ():
             group = _draw_group(kin, rng, fi, fixture, config, n_per_face - on_face, tip, lower, upper, margin)
             on_face += len(group)
             touches += _nearest_first(group, face.hub)

@@ -16,18 +16,18 @@ import pytest
 from rcci.calib.touch import CORNER, fixture_for, touch_plan
 
 
-@pytest.mark.parametrize("robot", ["puma560", "stanford"])
+@pytest.mark.parametrize("robot", ["puma560", "stanford", "microbo"])
 def test_each_arm_reaches_its_own_fixture_and_not_the_puma260s(robot):
     from rcci.calib.exceptions import CalibError
 
     assert fixture_for("puma260") is CORNER
-    if robot == "puma560":      # the PUMA 260's table is under its pedestal
+    if robot in ("puma560", "microbo"):     # the PUMA 260's table is under their reach
         with pytest.raises(CalibError, match="no point of face .* is reachable"):
             touch_plan(4, robot=robot, fixture=CORNER)
     else:                       # half the touches asked, every face touched in fewer configurations
         corner, own = touch_plan(16, robot=robot, fixture=CORNER), touch_plan(16, robot=robot)
         assert len(corner.touches) == 24 and len(own.touches) == 40
-    plan = touch_plan(4, robot=robot) if robot == "puma560" else own
+    plan = own if robot == "stanford" else touch_plan(4, robot=robot)
     faces = [t.face for t in plan.touches]
     assert set(faces) == {0, 1, 2} and len(faces) >= 8, faces
     assert len({t.config for t in plan.touches}) >= 2       # the errors seen from more than one side
