@@ -516,6 +516,12 @@ def _route(kin, touches: list[Touch], fixture: Fixture, tip, lower, upper, margi
             path = cartesian_line(kin, kin.fk(qb), standoff, config, qb, rate, tip)
             if np.any(path < lower + margin) or np.any(path > upper - margin):
                 continue        # not reachable without leaving a joint's range: dropped
+        # the way back to the face's hub, which the program takes before a touch elsewhere and at
+        # the end (a wound-up wrist can leave its range on it: the PUMA 560's joint 6 did)
+        back = cartesian_line(kin, kin.fk(path[-1]), pose_t6(fixture.faces[t.face].hub, t.rotation, tip),
+                              config, path[-1], rate, tip)
+        if np.any(back < lower + margin) or np.any(back > upper - margin):
+            continue
         t = Touch(t.face, t.point, t.rotation, t.config, via_hub=not straight)
         out.append(t)
         q = path[-1]
