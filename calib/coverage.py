@@ -65,7 +65,23 @@ def gravity_coverage(robot: str, seed: int, speed_deg: float, folder: str,
     out = run_fit("gravity", traces, info, params)
     truth = truth_of(traces, info)
     g = out.results
+    SWEEP_ERRORS[(robot, seed)] = sweep_errors(g.rows, truth.gravity)
     return [(n, float(g.value[k]), float(g.error[k]), float(truth.gravity[k])) for k, n in enumerate(g.names)]
+
+
+# (robot, seed) -> sweep_errors of the last fit of that seed (for the report)
+SWEEP_ERRORS: dict[tuple[str, int], list[tuple[str, int, float, float]]] = {}
+
+
+def sweep_errors(rows, truth: np.ndarray) -> list[tuple[str, int, float, float]]:
+    """(position, joint, err+, err-) per sweep: each direction's tau0 less what the truth's
+    coefficients give for its row (N m), NaN for a direction not measured. Opposite errors
+    (err+ = -err-) are one error of the sweep's combination (rcci.calib.gravity.sweep_observations)."""
+    out: dict[tuple[str, int], list[float]] = {}
+    for r in rows:
+        e = out.setdefault((r.position, r.joint), [float("nan"), float("nan")])
+        e[0 if r.direction > 0 else 1] = float(r.tau0 - r.row @ truth)
+    return [(pos, j, ep, em) for (pos, j), (ep, em) in out.items()]
 
 
 def _same_sweep(path: str, meta: dict) -> bool:
@@ -119,10 +135,16 @@ def report_text(robot: str, speed: float, warmup: bool, results: dict[int, list[
         ok = sum(abs(v - t) <= e for _, v, e, t in rows)
         L.append(f"| {seed} | {ok}/{len(rows)} | " + " | ".join(f"{_ratio(r):.2f}" for r in rows) + " |")
     L += ["", "Cells: |fit - truth| / printed error (inside when <= 1). Values (N m):", ""]
+    tail = ["", "Each sweep's errors (N m): tau0 less the truth's value of its row, per direction "
+            "(err+ = -err-: one error the two passes share).", "",
+            "| seed | sweep | joint | err+ | err- |", "|---|---|---|---|---|"]
+    for seed in results:
+        tail += [f"| {seed} | {pos} | {j} | {ep:+.4f} | {em:+.4f} |"
+                 for pos, j, ep, em in SWEEP_ERRORS.get((robot, seed), [])]
     L += ["| seed | coefficient | truth | fit | error |", "|---|---|---|---|---|"]
     for seed, rows in results.items():
         L += [f"| {seed} | {n} | {t:.4f} | {v:.4f} | {e:.4f} |" for n, v, e, t in rows]
-    return "\n".join(L) + "\n"
+    return "\n".join(L + tail) + "\n"
 
 
 def _main(args: argparse.Namespace) -> int:

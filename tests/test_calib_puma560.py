@@ -144,3 +144,20 @@ def test_the_dh_errors_do_not_move_what_the_sweeps_measure():
             y.append(pin.computeGeneralizedGravity(arm.pm, pd, q)[j])
         c, *_ = np.linalg.lstsq(np.array(A), np.array(y), rcond=None)
         assert np.abs(c - truth.gravity).max() < 1e-3, (seed, c - truth.gravity)
+
+
+def test_the_coverage_report_counts_and_lists_each_sweeps_errors():
+    """`calib coverage --report`: the count inside, each coefficient's |fit - truth| / error, and
+    each sweep's two errors (rows of a fit against the truth's coefficients)."""
+    from rcci.calib.coverage import SWEEP_ERRORS, report_text, sweep_errors
+    from rcci.calib.gravity import GravityRow
+
+    truth = np.array([2.0, 0.5])
+    r = np.array([1.0, 0.0])
+    rows = [GravityRow("g01", 2, 1, 2.03, 2.03, r, r, 1), GravityRow("g01", 2, -1, -2.03, -2.03, -r, -r, 1)]
+    assert sweep_errors(rows, truth) == [("g01", 2, pytest.approx(0.03), pytest.approx(-0.03))]
+    SWEEP_ERRORS[("puma560", 9)] = sweep_errors(rows, truth)
+    text = report_text("puma560", 20.0, True, {9: [("c1", 2.03, 0.05, 2.0), ("c2", 0.6, 0.05, 0.5)]},
+                       "calib coverage --robot puma560 --seeds 9", 60.0)
+    assert "**1 of 2 coefficients (50 %) inside" in text
+    assert "| 9 | 1/2 | 0.60 | 2.00 |" in text and "| 9 | g01 | 2 | +0.0300 | -0.0300 |" in text
