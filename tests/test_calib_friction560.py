@@ -24,7 +24,7 @@ ROBOT, TRUTH_SEED, SIMULA_SEED = "puma560", 4, 8
 
 
 @pytest.mark.slow
-def test_puma560_friction_of_joints_1_and_4_within_their_intervals(tmp_path):
+def test_puma560_friction_of_joints_1_4_5_6_within_their_intervals(tmp_path):
     from rci.simula.process import SimulaProcess
 
     truth_file = str(tmp_path / "truth.toml")
@@ -44,12 +44,12 @@ def test_puma560_friction_of_joints_1_and_4_within_their_intervals(tmp_path):
         return path
 
     with ThreadPoolExecutor(max_workers=2) as pool:
-        paths = list(pool.map(record, (1, 4)))
+        paths = list(pool.map(record, (1, 4, 5, 6)))
     traces = [load_trace(p) for p in paths]
     truth = truth_of(traces, info)
     params = {"calib": {"robot": ROBOT}, "motors": {"torque_sensitivity": data["motors"]["torque_sensitivity"]}}
     res = run_fit("friction", traces, info, params).results
-    assert [r.joint for r in res] == [1, 4]
+    assert [r.joint for r in res] == [1, 4, 5, 6]
     for r in res:
         j = r.joint - 1
         for fit, key in ((r.plus, "pos"), (r.minus, "neg")):
