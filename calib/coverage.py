@@ -51,6 +51,7 @@ def gravity_coverage(robot: str, seed: int, speed_deg: float, folder: str,
         paths.append(path)
         if not _same_sweep(path, plan.meta):
             todo.append((plan, path))
+    LOGS[(robot, seed)] = (len(todo), len(paths) - len(todo))
     if todo:
         with SimulaProcess("-p", *args, robot=robot, lockstep=True, seed=seed) as sim:
             for plan, path in todo:
@@ -69,6 +70,8 @@ def gravity_coverage(robot: str, seed: int, speed_deg: float, folder: str,
     return [(n, float(g.value[k]), float(g.error[k]), float(truth.gravity[k])) for k, n in enumerate(g.names)]
 
 
+# (robot, seed) -> (logs recorded, logs reused from --keep) of the last run of that seed
+LOGS: dict[tuple[str, int], tuple[int, int]] = {}
 # (robot, seed) -> sweep_errors of the last fit of that seed (for the report)
 SWEEP_ERRORS: dict[tuple[str, int], list[tuple[str, int, float, float]]] = {}
 
@@ -117,10 +120,13 @@ def report_text(robot: str, speed: float, warmup: bool, results: dict[int, list[
     inside = sum(abs(v - t) <= e for rows in results.values() for _, v, e, t in rows)
     total = sum(len(rows) for rows in results.values())
     ratios = np.array([_ratio(r) for rows in results.values() for r in rows])
+    recorded = sum(LOGS.get((robot, seed), (0, 0))[0] for seed in results)
+    reused = sum(LOGS.get((robot, seed), (0, 0))[1] for seed in results)
     L = [f"# Gravity interval coverage: {robot}", "",
          f"Command: `{command}` ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
          f"{seconds / 60:.1f} min, load average {os.getloadavg()[0]:.1f} at the end on "
-         f"{os.cpu_count()} cores).", "",
+         f"{os.cpu_count()} cores; {recorded} logs recorded in this run, {reused} recorded by an earlier "
+         "run of the same command and kept with --keep).", "",
          f"Each seed: the hidden truth `calib hidden-truth --robot {robot} --seed N` (sensitivities and "
          "friction 10-30 %, gravity coefficients 3-10 % away from the data file, DH errors), "
          f"the plans of `calib record gravity` at {speed:g} deg/s "
