@@ -327,9 +327,17 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
     return angle * k / np.linalg.norm(k)
 
 
-def joint_line(qa: np.ndarray, qb: np.ndarray, rate_hz: float, speed: float = JOINT_SPEED) -> np.ndarray:
-    """Joint setpoints (N, 6) from qa to qb, every joint arriving together (cosine profile)."""
-    duration = max(float(np.max(np.abs(qb - qa))) / speed, 2.0 / rate_hz) * np.pi / 2
+JOINT_RATE_SHARE = 0.8   # a joint move's peak rate stays under this share of each joint's limit
+
+
+def joint_line(qa: np.ndarray, qb: np.ndarray, rate_hz: float, speed: float = JOINT_SPEED,
+               robot: str | None = None) -> np.ndarray:
+    """Joint setpoints (N, 6) from qa to qb, every joint arriving together (cosine profile),
+    each joint's peak rate ``speed`` at most, and with ``robot`` JOINT_RATE_SHARE of its limit
+    at most (the Stanford arm's joint 2 is limited to JOINT_SPEED itself)."""
+    cap = np.full(len(qa), speed) if robot is None else \
+        np.minimum(speed, JOINT_RATE_SHARE / LINE_RATE_SHARE * _line_rates(robot))
+    duration = max(float(np.max(np.abs(qb - qa) / cap)), 2.0 / rate_hz) * np.pi / 2
     n = int(np.ceil(duration * rate_hz)) + 1
     s = 0.5 - 0.5 * np.cos(np.pi * np.arange(n) / (n - 1))
     return qa + s[:, None] * (qb - qa)

@@ -3,10 +3,12 @@
 The PUMA 260's corner (rcci.calib.touch.CORNER) is out of both arms' reach; each has a corner of
 its own (rcci.calib.touch.FIXTURES: the PUMA 260's scaled about the arm's shoulder). The plans
 are checked here for every arm (touches on all three faces, in several configurations); the
-PUMA 560's touches are recorded on a lockstep simula of a hidden truth (rcci.calib.hidden_truth
-seed 3: DH errors of Table 3.1's size) with a seed that is not the shipped one, and fitted as
-`calib fit kinematics` fits: every identifiable error and every combination of those that are
-not lies within its printed interval of the truth (`-m slow`: several minutes of recording).
+PUMA 560's and the Stanford arm's touches are recorded on a lockstep simula of a hidden truth
+(rcci.calib.hidden_truth seed 3: DH errors of Table 3.1's size; none on the Stanford arm's slide,
+which simula does not perturb) with a seed that is not the shipped one, and fitted as `calib fit
+kinematics` fits (the slide's joint variable adds to d: rcci.calib.kinematics.fk_function): every
+identifiable error and every combination of those that are not lies within its printed interval
+of the truth (`-m slow`: a minute of recording each under load).
 """
 from __future__ import annotations
 
@@ -37,7 +39,8 @@ def test_each_arm_reaches_its_own_fixture_and_not_the_puma260s(robot):
 
 
 @pytest.mark.slow
-def test_puma560_kinematic_errors_within_their_printed_interval(tmp_path):
+@pytest.mark.parametrize("robot", ["puma560", "stanford"])
+def test_kinematic_errors_within_their_printed_interval(robot, tmp_path):
     from rcci.calib.fitting import run_fit
     from rcci.calib.hidden_truth import write_hidden_truth
     from rcci.calib.logs import load_trace
@@ -45,7 +48,7 @@ def test_puma560_kinematic_errors_within_their_printed_interval(tmp_path):
     from rcci.calib.robot import robot_info
     from rcci.calib.truth import truth_of
 
-    robot, info = "puma560", robot_info("puma560")
+    info = robot_info(robot)
     truth_file = str(tmp_path / "truth.toml")
     write_hidden_truth(truth_file, robot, 3)
     log = str(tmp_path / "kinematics.rcilog")
@@ -55,8 +58,24 @@ def test_puma560_kinematic_errors_within_their_printed_interval(tmp_path):
     E = truth_of(traces, info).dh_errors.ravel()
     assert np.abs(E).max() > 1e-4                          # a truth with DH errors
     ident = fit.identifiable
-    assert ident.sum() >= 16
+    assert ident.sum() >= {"puma560": 16, "stanford": 12}[robot]
     assert np.all(np.abs(fit.e - E)[ident] <= fit.factor * fit.std[ident])
     for name, value, sd, unit, coef in fit.combinations():
         assert abs(value - coef @ E) <= fit.factor * sd, name
     assert fit.rms_position_before > 1e-4 and fit.rms_position_after < 2e-5
+
+
+@pytest.mark.parametrize("robot", ["puma260", "puma560", "stanford", "microbo"])
+def test_the_kinematic_fits_model_is_the_arms_forward_kinematics(robot):
+    """The fit's T6 (rcci.calib.kinematics.fk_function, no errors) is rccl's forward kinematics,
+    slides included (their joint variable adds to d)."""
+    from rcci.calib.kinematics import fk_function, nominal_dh
+    from rcci.models import load_robot
+    from rccl.kinematics import load
+
+    model, kin = load_robot(robot), load(robot)
+    T6 = fk_function(nominal_dh(robot), tuple(model.kinds))
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        q = rng.uniform(model.lower, model.upper)
+        assert np.abs(np.array(T6(q, np.zeros(4 * len(q)))) - kin.fk(q)).max() < 1e-12
