@@ -3,9 +3,9 @@
 The PUMA 260's corner (rcci.calib.touch.CORNER) is out of both arms' reach; each has a corner of
 its own (rcci.calib.touch.FIXTURES: the PUMA 260's scaled about the arm's shoulder). The plans
 are checked here for every arm (touches on all three faces, in several configurations); the
-PUMA 560's and the Stanford arm's touches are recorded on a lockstep simula of a hidden truth
-(rcci.calib.hidden_truth seed 3: DH errors of Table 3.1's size; none on the Stanford arm's slide,
-which simula does not perturb) with a seed that is not the shipped one, and fitted as `calib fit
+PUMA 560's, the Stanford arm's and the Microbo's touches are recorded on a lockstep simula of a hidden truth
+(rcci.calib.hidden_truth seed 3: DH errors of Table 3.1's size; none on the slides, which simula
+does not perturb) with a seed that is not the shipped one, and fitted as `calib fit
 kinematics` fits (the slide's joint variable adds to d: rcci.calib.kinematics.fk_function): every
 identifiable error and every combination of those that are not lies within its printed interval
 of the truth (`-m slow`: a minute of recording each under load).
@@ -39,7 +39,7 @@ def test_each_arm_reaches_its_own_fixture_and_not_the_puma260s(robot):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("robot", ["puma560", "stanford"])
+@pytest.mark.parametrize("robot", ["puma560", "stanford", "microbo"])
 def test_kinematic_errors_within_their_printed_interval(robot, tmp_path):
     from rcci.calib.fitting import run_fit
     from rcci.calib.hidden_truth import write_hidden_truth
@@ -58,7 +58,7 @@ def test_kinematic_errors_within_their_printed_interval(robot, tmp_path):
     E = truth_of(traces, info).dh_errors.ravel()
     assert np.abs(E).max() > 1e-4                          # a truth with DH errors
     ident = fit.identifiable
-    assert ident.sum() >= {"puma560": 16, "stanford": 12}[robot]
+    assert ident.sum() >= {"puma560": 16, "stanford": 12, "microbo": 8}[robot]
     assert np.all(np.abs(fit.e - E)[ident] <= fit.factor * fit.std[ident])
     for name, value, sd, unit, coef in fit.combinations():
         assert abs(value - coef @ E) <= fit.factor * sd, name
