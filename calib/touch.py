@@ -128,10 +128,11 @@ def scaled_corner(scale: float, shoulder_m: float) -> Fixture:
 # (models/puma560.toml d1), so the PUMA 260's table 0.20 m below the frame is under its pedestal;
 # the corner scaled by its upper arm's ratio (0.4318 / 0.2032 m, 2.1) about its shoulder puts
 # the table 0.25 m above the mounting surface and the walls 0.76 m in front and 0.63 m to the
-# right: 47 of 48 touches (one dropped: its way back leaves a range). The Stanford arm's boom (0.3-1.27 m) reaches the PUMA 260's corner
-# (0.2 m below its mounting surface) in few configurations: 24 of 48 touches (8 per face); 2.5
-# times the corner about its shoulder (0.412 m, d1: table at -0.09 m, walls 0.9 and 0.75 m away)
-# gives it 40 (16 + 8 + 16). tests/test_calib_fixtures.py counts them.
+# right: 47 of 48 touches (one dropped: its way back leaves a range). The Stanford arm's boom
+# (0.3-1.27 m) reaches the PUMA 260's corner (0.2 m below its mounting surface) in few
+# configurations: 24 of 48 touches (8 per face); 2.5 times the corner about its shoulder (0.412 m,
+# d1: table at -0.09 m, walls 0.9 and 0.75 m away) gives it 40 (16 + 8 + 16).
+# tests/test_calib_fixtures.py counts them.
 # The Microbo (a cylindrical arm: a vertical slide of 0.05-0.35 m, a radial one of 0.2-0.5 m,
 # models/microbo.toml) reaches no point of the PUMA 260's table, 0.2 m below its base frame;
 # its corner is a table 8 cm above the base frame with walls 0.45 m in front and 0.35 m to
