@@ -12,8 +12,8 @@ one the sinusoid gives, see docs/calib.md.)  The friction difference is removed 
 4.49-4.51 do, by repeating the sweep over the same joint range with the arm reoriented
 so that gravity does the same work in both segments: the difference of the two tau0
 estimates is Y(q0) c - Y(q0') c, linear in the loading coefficients c, with Y the
-gravity regressor of the robot model.  Every pass of every position is one row of a
-least-squares fit for c.
+gravity regressor of the robot model.  Every sweep (its two directions averaged: they
+share their errors, ``sweep_observations``) is one observation of a least-squares fit for c.
 
 Joint 2's sweep has no repeat (its axis is always horizontal, docs/calib.md). There the
 friction's position pattern (Table 4.4) would stay in W1 - W2; it is taken out with the
@@ -184,13 +184,65 @@ def gravity_rows(passes: Sequence[SweepPass], regressor: Regressor,
     return rows
 
 
+def sweep_observations(rows: Sequence[GravityRow], compensated: bool,
+                       k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A (m, k), y (m,) N m, joint (m,)): one observation per sweep.
+
+    The + and - rows of a sweep measure one combination of the coefficients: the joint's
+    own regressor row is a pure sinusoid of its angle, so the row at the far end is minus
+    the row at the start, and both passes' tau0 carry the same slowly varying errors (a
+    friction that drifts as the joint warms or cools, what the position pattern's removal
+    leaves): on the PUMA 560, err(+) = -err(-) within 10-20 % on every sweep
+    (docs/calib.md, "Gravity intervals"). Counted as two observations they halve the
+    residual's apparent variance and double its degrees of freedom; so they are averaged
+    into one, (row+ - row-) / 2 and (tau0+ - tau0-) / 2. A row without its opposite (one
+    direction only, or rows that are not opposite) stays an observation of its own."""
+    groups: dict[tuple[str, int], list[GravityRow]] = {}
+    for r in rows:
+        groups.setdefault((r.position, r.joint), []).append(r)
+    A, y, joint = [], [], []
+    for (_, j), rs in groups.items():
+        rowf = [np.asarray(r.row if compensated else r.raw_row, float) for r in rs]
+        tau = [r.tau0 if compensated else r.raw_tau0 for r in rs]
+        dirs = [r.direction for r in rs]
+        scale = max(float(np.abs(np.array(rowf)).max()), 1e-12)
+        if sorted(dirs) == [-1, 1] and np.allclose(rowf[0], -rowf[1], rtol=0.0, atol=1e-9 * scale):
+            A.append(sum(d * x for d, x in zip(dirs, rowf)) / 2)
+            y.append(sum(d * t for d, t in zip(dirs, tau)) / 2)
+            joint.append(j)
+        else:
+            A += rowf
+            y += tau
+            joint += [j] * len(rs)
+    return np.array(A).reshape(-1, k), np.array(y), np.array(joint)
+
+
 def _solve(rows: Sequence[GravityRow], compensated: bool, k: int, what: str,
-           noise: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    A = np.array([r.row if compensated else r.raw_row for r in rows]).reshape(-1, k)
-    y = np.array([r.tau0 if compensated else r.raw_tau0 for r in rows])
-    w = np.ones(len(rows)) if noise is None else 1.0 / np.array([noise[r.joint - 1] for r in rows])
+           noise: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, int]:
+    """(coefficients, their sd from the residuals, number of observations), one
+    observation per sweep (``sweep_observations``), weighted by 1 / noise[joint]; the sd is
+    ``robust_sd``'s."""
+    A, y, joint = sweep_observations(rows, compensated, k)
+    w = np.ones(len(y)) if noise is None else 1.0 / noise[joint - 1]
     fit = bounded_lsq(A * w[:, None], y * w, what=what)
-    return fit.x, fit.std
+    return fit.x, robust_sd(A * w[:, None], y * w, fit.x), len(y)
+
+
+def robust_sd(A: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Standard deviations of the least-squares ``x`` of y ~ A x from each observation's own
+    residual (the heteroscedasticity-consistent "HC3" sandwich: residual r_i / (1 - h_i), h_i
+    the observation's leverage), not from one variance pooled over all.
+
+    The weights (each joint's friction) say only roughly how much error a joint's sweeps carry:
+    on the PUMA 560 the residuals per unit of friction differ between joints by 2-4x from
+    seed to seed (joint 4's twice joint 2's on hidden truth 1), so a pooled variance gives the
+    coefficients that joint 4's sweeps alone measure (cz4) an interval 2-3x too narrow. An
+    observation that alone fixes a combination (h_i = 1) makes that combination's sd infinite."""
+    H_inv = np.linalg.inv(A.T @ A)
+    lev = np.einsum("ij,jk,ik->i", A, H_inv, A)
+    r = (y - A @ x) / np.maximum(1.0 - lev, 1e-12)
+    meat = (A * r[:, None]).T @ (A * r[:, None])
+    return np.sqrt(np.diag(H_inv @ meat @ H_inv))
 
 
 def sweep_friction(passes: Sequence[SweepPass], traces: list[Trace], drive: Drive) -> np.ndarray:
@@ -226,7 +278,9 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
     error = sqrt((t sd of the fit)^2 + (half the difference between the fits of the two
     directions)^2): the thesis's combination of measurement uncertainty and direction, with
     the fit's part a 99.73 % interval as everywhere in calib (t = rcci.calib.lsq.coverage_factor
-    of the fit's degrees of freedom; the thesis printed 2 sd); friction_error = how much the
+    of the fit's degrees of freedom, sweeps less coefficients: a sweep's two directions are one
+    observation, ``sweep_observations``; the sd from each observation's own residual,
+    ``robust_sd``; the thesis printed 2 sd); friction_error = how much the
     result moves without the repeat (4.49). FitError naming them when the sweeps leave
     coefficients open (rcci.calib.poses.unidentified).
     """
@@ -242,13 +296,13 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
         raise FitError(f"the gravity logs do not identify {', '.join(open_)}: no sweep among them "
                        "(its joint's regressor row at its start pose) separates them; record the sweeps "
                        "`calib record gravity --robot ROBOT` chooses for the arm")
-    value, std = _solve(rows, True, k, "gravity loading", noise)
+    value, std, n_obs = _solve(rows, True, k, "gravity loading", noise)
     lone = {p.joint for p in passes if p.role == "main"} - {p.joint for p in passes if p.role == "repeat"}
     if lone:        # sweeps without a repeat: once more with their directions' friction asymmetry
         asym = friction_asymmetry(traces, drive, regressor, value, lone)
         rows = gravity_rows(passes, regressor, asym)
-        value, std = _solve(rows, True, k, "gravity loading", noise)
-    raw, _ = _solve(rows, False, k, "gravity loading without the friction repeat", noise)
+        value, std, n_obs = _solve(rows, True, k, "gravity loading", noise)
+    raw, _, _ = _solve(rows, False, k, "gravity loading without the friction repeat", noise)
     by_dir = []
     for d in (1, -1):
         sel = [r for r in rows if r.direction == d]
@@ -260,8 +314,14 @@ def fit_gravity(traces: list[Trace], drive: Drive, regressor: Regressor,
         ddiff = np.abs(by_dir[0] - by_dir[1])
     else:
         ddiff = np.zeros(k)
-    factor = coverage_factor(len(rows) - k)
-    error = np.sqrt((factor * std) ** 2 + (ddiff / 2) ** 2)
+    factor = coverage_factor(n_obs - k)
+    if n_obs <= k:          # as many sweeps as coefficients: nothing left to measure the scatter
+        if notes is not None:
+            notes.append(f"gravity: {n_obs} sweeps for {k} coefficients leave no residual to estimate "
+                         "the scatter from; the errors are infinite (record the plan's extra sweeps)")
+        error = np.full(k, np.inf)
+    else:
+        error = np.sqrt((factor * std) ** 2 + (ddiff / 2) ** 2)
     return GravityResult(names=names, value=value, error=error, fit_std=std,
                          direction_diff=ddiff, friction_error=np.abs(value - raw), rows=rows, factor=factor)
 

@@ -120,15 +120,20 @@ def _dh(theta, d, a, alpha):
         ca.horzcat(0, 0, 0, 1))
 
 
-def fk_function(dh: np.ndarray) -> ca.Function:
-    """CasADi T6(q, e) for a revolute arm with nominal DH rows (theta0, d, a, alpha)."""
+def fk_function(dh: np.ndarray, kinds: tuple[str, ...] | None = None) -> ca.Function:
+    """CasADi T6(q, e) for an arm with nominal DH rows (theta0, d, a, alpha); ``kinds``
+    ("revolute" or "prismatic" per joint, default all revolute) says which parameter the joint
+    variable adds to (theta, or d for a slide: the Stanford arm's joint 3)."""
     n = dh.shape[0]
+    kinds = kinds or ("revolute",) * n
     q = ca.SX.sym("q", n)
     e = ca.SX.sym("e", 4 * n)
     T = ca.SX.eye(4)
     for i in range(n):
         th0, d, a, al = dh[i]
-        T = T @ _dh(th0 + q[i] + e[4 * i], d + e[4 * i + 1], a + e[4 * i + 2], al + e[4 * i + 3])
+        slide = kinds[i] == "prismatic"
+        theta = th0 + e[4 * i] + (0 if slide else q[i])
+        T = T @ _dh(theta, d + e[4 * i + 1] + (q[i] if slide else 0), a + e[4 * i + 2], al + e[4 * i + 3])
     return ca.Function("T6", [q, e], [T])
 
 
@@ -240,10 +245,12 @@ class Touches:
     index: np.ndarray
 
 
-def fit_touches(dh: np.ndarray, touches: Touches, rcond: float = 1e-6, max_iter: int = 20) -> KinematicFit:
-    """Error parameters from touches: residual n . (T6(q, e) tip) - h per touch (m)."""
+def fit_touches(dh: np.ndarray, touches: Touches, rcond: float = 1e-6, max_iter: int = 20,
+                kinds: tuple[str, ...] | None = None) -> KinematicFit:
+    """Error parameters from touches: residual n . (T6(q, e) tip) - h per touch (m); ``kinds``
+    as fk_function's."""
     n = dh.shape[0]
-    T6 = fk_function(dh)
+    T6 = fk_function(dh, kinds)
     q_s, e_s = ca.SX.sym("q", n), ca.SX.sym("e", 4 * n)
     nrm, h = ca.SX.sym("n", 3), ca.SX.sym("h")
     tip = ca.DM([*touches.tip, 1.0])

@@ -10,6 +10,21 @@ from rcci.calib.sensitivity import SensitivityResult
 from rcci.calib.static import StaticResult
 
 
+SLIDE_UNITS = {"sensitivity": "N / A (force per ampere)",
+               "friction": "N (Coulomb) and N s / m x 1000 (viscous)"}
+
+
+def slide_note(kinds: tuple[str, ...], joints: list[int], what: str) -> list[str]:
+    """The sentence that gives a prismatic joint's units in the tables of ``what`` (a key of
+    SLIDE_UNITS), whose headings name the revolute joints' (N m ...); [] when none is prismatic."""
+    slides = [j for j in joints if kinds[j - 1] == "prismatic"]
+    if not slides:
+        return []
+    which = ", ".join(str(j) for j in slides)
+    return [f"Joint {which} is prismatic (a slide): its values are in {SLIDE_UNITS[what]}, not the "
+            "revolute joints' units of the headings."]
+
+
 def table_4_1(res: list[SensitivityResult]) -> str:
     out = ["Table 4.1  Motor torque sensitivity (Newton-meters/ampere)",
            f"{'Joint':>5}  {'trials':>6}  {'Mean':>7}  {'Std dev':>7}  {'Indep. error':>12}"]

@@ -25,6 +25,8 @@ or a joint move between the faces' hubs, 10 cm in front of each face (``Face.hub
 """
 from __future__ import annotations
 
+import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -109,6 +111,47 @@ CORNER = Fixture((
 ))
 
 
+def scaled_corner(scale: float, shoulder_m: float) -> Fixture:
+    """CORNER scaled by ``scale`` about the shoulder and raised by ``shoulder_m`` (m): the PUMA
+    260's cell for a larger arm whose base frame is on its mounting surface, not at its shoulder."""
+    faces = []
+    for f in CORNER.faces:
+        region = tuple((a * scale + (shoulder_m if i == 2 else 0.0), b * scale + (shoulder_m if i == 2 else 0.0))
+                       for i, (a, b) in enumerate(f.region))
+        faces.append(Face(f.name, f.normal, f.offset * scale + f.normal[2] * shoulder_m, region))
+    return Fixture(tuple(faces))
+
+
+# Each arm's calibration corner, a plan parameter (calib's own per-arm data: the robot data files
+# hold no cell). The PUMA 260's corner is out of a larger arm's reach with the probe held to
+# TILT_DEG: the PUMA 560's base frame is on its mounting surface, 0.672 m below the shoulder
+# (models/puma560.toml d1), so the PUMA 260's table 0.20 m below the frame is under its pedestal;
+# the corner scaled by its upper arm's ratio (0.4318 / 0.2032 m, 2.1) about its shoulder puts
+# the table 0.25 m above the mounting surface and the walls 0.76 m in front and 0.63 m to the
+# right: 47 of 48 touches (one dropped: its way back leaves a range). The Stanford arm's boom
+# (0.3-1.27 m) reaches the PUMA 260's corner (0.2 m below its mounting surface) in few
+# configurations: 24 of 48 touches (8 per face); 2.5 times the corner about its shoulder (0.412 m,
+# d1: table at -0.09 m, walls 0.9 and 0.75 m away) gives it 40 (16 + 8 + 16).
+# tests/test_calib_fixtures.py counts them.
+# The Microbo (a cylindrical arm: a vertical slide of 0.05-0.35 m, a radial one of 0.2-0.5 m,
+# models/microbo.toml) reaches no point of the PUMA 260's table, 0.2 m below its base frame;
+# its corner is a table 8 cm above the base frame with walls 0.45 m in front and 0.35 m to
+# the right, inside the slides' reach: 16 touches per face in both wrist configurations.
+MICROBO_CORNER = Fixture((
+    Face("floor", (0.0, 0.0, 1.0), 0.08, ((0.22, 0.40), (-0.25, 0.10), (0.08, 0.08))),
+    Face("front", (-1.0, 0.0, 0.0), -0.45, ((0.45, 0.45), (-0.20, 0.10), (0.14, 0.30))),
+    Face("right", (0.0, 1.0, 0.0), -0.35, ((0.05, 0.35), (-0.35, -0.35), (0.14, 0.30))),
+))
+FIXTURES = {"puma260": lambda: CORNER, "microbo": lambda: MICROBO_CORNER,
+            "puma560": lambda: scaled_corner(2.1, 0.672),
+            "stanford": lambda: scaled_corner(2.5, 0.412)}
+
+
+def fixture_for(robot: str) -> Fixture:
+    """The calibration corner of ``robot`` (FIXTURES); CORNER for an arm without one of its own."""
+    return FIXTURES.get(robot, lambda: CORNER)()
+
+
 def simula_words(fixture: Fixture = CORNER, tip=TIP, bit: int = PROBE_BIT,
                  noise: float = PROBE_NOISE) -> list[str]:
     """simula ``--env`` words for the fixture and the probe."""
@@ -178,6 +221,16 @@ def _rotation(approach: np.ndarray, tilt: float, tilt_dir: float, spin: float) -
     return np.column_stack([x, y, z])
 
 
+def arm_configs(kin) -> tuple[tuple[int, ...], ...]:
+    """The configurations touches are made in on the arm of ``kin``: CONFIGS on an arm with
+    arm, elbow and wrist solutions; both wrists on one whose inverse kinematics has a wrist
+    choice only (the Microbo: a cylindrical arm, thesis 3.4)."""
+    signs = [dataclasses.astuple(c) for c in kin.CONFIGS]
+    if all(len(c) == 3 for c in signs):
+        return CONFIGS
+    return tuple(tuple(int(x) for x in c) for c in signs)
+
+
 def _config(kin, signs):
     return kin.Config(*signs)
 
@@ -195,11 +248,38 @@ def _solve(kin, T: np.ndarray, config, q_ref: np.ndarray | None, lower: np.ndarr
     return q
 
 
+LINE_RATE_SHARE = 0.5   # a straight line's joint rates stay under this share of each joint's limit
+
+
 def cartesian_line(kin, A: np.ndarray, B: np.ndarray, config, q_start: np.ndarray, rate_hz: float,
                    tip, linear: float = LINEAR, angular: float = ANGULAR, steady: bool = False) -> np.ndarray:
     """Joint setpoints (N, 6) moving the tip on a straight line from pose A to pose B (T6,
     4x4), link 6 turning about one axis, with a smooth (cosine) speed profile, or with
-    ``steady`` at constant speed after a 50 ms start (the approaches); nominal IK."""
+    ``steady`` at constant speed after a 50 ms start (the approaches); nominal IK. A line
+    whose joint rates would pass LINE_RATE_SHARE of the arm's velocity limits (near the
+    wrist's singularity: the PUMA 560's joint 6 asked 4.08 rad/s of its 4) is run slower."""
+    vmax = _line_rates(kin.ROBOT)
+    out = _line(kin, A, B, config, q_start, rate_hz, tip, linear, angular, steady)
+    for _ in range(4):
+        over = float((np.abs(np.diff(out, axis=0)) * rate_hz / vmax).max(initial=0.0))
+        if over <= 1.0:
+            break
+        linear, angular = linear / (1.2 * over), angular / (1.2 * over)
+        out = _line(kin, A, B, config, q_start, rate_hz, tip, linear, angular, steady)
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _line_rates(robot: str) -> np.ndarray:
+    """LINE_RATE_SHARE of each joint's velocity limit (rad/s, m/s) for ``robot``."""
+    from rcci.models import load_robot
+
+    return LINE_RATE_SHARE * np.asarray(load_robot(robot).max_velocity, float)
+
+
+def _line(kin, A: np.ndarray, B: np.ndarray, config, q_start: np.ndarray, rate_hz: float,
+          tip, linear: float, angular: float, steady: bool) -> np.ndarray:
+    """cartesian_line at the speeds given."""
     tool = tool_transform(tip)
     PA, PB = A @ tool, B @ tool
     rv = rotation_vector(PA[:3, :3].T @ PB[:3, :3])
@@ -248,23 +328,34 @@ def rotation_vector(R: np.ndarray) -> np.ndarray:
     return angle * k / np.linalg.norm(k)
 
 
-def joint_line(qa: np.ndarray, qb: np.ndarray, rate_hz: float, speed: float = JOINT_SPEED) -> np.ndarray:
-    """Joint setpoints (N, 6) from qa to qb, every joint arriving together (cosine profile)."""
-    duration = max(float(np.max(np.abs(qb - qa))) / speed, 2.0 / rate_hz) * np.pi / 2
+JOINT_RATE_SHARE = 0.8   # a joint move's peak rate stays under this share of each joint's limit
+
+
+def joint_line(qa: np.ndarray, qb: np.ndarray, rate_hz: float, speed: float = JOINT_SPEED,
+               robot: str | None = None) -> np.ndarray:
+    """Joint setpoints (N, 6) from qa to qb, every joint arriving together (cosine profile),
+    each joint's peak rate ``speed`` at most, and with ``robot`` JOINT_RATE_SHARE of its limit
+    at most (the Stanford arm's joint 2 is limited to JOINT_SPEED itself)."""
+    cap = np.full(len(qa), speed) if robot is None else \
+        np.minimum(speed, JOINT_RATE_SHARE / LINE_RATE_SHARE * _line_rates(robot))
+    duration = max(float(np.max(np.abs(qb - qa) / cap)), 2.0 / rate_hz) * np.pi / 2
     n = int(np.ceil(duration * rate_hz)) + 1
     s = 0.5 - 0.5 * np.cos(np.pi * np.arange(n) / (n - 1))
     return qa + s[:, None] * (qb - qa)
 
 
-def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER,
+def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture | None = None,
                tip=TIP, robot: str = "puma260", name: str = "kinematics") -> TouchPlan:
-    """``n_per_face`` touches on each face of ``fixture``, shared among CONFIGS (a
-    configuration that reaches few points of a face leaves its share to the others),
-    grouped by face and configuration (so that the arm changes configuration at a hub only)."""
+    """``n_per_face`` touches on each face of ``fixture`` (default the arm's, ``fixture_for``),
+    shared among CONFIGS (a configuration that reaches few points of a face leaves its share
+    to the others), grouped by face and configuration (so that the arm changes configuration
+    at a hub only)."""
     from rcci.models import load_robot
     from rccl.kinematics import load
 
+    fixture = fixture_for(robot) if fixture is None else fixture
     kin = load(robot)
+    configs = arm_configs(kin)
     model = load_robot(robot)
     lower, upper = np.asarray(model.lower), np.asarray(model.upper)
     rng = np.random.default_rng(seed)
@@ -272,18 +363,18 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER
     touches: list[Touch] = []
     for fi, face in enumerate(fixture.faces):
         on_face = 0
-        for c, config in enumerate(CONFIGS):
-            group: list[Touch] = []
-            want = (n_per_face - on_face) // (len(CONFIGS) - c)
-            for _ in range(1500):
-                if len(group) >= want:
-                    break
-                p = np.array([rng.uniform(*r) for r in face.region])
-                R = _rotation(-np.asarray(face.normal, float), np.radians(rng.uniform(0, TILT_DEG)),
-                              rng.uniform(0, 2 * np.pi), rng.uniform(-np.pi, np.pi))
-                t = Touch(fi, p, R, config)
-                if _reachable(kin, t, fixture, tip, lower, upper, margin):
-                    group.append(t)
+        unasked = []
+        for c, config in enumerate(configs):
+            want = (n_per_face - on_face) // (len(configs) - c)
+            if want == 0:
+                unasked.append(config)
+            group = _draw_group(kin, rng, fi, fixture, config, want, tip, lower, upper, margin)
+            on_face += len(group)
+            touches += _nearest_first(group, face.hub)
+        # a few touches per face leave the first configurations no share (1 // 4 == 0): when the
+        # ones tried reach no point, the face gets its touches from those not yet asked
+        for config in unasked if on_face == 0 else ():
+            group = _draw_group(kin, rng, fi, fixture, config, n_per_face - on_face, tip, lower, upper, margin)
             on_face += len(group)
             touches += _nearest_first(group, face.hub)
         if on_face == 0:
@@ -293,6 +384,23 @@ def touch_plan(n_per_face: int = 16, seed: int = 1985, fixture: Fixture = CORNER
             "probe_bit": PROBE_BIT, "plan_seed": seed, "touches": len(touches),
             "slow_speed": SLOW, "simula_env": simula_words(fixture, tip)}
     return TouchPlan(name, fixture, touches, tuple(tip), PROBE_BIT, TOUCH_RATE_HZ, meta)
+
+
+def _draw_group(kin, rng, fi: int, fixture: Fixture, config, want: int, tip, lower, upper,
+                margin) -> list[Touch]:
+    """Up to ``want`` reachable touches of face ``fi`` in ``config``, from 1500 random draws at most."""
+    face = fixture.faces[fi]
+    group: list[Touch] = []
+    for _ in range(1500):
+        if len(group) >= want:
+            break
+        p = np.array([rng.uniform(*r) for r in face.region])
+        R = _rotation(-np.asarray(face.normal, float), np.radians(rng.uniform(0, TILT_DEG)),
+                      rng.uniform(0, 2 * np.pi), rng.uniform(-np.pi, np.pi))
+        t = Touch(fi, p, R, config)
+        if _reachable(kin, t, fixture, tip, lower, upper, margin):
+            group.append(t)
+    return group
 
 
 def _reachable(kin, t: Touch, fixture: Fixture, tip, lower, upper, margin) -> bool:
@@ -417,6 +525,12 @@ def _route(kin, touches: list[Touch], fixture: Fixture, tip, lower, upper, margi
             path = cartesian_line(kin, kin.fk(qb), standoff, config, qb, rate, tip)
             if np.any(path < lower + margin) or np.any(path > upper - margin):
                 continue        # not reachable without leaving a joint's range: dropped
+        # the way back to the face's hub, which the program takes before a touch elsewhere and at
+        # the end (a wound-up wrist can leave its range on it: the PUMA 560's joint 6 did)
+        back = cartesian_line(kin, kin.fk(path[-1]), pose_t6(fixture.faces[t.face].hub, t.rotation, tip),
+                              config, path[-1], rate, tip)
+        if np.any(back < lower + margin) or np.any(back > upper - margin):
+            continue
         t = Touch(t.face, t.point, t.rotation, t.config, via_hub=not straight)
         out.append(t)
         q = path[-1]

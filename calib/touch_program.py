@@ -56,7 +56,7 @@ def _steps(plan: TouchPlan, kin) -> list[Step]:
     def to_hub(t, where):
         def build(q: np.ndarray) -> np.ndarray:
             route = joint_route(kin, q, hub_pose(kin, t, fx, tip), fx, tip, f"the way to {where}")
-            return np.vstack([joint_line(a, b, rate) for a, b in zip(route, route[1:])])
+            return np.vstack([joint_line(a, b, rate, robot=kin.ROBOT) for a, b in zip(route, route[1:])])
         return build
 
     prev = None
@@ -109,7 +109,7 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
     def to_first_hub(q: np.ndarray) -> np.ndarray:
         route = joint_route(kin, q, hub_pose(kin, plan.touches[0], plan.fixture, plan.tip),
                             plan.fixture, plan.tip, "the move from the arm's pose to the first touch")
-        return np.vstack([joint_line(a, b, rate) for a, b in zip(route, route[1:])])
+        return np.vstack([joint_line(a, b, rate, robot=kin.ROBOT) for a, b in zip(route, route[1:])])
     state = {"step": -1, "k": 0, "sp": None, "q": None, "error": None, "power": False, "rec_off": False}
     done = threading.Event()
     rec, session = open_measurement(url, robot, rate, log_path, meta, timeout,

@@ -154,6 +154,21 @@ def test_gravity_fit_recovers_table_4_9_and_the_repeat_matters():
     assert len(res.rows) == 10  # five positions, both directions
 
 
+def test_a_sweeps_two_directions_are_one_observation():
+    """The + and - rows of a sweep (opposite regressor rows, opposite errors: a drift both passes
+    share) are averaged into one observation; the fit's degrees of freedom count sweeps, and a
+    row without its opposite stays an observation of its own."""
+    from rcci.calib.gravity import GravityRow, sweep_observations
+
+    r = np.array([0.8, -0.3, 0.1])
+    rows = [GravityRow("a", 2, 1, 2.0 + 0.01, 2.0, r, r, 1), GravityRow("a", 2, -1, -2.0 - 0.01, -2.0, -r, -r, 1),
+            GravityRow("b", 3, 1, 0.5, 0.5, 2 * r, 2 * r, 1)]
+    A, y, joint = sweep_observations(rows, True, 3)
+    assert A.shape == (2, 3) and joint.tolist() == [2, 3]
+    assert np.allclose(A[0], r) and y[0] == pytest.approx(2.01)    # the shared error stays, once
+    assert np.allclose(A[1], 2 * r) and y[1] == 0.5
+
+
 def test_missing_metadata_names_the_file_and_key():
     rng = np.random.default_rng(5)
     t, q = sweep(np.zeros(6), 0, -0.5, 0.5, [0.5])

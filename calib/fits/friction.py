@@ -9,7 +9,7 @@ from rcci.calib.fitting import FitOutcome, merge_joint_values
 from rcci.calib.friction import fit_friction
 from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
 from rcci.calib.report import SD
-from rcci.calib.tables import table_4_2_4_3
+from rcci.calib.tables import slide_note, table_4_2_4_3
 
 #: the per-joint keys this fit writes to [friction], and how each comes from a joint's result
 FITTED = (("coulomb_pos", lambda r: r.plus.coulomb), ("coulomb_neg", lambda r: r.minus.coulomb),
@@ -31,7 +31,8 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     for key, get in FITTED:
         sec[key] = merge_joint_values(old, key, js, [get(r) for r in res])
     sec["error_is"] = "99.73 % (3 sd; Student's t for few passes; F_c with the position pattern's window mean)"
-    return FitOutcome("friction", table_4_2_4_3(res), {"friction": sec}, res, {"points": points})
+    text = "\n".join([table_4_2_4_3(res), *slide_note(info.kinds, js, "friction")])
+    return FitOutcome("friction", text, {"friction": sec}, res, {"points": points})
 
 
 def _window_gravity(res, traces, info, params, notes) -> list:
@@ -88,7 +89,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          f"fit +- {SD}: the fit's standard deviation combined with that of the position pattern's "
          "mean over the window (the Table 4.4 variation is the same on every pass, so no fit of "
          "speeds tells its window mean from F_c; estimated from the measured profile as the mean "
-         "a window placed at random along the pattern would carry, docs/calib.md).", "",
+         "a window placed at random along the pattern would carry, docs/calib.md).",
+         *slide_note(ctx.info.kinds, [r.joint for r in res], "friction"), "",
          "| joint | dir | thesis | truth | fit (+- " + SD + ") | of which pattern (1 sd) | abs(fit - truth) "
          "| within thesis bound | within fit error |",
          "|---|---|---|---|---|---|---|---|---|"]

@@ -72,7 +72,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     L += ["", "## Table 4.9: gravity loading coefficients (N m)", "",
           f"fit +- error: sqrt(({g.factor:.2f} sd of the fit)^2 + (half the difference of the two "
           "directions' fits)^2), the thesis's combination (4.5.6) with the fit's part a 99.73 % "
-          "interval (Student's t; the thesis printed 2 sd).", "",
+          "interval (Student's t of the sweeps less the coefficients: a sweep's two directions are "
+          "one observation, they share their errors; the thesis printed 2 sd).", "",
           "| coefficient | thesis | thesis friction error | truth | fit | fit friction error | abs(fit - truth) "
           "| within thesis bound | within fit error |",
           "|---|---|---|---|---|---|---|---|---|"]
@@ -88,10 +89,17 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     return L + [""]
 
 
-def plans(info, speed_deg: float = 20.0, extra: int = 2) -> list:
+# Sweeps beyond the fewest that identify the coefficients, on an arm Table 4.7 does not serve:
+# the fit's degrees of freedom (a sweep is one observation, rcci.calib.gravity.sweep_observations),
+# 8 for Student's t of 4.3 (2 would give 19: intervals ten times the scatter)
+EXTRA_SWEEPS = 8
+
+
+def plans(info, speed_deg: float = 20.0, extra: int = EXTRA_SWEEPS) -> list:
     """The gravity sweeps for the arm of ``info`` (rcci.calib.experiments.gravity_plans): Table 4.7's
-    where they identify its coefficients, else sweeps chosen by its regressor, each joint's
-    rows weighted by its data-file friction (what remains of it in W1 - W2)."""
+    where they identify its coefficients, else sweeps chosen by its regressor (``extra``
+    beyond the fewest), each joint's rows weighted by its data-file friction (what remains
+    of it in W1 - W2)."""
     from rcci.calib.experiments import gravity_plans
 
     fr = info.nominal["friction"]

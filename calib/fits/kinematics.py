@@ -27,7 +27,7 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     if len(t.q) < 4 * len(nominal_dh(info.name)):
         notes.append(f"{len(t.q)} touches for {4 * len(nominal_dh(info.name))} error parameters: "
                      "parameters beyond what they determine are left at their minimum-norm values")
-    fit_ = fit_touches(nominal_dh(info.name), t)
+    fit_ = fit_touches(nominal_dh(info.name), t, kinds=info.kinds)
     sec = section(fit_)
     sec["tip"] = [float(x) for x in t.tip]
     return FitOutcome("kinematics", table(fit_), {"kinematics": sec}, fit_, {"touches": t})

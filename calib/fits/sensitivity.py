@@ -7,7 +7,7 @@ from rcci.calib.fitting import FitOutcome, merge_joint_values
 from rcci.calib.registry import FitKind, RecordRequest, RegenContext, ReportContext
 from rcci.calib.report import joint_truth, nominal_vector
 from rcci.calib.sensitivity import fit_sensitivity
-from rcci.calib.tables import table_4_1
+from rcci.calib.tables import slide_note, table_4_1
 
 RADIUS_M = 0.05  # pulley drum radius (estimate: a 10 cm drum, Figure 4.2 is lost)
 KEYS = ("torque_sensitivity", "torque_sensitivity_std", "torque_sensitivity_error", "torque_sensitivity_trials")
@@ -20,8 +20,9 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     values = (lambda r: r.mean, lambda r: r.std, lambda r: r.independent_error, lambda r: r.trials)
     sec = {key: merge_joint_values(old, key, joints, [get(r) for r in res]) for key, get in zip(KEYS, values)}
     sec["torque_sensitivity_trials"] = [int(x) if np.isfinite(x) else 0 for x in sec["torque_sensitivity_trials"]]
-    sec["unit"] = "N*m/A"
-    return FitOutcome("sensitivity", table_4_1(res), {"motors": sec}, res)
+    sec["unit"] = "N*m/A"          # N/A on a prismatic joint (rcci.calib.tables.slide_note)
+    text = "\n".join([table_4_1(res), *slide_note(info.kinds, joints, "sensitivity")])
+    return FitOutcome("sensitivity", text, {"motors": sec}, res)
 
 
 def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
@@ -31,7 +32,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "The fit's independent error is the thesis's kind (4.5.2): the relative uncertainties of "
          "the mass, the drum radius and the current scale V_g / R_i combined, an a priori bound, not "
          "a 99.73 % interval; the fit std is one standard deviation of the trials (the 99.73 % error "
-         "of the mean that later fits inherit is Student's t x std / sqrt(trials)).", "",
+         "of the mean that later fits inherit is Student's t x std / sqrt(trials)).",
+         *slide_note(ctx.info.kinds, [r.joint for r in out.results], "sensitivity"), "",
          "| joint | thesis mean | thesis indep. error (a priori bound) | truth | fit mean | fit std (1 sd) | trials "
          "| fit indep. error (a priori bound) | abs(fit - truth) | within thesis bound | within fit error |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
