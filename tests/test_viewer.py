@@ -126,7 +126,7 @@ def test_the_replay_draws_the_collision_shapes_on_request(tmp_path):
     assert green.mean() > 0.02, f"{green.mean():.4f} of the picture is the shapes' green {COLLISION_COLOR}"
 
 
-@pytest.mark.parametrize("robot", ["puma260", "stanford"])
+@pytest.mark.parametrize("robot", ["puma260", "stanford", "panda"])
 def test_the_collision_shapes_ride_on_their_links(robot):
     """The view places each collision shape on its link once; at any q the link's pose times that placement is
     where rccl.collision puts the shape (what the path checks use)."""
@@ -147,8 +147,9 @@ def test_the_collision_shapes_ride_on_their_links(robot):
         view.close()
 
 
-@pytest.mark.parametrize("robot", ["puma260", "microbo"])
+@pytest.mark.parametrize("robot", ["puma260", "microbo", "panda"])
 def test_the_view_draws_link_6_where_the_kinematics_put_it(robot):
+    """The last link (link 6; link 7 of the Panda) where the generated fk puts it."""
     import rccl.kinematics
 
     from rcci.view.scene import ArmTree
@@ -159,7 +160,7 @@ def test_the_view_draws_link_6_where_the_kinematics_put_it(robot):
     rng = np.random.default_rng(18)
     for _ in range(20):
         q = rng.uniform(model.lower, model.upper)
-        assert np.allclose(tree.link_poses(q)["link6"], kin.fk(q), atol=1e-9)
+        assert np.allclose(tree.link_poses(q)[f"link{model.n_joints}"], kin.fk(q), atol=1e-9)
 
 
 def _corner(name: str, x: float, y: float, z: float):
@@ -216,3 +217,24 @@ def test_the_view_commands_explain_themselves(cmd, needles):
     assert r.returncode == 0, r.stderr
     for n in needles:
         assert n in r.stdout
+
+
+def test_the_view_shows_the_panda_and_its_collision_shapes(tmp_path):
+    """The 7-joint Panda in the view at its ready pose, drawn from models/urdf/panda.urdf (the
+    arm's orange), and with the collision shapes of models/collision/panda.toml on request (their
+    translucent green over it). docs/panda-view.png was taken the same way (ArmView('panda', collision=True) at
+    the ready pose, rcci.view.screenshot.screenshot at its default 1200 x 800)."""
+    from rcci.view.scene import ArmView
+    from rcci.view.screenshot import screenshot
+
+    shots = {}
+    for collision in (False, True):
+        view = ArmView("panda", port=0, collision=collision, q=load_robot("panda").poses["ready"])
+        try:
+            shots[collision] = pixels(screenshot(view.url, tmp_path / f"panda-{collision}.png", size=SIZE)).astype(int)
+        finally:
+            view.close()
+    assert arm_orange(shots[False]).mean() > 0.01
+    picture = shots[True]
+    green = (picture[..., 1] - np.maximum(picture[..., 0], picture[..., 2])) > 12
+    assert green.mean() > 0.02
