@@ -198,3 +198,14 @@ def _rz(q: sp.Expr) -> sp.Matrix:
     """Rot(z, q) as a 4x4 transform."""
     c, s = sp.cos(q), sp.sin(q)
     return sp.Matrix([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+
+def ik_kernels(derivation) -> list:
+    """The plug-in of derive.redundant (the 7-joint derivation): the ``ik`` and
+    ``config_indicators`` kernels of ``derivation.spec``'s arm (derive.redundant_kernels
+    builds them; ``ik_all`` is added by the C lowering, derive.lowering)."""
+    from derive.redundant_kernels import build
+
+    spec = derivation.spec
+    ks = build(redundant_ik(spec.dh), dict(spec.params), spec.name)
+    return [k for k in ks if k.name in ("ik", "config_indicators")]
