@@ -67,15 +67,24 @@ def measure(n_calls: int, n_batch: int, seed: int = 11) -> dict:
         return data.oMf[fid]
 
     out["pin_fk"] = timed(pin_fk, n_calls)
+    small = 100  # below the size the C runtime splits over threads
+    ts_s, vs_s = ts[:small].copy(), qs[:small, 6].copy()
+    per = [0.0] * 200
+    for i in range(len(per)):
+        t0 = time.perf_counter()
+        cm.ik_all(ts_s, vs_s)
+        per[i] = (time.perf_counter() - t0) / small * 1e6
+    out["c_ik_all_small"] = (float(np.median(per)), small)
     tb, vb = ts[:n_batch], qs[:n_batch, 6].copy()
     cm.ik_all(tb, vb)
     t0 = time.perf_counter()
     qa, ga = cm.ik_all(tb, vb)[:2]
     out["c_ik_all_batch"] = (time.perf_counter() - t0) / n_batch * 1e6
+    out["threads"] = cm.threads()
     valid = (ga >= 0).all(axis=-1)
-    back = cm.fk(qa.reshape(-1, 7))[0].reshape(n_batch, 8, 4, 4)
+    back = cm.fk(qa[valid])[0]
     out["valid_per_pose"] = float(valid.sum(axis=1).mean())
-    out["max_err"] = float(np.abs(back - tb[:, None])[valid].max())
+    out["max_err"] = float(np.abs(back - np.broadcast_to(tb[:, None], qa.shape[:2] + (4, 4))[valid]).max())
     found = np.abs((qa - qs[:n_batch, None] + np.pi) % (2 * np.pi) - np.pi).max(axis=-1) < 1e-9
     out["drawn_found"] = float((found & valid).any(axis=1).mean())
     out["n_batch"] = n_batch
@@ -106,8 +115,10 @@ def report(m: dict, seconds: float, load: tuple[float, float]) -> str:
         row("Panda fk (flange), Pinocchio, same run", "pin_fk",
             "`pin.framesForwardKinematics` + `oMf[link7]`"),
         "",
-        f"Batched: `ik_all` of {m['n_batch']} poses (each its own q7) in one call of the compiled "
-        f"kernel: {m['c_ik_all_batch']:.3f} us per pose. Valid branches per pose (all guards >= 0, "
+        f"Batched, the compiled `ik_all` with each pose its own q7: {m['c_ik_all_small'][0]:.3f} us per "
+        f"pose for {m['c_ik_all_small'][1]} poses in one call (median of 200 calls, one thread); "
+        f"{m['c_ik_all_batch']:.3f} us per pose for {m['n_batch']} poses in one call (split over "
+        f"{m['threads']} threads, which a loaded machine slows). Valid branches per pose (all guards >= 0, "
         f"before joint ranges): {m['valid_per_pose']:.2f} on average; the drawn q among them for "
         f"{100 * m['drawn_found']:.1f} % of the poses; largest |fk(solution) - T| element "
         f"{m['max_err']:.2g}.", "",
