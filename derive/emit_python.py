@@ -189,6 +189,17 @@ def _kernel_table(kernels: list[Kernel]) -> str:
     return "\n".join(lines)
 
 
+def kernels_source(kernels: list[Kernel]) -> str:
+    """The kernels' straight-line functions (one configuration and batched) and their
+    ``_KERNELS`` table, as a generated module prints them (a module of its own uses this:
+    derive.redundant_kernels)."""
+    funcs = []
+    for k in kernels:
+        lowered = _lower(k)
+        funcs += [_function(k, lowered, many=False), _function(k, lowered, many=True)]
+    return "\n\n\n".join(funcs) + "\n\n\n" + _kernel_table(kernels)
+
+
 def _coefficient_names(kernels: list[Kernel]) -> tuple[str, ...]:
     """The gravity coefficients' names, as the gravity kernel takes them."""
     k = next(k for k in kernels if k.name == "gravity")

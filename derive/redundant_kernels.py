@@ -17,22 +17,21 @@ support (the panda branch) emits the arm's whole module, this is a module of its
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
 import sympy as sp
 
 from derive import emit_c
-from derive.dh import DHLink, DHRobot, _angle, _length, a_matrix
-from derive.emit_python import _function, _kernel_table, _lower
-from derive.inverse import POSE_INPUT
-from derive.inverse_redundant import CONFIG_FIELDS, FREE, Q7, RedundantIK, redundant_ik
-from derive.kernel import Arg, Guard, Kernel
+from derive.dh import DHLink, DHRobot, a_matrix
+from derive.emit_python import kernels_source
+from derive.inverse_redundant import PI, Q7, RedundantIK, redundant_ik, solver_kernels
+from derive.kernel import Arg, Kernel
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "rccl" / "kinematics"
 COMMAND = "python -m derive.redundant_kernels"
-PI = sp.Float(sp.pi.evalf(20), 20)
 
 
 def table(name: str) -> tuple[DHRobot, dict[sp.Symbol, float]]:
@@ -56,35 +55,35 @@ def table(name: str) -> tuple[DHRobot, dict[sp.Symbol, float]]:
     return DHRobot(model.name, tuple(links), tuple(params)), params
 
 
+def _length(value: float, name: str, params: dict[sp.Symbol, float]) -> sp.Expr:
+    """0 stays 0, any other length (m) the symbol ``name`` with its sign (as derive.dh's tables)."""
+    if value == 0.0:
+        return sp.Integer(0)
+    sym = sp.Symbol(name, positive=True) if value > 0 else sp.Symbol(name, negative=True)
+    params[sym] = float(value)
+    return sym
+
+
+def _angle(value: float, name: str, params: dict[sp.Symbol, float]) -> sp.Expr:
+    """A whole number of degrees exact (90 deg = pi/2), any other angle (rad) a symbol."""
+    deg = math.degrees(value)
+    if abs(deg - round(deg)) < 1e-9:
+        return sp.Integer(round(deg)) * sp.pi / 180
+    sym = sp.Symbol(name, real=True)
+    params[sym] = float(value)
+    return sym
+
+
 def build(ik: RedundantIK, params: dict[sp.Symbol, float], robot: str) -> list[Kernel]:
     """fk, ik, config_indicators and ik_all of one redundant arm (``robot`` names the module)."""
-    q = sp.Matrix(Q7)
-    qarg = Arg("q", q, "joint variables (rad)")
     t = sp.eye(4)
     for link in ik.robot.links:
         t = t * a_matrix(link)
-
-    def kernel(name, doc, inputs, outputs, guards=(), source=""):
-        # pi (from atan2 of constant coefficients) as a number: the C printer takes no symbol pi
-        outputs = [Arg(o.name, o.value.xreplace({sp.pi: PI}), o.doc) for o in outputs]
-        guards = [Guard(g.name, g.expr.xreplace({sp.pi: PI}), g.error, g.message) for g in guards]
-        used = set().union(*(o.value.free_symbols for o in outputs), *(g.expr.free_symbols for g in guards))
-        return Kernel(robot, name, doc, tuple(inputs), tuple(outputs), tuple(guards),
-                      {s: v for s, v in params.items() if s in used}, source)
-
-    ks = [
-        kernel("fk", "T: frame 7 (the flange) in the base frame (4x4 homogeneous transform, m)",
-               [qarg], [Arg("T", t, "base_to_flange")], source="3.16-3.18"),
-        kernel("ik", "joint variables for pose T and free value q7 in one configuration (signs +-1: "
-               + ", ".join(CONFIG_FIELDS) + ")",
-               [Arg("T", POSE_INPUT, "base_to_flange"), Arg("q7", sp.Matrix([FREE]), "joint 7 (rad)"),
-                Arg("config", sp.Matrix(ik.config), "configuration signs")],
-               [Arg("q", sp.Matrix(ik.joints), "joint variables")],
-               [Guard(*g) for g in ik.guards], source="3.19-3.21"),
-        kernel("config_indicators", "values whose signs are the configuration of q ("
-               + ", ".join(CONFIG_FIELDS) + ")", [qarg],
-               [Arg("indicator", sp.Matrix(ik.indicators), "sign = configuration")], source="3.21"),
-    ]
+    fk = Kernel(robot, "fk", "T: frame 7 (the flange) in the base frame (4x4 homogeneous transform, m)",
+                (Arg("q", sp.Matrix(Q7), "joint variables (rad)"),),
+                (Arg("T", t.xreplace({sp.pi: PI}), "base_to_flange"),), (),
+                {s: v for s, v in params.items() if s in t.free_symbols}, "3.16-3.18")
+    ks = [fk] + solver_kernels(ik, params, robot)
     from derive.lowering import all_configurations_kernels
 
     return ks + all_configurations_kernels(ks)  # ik_all: every config of ik (the Python module's)
@@ -102,7 +101,8 @@ from derive/inverse_redundant.py; do not edit.
 
 ``ik(T, config, q_ref=None, q7=...)``, ``ik_all(T, q7, q_ref=None)``, ``config_of(q)`` and the
 ``fk`` they check against (T = frame 7, the flange, in the base frame; SI units, radians);
-runtime: rccl.kinematics.redundant_ik.
+runtime: rccl.kinematics.redundant_ik. Why this module is long: the straight-line kernels
+are written out (generated code, one and batched per kernel).
 """
 # fmt: off
 # ruff: noqa
@@ -125,15 +125,11 @@ UPPER = numpy.array({[float(x) for x in upper]!r})
 Config = _red.RedundantConfig
 CONFIGS = Config.all()
 '''
-    funcs = []
-    for k in kernels:
-        lowered = _lower(k)
-        funcs += [_function(k, lowered, many=False), _function(k, lowered, many=True)]
     tail = '''
 _ROBOT = _red.RedundantRobot(ROBOT, _KERNELS, LOWER, UPPER)
 fk, ik, ik_all, config_of = _ROBOT.fk, _ROBOT.ik, _ROBOT.ik_all, _ROBOT.config_of
 '''
-    return head + "\n\n" + "\n\n\n".join(funcs) + "\n\n\n" + _kernel_table(kernels) + "\n" + tail
+    return head + "\n\n" + kernels_source(kernels) + "\n" + tail
 
 
 def write(name: str, out_dir: Path = OUT_DIR) -> list[Path]:

@@ -3,7 +3,8 @@ from derive/inverse_redundant.py; do not edit.
 
 ``ik(T, config, q_ref=None, q7=...)``, ``ik_all(T, q7, q_ref=None)``, ``config_of(q)`` and the
 ``fk`` they check against (T = frame 7, the flange, in the base frame; SI units, radians);
-runtime: rccl.kinematics.redundant_ik.
+runtime: rccl.kinematics.redundant_ik. Why this module is long: the straight-line kernels
+are written out (generated code, one and batched per kernel).
 """
 # fmt: off
 # ruff: noqa

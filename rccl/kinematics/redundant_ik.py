@@ -22,13 +22,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from rccl.kinematics import exceptions
-from rccl.kinematics.runtime import SAME_SOLUTION_TOL, Robot, SignedConfig, _fmt_pose, _wrap
+from rccl.kinematics.runtime import SAME_SOLUTION_TOL, Robot, SignedConfig
 
 #: largest |fk(q) - T| element (m for the position, 1 for the rotation) a returned solution may have
 REPRODUCE_TOL = 1e-9
 #: slack (rad) on the joint ranges for rounding at a range's end
 RANGE_TOL = 1e-12
 _SINGULAR = "Singular"
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    """Angles (rad) into [-pi, pi)."""
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+def _fmt_pose(t: np.ndarray) -> str:
+    return np.array2string(np.asarray(t), precision=6, suppress_small=True, separator=", ").replace("\n", "")
 
 
 @dataclass(frozen=True)
