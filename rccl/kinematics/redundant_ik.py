@@ -53,6 +53,10 @@ class RedundantConfig(SignedConfig):
     wrist: int = 1
 
 
+#: every configuration, in the order of the ik_all kernel's rows
+_CONFIGS = RedundantConfig.all()
+
+
 class RedundantRobot(Robot):
     """The generated kernels of one redundant arm with the checks of the module doc."""
 
@@ -104,7 +108,9 @@ class RedundantRobot(Robot):
 
     def _reproduces(self, q: np.ndarray, t: np.ndarray, context) -> None:
         """Raise KinematicsError unless fk(q) equals t within REPRODUCE_TOL (q (..., 7), t (..., 4, 4))."""
-        (tq,), _, _ = self.raw("fk", q)
+        with np.errstate(all="ignore"):
+            tq = self.kernels["fk"].many(q if q.ndim == 2 else q[None])[0]  # q finite: from a checked solve
+        tq = tq if q.ndim == 2 else tq[0]
         err = np.abs(np.asarray(tq)[..., :3, :] - t[..., :3, :]).reshape(q.shape[:-1] + (12,)).max(axis=-1)
         if np.any(~(err <= REPRODUCE_TOL)):
             i = int(np.argmax(np.atleast_1d(~(err <= REPRODUCE_TOL))))
@@ -152,31 +158,30 @@ class RedundantRobot(Robot):
         batch = t.ndim == 3
         t3, v1 = (t, v) if batch else (t[None], v[None])
         ref2 = None if ref is None else (ref if batch else ref[None])
-        configs = RedundantConfig.all()
-        k = self.kernels["ik"]
+        configs = _CONFIGS
         with np.errstate(all="ignore"):
             if self.ik_all_kernel is not None:
                 q_all, g_all = self.ik_all_kernel(t3, v1)[:2]
             else:
                 (q_all, g_all), _, _ = self.raw("ik_all", t3, v1)
-        q_all, g_all = np.array(q_all), np.asarray(g_all)
-        ok = (g_all >= 0).all(axis=-1) & np.isfinite(q_all).all(axis=-1)
-        singular = [i for i, g in enumerate(k.guards) if g.error == _SINGULAR]
-        reach = [i for i, g in enumerate(k.guards) if g.error != _SINGULAR]
-        reachable = (g_all[..., reach] >= 0).all(axis=-1)
-        for i, j in zip(*np.nonzero(~ok & reachable)):  # a reachable branch failing a Singular guard
-            self.ik(t3[i], configs[j], q7=v1[i])  # raises Singular with the message
+            q_all, g_all = np.array(q_all), np.asarray(g_all)
+            ok = (g_all >= 0).all(axis=-1) & np.isfinite(q_all).all(axis=-1)
+            if not ok.all():
+                reach = [i for i, g in enumerate(self.kernels["ik"].guards) if g.error != _SINGULAR]
+                for i, j in zip(*np.nonzero(~ok & (g_all[..., reach] >= 0).all(axis=-1))):
+                    self.ik(t3[i], configs[j], q7=v1[i])  # reachable but singular: raises Singular
         q_all, in_range = self._in_range(q_all, None if ref2 is None else ref2[:, None, :])
         ok &= in_range
         if ok.any():
             self._reproduces(q_all[ok], np.broadcast_to(t3[:, None], q_all.shape[:2] + (4, 4))[ok],
                              lambda i: "in ik_all")
+        # equal solutions (2 pi apart on a joint) kept once: pairwise over the configurations
+        same = (np.abs(_wrap(q_all[:, :, None, :] - q_all[:, None, :, :])) < SAME_SOLUTION_TOL).all(axis=-1)
         out = []
-        for i in range(t3.shape[0]):
+        for ok_i, same_i, q_i in zip(ok.tolist(), same.tolist(), q_all):
             kept: list[int] = []
-            for j in np.nonzero(ok[i])[0]:
-                d = _wrap(q_all[i, kept] - q_all[i, j])
-                if not np.any(np.all(np.abs(d) < SAME_SOLUTION_TOL, axis=-1)):
-                    kept.append(int(j))
-            out.append([(configs[j], q_all[i, j].copy()) for j in kept])
+            for j in range(len(configs)):
+                if ok_i[j] and not any(same_i[j][k] for k in kept):
+                    kept.append(j)
+            out.append([(configs[j], q_i[j].copy()) for j in kept])
         return out if batch else out[0]
