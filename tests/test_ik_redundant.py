@@ -164,3 +164,56 @@ def test_class_reasons_name_what_a_table_misses():
     with pytest.raises(OutsideClass, match="axes 5 and 6"):
         redundant_ik(bad)
     assert class_reasons(DHRobot("six", tuple(links[:6]), r.params)) == ["7 joints (the table has 6)"]
+
+
+def _frames(q):
+    """Frames 1..7 of the standard-DH table in the base frame, numerically (4, 4) each."""
+    t, out = np.eye(4), []
+    for j, qi in zip(load_robot("panda").joints, q):
+        ct, st, ca, sa = np.cos(qi), np.sin(qi), np.cos(j.alpha), np.sin(j.alpha)
+        t = t @ np.array([[ct, -st * ca, st * sa, j.a * ct], [st, ct * ca, -ct * sa, j.a * st],
+                          [0.0, sa, ca, j.d], [0.0, 0.0, 0.0, 1.0]])
+        out.append(t)
+    return out
+
+
+@pytest.mark.parametrize("axis, words", [(4, "joint-5 axis")])
+def test_shoulder_point_on_a_wrist_axis_is_singular(axis, words):
+    """S = (0, 0, d1) on the axis of joint 5 (z4 through W): found by a least-squares search
+    over q, then ik of its pose and q7 raises Singular naming the axis. (On the joint-6 axis
+    S cannot be on the Panda: test_shoulder_point_never_on_the_joint6_axis.)"""
+    from scipy.optimize import least_squares
+
+    s = np.array([0.0, 0.0, load_robot("panda").joints[0].d])
+
+    def off_axis(q):
+        f = _frames(q)
+        w, z = f[4][:3, 3], f[axis - 1][:3, 2]
+        return np.cross(s - w, z)
+
+    fit = least_squares(off_axis, np.array([0.2, 0.3, 0.1, -1.8, 0.4, 1.5, 0.3]), xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    q = fit.x
+    assert np.abs(off_axis(q)).max() < 1e-12
+    t = MOD.fk(q)
+    with pytest.raises(exceptions.Singular, match=words):
+        for cfg in MOD.Config.all():  # the branch of q is singular (others may be unreachable)
+            try:
+                MOD.ik(t, cfg, q7=float(q[6]))
+            except exceptions.Unreachable:
+                continue
+
+
+def test_shoulder_point_never_on_the_joint6_axis():
+    """The joint-6 axis lies in the plane z4 = d5 of frame 4 and S's height there, S4z(q4), stays
+    within +-sqrt(a3^2 + d3^2) < d5 on the Panda: guard_axis6 is for other tables of the class."""
+    import sympy as sp
+
+    from derive.inverse_redundant import Q7, redundant_ik
+    from derive.redundant_kernels import table
+
+    r, params = table("panda")
+    s4z = sp.lambdify(Q7[3], redundant_ik(r).named["S4"][2].subs(params))
+    q4 = np.linspace(-np.pi, np.pi, 4001)
+    height = np.array([float(s4z(x)) for x in q4])
+    d5 = load_robot("panda").joints[4].d
+    assert np.abs(height).max() < d5 - 0.05
