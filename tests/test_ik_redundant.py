@@ -217,3 +217,14 @@ def test_shoulder_point_never_on_the_joint6_axis():
     height = np.array([float(s4z(x)) for x in q4])
     d5 = load_robot("panda").joints[4].d
     assert np.abs(height).max() < d5 - 0.05
+
+
+def test_q_ref_keeps_the_reference_branch_and_bad_q_ref_is_named():
+    q = np.array([0.4, -0.6, 0.3, -1.8, 0.5, 1.6, -0.4])
+    t = MOD.fk(q)
+    cfg = MOD.config_of(q)
+    np.testing.assert_allclose(MOD.ik(t, cfg, q_ref=q + 0.01, q7=q[6]), q, atol=TOL)
+    sols = MOD.ik_all(t, q[6], q_ref=q)
+    assert any(np.abs(s - q).max() < TOL for _, s in sols)
+    with pytest.raises(exceptions.InvalidInput, match="q_ref"):
+        MOD.ik(t, cfg, q_ref=q[:6], q7=q[6])
