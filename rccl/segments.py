@@ -367,12 +367,12 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         raise ConfigurationChange(
             f"{where}: Cartesian mode cannot change the arm configuration from {cfg_b} to {p.config}; "
             "use setmod('joint') for this move")
-    p.dq = np.zeros(6)
+    p.dq = np.zeros(len(q_b))
     if dist < 1e-12 and p.theta < 1e-12:
         same = float(np.max(np.abs(t6_b - t6_c))) <= 1e-12
         p.q_dest = q_b.copy() if same else kin.ik(t6_c, p.config, q_b, where)
         p.t_lim = 0.0
-        p.v_start_dir = p.v_end_dir = np.zeros(6)
+        p.v_start_dir = p.v_end_dir = np.zeros(len(q_b))
         return p.finish(limits)
     n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
     lams = 1.0 - np.arange(1, n + 1) / n
@@ -448,10 +448,10 @@ def hold_plan(prev: Segment, req: Request, t6_b: np.ndarray, q_b: np.ndarray, li
     p.drive = drive_basis(p.d, p.k)
     p.basis = _t6_basis(p.x_c, p.drive, p.tool_inv, False)
     p.vt_dir = p.vr_dir = np.zeros(3)
-    p.dq = np.zeros(6)
+    p.dq = np.zeros(len(q_b))
     p.q_dest = q_b.copy()
     p.t_lim = 0.0
-    p.v_start_dir = p.v_end_dir = np.zeros(6)
+    p.v_start_dir = p.v_end_dir = np.zeros(len(q_b))
     return p.finish(limits)
 
 
