@@ -1,7 +1,9 @@
 """Runtime of a redundant 7-joint arm's closed-form inverse kinematics (q7 the free parameter).
 
-The generated module (``rccl/kinematics/<robot>_ik.py``, derive.redundant_kernels) holds the
-straight-line kernels; this module gives the contract's entries for a redundant arm:
+The arm's generated module (``rccl/kinematics/<robot>.py``, ``python -m derive``: the kernels of
+derive.inverse_redundant beside fk, Jacobians and dynamics) holds the straight-line kernels;
+this module gives the contract's entries for a redundant arm (the compiled fast entries of
+``ik``/``ik_all``, _c/kin_redundant.h, do the same checks in C and call these for the rest):
 
 * ``ik(T, config, q_ref=None, q7=...)``: q (7,) for the flange pose T (4, 4), the value of
   joint 7 (rad) and a :class:`RedundantConfig`; a batch of poses (N, 4, 4) with q7 a float
@@ -22,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rccl.kinematics import exceptions
-from rccl.kinematics.runtime import SAME_SOLUTION_TOL, Robot, SignedConfig
+from rccl.kinematics.runtime import RIGID_TOL, SAME_SOLUTION_TOL, Robot, SignedConfig
 
 #: largest |fk(q) - T| element (m for the position, 1 for the rotation) a returned solution may have
 REPRODUCE_TOL = 1e-9
@@ -60,14 +62,45 @@ _CONFIGS = RedundantConfig.all()
 class RedundantRobot(Robot):
     """The generated kernels of one redundant arm with the checks of the module doc."""
 
-    def __init__(self, name: str, kernels, lower, upper):
-        super().__init__(name, kernels, ("revolute",) * 7, lower, upper, RedundantConfig, ())
+    def __init__(self, name: str, kernels, kinds, lower, upper, config_type: type = RedundantConfig,
+                 coeff_names=()):
+        if tuple(kinds) != ("revolute",) * 7 or config_type is not RedundantConfig:
+            raise exceptions.InvalidInput(f"{name}: the redundant inverse needs 7 revolute joints and "
+                                          f"RedundantConfig, got {tuple(kinds)} and {config_type.__name__}")
+        super().__init__(name, kernels, kinds, lower, upper, config_type, coeff_names)
 
     def _find_ik_all(self):
         from rccl.kinematics import backend
 
         n_cfg, n_guard = len(RedundantConfig.all()), len(self.kernels["ik"].guards)
         return backend.kernel(self.name, "ik_all", ((4, 4), ()), ((n_cfg, 7), (n_cfg, n_guard)))
+
+    def public_entries(self) -> dict:
+        """ik, ik_all and config_of as the contract's public functions: ik and ik_all the
+        compiled fast entries (rccl/kinematics/_c/kin_redundant.h: the same checks in C, this
+        class's methods behind them for every other call and every error) when the module's
+        C kernels are built, else these methods."""
+        from rccl.kinematics import backend
+
+        singular = tuple(g.error == _SINGULAR for g in self.kernels["ik"].guards)
+        return backend.public_redundant_ik(
+            self.name, {"ik": self.ik, "ik_all": self.ik_all, "config_of": self.config_of}, self.kernels,
+            self.config_type, self.lower, self.upper, singular,
+            (RIGID_TOL, SAME_SOLUTION_TOL, RANGE_TOL, REPRODUCE_TOL))
+
+    def _every_config(self, t3: np.ndarray, v1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q (N, 8, 7), guards (N, 8, n_guard)) of every configuration: the compiled ik_all
+        kernel, or the ik kernel once per configuration (the Python kernels)."""
+        if self.ik_all_kernel is not None:
+            q_all, g_all = self.ik_all_kernel(t3, v1)[:2]
+            return np.array(q_all), np.asarray(g_all)
+        qs, gs = [], []
+        for cfg in _CONFIGS:
+            signs = np.broadcast_to(np.array(cfg.signs, dtype=float), (t3.shape[0], 3))
+            (q,), guards, _ = self.raw("ik", t3, v1, signs)
+            qs.append(np.asarray(q))
+            gs.append(np.stack([np.asarray(g) for g in guards], axis=-1))
+        return np.stack(qs, axis=1), np.stack(gs, axis=1)
 
     def _free(self, q7, t: np.ndarray, where: str) -> np.ndarray:
         try:
@@ -160,11 +193,7 @@ class RedundantRobot(Robot):
         ref2 = None if ref is None else (ref if batch else ref[None])
         configs = _CONFIGS
         with np.errstate(all="ignore"):
-            if self.ik_all_kernel is not None:
-                q_all, g_all = self.ik_all_kernel(t3, v1)[:2]
-            else:
-                (q_all, g_all), _, _ = self.raw("ik_all", t3, v1)
-            q_all, g_all = np.array(q_all), np.asarray(g_all)
+            q_all, g_all = self._every_config(t3, v1)
             ok = (g_all >= 0).all(axis=-1) & np.isfinite(q_all).all(axis=-1)
             if not ok.all():
                 reach = [i for i, g in enumerate(self.kernels["ik"].guards) if g.error != _SINGULAR]
