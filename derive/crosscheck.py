@@ -169,9 +169,9 @@ def redundant(mod: ModuleType) -> bool:
 
 
 def has_ik(mod: ModuleType) -> bool:
-    """The generated module has its inverse-kinematics kernels (a redundant arm's come with
-    derive/inverse_redundant.py)."""
-    return "ik" in mod._KERNELS
+    """The generated module has its inverse kinematics: its configuration record has sign
+    fields (a redundant arm's record is field-less until derive/inverse_redundant.py exists)."""
+    return len(dataclasses.fields(mod.Config)) > 0
 
 
 @dataclass
