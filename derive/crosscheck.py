@@ -326,11 +326,13 @@ def check_inverse(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
 
 def check_inverse_redundant(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
     """A redundant arm (q7 free, derive.inverse_redundant): fk of every solution of
-    ik_all(fk(q), q7 = q's joint 7) reproduces T, and q is among them (mod 2 pi); samples at
-    a singular branch (Singular raised) are counted apart."""
+    ik_all(fk(q), q7 = q's joint 7) reproduces T, and q is among them (mod 2 pi) where the
+    6 x 6 Jacobian of joints 1-6 (q7 held: where the branches merge it is singular) has
+    sigma_min / sigma_max > WELL_CONDITIONED; samples raising Singular are counted apart."""
     e_fk = e_q = 0.0
     n_fk = n_q = 0
-    for q in qs:
+    sv = np.linalg.svd(mod.jacobian6(qs)[:, :, :6], compute_uv=False)
+    for q, well in zip(qs, sv[:, -1] / sv[:, 0] > WELL_CONDITIONED):
         t = mod.fk(q)
         try:
             sols = mod.ik_all(t, q[6])
@@ -339,11 +341,12 @@ def check_inverse_redundant(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
         for _, s in sols:
             e_fk = max(e_fk, float(np.abs(mod.fk(s) - t).max()))
             n_fk += 1
-        e_q = max(e_q, min((joint_error(mod, s, q) for _, s in sols), default=np.inf))
-        n_q += 1
+        if well:
+            e_q = max(e_q, min((joint_error(mod, x, q) for _, x in sols), default=np.inf))
+            n_q += 1
     res.record("fk(ik_all(T, q7)) - T, every solution (q7 free)", e_fk, n_fk)
     res.record("ik_all(fk(q), q7) contains q, mod 2 pi (rad; q7 free)", e_q, n_q,
-               f"{len(qs) - n_q} samples singular")
+               "samples with the joints 1-6 Jacobian's sigma_min / sigma_max > 1e-3")
 
 
 def _rel(a, b) -> float:
