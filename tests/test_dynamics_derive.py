@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from derive.dynamics import ROTOR, STANDARD
+from derive.dynamics import rotor_params, standard_params
 from derive.dynamics_base import numeric_columns, base_parameters
 from derive.robots import load_spec
 
@@ -19,7 +19,8 @@ def test_grouping_is_exact_and_minimal(robot: str) -> None:
     spec = load_spec(robot)
     bp = base_parameters(spec.dh, spec.params)
     assert len(set(bp.names)) == len(bp.names)
-    full = list(STANDARD) + list(ROTOR)
+    n = len(spec.dh.links)
+    full = list(standard_params(n)) + list(rotor_params(n))
     y_full = numeric_columns(spec.dh, full, spec.params, n=10, seed=11)
     y_base = numeric_columns(spec.dh, list(bp.leaders), spec.params, n=10, seed=11)
     rng = np.random.default_rng(0)

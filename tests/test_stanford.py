@@ -52,8 +52,8 @@ def solved():
     pose, par = list(POSE[:3, :]), list(NUMBERS)
     joints = sp.lambdify([pose, ik.config, par], list(ik.joints), "math", cse=True)
     guards = sp.lambdify([pose, ik.config, par], [g[1] for g in ik.guards], "math", cse=True)
-    ind = sp.lambdify([Q, par], list(ik.indicators), "math", cse=True)
-    fk = sp.lambdify([Q, par], t6(STANFORD), "numpy", cse=True)
+    ind = sp.lambdify([Q[:6], par], list(ik.indicators), "math", cse=True)
+    fk = sp.lambdify([Q[:6], par], t6(STANFORD), "numpy", cse=True)
     vals = list(NUMBERS.values())
 
     def run(f):
@@ -304,8 +304,8 @@ def test_variant_without_shoulder_offset_and_with_d4():
     pose, par, vals = list(POSE[:3, :]), [d1, d4], [0.412, 0.1]
     joints = sp.lambdify([pose, ik.config, par], list(ik.joints), "math", cse=True)
     guards = sp.lambdify([pose, ik.config, par], [g[1] for g in ik.guards], "numpy", cse=True)
-    ind = sp.lambdify([Q, par], list(ik.indicators), "math", cse=True)
-    fk = sp.lambdify([Q, par], t6(r), "numpy", cse=True)
+    ind = sp.lambdify([Q[:6], par], list(ik.indicators), "math", cse=True)
+    fk = sp.lambdify([Q[:6], par], t6(r), "numpy", cse=True)
     for q in _random_q(np.random.default_rng(2), 10):
         t = np.array(fk(q, vals))
         own = tuple(int(s) for s in np.sign(ind(q, vals)))
