@@ -324,6 +324,31 @@ def check_inverse(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
         res.record("batched ik = scalar ik", e_b, len(same))
 
 
+def check_inverse_redundant(mod, qs: np.ndarray, res: CrossCheckResult) -> None:
+    """A redundant arm (q7 free, derive.inverse_redundant): fk of every solution of
+    ik_all(fk(q), q7 = q's joint 7) reproduces T, and q is among them (mod 2 pi) where the
+    6 x 6 Jacobian of joints 1-6 (q7 held: where the branches merge it is singular) has
+    sigma_min / sigma_max > WELL_CONDITIONED; samples raising Singular are counted apart."""
+    e_fk = e_q = 0.0
+    n_fk = n_q = 0
+    sv = np.linalg.svd(mod.jacobian6(qs)[:, :, :6], compute_uv=False)
+    for q, well in zip(qs, sv[:, -1] / sv[:, 0] > WELL_CONDITIONED):
+        t = mod.fk(q)
+        try:
+            sols = mod.ik_all(t, q[6])
+        except Singular:
+            continue
+        for _, s in sols:
+            e_fk = max(e_fk, float(np.abs(mod.fk(s) - t).max()))
+            n_fk += 1
+        if well:
+            e_q = max(e_q, min((joint_error(mod, x, q) for _, x in sols), default=np.inf))
+            n_q += 1
+    res.record("fk(ik_all(T, q7)) - T, every solution (q7 free)", e_fk, n_fk)
+    res.record("ik_all(fk(q), q7) contains q, mod 2 pi (rad; q7 free)", e_q, n_q,
+               "samples with the joints 1-6 Jacobian's sigma_min / sigma_max > 1e-3")
+
+
 def _rel(a, b) -> float:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     return float(np.abs(a - b).max() / max(1.0, np.abs(b).max()))
@@ -414,7 +439,7 @@ def run(n: int, seed: int = 0) -> list[CrossCheckResult]:
         check_jacobian_computations(mod, arm, qs, res)
         check_gravity(mod, arm, qs, res)
         if has_ik(mod):
-            check_inverse(mod, qs, res)
+            (check_inverse_redundant if redundant(mod) else check_inverse)(mod, qs, res)
         check_dynamics(mod, arm, qs, res)
         results.append(res)
     return results
