@@ -73,7 +73,7 @@ class OptionalBuildExt(build_ext):
 
 extensions = [
     Extension(f"rccl.kinematics._c.{src.stem}", [str(src)], optional=True,
-              depends=[str(C_DIR / h) for h in ("kin_prelude.h", "kin_runtime.h")])
+              depends=[str(C_DIR / h) for h in ("kin_prelude.h", "kin_runtime.h", "kin_redundant.h")])
     for src in sorted((HERE / C_DIR).glob("*.c"))
     for src in [src.relative_to(HERE)]
 ]
