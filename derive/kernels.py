@@ -165,6 +165,10 @@ def build_kernels(d: Derivation) -> list[Kernel]:
     from rcci.models import load_robot
 
     ks += dynamics_kernels(spec, load_robot(robot).links)[0]
+    # -- the drive's terms of 4.6 (derive.drive_terms): friction f(qd) (4.27), rotor R qdd
+    from derive.drive_terms import drive_kernels
+
+    ks += drive_kernels(robot, load_robot(robot))
     return ks
 
 

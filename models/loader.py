@@ -240,7 +240,7 @@ class Loader:
             if not isinstance(rec, Mapping):
                 raise self.fail(field, "expected a table")
             self.check_keys(rec, field, {"index", "name", "kind", "a", "alpha", "d", "theta", "lower",
-                                         "upper", "max_velocity", "max_current"})
+                                         "upper", "max_velocity", "max_current", "rotor_inertia"})
             if rec.get("index") != i:
                 raise self.fail(f"{field}.index", f"expected {i} (joints in order, numbered from 1), got {rec.get('index')!r}")
             kind = rec.get("kind")
@@ -266,7 +266,10 @@ class Loader:
                 raise self.fail(f"{field}.max_velocity", "must be positive")
             if imax <= 0:
                 raise self.fail(f"{field}.max_current", "must be positive")
-            out.append(Joint(i, jname, kind, a, alpha, d, theta, lo, hi, vmax, imax))
+            rotor = self.value(rec, "rotor_inertia", f"{field}.rotor_inertia", JOINT_DIMS["rotor"][kind != "revolute"]).value
+            if rotor < 0:
+                raise self.fail(f"{field}.rotor_inertia", "must be >= 0 (J_m G^2 of the joint's motor)")
+            out.append(Joint(i, jname, kind, a, alpha, d, theta, lo, hi, vmax, imax, rotor))
         return tuple(out)
 
     def poses(self, data: Mapping[str, Any], joints: tuple[Joint, ...]) -> dict[str, np.ndarray]:

@@ -163,6 +163,13 @@ def test_simula_reads_inertials_and_refuses_bad_ones(tmp_path) -> None:
     assert m1[1] == pytest.approx(1.1 * m0[1]) and m1[0] == pytest.approx(m0[0])
     assert np.allclose(i1[2], 1.3 * i0[2]) and np.allclose(i1[1], 1.1 * i0[1])
     assert not np.allclose(truth_parameters(ROBOT, data), truth_parameters(ROBOT, None))
+    # the rotors: the data file's joint rotor_inertia, scaled per motor by [inertials] rotor_scale
+    from rcci.calib.identification import column_names
+    ia3 = column_names(ROBOT).index("IA3")
+    rot = {**head, "inertials": {"rotor_scale": [1.0, 1.0, 1.25, 1.0, 1.0, 1.0]}}
+    assert truth_parameters(ROBOT, None)[ia3] == pytest.approx(load_robot(ROBOT).joints[2].rotor_inertia, rel=1e-9)
+    assert truth_parameters(ROBOT, rot)[ia3] == pytest.approx(1.25 * load_robot(ROBOT).joints[2].rotor_inertia,
+                                                              rel=1e-9)
     base = truth_from_model(load_robot(ROBOT))
     with pytest.raises(ParamsError, match=r"\[inertials\] unknown key\(s\) \['masses'\]"):
         apply_params({**head, "inertials": {"masses": [1.0] * 6}}, "f.toml", ROBOT, base)
