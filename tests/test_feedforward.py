@@ -253,7 +253,8 @@ def test_nan_mid_motion_holds_the_arm(sim) -> None:
 
 
 # the bound on computed torque's RMS error as a fraction of gravity-only's (measured, reports/feedforward.md:
-# 0.33, 0.31, 0.73, 0.28); the PUMA 560's error is its wrist's friction, which no inertial model removes
+# 0.30, 0.31, 0.63, 0.28 at 03:43 UTC with the data files' rotor_inertia); the PUMA 560's error is its
+# wrist's friction, which no inertial model removes
 RATIO = {"puma260": 0.5, "microbo": 0.5, "puma560": 0.9, "stanford": 0.5}
 
 
