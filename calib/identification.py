@@ -371,10 +371,17 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
 def jackknife_error(rows: Rows, joint_sd: np.ndarray, blocks: int = JACKKNIFE_BLOCKS) -> np.ndarray:
     """99.73 % half-widths from the delete-one-block jackknife over ``blocks`` equal spans of
     time (Student's t with blocks - 1 degrees of freedom): what changes from one stretch of the
-    trajectory to another (friction that varies with position, sticking) widens it."""
+    trajectory to another (friction that varies with position, sticking) widens it. When the
+    rows repeat a periodic path (``rows.period``), the spans are of its phase, each taken out of
+    every period at once."""
     from rcci.calib.lsq import coverage_factor
 
-    k = np.minimum((rows.time / max(rows.seconds, 1e-9) * blocks).astype(int), blocks - 1)
+    if rows.period > 0 and rows.seconds > rows.period:
+        # the rows repeat one path: a block is a span of its phase, in every period (else the
+        # same stretch of path stays in the fit through its other copies)
+        k = np.minimum((np.mod(rows.time, rows.period) / rows.period * blocks).astype(int), blocks - 1)
+    else:
+        k = np.minimum((rows.time / max(rows.seconds, 1e-9) * blocks).astype(int), blocks - 1)
     w = 1.0 / joint_sd[rows.joint]
     est = []
     for b in range(blocks):
