@@ -118,6 +118,14 @@ def test_an_identified_model_is_read_from_calibs_parameter_file(tmp_path) -> Non
     want = np.where(qd > 0, col("FC", "+") + col("FV", "+") * qd,
                     np.where(qd < 0, -col("FC", "-") + col("FV", "-") * qd, 0.0))
     np.testing.assert_allclose(model.friction(qd), want, rtol=1e-12, atol=1e-12)
+    # the control law's friction term is then the fitted one, not the data file's
+    ctl = FeedForwardControl(JointModel.for_robot("puma260"))
+    ff = make(kin, "computed", theta=params("puma260"))
+    plan = [q + k * 0.004 * qd for k in range(3)]
+    for k, qp in enumerate(plan):
+        ctl.command(ff, k * 0.004, qp, qp, qd)
+    np.testing.assert_allclose(ctl.last_terms["friction"], model.friction((plan[2] - plan[1]) / 0.004),
+                               rtol=1e-9, atol=1e-12)
     with pytest.raises(BadRequest, match="is of the microbo, not the puma260"):
         DynamicsModel(kin, theta=params("microbo"))
     with pytest.raises(BadRequest, match=r"has no \[dynamics\]"):
