@@ -154,12 +154,7 @@ def test_bad_input_is_named() -> None:
         mod.inertia_matrix(np.array([0.0, np.nan, 0, 0, 0, 0]))
 
 
-# the arms re-derived with derive/drive_terms.py on this branch; the PUMA 560's generated module gains
-# friction and rotor_torque when it is re-derived (python -m derive --robot puma560): then this is ROBOTS
-DRIVE_TERM_ARMS = ("puma260", "microbo", "stanford")
-
-
-@pytest.mark.parametrize("robot", DRIVE_TERM_ARMS)
+@pytest.mark.parametrize("robot", ROBOTS)
 def test_drive_terms_are_the_runtime_models(robot: str) -> None:
     """The generated friction(qd) is eq. 4.27 as the runtime integrates it (simula's kinetic friction
     of a warm joint without the Table 4.4 variation; rci.conversions.friction_torque), 0 at rest, in
