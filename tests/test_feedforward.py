@@ -54,6 +54,7 @@ def test_torque_is_inverse_dynamics_plus_friction_plus_pd(robot: str) -> None:
     np.testing.assert_allclose(qdd_p, a, rtol=1e-6, atol=1e-6)        # the second difference of a parabola
     terms = ctl.last_terms
     rotor = data_file_rotor(kin.ROBOT)
+    np.testing.assert_allclose(rotor @ qdd_p, kin.rotor_torque(qdd_p), rtol=1e-12, atol=1e-12)   # generated
     np.testing.assert_allclose(terms["model"], kin.inverse_dynamics(q_p, qd_p, qdd_p) + rotor @ qdd_p,
                                rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(terms["friction"], jm.friction(qd_p), rtol=1e-12, atol=1e-12)
