@@ -20,7 +20,6 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from derive.dynamics import QD, QDD
 from derive.kernel import Arg, Kernel
 
 
@@ -28,11 +27,17 @@ def _number(x: float) -> sp.Expr:
     return sp.Float(float(x), 17) if x else sp.Integer(0)
 
 
+def _rates(n: int) -> tuple[tuple[sp.Symbol, ...], tuple[sp.Symbol, ...]]:
+    """qd1..qdn and qdd1..qddn, the symbols of derive.dynamics (QD, QDD) for an arm of n joints."""
+    return sp.symbols(f"qd1:{n + 1}", real=True), sp.symbols(f"qdd1:{n + 1}", real=True)
+
+
 def friction_kernel(robot: str, model) -> Kernel:
     """``friction(qd) -> f (n,)`` of ``model`` (rcci.models.RobotModel), eq. 4.27 kinetic part."""
     fr = model.friction
     cp, cn = fr.coulomb_pos.values, fr.coulomb_neg.values
     vp, vn = fr.viscous_pos.values, fr.viscous_neg.values
+    QD = _rates(model.n_joints)[0]
     f = []
     for j, x in enumerate(QD):
         s = sp.sign(x)
@@ -49,6 +54,7 @@ def rotor_kernel(robot: str, model) -> Kernel:
     """``rotor_torque(qdd) -> R qdd (n,)`` of ``model``: the reflected rotor inertias' torque."""
     r = np.asarray(model.rotor_matrix(), dtype=float)
     n = r.shape[0]
+    QDD = _rates(n)[1]
     tau = sp.Matrix([sum((_number(r[i, j]) * QDD[j] for j in range(n) if r[i, j]), sp.Integer(0))
                      for i in range(n)])
     return Kernel(robot, "rotor_torque", "R qdd: the motors' rotor inertias reflected to the joints, "
