@@ -1,7 +1,8 @@
 """The true values of the dynamics fit's parameters for a simula: its links' inertials read back
 from its Pinocchio model (URDF, gravity tuning, DH errors and ``[inertials]`` of the parameter
 file applied, as simula builds it), through the generated ``base_parameters``; its rotor
-inertias (``[simula]`` rotor_inertia_arm / _wrist, reflected by G^T J G); its friction (warm)."""
+inertias (the data file's joint ``rotor_inertia`` times ``[inertials] rotor_scale``, reflected
+by G^T diag(J_m) G); its friction (warm)."""
 from __future__ import annotations
 
 import numpy as np
@@ -45,13 +46,13 @@ def truth_parameters(robot: str, params: dict | None) -> np.ndarray:
     """The true value of each column of rcci.calib.identification.column_names."""
     import rccl.kinematics as kin
     from rcci.calib.identification import column_names, rotor_coupling_motors
+    from rci.simula.params import motor_inertia
 
     arm = simula_arm(robot, params)
     m, com, inertia = link_inertials(arm)
     G = np.asarray(arm.conv.G, float)
-    d = arm.truth.disturbances
     n = arm.n
-    jr = np.where(np.arange(n) < 3, d.rotor_inertia_arm, d.rotor_inertia_wrist)
+    jr = motor_inertia(arm.model, arm.truth)
     beta = np.asarray(kin.load(robot).base_parameters(m, com, inertia, np.diag(arm.rotor)), float)
     coupling = [jr[k] for k in rotor_coupling_motors(G)]
     t = arm.truth

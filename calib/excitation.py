@@ -280,13 +280,17 @@ def _limits(robot: str, base_hz: float, L: int):
     return np.vstack(rows), np.concatenate(lower), np.concatenate(upper)
 
 
-def _start(robot: str, seed: int, n: int, L: int, base_hz: float) -> np.ndarray:
-    """A feasible random start: small coefficients around the middle of the ranges."""
+def _start(robot: str, seed: int, n: int, L: int, base_hz: float, spread: float = 0.0) -> np.ndarray:
+    """A feasible random start: small coefficients around the middle of the ranges, the middle
+    moved by up to ``spread`` x half of each range (less the margins) when ``spread`` > 0."""
     from rcci.models import load_robot
 
     m = load_robot(robot)
     rng = np.random.default_rng(seed)
     mid = 0.5 * (np.asarray(m.lower, float) + np.asarray(m.upper, float))
+    if spread > 0:
+        lo, hi = range_limits(robot)
+        mid = 0.5 * (lo + hi) + spread * np.random.default_rng([seed, 99]).uniform(-1, 1, n) * 0.5 * (hi - lo)
     a = rng.uniform(-1, 1, (n, L))
     b = rng.uniform(-1, 1, (n, L))
     a -= a.mean(axis=1, keepdims=True)                         # sum_l a = 0
@@ -303,10 +307,10 @@ def _start(robot: str, seed: int, n: int, L: int, base_hz: float) -> np.ndarray:
 
 
 def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harmonics: int = HARMONICS,
-           max_iter: int = ROUND_ITER, rounds: int = ROUNDS) -> Excitation:
+           max_iter: int = ROUND_ITER, rounds: int = ROUNDS, spread: float = 0.0) -> Excitation:
     """Design the excitation of ``robot`` (deterministic for ``seed``), CasADi + IPOPT: rounds of
     ``max_iter`` iterations, each from the last, until the condition number (unit columns) is
-    at most COND_TARGET or ``rounds`` are done."""
+    at most COND_TARGET or ``rounds`` are done; ``spread``: the start's offsets (``_start``)."""
     import casadi as ca
 
     from rcci.models import load_robot
@@ -329,7 +333,7 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
             "ipopt.acceptable_tol": 1e-4, "ipopt.acceptable_iter": 5,
             "ipopt.jac_c_constant": "yes", "ipopt.jac_d_constant": "yes", "ipopt.mu_strategy": "adaptive"}
     solver = ca.nlpsol("excitation", "ipopt", nlp, opts)
-    xs, iters, best = _start(robot, seed, n, L, base_hz), 0, None
+    xs, iters, best = _start(robot, seed, n, L, base_hz, spread), 0, None
     for _ in range(rounds):
         sol = solver(x0=xs, lbg=lo, ubg=hi)
         xs = np.asarray(sol["x"]).ravel()
@@ -388,6 +392,22 @@ def condition_numbers(exc: Excitation, points: int = 400) -> tuple[float, float]
     if np.any(norms == 0):
         return float("inf"), float("inf")
     return float(np.linalg.cond(A / norms)), float(np.linalg.cond(A))
+
+
+def weakest_directions(exc: Excitation, k: int = 2, points: int = 400) -> list[tuple[float, str]]:
+    """The ``k`` smallest singular values of the fit's unit-column regressor over one period (as
+    :func:`condition_numbers`) with their singular vectors in words (entries above 0.1)."""
+    from rcci.calib.identification import column_names, regressor_columns, regressor_width, still_speeds
+
+    t = np.arange(points) * exc.period / points
+    q, qd, qdd = exc.state(t)
+    Y = regressor_columns(exc.robot, q, qd, qdd)
+    A = Y[np.abs(qd) >= still_speeds(exc.robot)].reshape(-1, regressor_width(exc.robot))
+    A = A / np.linalg.norm(A, axis=0)
+    _, s, vt = np.linalg.svd(A, full_matrices=False)
+    names = column_names(exc.robot)
+    return [(float(s[-i] / s[0]), " ".join(f"{vt[-i][j]:+.2f} {names[j]}" for j in np.argsort(-np.abs(vt[-i]))
+                                           if abs(vt[-i][j]) > 0.1)) for i in range(1, k + 1)]
 
 
 def torque_share(exc: Excitation, points: int = 400) -> np.ndarray:

@@ -25,6 +25,7 @@ import numpy as np
 
 from rcci.calib.exceptions import CalibError
 from rcci.calib.excitation import Excitation, design
+from rcci.models import load_robot
 from rcci.calib.experiments import ACCEL
 from rcci.calib.paths import Path, PathSegment, approach_path
 from rcci.calib.program import approach_speed, command_joints, drive_recorded, open_measurement
@@ -38,7 +39,6 @@ HELDOUT_PERIODS = 1
 WN_HZ = 4.0                  # Hz, the PD's natural frequency
 ZETA = 0.9
 VELOCITY_TAU = 0.01          # s, first-order filter of the encoder differences (the PD's speed)
-ROTOR_ESTIMATE = (2.0e-5, 5.0e-6)   # kg m^2 per motor, arm and wrist class: the controller's guess
 MAX_TRACKING = 0.35          # rad: a larger error stops the program (the arm is not following)
 FIT_SEED, HELDOUT_SEED = 0, 1
 
@@ -74,9 +74,8 @@ def _gains(robot: str, exc: Excitation, conv: Conversions) -> tuple[np.ndarray, 
 
     mod = kin.load(robot)
     q0 = exc.state(np.zeros(1))[0][0]
-    n = len(q0)
-    jr = np.where(np.arange(n) < 3, ROTOR_ESTIMATE[0], ROTOR_ESTIMATE[1])
-    d = np.diag(mod.inertia_matrix(q0)) + np.diag(conv.G.T @ np.diag(jr) @ conv.G)
+    # the data file's rotor inertias (its joints' rotor_inertia, G^T diag(J_m) G)
+    d = np.diag(mod.inertia_matrix(q0)) + np.diag(load_robot(robot).rotor_matrix())
     wn = 2 * np.pi * WN_HZ
     return d * wn ** 2, 2 * ZETA * wn * d
 

@@ -10,8 +10,8 @@ and scores the fits against it in ``calib report``.
 
 With ``inertials`` (``calib hidden-truth --inertials``) the file also moves what the dynamics
 identification fits: each link's mass by 5-15 % and its rotational inertia about the centre
-of mass by 10-30 % more (``[inertials]``, rci.simula.params), and the motors' rotor inertias by
-10-30 % (``[simula]``), drawn from a generator of their own so that the other tables are
+of mass by 10-30 % more, and each motor's rotor inertia by 10-30 % (``[inertials]``
+mass_scale, inertia_scale, rotor_scale: rci.simula.params), drawn from a generator of their own so that the other tables are
 those of the same seed without it.
 """
 from __future__ import annotations
@@ -38,17 +38,15 @@ HOLD_SHARE = 0.8   # a valid truth holds the arm still anywhere in its ranges un
 
 
 def hidden_inertials(robot: str, seed: int) -> dict:
-    """The ``[inertials]`` and ``[simula]`` rotor tables of the module docstring for ``seed``."""
-    from rci.simula.params import Disturbances
-
+    """The ``[inertials]`` table of the module docstring for ``seed``."""
     rng = np.random.default_rng([seed, 27])
     n = load_robot(robot).n_joints
-    d = Disturbances()
-    rot = _factors(rng, 2, INERTIA_RANGE)
-    return {"inertials": {"mass_scale": [float(x) for x in np.round(_factors(rng, n, MASS_RANGE), 4)],
-                          "inertia_scale": [float(x) for x in np.round(_factors(rng, n, INERTIA_RANGE), 4)]},
-            "simula": {"rotor_inertia_arm": float(round(d.rotor_inertia_arm * rot[0], 10)),
-                       "rotor_inertia_wrist": float(round(d.rotor_inertia_wrist * rot[1], 10))}}
+    mass = _factors(rng, n, MASS_RANGE)
+    inertia = _factors(rng, n, INERTIA_RANGE)
+    rotor = _factors(rng, n, INERTIA_RANGE)
+    return {"inertials": {"mass_scale": [float(x) for x in np.round(mass, 4)],
+                          "inertia_scale": [float(x) for x in np.round(inertia, 4)],
+                          "rotor_scale": [float(x) for x in np.round(rotor, 4)]}}
 
 
 def hidden_truth(robot: str, seed: int) -> dict:

@@ -155,14 +155,17 @@ class Rows:
     noise: np.ndarray       # (n,) per-joint sd of the raw measured torque's noise (N m)
     seconds: float          # span of the logs used
     time: np.ndarray        # (m,) s of each row from the first log's first row used (logs end to end)
+    period: float = 0.0     # s: the excitation's period, whose path the log repeats (0: not periodic)
 
     @staticmethod
     def stack(parts: "list[Rows]") -> "Rows":
         noise = np.sqrt(np.mean([p.noise ** 2 for p in parts], axis=0))
         start = np.concatenate([[0.0], np.cumsum([p.seconds for p in parts])[:-1]])
+        periods = {p.period for p in parts}
         return Rows(np.vstack([p.A for p in parts]), np.concatenate([p.y for p in parts]),
                     np.concatenate([p.joint for p in parts]), noise, sum(p.seconds for p in parts),
-                    np.concatenate([p.time + s for p, s in zip(parts, start)]))
+                    np.concatenate([p.time + s for p, s in zip(parts, start)]),
+                    periods.pop() if len(periods) == 1 else 0.0)
 
 
 def lowpass(rate_hz: float):
@@ -248,8 +251,9 @@ def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) ->
         y.append(tf[ok, j])
         js.append(np.full(len(ok), j))
         ts.append(t[ok] - t[0] - EDGE_S)
+    base_hz = float(trace.meta.get("excitation", {}).get("base_hz", 0.0) or 0.0)
     return Rows(np.vstack(A), np.concatenate(y), np.concatenate(js), noise, float(t[-1] - t[0] - 2 * EDGE_S),
-                np.concatenate(ts))
+                np.concatenate(ts), 1.0 / base_hz if base_hz > 0 else 0.0)
 
 
 def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
@@ -296,11 +300,32 @@ def _inflation(r: np.ndarray, lags: int = 20) -> float:
     return max(1.0, 1.0 + 2.0 * s)
 
 
+def _repeat(r: np.ndarray, t: np.ndarray, period: float, seconds: float) -> float:
+    """1 + (K - 1) rho_P: how much a residual that repeats with the excitation's path inflates the
+    variance, K = ``seconds`` / ``period`` periods in the rows, rho_P (>= 0) the correlation of
+    the residuals ``r`` at times ``t`` with those one period later (1 when there are no such pairs)."""
+    if period <= 0 or seconds <= period:
+        return 1.0
+    k = np.searchsorted(t, t + period - 1e-6)
+    ok = k < len(t)
+    ok[ok] &= np.abs(t[k[ok]] - t[ok] - period) < 1e-6
+    if np.count_nonzero(ok) < 10:
+        return 1.0
+    a, b = r[ok] - r[ok].mean(), r[k[ok]] - r[k[ok]].mean()
+    den = float(np.sqrt((a @ a) * (b @ b)))
+    rho = max(0.0, float(a @ b) / den) if den > 0 else 0.0
+    return 1.0 + (seconds / period - 1.0) * rho
+
+
 def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     """Two-pass weighted least squares: ordinary LS for each joint's residual sd, then rows
     weighted by 1/sd_j^2. Covariance s^2 (A^T W A)^-1 with each joint's rows' share of it
     inflated by that joint's residual autocorrelation (``_inflation``: the rows of a filtered,
-    decimated signal are not independent); half-widths: the larger of Student's t (99.73 %, dof
+    decimated signal are not independent) and by its repetition from one period of the
+    excitation to the next (``_repeat``: the residual is mostly a function of the path, the
+    position-dependent friction of Table 4.4 and what else the model lacks, so the periods of
+    one path are not independent samples of it; measured on the PUMA 260's hidden truth, the
+    residuals one period apart correlate at 0.89-1.0); half-widths: the larger of Student's t (99.73 %, dof
     = effective rows - parameters) x sd and the block jackknife's (``jackknife_error``)."""
     from rcci.calib.lsq import coverage_factor
 
@@ -331,7 +356,8 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     x = xs / scale
     res = yw - Aw @ x
     s2 = float(res @ res) / (m - p)
-    infl = np.array([_inflation(res[js == j]) for j in range(n)])
+    infl = np.array([_inflation(res[js == j]) * _repeat(res[js == j], rows.time[js == j], rows.period, rows.seconds)
+                     for j in range(n)])
     Ainv = (Vt.T / s) @ U.T / scale[:, None]                 # x = Ainv @ yw
     cov = s2 * (Ainv * infl[js][None, :]) @ Ainv.T
     sd = np.sqrt(np.diag(cov))
@@ -345,10 +371,17 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
 def jackknife_error(rows: Rows, joint_sd: np.ndarray, blocks: int = JACKKNIFE_BLOCKS) -> np.ndarray:
     """99.73 % half-widths from the delete-one-block jackknife over ``blocks`` equal spans of
     time (Student's t with blocks - 1 degrees of freedom): what changes from one stretch of the
-    trajectory to another (friction that varies with position, sticking) widens it."""
+    trajectory to another (friction that varies with position, sticking) widens it. When the
+    rows repeat a periodic path (``rows.period``), the spans are of its phase, each taken out of
+    every period at once."""
     from rcci.calib.lsq import coverage_factor
 
-    k = np.minimum((rows.time / max(rows.seconds, 1e-9) * blocks).astype(int), blocks - 1)
+    if rows.period > 0 and rows.seconds > rows.period:
+        # the rows repeat one path: a block is a span of its phase, in every period (else the
+        # same stretch of path stays in the fit through its other copies)
+        k = np.minimum((np.mod(rows.time, rows.period) / rows.period * blocks).astype(int), blocks - 1)
+    else:
+        k = np.minimum((rows.time / max(rows.seconds, 1e-9) * blocks).astype(int), blocks - 1)
     w = 1.0 / joint_sd[rows.joint]
     est = []
     for b in range(blocks):

@@ -79,6 +79,9 @@ class CPrinter:
             return self._pow(e), False
         if e.func in C_FUNCS:
             return f"{C_FUNCS[e.func]}({', '.join(self.expr(a) for a in e.args)})", False
+        if e.func is sp.sign:
+            x = self.expr(e.args[0])
+            return f"((double)(({x}) > 0.0) - (double)(({x}) < 0.0))", False
         if e.func is sp.Max:
             return self._fold("fmax", e.args), False
         if e.func is sp.Min:

@@ -20,7 +20,7 @@ from derive.kernel import Kernel
 _FUNCS = {
     sp.sin: ca.sin, sp.cos: ca.cos, sp.tan: ca.tan, sp.atan2: ca.atan2, sp.atan: ca.atan,
     sp.asin: ca.asin, sp.acos: ca.acos, sp.Abs: ca.fabs, sp.exp: ca.exp, sp.log: ca.log,
-    sp.Max: ca.fmax, sp.Min: ca.fmin,
+    sp.Max: ca.fmax, sp.Min: ca.fmin, sp.sign: ca.sign,
 }
 
 

@@ -47,6 +47,18 @@ class _ManyPrinter(NumPyPrinter):
     def _print_Pow(self, expr, rational=False):
         return self._hprint_Pow(expr, rational=rational, sqrt="numpy.sqrt")
 
+    def _fold(self, fn: str, args) -> str:
+        out = self._print(args[0])
+        for a in args[1:]:
+            out = f"{fn}({out}, {self._print(a)})"
+        return out
+
+    def _print_Max(self, expr):
+        return self._fold("numpy.maximum", expr.args)
+
+    def _print_Min(self, expr):
+        return self._fold("numpy.minimum", expr.args)
+
 
 def _param_names(kernel: Kernel) -> dict[sp.Symbol, sp.Symbol]:
     return {s: sp.Symbol(s.name.upper()) for s in kernel.params}

@@ -180,11 +180,14 @@ def _differential_kernels(d: Derivation, kernel, qarg: Arg, n: int) -> None:
 
 def _with_dynamics(ks: list[Kernel], spec: RobotSpec) -> list[Kernel]:
     """The kernels followed by the whole equation 4.6 (derive.dynamics): D, c, C, inverse
-    dynamics, base regressor."""
+    dynamics, base regressor; then the drive's terms of 4.6 (derive.drive_terms): friction
+    f(qd) (4.27) and the rotors' R qdd."""
+    from derive.drive_terms import drive_kernels
     from derive.dynamics_kernels import dynamics_kernels
     from rcci.models import load_robot
 
-    return ks + dynamics_kernels(spec, load_robot(spec.name).links)[0]
+    model = load_robot(spec.name)
+    return ks + dynamics_kernels(spec, model.links)[0] + drive_kernels(spec.name, model)
 
 
 def _gravity_kernels(d: Derivation, kernel, qarg: Arg, n: int) -> None:

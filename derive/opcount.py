@@ -6,7 +6,8 @@
 * ``add_sub``: binary ``+`` and ``-`` plus unary minus (a negation costs an FP op too;
   ``neg`` says how many of ``add_sub`` are negations);
 * ``trig``: calls of sin, cos, tan, atan2, atan, asin, acos;
-* ``sqrt`` and ``other`` (fabs, fmin, fmax, exp, log) calls, listed apart.
+* ``sqrt`` and ``other`` (fabs, fmin, fmax, exp, log) calls, listed apart; a comparison
+  (``<``, ``>``: the sign of eq. 4.27's friction) counts as ``other`` too.
 
 ``write_reports`` produces ``reports/opcounts.md`` and ``reports/opcounts.json`` from the
 generated C files, with the thesis figures (Table 3.3, section 6.1) beside them.
@@ -21,7 +22,7 @@ TRIG = {"sin", "cos", "tan", "atan2", "atan", "asin", "acos"}
 OTHER = {"fabs", "fmin", "fmax", "exp", "log"}
 
 _TOKEN = re.compile(
-    r"\s*(?:(?P<num>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)|(?P<id>[A-Za-z_]\w*)|(?P<op>[-+*/=(),;\[\]]))")
+    r"\s*(?:(?P<num>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)|(?P<id>[A-Za-z_]\w*)|(?P<op>[-+*/=(),;\[\]<>]))")
 _KERNEL = re.compile(r"/\* BEGIN KERNEL (?P<robot>\w+)\.(?P<name>\w+) \*/\n(?P<body>.*?)/\* END KERNEL", re.S)
 
 
@@ -79,9 +80,11 @@ def count_ops(body: str) -> dict[str, int]:
     for i, (kind, t) in enumerate(toks):
         if kind == "op" and t in "*/":
             c["mul_div"] += 1
+        elif kind == "op" and t in "<>":
+            c["other"] += 1
         elif kind == "op" and t in "+-":
             # unary when it follows an operator or an opening bracket (or starts the text)
-            unary = prev is None or (prev[0] == "op" and prev[1] in "=(,*/+-[")
+            unary = prev is None or (prev[0] == "op" and prev[1] in "=(,*/+-[<>")
             if unary and t == "+":
                 pass
             else:

@@ -62,6 +62,10 @@ DYNAMICS: Mapping[str, tuple[str, str]] = {
     "coriolis_matrix": ("q (n,), qd (n,)", "(n, n) C, c = C qd, D' - 2C skew-symmetric"),
     "base_regressor": ("q (n,), qd (n,), qdd (n,)", "(n, b) Y, t_j = Y beta (rotor inertias included)"),
     "base_parameters": ("m (n,), com (n, 3), inertia (n, 6), rotor (n,)", "(b,) beta"),
+    # the drive's terms, not in inverse_dynamics (derive.drive_terms): the torque a motor must
+    # give is inverse_dynamics(q, qd, qdd) + rotor_torque(qdd) + friction(qd)
+    "friction": ("qd (n,)", "(n,) f, the data file's eq. 4.27: Coulomb + viscous per direction, 0 at rest"),
+    "rotor_torque": ("qdd (n,)", "(n,) R qdd, rotor inertias G^T diag(J_m) G of the data file's rotor_inertia"),
 }
 
 

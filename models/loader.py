@@ -251,8 +251,8 @@ class Loader:
             if not isinstance(rec, Mapping):
                 raise self.fail(field, "expected a table")
             self.check_keys(rec, field, {"index", "name", "kind", "a", "alpha", "d", "theta", "lower",
-                                         "upper", "max_velocity", "max_current", "max_acceleration",
-                                         "max_jerk", "max_effort"})
+                                         "upper", "max_velocity", "max_current", "rotor_inertia",
+                                         "max_acceleration", "max_jerk", "max_effort"})
             if rec.get("index") != i:
                 raise self.fail(f"{field}.index", f"expected {i} (joints in order, numbered from 1), got {rec.get('index')!r}")
             kind = rec.get("kind")
@@ -278,6 +278,9 @@ class Loader:
                 raise self.fail(f"{field}.max_velocity", "must be positive")
             if imax <= 0:
                 raise self.fail(f"{field}.max_current", "must be positive")
+            rotor = self.value(rec, "rotor_inertia", f"{field}.rotor_inertia", JOINT_DIMS["rotor"][kind != "revolute"]).value
+            if rotor < 0:
+                raise self.fail(f"{field}.rotor_inertia", "must be >= 0 (J_m G^2 of the joint's motor)")
             extra = {}
             for key, fam in (("max_acceleration", "acceleration"), ("max_jerk", "jerk"), ("max_effort", "effort")):
                 if key in rec:
@@ -285,7 +288,7 @@ class Loader:
                     if x <= 0:
                         raise self.fail(f"{field}.{key}", "must be positive")
                     extra[key] = x
-            out.append(Joint(i, jname, kind, a, alpha, d, theta, lo, hi, vmax, imax, **extra))
+            out.append(Joint(i, jname, kind, a, alpha, d, theta, lo, hi, vmax, imax, rotor, **extra))
         return tuple(out)
 
     def optional_limits(self, joints: tuple[Joint, ...]) -> dict[str, np.ndarray | None]:
@@ -324,7 +327,7 @@ class Loader:
         std = standard_rows(rows, fa, fd)
         shifts = frame_shifts(rows, fa, fd)
         new_joints = tuple(Joint(j.index, j.name, j.kind, a, alpha, d, theta, j.lower, j.upper, j.max_velocity,
-                                 j.max_current, j.max_acceleration, j.max_jerk, j.max_effort)
+                                 j.max_current, j.rotor_inertia, j.max_acceleration, j.max_jerk, j.max_effort)
                            for j, (a, alpha, d, theta) in zip(joints, std))
         new_links = []
         for li, shift in zip(links, shifts):

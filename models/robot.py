@@ -30,6 +30,10 @@ class Joint:
     upper: float
     max_velocity: float
     max_current: float
+    #: the joint's own motor rotor inertia reflected through its gear ratio, J_m G_jj^2
+    #: (kg*m^2; kg for a prismatic joint); a coupled drive adds the other motors' share
+    #: (rcci.models.robot.RobotModel.rotor_matrix)
+    rotor_inertia: float
     max_acceleration: float | None = None  # rad/s^2 or m/s^2, when the data file gives it
     max_jerk: float | None = None          # rad/s^3 or m/s^3
     max_effort: float | None = None        # N*m or N: the published joint torque (force) limit
@@ -166,6 +170,23 @@ class RobotModel:
             return self.sources[head]
         raise KeyError(f"{self.name}: no value {field!r}; known fields include "
                        f"{', '.join(sorted(self.sources)[:8])}, ...")
+
+    @property
+    def motor_inertia(self) -> np.ndarray:
+        """J_m per motor (n,), kg*m^2 at the motor shaft: each joint's ``rotor_inertia`` / G_jj^2
+        (motor j drives joint j through the diagonal of the gear matrix G, eq. 4.28)."""
+        g = np.diag(np.asarray(self.conversion.gear_ratio.values, dtype=float))
+        return np.array([j.rotor_inertia for j in self.joints]) / g ** 2
+
+    def rotor_matrix(self, motor_inertia: np.ndarray | None = None) -> np.ndarray:
+        """G^T diag(J_m) G (n, n): the motors' rotor inertias reflected to the joints (kg*m^2;
+        kg on prismatic rows), the term ``R qdd`` that adds to the rigid-body torque of eq. 4.6.
+        Its diagonal equals the joints' ``rotor_inertia`` when G is diagonal; a coupled drive
+        (the PUMA 260's wrist) adds off-diagonal terms. ``motor_inertia``: J_m per motor
+        instead of ``self.motor_inertia`` (a hidden truth's)."""
+        jm = self.motor_inertia if motor_inertia is None else np.asarray(motor_inertia, dtype=float)
+        G = np.asarray(self.conversion.gear_ratio.values, dtype=float)
+        return G.T @ np.diag(jm) @ G
 
     def base_to_link(self, q: np.ndarray) -> np.ndarray:
         """T_1..T_n (thesis eq. 4.9) from the DH table: (n, 4, 4), frame k in the base frame."""

@@ -35,6 +35,7 @@ JOINT_DIMS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "viscous": ("rotary_viscous", "linear_viscous"),
     "gear": ("dimensionless", "motor_angle_per_length"),
     "encoder": ("counts_per_angle", "counts_per_length"),
+    "rotor": ("inertia", "mass"),       # a motor's rotor inertia reflected to the joint
 })
 
 JOINT_KINDS = ("revolute", "prismatic")

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rci.conversions import DAC_MAX
+from rci.conversions import DAC_MAX, friction_torque
 
 from .adaptive.control import Command
 from .adaptive.force import JointModel
@@ -56,11 +56,6 @@ DEFAULT_HZ_PER_RATE = 1.0 / 20.0
 # (10 %), the uncapped 50 Hz 2527 (80 %): the PD chatters on the counts into the current limit
 DEFAULT_MAX_HZ = 12.5
 DAMPING = 1.0
-# estimate: rotor inertia per motor, kg*m^2 (joints 1-3, joints 4-6): small DC servo motors of the
-# PUMA class; no data file gives it. Reflected to the joints as G^T diag(J) G it outweighs the link
-# inertia of every wrist joint (PUMA 260 joint 6: 0.005 against 0.0004 kg*m^2). simula holds the same
-# estimate (rci/simula/params.py); an identified base-parameter vector (IA terms) replaces it
-ROTOR_ARM, ROTOR_WRIST = 2.0e-5, 5.0e-6
 # refused above rate / 15 (see DEFAULT_HZ_PER_RATE: rate / 12.5 rings)
 MAX_HZ_PER_RATE = 1.0 / 15.0
 
@@ -111,11 +106,15 @@ class DynamicsModel:
 
     ``theta`` None: the data file's inertials (the generated ``inverse_dynamics``) plus the motor
     rotors reflected to the joints, ``rotor @ qdd`` (``rotor``: (n, n) kg*m^2, default
-    ``rotor_estimate(conv)``; zeros to leave them out). Else a base parameter vector
+    ``data_file_rotor(robot)``: the data file's ``rotor_inertia``, what the generated
+    ``rotor_torque`` carries; zeros to leave them out). Else a base parameter vector
     (``kin.BASE_PARAMETERS`` order, a mapping name -> value, or the path of a parameter file that
     ``calib fit dynamics`` wrote: the identified model, issue 27 item 5): the
     torque is ``kin.base_regressor(q, qd, qdd) @ theta``, rotor inertias included as its IA
-    terms (``rotor`` must then be None).
+    terms (``rotor`` must then be None). From a parameter file, the columns calib fits beside the
+    base parameters come too: the coupled wrist motors' rotor inertias (``JM<m>``, their
+    off-diagonal G_m^T G_m qdd) and, when every joint has them, the friction of eq. 4.27
+    (``FC<j>+-``, ``FV<j>+-``), which then replaces the data file's (``friction``).
     """
 
     def __init__(self, kin, theta=None, rotor=None) -> None:
@@ -131,10 +130,13 @@ class DynamicsModel:
             raise BadRequest("feedforward: rotor inertias are part of a base-parameter vector (its IA terms); "
                              "give theta or rotor, not both")
         if rotor is None and self.theta is None:
-            from rci.conversions import Conversions
-            rotor = rotor_estimate(Conversions.for_robot(kin.ROBOT))
+            rotor = data_file_rotor(kin.ROBOT)
         self.rotor = None if self.theta is not None else _rotor_matrix(rotor, n)
         self._unit = np.eye(n)
+        self.coupling = np.zeros((n, n))            # the fitted JM columns' G_m^T G_m off the diagonal
+        self.fitted_friction: tuple[np.ndarray, ...] | None = None
+        if isinstance(theta, (str, os.PathLike)):
+            self.coupling, self.fitted_friction = fitted_drive_terms(theta, kin)
 
     @property
     def source(self) -> str:
@@ -144,7 +146,14 @@ class DynamicsModel:
         """D(q) qdd + c(q, qd) + t_g(q) (N*m / N) at joints q (rad, m), rates qd, accelerations qdd."""
         if self.theta is None:
             return np.asarray(self.kin.inverse_dynamics(q, qd, qdd), dtype=float) + self.rotor @ qdd
-        return np.asarray(self.kin.base_regressor(q, qd, qdd), dtype=float) @ self.theta
+        return np.asarray(self.kin.base_regressor(q, qd, qdd), dtype=float) @ self.theta + self.coupling @ qdd
+
+    def friction(self, qd: np.ndarray) -> np.ndarray | None:
+        """The fitted friction of eq. 4.27 at rates qd (N*m / N), or None: the model has none (the
+        control law then uses the data file's)."""
+        if self.fitted_friction is None:
+            return None
+        return friction_torque(qd, *self.fitted_friction)
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """t_g(q): the same model at rest."""
@@ -161,11 +170,12 @@ class DynamicsModel:
                          for j, e in enumerate(self._unit)])
 
 
-def rotor_estimate(conv) -> np.ndarray:
-    """G^T diag(J_m) G (n, n, kg*m^2 at the joints) with ``ROTOR_ARM``/``ROTOR_WRIST`` per motor."""
-    n = conv.n
-    jm = np.where(np.arange(n) < 3, ROTOR_ARM, ROTOR_WRIST)
-    return conv.G.T @ np.diag(jm) @ conv.G
+def data_file_rotor(robot: str) -> np.ndarray:
+    """G^T diag(J_m) G (n, n, kg*m^2 at the joints; kg on prismatic rows) of the data file's
+    ``rotor_inertia`` (``RobotModel.rotor_matrix``; simula's and calib's one source)."""
+    from rcci.models import load_robot
+
+    return load_robot(robot).rotor_matrix()
 
 
 def _rotor_matrix(rotor, n: int) -> np.ndarray:
@@ -185,8 +195,18 @@ def _rotor_matrix(rotor, n: int) -> np.ndarray:
 def fitted_base_parameters(path: str | os.PathLike, kin) -> dict[str, float]:
     """The base parameters of ``kin``'s arm that ``calib fit dynamics`` wrote into the parameter file
     ``path`` (its ``[dynamics]`` table: ``names``, ``values``; the friction and rotor-coupling columns
-    it fits beside them are left out: the feed-forward's friction is the data file's), by name.
-    A BadRequest names the file and what it lacks."""
+    it fits beside them: ``fitted_drive_terms``), by name. A BadRequest names the file and what it lacks."""
+    fitted = fitted_columns(path, kin)
+    missing = [n for n in kin.BASE_PARAMETERS if n not in fitted]
+    if missing:
+        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r}: [dynamics] lacks the base parameters "
+                         f"{missing} of the {kin.ROBOT}")
+    return {n: fitted[n] for n in kin.BASE_PARAMETERS}
+
+
+def fitted_columns(path: str | os.PathLike, kin) -> dict[str, float]:
+    """Every column of calib's ``[dynamics]`` in the parameter file ``path``, by name; a BadRequest
+    names the file and what it lacks."""
     from rcci.models.params import read_params
     from rcci.models.exceptions import ModelError
 
@@ -201,12 +221,27 @@ def fitted_base_parameters(path: str | os.PathLike, kin) -> dict[str, float]:
     if not isinstance(dyn, Mapping) or "names" not in dyn or "values" not in dyn:
         raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r} has no [dynamics] names and values "
                          "(run calib fit dynamics LOGS -p FILE first: docs/calib.md)")
-    fitted = dict(zip(dyn["names"], dyn["values"]))
-    missing = [n for n in kin.BASE_PARAMETERS if n not in fitted]
-    if missing:
-        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r}: [dynamics] lacks the base parameters "
-                         f"{missing} of the {kin.ROBOT}")
-    return {n: fitted[n] for n in kin.BASE_PARAMETERS}
+    return dict(zip(dyn["names"], dyn["values"]))
+
+
+def fitted_drive_terms(path: str | os.PathLike, kin) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:
+    """From calib's ``[dynamics]`` of ``path``: the rotor coupling matrix (n, n; sum over the fitted
+    ``JM<m>`` of J_m (G_m^T G_m - its diagonal), zeros if none) and the fitted friction (Coulomb +,
+    Coulomb -, viscous +, viscous -: (n,) each, magnitudes) or None when a joint lacks it."""
+    from rcci.models import load_robot
+
+    fitted = fitted_columns(path, kin)
+    G = np.asarray(load_robot(kin.ROBOT).conversion.gear_ratio.values, dtype=float)
+    n = G.shape[0]
+    coupling = np.zeros((n, n))
+    for m in range(n):
+        if f"JM{m + 1}" in fitted:
+            full = np.outer(G[m], G[m])
+            coupling += float(fitted[f"JM{m + 1}"]) * (full - np.diag(np.diag(full)))
+    keys = [[f"{k}{j + 1}{s}" for j in range(n)] for k, s in (("FC", "+"), ("FC", "-"), ("FV", "+"), ("FV", "-"))]
+    if not all(name in fitted for row in keys for name in row):
+        return coupling, None
+    return coupling, tuple(np.array([float(fitted[x]) for x in row]) for row in keys)
 
 
 def base_vector(kin, theta) -> np.ndarray:
@@ -315,7 +350,9 @@ class FeedForwardControl:
             rigid = model.torques(q_p, qd_p, qdd_p)
         else:
             rigid = model.gravity(q_p)
-        fric = self.joint_model.friction(qd_p)
+        fric = model.friction(qd_p)
+        if fric is None:
+            fric = self.joint_model.friction(qd_p)
         w = 2.0 * math.pi * ff.gains.hz(self.rate_hz)
         target = q_plan if q_prev is None else q_prev
         qd_target = np.zeros_like(q_plan) if q_prev is None else self._previous_rate()

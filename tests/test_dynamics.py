@@ -156,3 +156,43 @@ def test_bad_input_is_named() -> None:
         mod.inverse_dynamics(np.zeros(6), np.zeros(5), np.zeros(6))
     with pytest.raises(InvalidInput, match="not finite"):
         mod.inertia_matrix(np.array([0.0, np.nan, 0, 0, 0, 0]))
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_drive_terms_are_the_runtime_models(robot: str) -> None:
+    """The generated friction(qd) is eq. 4.27 as the runtime integrates it (simula's kinetic friction
+    of a warm joint without the Table 4.4 variation; rci.conversions.friction_torque), 0 at rest, in
+    every back end (Python one/many, C, CasADi); rotor_torque(qdd) is the data file's G^T diag(J_m) G qdd."""
+    import casadi as ca
+    from dataclasses import replace
+
+    from rci.conversions import friction_torque
+    from rci.simula.friction import FrictionState
+    from rci.simula.params import truth_from_model
+
+    mod, _ = ARMS[robot]
+    model = load_robot(robot)
+    truth = truth_from_model(model)
+    truth = replace(truth, variation=np.zeros(6), disturbances=replace(truth.disturbances, start_warm=True))
+    sim = FrictionState(truth, np.random.default_rng(0))
+    rng = np.random.default_rng(3)
+    qd = rng.uniform(-2.0, 2.0, (40, 6))
+    qd[1::7, 2] = -1e-9                    # just moving: the Coulomb step
+    qd[::5, :] = 0.0                       # at rest: no kinetic friction
+    f = mod.friction(qd)
+    fr = model.friction
+    want = friction_torque(qd, fr.coulomb_pos.values, fr.coulomb_neg.values, fr.viscous_pos.values,
+                           fr.viscous_neg.values)
+    np.testing.assert_allclose(f, want, rtol=1e-12, atol=1e-12)
+    q = rng.uniform(mod.LOWER, mod.UPPER, (40, 6))
+    np.testing.assert_allclose(f, [sim.kinetic(q[k], qd[k]) for k in range(40)], rtol=1e-12, atol=1e-12)
+    assert np.all(f[::5] == 0.0)
+    cas = ca.Function.load(f"rccl/kinematics/casadi/{robot}/friction.casadi")
+    for k in (0, 1, 8, 39):
+        np.testing.assert_allclose(mod.friction(qd[k]), f[k], rtol=0, atol=0)
+        np.testing.assert_allclose(np.ravel(mod._friction_one(qd[k])), f[k], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(cas(qd[k])).ravel(), f[k], rtol=1e-12, atol=1e-12)
+    qdd = rng.uniform(-5.0, 5.0, (40, 6))
+    np.testing.assert_allclose(mod.rotor_torque(qdd), qdd @ model.rotor_matrix().T, rtol=1e-12, atol=1e-14)
+    cas = ca.Function.load(f"rccl/kinematics/casadi/{robot}/rotor_torque.casadi")
+    np.testing.assert_allclose(np.asarray(cas(qdd[3])).ravel(), model.rotor_matrix() @ qdd[3], rtol=1e-12, atol=1e-14)

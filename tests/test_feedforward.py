@@ -12,7 +12,7 @@ import rccl
 from rccl import EQ, T6, TL, BadRequest, TrajectoryFault, Trsf, makeposition
 from rccl.adaptive.force import JointModel
 from rccl.feedforward import (DynamicsModel, FeedForward, FeedForwardControl, FeedForwardError, Gains,
-                              make, rotor_estimate)
+                              make, data_file_rotor)
 from rccl.kinematics import load
 from rcci.models import load_robot
 
@@ -53,7 +53,8 @@ def test_torque_is_inverse_dynamics_plus_friction_plus_pd(robot: str) -> None:
     qdd_p = (plan[2] - 2 * plan[1] + plan[0]) / dt ** 2
     np.testing.assert_allclose(qdd_p, a, rtol=1e-6, atol=1e-6)        # the second difference of a parabola
     terms = ctl.last_terms
-    rotor = rotor_estimate(jm.conv)
+    rotor = data_file_rotor(kin.ROBOT)
+    np.testing.assert_allclose(rotor @ qdd_p, kin.rotor_torque(qdd_p), rtol=1e-12, atol=1e-12)   # generated
     np.testing.assert_allclose(terms["model"], kin.inverse_dynamics(q_p, qd_p, qdd_p) + rotor @ qdd_p,
                                rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(terms["friction"], jm.friction(qd_p), rtol=1e-12, atol=1e-12)
@@ -80,7 +81,9 @@ def test_torque_is_inverse_dynamics_plus_friction_plus_pd(robot: str) -> None:
 
 def test_an_identified_model_is_read_from_calibs_parameter_file(tmp_path) -> None:
     """theta= the path of a parameter file with calib fit dynamics' [dynamics] table: its base parameters by
-    name (the friction and rotor-coupling columns fitted beside them are left out), in the regressor's order."""
+    name, in the regressor's order; the wrist-rotor coupling fitted beside them (JM5: J_5 G_5^T G_5 off the
+    diagonal) adds to the torque; the friction columns replace the data file's only when every joint has
+    all four (FC+-, FV+-)."""
     kin = load("puma260")
     names = list(kin.BASE_PARAMETERS)
     rng = np.random.default_rng(3)
@@ -101,8 +104,29 @@ def test_an_identified_model_is_read_from_calibs_parameter_file(tmp_path) -> Non
     model = DynamicsModel(kin, theta=params("puma260"))
     np.testing.assert_array_equal(model.theta, values)
     q, qd, qdd = (rng.uniform(-1, 1, 6) for _ in range(3))
-    np.testing.assert_allclose(model.torques(q, qd, qdd), np.asarray(kin.base_regressor(q, qd, qdd)) @ values,
-                               rtol=1e-12, atol=1e-12)
+    G = np.asarray(load_robot("puma260").conversion.gear_ratio.values)
+    off5 = np.outer(G[4], G[4]) - np.diag(G[4] ** 2)
+    np.testing.assert_allclose(model.torques(q, qd, qdd), np.asarray(kin.base_regressor(q, qd, qdd)) @ values
+                               + 1e-5 * off5 @ qdd, rtol=1e-12, atol=1e-12)
+    assert model.friction(qd) is None                          # FC1+ and FV1 alone: the data file's friction
+    fric = {f"{k}{j}{s}": 0.1 * j + (0.5 if k == "FC" else 0.05) + (0.01 if s == "-" else 0.0)
+            for j in range(1, 7) for k in ("FC", "FV") for s in ("+", "-")}
+    listed += list(fric)
+    numbers += list(fric.values())
+    model = DynamicsModel(kin, theta=params("puma260"))
+    col = lambda k, s: np.array([fric[f"{k}{j}{s}"] for j in range(1, 7)])   # noqa: E731
+    qd[2] = 0.0
+    want = np.where(qd > 0, col("FC", "+") + col("FV", "+") * qd,
+                    np.where(qd < 0, -col("FC", "-") + col("FV", "-") * qd, 0.0))
+    np.testing.assert_allclose(model.friction(qd), want, rtol=1e-12, atol=1e-12)
+    # the control law's friction term is then the fitted one, not the data file's
+    ctl = FeedForwardControl(JointModel.for_robot("puma260"))
+    ff = make(kin, "computed", theta=params("puma260"))
+    plan = [q + k * 0.004 * qd for k in range(3)]
+    for k, qp in enumerate(plan):
+        ctl.command(ff, k * 0.004, qp, qp, qd)
+    np.testing.assert_allclose(ctl.last_terms["friction"], model.friction((plan[2] - plan[1]) / 0.004),
+                               rtol=1e-9, atol=1e-12)
     with pytest.raises(BadRequest, match="is of the microbo, not the puma260"):
         DynamicsModel(kin, theta=params("microbo"))
     with pytest.raises(BadRequest, match=r"has no \[dynamics\]"):
@@ -238,7 +262,8 @@ def test_nan_mid_motion_holds_the_arm(sim) -> None:
 
 
 # the bound on computed torque's RMS error as a fraction of gravity-only's (measured, reports/feedforward.md:
-# 0.33, 0.31, 0.73, 0.28); the PUMA 560's error is its wrist's friction, which no inertial model removes
+# 0.30, 0.31, 0.63, 0.28 at 03:43 UTC with the data files' rotor_inertia); the PUMA 560's error is its
+# wrist's friction, which no inertial model removes
 RATIO = {"puma260": 0.5, "microbo": 0.5, "puma560": 0.9, "stanford": 0.5}
 
 

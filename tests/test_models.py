@@ -311,6 +311,16 @@ BROKEN = {
                                                  "joints.5.max_effort", "for every joint or for none"),
     "Panda: jerk in the wrong unit": ("panda", "panda.toml", 'max_jerk = { value = 7500.0, unit = "rad/s^3"',
                                       'max_jerk = { value = 7500.0, unit = "rad/s^2"', "joints.1.max_jerk", "wrong unit"),
+    "rotor inertia missing": ("puma560", "puma560.toml",
+                              'rotor_inertia = { value = 0.5768733, unit = "kg*m^2", source = "published [CA94] Jm x G^2"',
+                              'rotor_ = { value = 0.5768733, unit = "kg*m^2", source = "published [CA94] Jm x G^2"',
+                              "joints.3", "unknown key"),
+    "rotor inertia of a prismatic joint in kg*m^2": ("microbo", "microbo.toml",
+                                                     'rotor_inertia = { value = 31.5827, unit = "kg"',
+                                                     'rotor_inertia = { value = 31.5827, unit = "kg*m^2"',
+                                                     "joints.2.rotor_inertia", "wrong unit 'kg*m^2'"),
+    "negative rotor inertia": ("puma260", "puma260.toml", 'rotor_inertia = { value = 0.0436552,',
+                               'rotor_inertia = { value = -0.0436552,', "joints.1.rotor_inertia", ">= 0"),
     "PUMA 560 URDF elbow offset disagrees": ("puma560", "urdf/puma560.urdf", '<origin xyz="0.0203 0 0"',
                                              '<origin xyz="0.0 0 0"', "link link3", "differs from DH frame 3"),
 }
@@ -328,6 +338,26 @@ def test_malformed_file_raises_model_error(case: str, tmp_path: Path) -> None:
     assert problem in err.problem, str(err)
     assert Path(err.path) in (root / f"{robot}.toml", root / "urdf" / f"{robot}.urdf"), str(err)
     assert str(err).startswith(f"{err.path}: {field}: ")
+
+
+def test_rotor_inertia_is_the_motor_reflected_through_g() -> None:
+    """Each joint's rotor_inertia is J_m G_jj^2 (the PUMA 560's J_m from [CA94]); rotor_matrix is
+    G^T diag(J_m) G, off-diagonal on the PUMA 260's coupled wrist, its diagonal the joints' own
+    value plus the coupled motors' share."""
+    p560 = load_robot("puma560")
+    np.testing.assert_allclose(p560.motor_inertia, [200e-6] * 3 + [33e-6] * 3, rtol=1e-5)
+    np.testing.assert_allclose(p560.rotor_matrix(), np.diag([j.rotor_inertia for j in p560.joints]), rtol=1e-12)
+    assert p560.source("joints.2.rotor_inertia").tag.startswith("published [CA94]")
+    p260 = load_robot("puma260")
+    G = np.asarray(p260.conversion.gear_ratio.values)
+    r = p260.rotor_matrix()
+    np.testing.assert_allclose(r, r.T, rtol=0, atol=1e-15)
+    assert abs(r[3, 4]) > 1e-4                                  # motor 5 turns joint 4 too (G[4, 3] != 0)
+    own = np.array([j.rotor_inertia for j in p260.joints])
+    np.testing.assert_allclose(np.diag(r), own + [sum(p260.motor_inertia[m] * G[m, j] ** 2 for m in range(6) if m != j)
+                                                  for j in range(6)], rtol=1e-12)
+    mic = load_robot("microbo")
+    assert mic.joints[1].kind == "prismatic" and mic.joints[1].rotor_inertia == pytest.approx(31.5827)   # kg
 
 
 def test_missing_data_file_names_path(tmp_path: Path) -> None:

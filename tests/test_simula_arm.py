@@ -390,7 +390,7 @@ def test_dynamic_mode_without_friction_is_pinocchio_aba():
     gives the accelerations of Pinocchio's forward dynamics (aba) under the motor torques."""
     import pinocchio as pin
     zero = np.zeros(6)
-    truth = replace(quiet_truth(rotor_inertia_arm=0.0, rotor_inertia_wrist=0.0), coulomb_pos=zero,
+    truth = replace(quiet_truth(), rotor_scale=zero, coulomb_pos=zero,
                     coulomb_neg=zero, viscous_pos=zero, viscous_neg=zero, static_pos=zero, static_neg=zero)
     arm = powered(SimulatedArm(PUMA, truth, seed=1, start="ready", dynamic=True))
     arm.q = np.radians([10.0, 60.0, -120.0, 30.0, -60.0, 20.0])
@@ -405,3 +405,21 @@ def test_dynamic_mode_without_friction_is_pinocchio_aba():
     tj = arm.conv.dac_to_joint_torques(dac.astype(float))
     expected = pin.aba(arm.pm, arm.pm.createData(), q0, np.zeros(6), tj)
     np.testing.assert_allclose(arm.qd / h, expected, rtol=1e-9, atol=1e-9)
+
+
+def test_rotor_inertia_comes_from_the_data_file_and_rotor_scale_moves_it(tmp_path):
+    """simula's reflected rotors are the data file's (``RobotModel.rotor_matrix``, coupled wrist
+    included); a parameter file's ``[inertials] rotor_scale`` scales each motor's J_m; a negative
+    factor is refused naming the table."""
+    arm = SimulatedArm(PUMA, quiet_truth(), seed=0, start="ready", dynamic=True)
+    np.testing.assert_allclose(arm.rotor, PUMA.rotor_matrix(), rtol=1e-15, atol=0)
+    scale = [1.1, 0.9, 1.2, 0.8, 1.3, 0.7]
+    path = tmp_path / "p.toml"
+    path.write_text('[calib]\nschema = "rcci-calib-params/1"\nrobot = "puma260"\n'
+                    f'[inertials]\nrotor_scale = {scale}\n')
+    truth = load_params(path, "puma260", quiet_truth())
+    arm = SimulatedArm(PUMA, truth, seed=0, start="ready", dynamic=True)
+    np.testing.assert_allclose(arm.rotor, PUMA.rotor_matrix(PUMA.motor_inertia * np.array(scale)), rtol=1e-15)
+    path.write_text(path.read_text().replace("0.9", "-0.9"))
+    with pytest.raises(ParamsError, match=r"\[inertials\] rotor_scale"):
+        load_params(path, "puma260", quiet_truth())

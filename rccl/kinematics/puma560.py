@@ -6910,6 +6910,78 @@ def _base_parameters_many(m, com, inertia, rotor):
     return (beta_,)
 
 
+def _friction_one(qd):
+    """f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27); one configuration."""
+    qd1 = qd[0]
+    qd2 = qd[1]
+    qd3 = qd[2]
+    qd4 = qd[3]
+    qd5 = qd[4]
+    qd6 = qd[5]
+    x0 = (0.0 if qd1 == 0 else math.copysign(1, qd1))
+    x1 = (0.0 if qd2 == 0 else math.copysign(1, qd2))
+    x2 = (0.0 if qd3 == 0 else math.copysign(1, qd3))
+    x3 = (0.0 if qd4 == 0 else math.copysign(1, qd4))
+    x4 = (0.0 if qd5 == 0 else math.copysign(1, qd5))
+    x5 = (0.0 if qd6 == 0 else math.copysign(1, qd6))
+    f_ = numpy.array([5.8018200000000002*max(0, qd1) - 27.235800000000001*max(0, -x0) + 24.731400000000001*max(0, x0) + 5.8018200000000002*min(0, qd1), 9.4968699999999995*max(0, qd2) - 7.6548999999999996*max(0, -x1) + 13.5847*max(0, x1) + 9.4968699999999995*min(0, qd2), 3.9804300000000001*max(0, qd3) - 5.6391999999999998*max(0, -x2) + 7.0891999999999999*max(0, x2) + 3.9804300000000001*min(0, qd3), 0.41165000000000002*max(0, qd4) - 1.2849999999999999*max(0, -x3) + 0.85160000000000002*max(0, x3) + 0.41165000000000002*min(0, qd4), 0.42727999999999999*max(0, qd5) - 1.0428999999999999*max(0, -x4) + 0.66600000000000004*max(0, x4) + 0.42727999999999999*min(0, qd5), 0.21582000000000001*max(0, qd6) - 0.80520000000000003*max(0, -x5) + 0.30370000000000003*max(0, x5) + 0.21582000000000001*min(0, qd6)], dtype=float)
+    return (f_,)
+
+
+def _friction_many(qd):
+    """f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27); batched."""
+    qd1 = qd[:, 0]
+    qd2 = qd[:, 1]
+    qd3 = qd[:, 2]
+    qd4 = qd[:, 3]
+    qd5 = qd[:, 4]
+    qd6 = qd[:, 5]
+    x0 = numpy.sign(qd1)
+    x1 = numpy.sign(qd2)
+    x2 = numpy.sign(qd3)
+    x3 = numpy.sign(qd4)
+    x4 = numpy.sign(qd5)
+    x5 = numpy.sign(qd6)
+    f_ = numpy.empty((qd.shape[0],) + (6,))
+    f_[:, 0] = 5.8018200000000002*numpy.maximum(0, qd1) - 27.235800000000001*numpy.maximum(0, -x0) + 24.731400000000001*numpy.maximum(0, x0) + 5.8018200000000002*numpy.minimum(0, qd1)
+    f_[:, 1] = 9.4968699999999995*numpy.maximum(0, qd2) - 7.6548999999999996*numpy.maximum(0, -x1) + 13.5847*numpy.maximum(0, x1) + 9.4968699999999995*numpy.minimum(0, qd2)
+    f_[:, 2] = 3.9804300000000001*numpy.maximum(0, qd3) - 5.6391999999999998*numpy.maximum(0, -x2) + 7.0891999999999999*numpy.maximum(0, x2) + 3.9804300000000001*numpy.minimum(0, qd3)
+    f_[:, 3] = 0.41165000000000002*numpy.maximum(0, qd4) - 1.2849999999999999*numpy.maximum(0, -x3) + 0.85160000000000002*numpy.maximum(0, x3) + 0.41165000000000002*numpy.minimum(0, qd4)
+    f_[:, 4] = 0.42727999999999999*numpy.maximum(0, qd5) - 1.0428999999999999*numpy.maximum(0, -x4) + 0.66600000000000004*numpy.maximum(0, x4) + 0.42727999999999999*numpy.minimum(0, qd5)
+    f_[:, 5] = 0.21582000000000001*numpy.maximum(0, qd6) - 0.80520000000000003*numpy.maximum(0, -x5) + 0.30370000000000003*numpy.maximum(0, x5) + 0.21582000000000001*numpy.minimum(0, qd6)
+    return (f_,)
+
+
+def _rotor_torque_one(qdd):
+    """R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6); one configuration."""
+    qdd1 = qdd[0]
+    qdd2 = qdd[1]
+    qdd3 = qdd[2]
+    qdd4 = qdd[3]
+    qdd5 = qdd[4]
+    qdd6 = qdd[5]
+    tau_ = numpy.array([0.78403*qdd1, 2.3248150000000001*qdd2, 0.57687330000000003*qdd3, 0.1907906*qdd4, 0.17070630000000001*qdd5, 0.1940645*qdd6], dtype=float)
+    return (tau_,)
+
+
+def _rotor_torque_many(qdd):
+    """R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6); batched."""
+    qdd1 = qdd[:, 0]
+    qdd2 = qdd[:, 1]
+    qdd3 = qdd[:, 2]
+    qdd4 = qdd[:, 3]
+    qdd5 = qdd[:, 4]
+    qdd6 = qdd[:, 5]
+    tau_ = numpy.empty((qdd.shape[0],) + (6,))
+    tau_[:, 0] = 0.78403*qdd1
+    tau_[:, 1] = 2.3248150000000001*qdd2
+    tau_[:, 2] = 0.57687330000000003*qdd3
+    tau_[:, 3] = 0.1907906*qdd4
+    tau_[:, 4] = 0.17070630000000001*qdd5
+    tau_[:, 5] = 0.1940645*qdd6
+    return (tau_,)
+
+
 _KERNELS = _backend.accelerate(ROBOT, {
     'fk': _rt.KernelFn('fk', _fk_one, _fk_many,
         inputs=(('q', (6,)),),
@@ -7011,6 +7083,14 @@ _KERNELS = _backend.accelerate(ROBOT, {
         inputs=(('m', (6,)), ('com', (6, 3)), ('inertia', (6, 6)), ('rotor', (6,))),
         outputs=(('beta', (40,)),),
         guards=()),
+    'friction': _rt.KernelFn('friction', _friction_one, _friction_many,
+        inputs=(('qd', (6,)),),
+        outputs=(('f', (6,)),),
+        guards=()),
+    'rotor_torque': _rt.KernelFn('rotor_torque', _rotor_torque_one, _rotor_torque_many,
+        inputs=(('qdd', (6,)),),
+        outputs=(('tau', (6,)),),
+        guards=()),
 })
 
 _ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
@@ -7035,3 +7115,5 @@ coriolis = _dynamics_entry('coriolis', 'coriolis(q (n,), qd (n,)) -> (n,) c, Cor
 coriolis_matrix = _dynamics_entry('coriolis_matrix', "coriolis_matrix(q (n,), qd (n,)) -> (n, n) C, c = C qd, D' - 2C skew-symmetric (thesis eq. 4.6)")
 base_regressor = _dynamics_entry('base_regressor', 'base_regressor(q (n,), qd (n,), qdd (n,)) -> (n, b) Y, t_j = Y beta (rotor inertias included) (thesis eq. 4.6)')
 base_parameters = _dynamics_entry('base_parameters', 'base_parameters(m (n,), com (n, 3), inertia (n, 6), rotor (n,)) -> (b,) beta (thesis eq. 4.6)')
+friction = _dynamics_entry('friction', "friction(qd (n,)) -> (n,) f, the data file's eq. 4.27: Coulomb + viscous per direction, 0 at rest (thesis eq. 4.6)")
+rotor_torque = _dynamics_entry('rotor_torque', "rotor_torque(qdd (n,)) -> (n,) R qdd, rotor inertias G^T diag(J_m) G of the data file's rotor_inertia (thesis eq. 4.6)")

@@ -50,7 +50,7 @@ from ..chg import CUR, POS, STOP, STOPCAL, Chg
 from ..conversions import ADC_MAX, ADC_MIN, DAC_MAX, DAC_MIN, Conversions
 from .exceptions import ParamsError, SimulaError
 from .friction import FrictionState
-from .params import PulleyLoad, Truth
+from .params import PulleyLoad, Truth, motor_inertia
 
 HOLD, SERVO, CURRENT = 0, 1, 2          # internal joint modes (HOLD: servo on a fixed count)
 MODE_NAMES = {HOLD: "hold", SERVO: "pos", CURRENT: "cur"}
@@ -227,9 +227,8 @@ class SimulatedArm:
         s_fric, s_noise, s_start = seq.spawn(3)
         self.rng = np.random.default_rng(s_noise)
         self.friction = FrictionState(truth, np.random.default_rng(s_fric))
-        d = truth.disturbances
-        jr = np.where(np.arange(n) < 3, d.rotor_inertia_arm, d.rotor_inertia_wrist)
-        self.rotor = self.conv.G.T @ np.diag(jr) @ self.conv.G      # reflected rotor inertia (joint level)
+        # the data file's rotor inertias (x [inertials] rotor_scale) reflected: G^T diag(J_m) G
+        self.rotor = model.rotor_matrix(motor_inertia(model, truth))
         self.lower, self.upper = np.array(model.lower), np.array(model.upper)
         self.vmax = np.array(model.max_velocity)
         self.imax = np.array(model.max_current)

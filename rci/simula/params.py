@@ -8,7 +8,8 @@ loading coefficients of eq. 4.24 (``[gravity_coeffs]``), the typical static fric
 Table 4.6 (``[static_friction]``), errors of the Denavit-Hartenberg table (``[kinematics]``,
 thesis 3.83: the simulated arm's links differ from the nominal model the controller
 uses), the links' inertials (``[inertials]``: per-link factors on the URDF's masses and
-rotational inertias, so that the dynamics' base parameters differ from the data file's),
+rotational inertias, and per-motor factors on the data file's rotor inertias, so that the
+dynamics' base parameters differ from the data file's),
 and simula's own disturbance settings (``[simula]``).
 A NaN entry (a joint calib did not fit) keeps the data-file value.
 """
@@ -45,8 +46,6 @@ class Disturbances:
     warmup_time: float = 20.0          # s of motion to warm a joint (e-folding)
     cooldown_time: float = 600.0       # s of rest to cool it again (e-folding)
     pulley_friction: float = 0.01      # N*m, Coulomb friction of the measurement pulley (same both ways, 4.5.2)
-    rotor_inertia_arm: float = 2.0e-5  # kg*m^2 per motor of joints 1-3 (reflected by G^T J G)
-    rotor_inertia_wrist: float = 5.0e-6  # kg*m^2 per motor of joints 4-6
     start_warm: bool = False           # start with warmed-up joints (no cold excess)
 
 
@@ -70,6 +69,16 @@ class Truth(JointFriction):
     # the centre of mass; None: the URDF's
     mass_scale: np.ndarray | None = None
     inertia_scale: np.ndarray | None = None
+    # per-motor factors on the data file's rotor inertias J_m ([inertials] rotor_scale; the
+    # data file's joint ``rotor_inertia`` / G_jj^2); None: the data file's
+    rotor_scale: np.ndarray | None = None
+
+
+def motor_inertia(model, truth: Truth) -> np.ndarray:
+    """J_m per motor (n,), kg*m^2, of the simulated arm: the data file's (``RobotModel.motor_inertia``)
+    times ``truth.rotor_scale``; ``model.rotor_matrix(motor_inertia(model, truth))`` reflects them."""
+    jm = np.asarray(model.motor_inertia, dtype=float)
+    return jm if truth.rotor_scale is None else jm * np.asarray(truth.rotor_scale, dtype=float)
 
 
 def truth_from_model(model) -> Truth:
@@ -183,10 +192,11 @@ def apply_params(data: dict[str, Any], path: str, robot: str, truth: Truth) -> T
                 base[:, c] = np.where(np.isfinite(col), col, base[:, c])
         kw["dh_errors"] = base
     inert = data.get("inertials", {})
-    bad = set(inert) - {"mass_scale", "inertia_scale"}
+    bad = set(inert) - {"mass_scale", "inertia_scale", "rotor_scale"}
     if bad:
-        raise ParamsError(f"{path}: [inertials] unknown key(s) {sorted(bad)} (known: inertia_scale, mass_scale)")
-    for key in ("mass_scale", "inertia_scale"):
+        raise ParamsError(f"{path}: [inertials] unknown key(s) {sorted(bad)} "
+                          "(known: inertia_scale, mass_scale, rotor_scale)")
+    for key in ("mass_scale", "inertia_scale", "rotor_scale"):
         if key in inert:
             v = _vector(path, "inertials", key, inert[key], np.ones(len(truth.sigma)), nonneg=True)
             if np.any(v <= 0):

@@ -8760,6 +8760,56 @@ static void batch_base_parameters(Py_ssize_t n, const double *const *in, const P
         k_base_parameters(in0 + r * is[0], in1 + r * is[1], in2 + r * is[2], in3 + r * is[3], out0 + r * os[0]);
 }
 
+/* puma260.friction: f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27; lowering: cse) */
+static inline void k_friction(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL puma260.friction */
+    const double t0 = ((double)((in0[0]) > 0.0) - (double)((in0[0]) < 0.0));
+    const double t1 = ((double)((in0[1]) > 0.0) - (double)((in0[1]) < 0.0));
+    const double t2 = ((double)((in0[2]) > 0.0) - (double)((in0[2]) < 0.0));
+    const double t3 = ((double)((in0[3]) > 0.0) - (double)((in0[3]) < 0.0));
+    const double t4 = ((double)((in0[4]) > 0.0) - (double)((in0[4]) < 0.0));
+    const double t5 = ((double)((in0[5]) > 0.0) - (double)((in0[5]) < 0.0));
+    out0[0] = 0.01203*fmax(0.0, in0[0]) + 0.76*fmax(0.0, t0) + 0.01218*fmin(0.0, in0[0]) - 0.64*fmax(0.0, -t0);
+    out0[1] = 0.00843*fmax(0.0, in0[1]) + 1.62*fmax(0.0, t1) + 0.00761*fmin(0.0, in0[1]) - 1.62*fmax(0.0, -t1);
+    out0[2] = 0.00478*fmax(0.0, in0[2]) + 0.85*fmax(0.0, t2) + 0.00459*fmin(0.0, in0[2]) - 0.75*fmax(0.0, -t2);
+    out0[3] = 0.0005*fmax(0.0, in0[3]) + 0.175*fmax(0.0, t3) + 0.0005*fmin(0.0, in0[3]) - 0.194*fmax(0.0, -t3);
+    out0[4] = 0.0007*fmax(0.0, in0[4]) + 0.178*fmax(0.0, t4) + 0.00069*fmin(0.0, in0[4]) - 0.187*fmax(0.0, -t4);
+    out0[5] = 0.00031*fmax(0.0, in0[5]) + 0.14*fmax(0.0, t5) + 0.00029*fmin(0.0, in0[5]) - 0.159*fmax(0.0, -t5);
+/* END KERNEL puma260.friction */
+}
+
+static void batch_friction(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_friction(in0 + r * is[0], out0 + r * os[0]);
+}
+
+/* puma260.rotor_torque: R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6; lowering: cse) */
+static inline void k_rotor_torque(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL puma260.rotor_torque */
+    out0[0] = 0.043655200000000005*in0[0];
+    out0[1] = 0.0979253*in0[1];
+    out0[2] = 0.0369571*in0[2];
+    out0[3] = 0.00995581804774518*in0[3] + 0.00015884598919708396*in0[5] - 0.001973654343784728*in0[4];
+    out0[4] = 0.007996714572410942*in0[4] - 0.001973654343784728*in0[3] - 0.0011027723954018357*in0[5];
+    out0[5] = 0.00015884598919708396*in0[3] + 0.00504641*in0[5] - 0.0011027723954018357*in0[4];
+/* END KERNEL puma260.rotor_torque */
+}
+
+static void batch_rotor_torque(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_rotor_torque(in0 + r * is[0], out0 + r * os[0]);
+}
+
 /* puma260.ik_all: every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 (thesis 3.19-3.53; lowering: cse) */
 static inline void k_ik_all(const double *restrict in0, double *restrict out0, double *restrict out1)
 {
@@ -9421,7 +9471,7 @@ static void batch_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t
         k_ik_all(in0 + r * is[0], out0 + r * os[0], out1 + r * os[1]);
 }
 
-static const kernel_entry KERNELS[26] = {
+static const kernel_entry KERNELS[28] = {
     {"fk", batch_fk, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {4, 4}, 16}},
@@ -9572,6 +9622,18 @@ static const kernel_entry KERNELS[26] = {
      {"m", "com", "inertia", "rotor"},
      {"beta"},
      "base_parameters(m[6], com[6, 3], inertia[6, 6], rotor[6]) -> (beta[40]): the base parameters of link inertials: masses (6,) kg, centres of mass (6, 3) m and inertias about them (6, 6: ixx iyy izz ixy ixz iyz) kg m^2 in DH frames 1..6, rotor inertias (6,) at the joints Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"friction", batch_friction, 1, 1, 0,
+     {{1, {6, 0}, 6}},
+     {{1, {6, 0}, 6}},
+     {"qd"},
+     {"f"},
+     "friction(qd[6]) -> (f[6]): f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"rotor_torque", batch_rotor_torque, 1, 1, 0,
+     {{1, {6, 0}, 6}},
+     {{1, {6, 0}, 6}},
+     {"qdd"},
+     {"tau"},
+     "rotor_torque(qdd[6]) -> (tau[6]): R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {8, 6}, 48}, {2, {8, 4}, 32}},

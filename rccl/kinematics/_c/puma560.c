@@ -9099,6 +9099,56 @@ static void batch_base_parameters(Py_ssize_t n, const double *const *in, const P
         k_base_parameters(in0 + r * is[0], in1 + r * is[1], in2 + r * is[2], in3 + r * is[3], out0 + r * os[0]);
 }
 
+/* puma560.friction: f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27; lowering: cse) */
+static inline void k_friction(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL puma560.friction */
+    const double t0 = ((double)((in0[0]) > 0.0) - (double)((in0[0]) < 0.0));
+    const double t1 = ((double)((in0[1]) > 0.0) - (double)((in0[1]) < 0.0));
+    const double t2 = ((double)((in0[2]) > 0.0) - (double)((in0[2]) < 0.0));
+    const double t3 = ((double)((in0[3]) > 0.0) - (double)((in0[3]) < 0.0));
+    const double t4 = ((double)((in0[4]) > 0.0) - (double)((in0[4]) < 0.0));
+    const double t5 = ((double)((in0[5]) > 0.0) - (double)((in0[5]) < 0.0));
+    out0[0] = 5.80182*fmax(0.0, in0[0]) + 24.7314*fmax(0.0, t0) + 5.80182*fmin(0.0, in0[0]) - 27.2358*fmax(0.0, -t0);
+    out0[1] = 9.49687*fmax(0.0, in0[1]) + 13.5847*fmax(0.0, t1) + 9.49687*fmin(0.0, in0[1]) - 7.6549*fmax(0.0, -t1);
+    out0[2] = 3.98043*fmax(0.0, in0[2]) + 7.0892*fmax(0.0, t2) + 3.98043*fmin(0.0, in0[2]) - 5.6392*fmax(0.0, -t2);
+    out0[3] = 0.41165*fmax(0.0, in0[3]) + 0.8516*fmax(0.0, t3) + 0.41165*fmin(0.0, in0[3]) - 1.285*fmax(0.0, -t3);
+    out0[4] = 0.42728*fmax(0.0, in0[4]) + 0.666*fmax(0.0, t4) + 0.42728*fmin(0.0, in0[4]) - 1.0429*fmax(0.0, -t4);
+    out0[5] = 0.21582*fmax(0.0, in0[5]) + 0.3037*fmax(0.0, t5) + 0.21582*fmin(0.0, in0[5]) - 0.8052*fmax(0.0, -t5);
+/* END KERNEL puma560.friction */
+}
+
+static void batch_friction(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_friction(in0 + r * is[0], out0 + r * os[0]);
+}
+
+/* puma560.rotor_torque: R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6; lowering: cse) */
+static inline void k_rotor_torque(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL puma560.rotor_torque */
+    out0[0] = 0.78403*in0[0];
+    out0[1] = 2.324815*in0[1];
+    out0[2] = 0.5768733*in0[2];
+    out0[3] = 0.1907906*in0[3];
+    out0[4] = 0.1707063*in0[4];
+    out0[5] = 0.1940645*in0[5];
+/* END KERNEL puma560.rotor_torque */
+}
+
+static void batch_rotor_torque(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_rotor_torque(in0 + r * is[0], out0 + r * os[0]);
+}
+
 /* puma560.ik_all: every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 (thesis 3.19-3.53; lowering: cse) */
 static inline void k_ik_all(const double *restrict in0, double *restrict out0, double *restrict out1)
 {
@@ -9774,7 +9824,7 @@ static void batch_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t
         k_ik_all(in0 + r * is[0], out0 + r * os[0], out1 + r * os[1]);
 }
 
-static const kernel_entry KERNELS[26] = {
+static const kernel_entry KERNELS[28] = {
     {"fk", batch_fk, 1, 1, 0,
      {{1, {6, 0}, 6}},
      {{2, {4, 4}, 16}},
@@ -9925,6 +9975,18 @@ static const kernel_entry KERNELS[26] = {
      {"m", "com", "inertia", "rotor"},
      {"beta"},
      "base_parameters(m[6], com[6, 3], inertia[6, 6], rotor[6]) -> (beta[40]): the base parameters of link inertials: masses (6,) kg, centres of mass (6, 3) m and inertias about them (6, 6: ixx iyy izz ixy ixz iyz) kg m^2 in DH frames 1..6, rotor inertias (6,) at the joints Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"friction", batch_friction, 1, 1, 0,
+     {{1, {6, 0}, 6}},
+     {{1, {6, 0}, 6}},
+     {"qd"},
+     {"f"},
+     "friction(qd[6]) -> (f[6]): f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"rotor_torque", batch_rotor_torque, 1, 1, 0,
+     {{1, {6, 0}, 6}},
+     {{1, {6, 0}, 6}},
+     {"qdd"},
+     {"tau"},
+     "rotor_torque(qdd[6]) -> (tau[6]): R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_all", batch_ik_all, 1, 2, 0,
      {{2, {4, 4}, 16}},
      {{2, {8, 6}, 48}, {2, {8, 4}, 32}},
