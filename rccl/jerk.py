@@ -156,6 +156,8 @@ class JerkLimitedGenerator:
     def __init__(self, kin, limits: Limits, dt: float, q0: np.ndarray,
                  queue: MotionQueue[Request] | None = None, jerk: JerkLimits | None = None) -> None:
         self.kin = kin
+        if getattr(kin, "redundant", False):
+            kin.clock = lambda: self.t     # the free parameter's rules of time (rccl.redundancy)
         self.limits = limits
         self._jerk_base = jerk if jerk is not None else JerkLimits.from_limits(limits)
         self.jerk = _capped(self._jerk_base, limits)

@@ -165,8 +165,9 @@ def joint_position(name: str, kin, q) -> Position:
     Built as the equation T6 = FK(q) with a const transform, so it behaves like any other.
     """
     q = np.asarray(q, dtype=float)
-    if q.shape != (6,) or not np.all(np.isfinite(q)):
-        raise PositionError(f"joint_position({name!r}): q must be 6 finite joint angles (rad), got {q!r}")
+    n = getattr(kin, "dof", 6)      # the arm's number of joints (rccl.segments.Kinematics)
+    if q.shape != (n,) or not np.all(np.isfinite(q)):
+        raise PositionError(f"joint_position({name!r}): q must be {n} finite joint angles (rad), got {q!r}")
     base_to_t6 = Trsf(name.upper(), kin.fk(q))
     pos = makeposition(name, T6, EQ, base_to_t6, TL, T6)
     pos.joints = q  # type: ignore[attr-defined]  # the joint angles it was built from (config hint)
