@@ -12,6 +12,7 @@ import numpy as np
 
 from .drive import Friction
 from .exceptions import ModelError
+from .modified_dh import CraigRow, frame_shifts, move_inertial, standard_rows
 from .quantities import Matrix, Source, Value, Vector
 from .robot import Conversion, GravityGrouping, Joint, LinkInertial, Motors, RobotModel
 from .units import JOINT_DIMS, JOINT_KINDS, UNITS
@@ -180,10 +181,10 @@ class Loader:
             raise self.fail("<file>", f"cannot read: {exc}") from None
         self.check_keys(data, "<top level>", {"robot", "joints", "poses", "links", "gravity_coeffs",
                                               "gravity_friction_error", "gravity_grouping", "friction", "motors",
-                                              "conversion"})
+                                              "conversion", "flange"})
 
         robot = self.table(data, "robot", "robot")
-        self.check_keys(robot, "robot", {"name", "title", "n_joints", "urdf", "gravity"})
+        self.check_keys(robot, "robot", {"name", "title", "n_joints", "urdf", "gravity", "dh"})
         name = robot.get("name")
         if not isinstance(name, str) or not name:
             raise self.fail("robot.name", "missing field")
@@ -198,11 +199,19 @@ class Loader:
         if gravity <= 0:
             raise self.fail("robot.gravity", "must be positive (the magnitude of g)")
 
+        convention = robot.get("dh", "standard")
+        if convention not in ("standard", "modified"):
+            raise self.fail("robot.dh", f"unknown DH convention {convention!r} (expected 'standard' or 'modified')")
         joints = self.joints(data, n)
+        links = self.links(data, n)
+        shifts = np.broadcast_to(np.eye(4), (n, 4, 4))
+        if convention == "modified":
+            joints, links, shifts = self.from_modified(data, joints, links)
+        elif "flange" in data:
+            raise self.fail("flange", "a [flange] row belongs to a modified-DH table (robot.dh = 'modified')")
         lower = readonly([j.lower for j in joints])
         upper = readonly([j.upper for j in joints])
         poses = self.poses(data, joints)
-        links = self.links(data, n)
         coeffs = self.gravity_coeffs(data)
         grouping = self.gravity_grouping(data, n, coeffs)
         gfe = None
@@ -223,6 +232,8 @@ class Loader:
             gravity_coeffs=MappingProxyType(coeffs), gravity_friction_error=gfe,
             friction=friction, motors=motors, conversion=conversion,
             sources=MappingProxyType(dict(self.sources)), gravity_grouping=grouping,
+            dh_convention=convention, data_frames=readonly(shifts),
+            **self.optional_limits(joints),
         )
         if check:
             check_urdf(model)
@@ -240,7 +251,8 @@ class Loader:
             if not isinstance(rec, Mapping):
                 raise self.fail(field, "expected a table")
             self.check_keys(rec, field, {"index", "name", "kind", "a", "alpha", "d", "theta", "lower",
-                                         "upper", "max_velocity", "max_current"})
+                                         "upper", "max_velocity", "max_current", "max_acceleration",
+                                         "max_jerk", "max_effort"})
             if rec.get("index") != i:
                 raise self.fail(f"{field}.index", f"expected {i} (joints in order, numbered from 1), got {rec.get('index')!r}")
             kind = rec.get("kind")
@@ -266,8 +278,59 @@ class Loader:
                 raise self.fail(f"{field}.max_velocity", "must be positive")
             if imax <= 0:
                 raise self.fail(f"{field}.max_current", "must be positive")
-            out.append(Joint(i, jname, kind, a, alpha, d, theta, lo, hi, vmax, imax))
+            extra = {}
+            for key, fam in (("max_acceleration", "acceleration"), ("max_jerk", "jerk"), ("max_effort", "effort")):
+                if key in rec:
+                    x = self.value(rec, key, f"{field}.{key}", JOINT_DIMS[fam][0 if kind == "revolute" else 1]).value
+                    if x <= 0:
+                        raise self.fail(f"{field}.{key}", "must be positive")
+                    extra[key] = x
+            out.append(Joint(i, jname, kind, a, alpha, d, theta, lo, hi, vmax, imax, **extra))
         return tuple(out)
+
+    def optional_limits(self, joints: tuple[Joint, ...]) -> dict[str, np.ndarray | None]:
+        """max_acceleration, max_jerk, max_effort as arrays: given for every joint or for none."""
+        out: dict[str, np.ndarray | None] = {}
+        for key in ("max_acceleration", "max_jerk", "max_effort"):
+            vals = [getattr(j, key) for j in joints]
+            given = [v is not None for v in vals]
+            if any(given) and not all(given):
+                missing = [j.index for j, g in zip(joints, given) if not g]
+                raise self.fail(f"joints.{missing[0]}.{key}", f"missing: give {key} for every joint or for none "
+                                                              f"(missing for joints {missing})")
+            out[key] = readonly(vals) if all(given) else None
+        return out
+
+    def from_modified(self, data: Mapping[str, Any], joints: tuple[Joint, ...],
+                      links: tuple[LinkInertial, ...]) -> tuple[tuple[Joint, ...], tuple[LinkInertial, ...], np.ndarray]:
+        """A modified-DH (Craig) table, its [flange] row and links in Craig's frames, as the
+        equivalent standard-DH joints and links and the frame shifts (rcci.models.modified_dh)."""
+        first = joints[0]
+        if first.a != 0.0 or first.alpha != 0.0:
+            raise self.fail("joints.1.a", f"a modified-DH table must start with a0 = alpha0 = 0 (frame 0 is the "
+                                          f"base frame), got a0 = {first.a:g} m, alpha0 = {first.alpha:g} rad")
+        for j in joints:
+            if j.kind != "revolute":
+                raise self.fail(f"joints.{j.index}.kind", "the modified-DH conversion handles revolute joints only")
+        rec = self.table(data, "flange", "flange")
+        self.check_keys(rec, "flange", {"a", "alpha", "d"})
+        fa = self.value(rec, "a", "flange.a", "length").value
+        falpha = self.value(rec, "alpha", "flange.alpha", "angle").value
+        fd = self.value(rec, "d", "flange.d", "length").value
+        if falpha != 0.0:
+            raise self.fail("flange.alpha", f"must be 0 (a flange twist has no standard-DH equivalent in the last "
+                                            f"link frame; put it in the tool transform), got {falpha:g} rad")
+        rows = [CraigRow(j.a, j.alpha, j.d, j.theta) for j in joints]
+        std = standard_rows(rows, fa, fd)
+        shifts = frame_shifts(rows, fa, fd)
+        new_joints = tuple(Joint(j.index, j.name, j.kind, a, alpha, d, theta, j.lower, j.upper, j.max_velocity,
+                                 j.max_current, j.max_acceleration, j.max_jerk, j.max_effort)
+                           for j, (a, alpha, d, theta) in zip(joints, std))
+        new_links = []
+        for li, shift in zip(links, shifts):
+            com, inertia = move_inertial(shift, li.com, li.inertia)
+            new_links.append(LinkInertial(li.index, li.mass, readonly(com), readonly((inertia + inertia.T) / 2)))
+        return new_joints, tuple(new_links), shifts
 
     def poses(self, data: Mapping[str, Any], joints: tuple[Joint, ...]) -> dict[str, np.ndarray]:
         raw = self.table(data, "poses", "poses")

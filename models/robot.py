@@ -30,6 +30,9 @@ class Joint:
     upper: float
     max_velocity: float
     max_current: float
+    max_acceleration: float | None = None  # rad/s^2 or m/s^2, when the data file gives it
+    max_jerk: float | None = None          # rad/s^3 or m/s^3
+    max_effort: float | None = None        # N*m or N: the published joint torque (force) limit
 
     @property
     def variable(self) -> str:
@@ -134,6 +137,17 @@ class RobotModel:
     conversion: Conversion
     sources: Mapping[str, Source]
     gravity_grouping: "GravityGrouping | None" = None
+    #: "standard" (thesis eq. 3.3) or "modified" (Craig): the convention of the data file's
+    #: table; ``joints`` always hold the standard table (rcci.models.modified_dh)
+    dh_convention: str = "standard"
+    #: (n, 4, 4): standard frame k expressed in the data file's frame k (identity for a
+    #: standard table; Craig's frame k for a modified one): links and shapes given in the
+    #: data file's frames are moved by it
+    data_frames: np.ndarray | None = None
+    #: per-joint acceleration, jerk and effort limits (SI), or None when the file has none
+    max_acceleration: np.ndarray | None = None
+    max_jerk: np.ndarray | None = None
+    max_effort: np.ndarray | None = None
 
     @property
     def kinds(self) -> tuple[str, ...]:

@@ -13,6 +13,8 @@ UNITS: Mapping[str, tuple[str, float]] = MappingProxyType({
     "m/s": ("linear_velocity", 1.0), "mm/s": ("linear_velocity", 1e-3),
     "rad/s": ("angular_velocity", 1.0), "deg/s": ("angular_velocity", math.pi / 180.0),
     "m/s^2": ("acceleration", 1.0),
+    "rad/s^2": ("angular_acceleration", 1.0), "deg/s^2": ("angular_acceleration", math.pi / 180.0),
+    "rad/s^3": ("angular_jerk", 1.0), "m/s^3": ("linear_jerk", 1.0),
     "N*m": ("torque", 1.0), "N": ("force", 1.0),
     "N*m*s/rad": ("rotary_viscous", 1.0), "N*s/m": ("linear_viscous", 1.0),
     "N*m/A": ("torque_sensitivity", 1.0),
@@ -27,6 +29,8 @@ UNITS: Mapping[str, tuple[str, float]] = MappingProxyType({
 JOINT_DIMS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "position": ("angle", "length"),
     "velocity": ("angular_velocity", "linear_velocity"),
+    "acceleration": ("angular_acceleration", "acceleration"),
+    "jerk": ("angular_jerk", "linear_jerk"),
     "effort": ("torque", "force"),
     "viscous": ("rotary_viscous", "linear_viscous"),
     "gear": ("dimensionless", "motor_angle_per_length"),

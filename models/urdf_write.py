@@ -6,6 +6,7 @@ The URDF follows the conventions of models/README.md: ``base_link`` is DH frame 
 ``link<i>_body``, and a fixed joint Tx(a_i) Rx(alpha_i) to ``link<i>`` (Pinocchio merges
 the two, keeping the frame ``link<i>``); a prismatic step slides along z with origin
 Rz(theta_i). Limits, velocities and inertials are the data file's; efforts are
+the data file's max_effort, else
 max_current x torque sensitivity x |G_ii|. Visuals are a sketch: a cylinder per joint axis
 and a box along each link offset.
 """
@@ -58,7 +59,8 @@ def urdf_text(model: RobotModel) -> str:
     for j in model.joints:
         i = j.index
         body = f"link{i}_body"
-        effort = float(model.max_current[i - 1] * sigma[i - 1] * abs(g[i - 1, i - 1]))
+        effort = float(model.max_effort[i - 1]) if model.max_effort is not None else \
+            float(model.max_current[i - 1] * sigma[i - 1] * abs(g[i - 1, i - 1]))
         if j.kind == "revolute":
             origin = f'xyz="0 0 {_f(j.d)}" rpy="0 0 {_f(j.theta)}"'
         else:

@@ -17,27 +17,34 @@ ROBOTS = ("puma260", "microbo")
 
 # ----------------------------------------------------------------------------- loading
 
-@pytest.mark.parametrize("name", ROBOTS)
+#: joint counts of the arms whose loading the API test checks (the Panda is redundant)
+N_JOINTS = {"puma260": 6, "microbo": 6, "puma560": 6, "stanford": 6, "panda": 7}
+
+
+@pytest.mark.parametrize("name", sorted(N_JOINTS))
 def test_loads_with_documented_api(name: str) -> None:
     model = load_robot(name)
+    n = N_JOINTS[name]
     assert isinstance(model, RobotModel)
-    assert model.name == name and model.n_joints == 6 and len(model.joints) == 6
+    assert model.name == name and model.n_joints == n and len(model.joints) == n
     assert model.urdf_path.is_file() and model.path == MODELS / f"{name}.toml"
     for i, joint in enumerate(model.joints):
         assert isinstance(joint, Joint) and joint.index == i + 1 and joint.name == f"joint{i + 1}"
         assert joint.kind in ("revolute", "prismatic")
         assert joint.variable == ("theta" if joint.kind == "revolute" else "d")
     for arr in (model.lower, model.upper, model.max_velocity, model.max_current):
-        assert arr.shape == (6,) and arr.dtype == float
+        assert arr.shape == (n,) and arr.dtype == float
         with pytest.raises(ValueError):
             arr[0] = 0.0  # read-only
     assert np.all(model.lower < model.upper)
     assert {"ready", "nest"} <= set(model.poses)
     for q in model.poses.values():
-        assert q.shape == (6,) and model.within_limits(q)
-    assert len(model.links) == 6 and all(li.mass > 0 for li in model.links)
-    assert model.friction.coulomb_pos.values.shape == (6,)
-    assert model.conversion.gear_ratio.values.shape == (6, 6)
+        assert q.shape == (n,) and model.within_limits(q)
+    assert len(model.links) == n and all(li.mass > 0 for li in model.links)
+    assert model.friction.coulomb_pos.values.shape == (n,)
+    assert model.conversion.gear_ratio.values.shape == (n, n)
+    assert model.base_to_link(model.poses["ready"]).shape == (n, 4, 4)
+    assert model.data_frames.shape == (n, 4, 4)
     assert model.gravity == pytest.approx(9.81)
 
 
@@ -288,6 +295,22 @@ BROKEN = {
     "published source without a reference": ("puma560", "puma560.toml",
                                               'source = "published [CA94] standard DH, a4" }',
                                               'source = "published" }', "joints.4.a", "neither"),
+    "Panda: modified table not starting at the base frame": (
+        "panda", "panda.toml", 'a = { value = 0.0, unit = "m", source = "published [FE] modified-DH (Craig) table, a0',
+        'a = { value = 0.01, unit = "m", source = "published [FE] modified-DH (Craig) table, a0', "joints.1.a",
+        "must start with a0 = alpha0 = 0"),
+    "Panda: twisted flange": ("panda", "panda.toml", 'alpha = { value = 0.0, unit = "deg", source = "published [FE] '
+                              'modified-DH (Craig) table, flange row', 'alpha = { value = 45.0, unit = "deg", source = '
+                              '"published [FE] modified-DH (Craig) table, flange row', "flange.alpha", "must be 0"),
+    "Panda: unknown DH convention": ("panda", "panda.toml", 'n_joints = 7\ndh = "modified"', 'n_joints = 7\ndh = "craig"', "robot.dh",
+                                     "unknown DH convention 'craig'"),
+    "Panda: missing flange": ("panda", "panda.toml", "\n[flange]\n", "\n[flange_row]\n", "<top level>",
+                              "unknown key"),
+    "Panda: effort limit for some joints only": ("panda", "panda.toml", 'max_effort = { value = 12.0, unit = "N*m", '
+                                                 'source = "published [FE] limits for Panda, tau_j_max" }\n', '',
+                                                 "joints.5.max_effort", "for every joint or for none"),
+    "Panda: jerk in the wrong unit": ("panda", "panda.toml", 'max_jerk = { value = 7500.0, unit = "rad/s^3"',
+                                      'max_jerk = { value = 7500.0, unit = "rad/s^2"', "joints.1.max_jerk", "wrong unit"),
     "PUMA 560 URDF elbow offset disagrees": ("puma560", "urdf/puma560.urdf", '<origin xyz="0.0203 0 0"',
                                              '<origin xyz="0.0 0 0"', "link link3", "differs from DH frame 3"),
 }
@@ -320,3 +343,69 @@ def test_estimate_without_why_is_rejected(tmp_path: Path) -> None:
           'source = "estimate"')
     with pytest.raises(ModelError, match=r"poses\.nest: estimate without 'why'"):
         load_robot(root / "puma260.toml")
+
+
+# ----------------------------------------------------------------------------- modified DH (the Panda)
+
+def _craig_step(a: float, alpha: float, d: float, theta: float) -> np.ndarray:
+    """Craig's step Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i), written out independently."""
+    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
+    return np.array([[ct, -st, 0.0, a],
+                     [st * ca, ct * ca, -sa, -sa * d],
+                     [st * sa, ct * sa, ca, ca * d],
+                     [0.0, 0.0, 0.0, 1.0]])
+
+
+def _panda_craig_rows() -> list[tuple[float, float, float]]:
+    """(a_{i-1}, alpha_{i-1}, d_i) as the data file carries them (Craig's rows, SI)."""
+    import tomllib
+
+    data = tomllib.loads((MODELS / "panda.toml").read_text())
+    return [(j["a"]["value"], math.radians(j["alpha"]["value"]), j["d"]["value"]) for j in data["joints"]], data
+
+
+def test_panda_standard_chain_is_the_craig_chain() -> None:
+    """The loader's standard table reproduces the published modified-DH chain: the origin of
+    every standard frame k lies on Craig frame k's joint axis ... exactly where Craig frame k
+    moved by its shift puts it, the flange is frame 7, and the links' centres of mass land at
+    the same points of the base frame."""
+    panda = load_robot("panda")
+    rows, data = _panda_craig_rows()
+    flange_d = data["flange"]["d"]["value"]
+    assert panda.dh_convention == "modified" and panda.n_joints == 7
+    for q in np.random.default_rng(3).uniform(panda.lower, panda.upper, size=(50, 7)):
+        craig = np.eye(4)
+        std = panda.base_to_link(q)
+        for k, ((a, alpha, d), qk) in enumerate(zip(rows, q)):
+            craig = craig @ _craig_step(a, alpha, d, qk)
+            # the joint axis of Craig frame k is z_k; standard frame k-1's z is the same axis
+            z_std = std[k - 1][:3, 2] if k else np.array([0.0, 0.0, 1.0])
+            assert np.allclose(z_std, craig[:3, 2], atol=1e-12)
+            assert np.allclose(std[k], craig @ panda.data_frames[k], atol=1e-12)
+            com = np.asarray(data["links"][k]["com"]["values"])
+            com_base_craig = craig[:3, :3] @ com + craig[:3, 3]
+            com_base_std = std[k][:3, :3] @ panda.links[k].com + std[k][:3, 3]
+            assert np.allclose(com_base_craig, com_base_std, atol=1e-12)
+        flange = craig.copy()
+        flange[:3, 3] += flange_d * craig[:3, 2]
+        assert np.allclose(std[6], flange, atol=1e-12)
+
+
+def test_panda_zero_pose_and_limits() -> None:
+    """At q = 0 the arm stands straight up with the 8.25 cm elbow offset cancelled and the
+    flange 8.8 cm forward: (a6, 0, d1 + d3 + d5 - d_F) in Craig's numbering."""
+    panda = load_robot("panda")
+    rows, data = _panda_craig_rows()
+    a_wrist = rows[6][0]
+    height = rows[0][2] + rows[2][2] + rows[4][2] - data["flange"]["d"]["value"]
+    t7 = panda.base_to_link(np.zeros(7))[6]
+    assert t7[:3, 3] == pytest.approx([a_wrist, 0.0, height], abs=1e-12)
+    assert t7[:3, 2] == pytest.approx([0.0, 0.0, -1.0], abs=1e-12)  # flange pointing down
+    assert panda.max_effort == pytest.approx([87, 87, 87, 87, 12, 12, 12])
+    assert panda.max_acceleration.shape == panda.max_jerk.shape == (7,)
+    assert np.all(panda.max_jerk > panda.max_acceleration) and np.all(panda.max_acceleration > panda.max_velocity)
+    # the current limit reaches the published torque: max_current x sigma x G = tau_max
+    g = np.diag(panda.conversion.gear_ratio.values)
+    assert panda.max_current * panda.motors.torque_sensitivity.values * g == pytest.approx(panda.max_effort)
+    assert panda.source("links.3.mass").tag.startswith("published [GAZ]")
+    assert panda.source("joints.4.a").tag.startswith("published [FE]")
