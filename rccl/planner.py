@@ -164,7 +164,10 @@ class Planner:
         saved = replace(self.params)
         try:
             self.params.mode = "cartesian"
-            self.params.travel_time = duration
+            # the motion outlasts the ramp by SELF_PAD samples: whichever generator runs, q7 has
+            # reached the target at rest when it ends the motion (the quartic ends it at its
+            # outgoing transition, Ruckig a few samples before a zero move's minimum duration)
+            self.params.travel_time = duration + redundancy.SELF_PAD * self.gen.dt
             self.params.config = None
             self.params.free = rule
             return self.move(here)

@@ -52,6 +52,8 @@ SIGMA_SINGULAR = 1e-3
 #: small is one step of 0.036 rad/s at 36 Hz (the step check slows it), and it covers where a
 #: ramp's last sample falls when the generator ends the motion one sample early
 JUMP_TOL = 1e-3
+#: samples a self-motion's motion lasts beyond its ramp (see Planner.selfmove)
+SELF_PAD = 4
 #: points at which a self-motion is checked before it starts
 SELF_CHECK_POINTS = 200
 
@@ -280,6 +282,14 @@ def bind(config, rule: FreeRule | None, q_start: np.ndarray, where: str, cartesi
                          "rad there; in Cartesian mode q7 cannot jump: selfmove(q7=...) first, or a q7 "
                          "function that starts where the arm is")
     return Binding(arm, rule, have)
+
+
+def bind_for(kin, config, params, q_start: np.ndarray, where: str, cartesian: bool):
+    """``config`` for a request with motion parameters ``params`` (rccl.motion.MotionParams):
+    bound to their free parameter's rule (setfree) on a redundant arm, unchanged on another."""
+    if not getattr(kin, "redundant", False):
+        return config
+    return bind(config, params.free, q_start, where, cartesian)
 
 
 def solve(kin, t6: np.ndarray, config, q_ref: np.ndarray, t: float | None = None) -> np.ndarray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -75,18 +76,8 @@ class Kinematics:
         self.redundant = self.dof > 6
         #: the running generator's time (s), for the free parameter's rules of time
         self.clock = None
-        if self.redundant:
-            self._ik = self._ik_free
-
-    def _ik_free(self, base_to_t6: np.ndarray, config, q_ref: np.ndarray, t: float | None = None) -> np.ndarray:
-        return redundancy.solve(self, base_to_t6, config, q_ref, t)
-
-    def bind(self, config, params: MotionParams, q_start: np.ndarray, where: str, cartesian: bool):
-        """``config`` for a request: with the free parameter's rule (setfree) on a redundant arm
-        (whose q7 may not jump at a Cartesian move's start: ``cartesian``)."""
-        if not self.redundant:
-            return config
-        return redundancy.bind(config, params.free, q_start, where, cartesian)
+        if self.redundant:     # (T6, config, q_ref, t=None) -> joints, q7 by config's rule
+            self._ik = partial(redundancy.solve, self)
 
     def ik(self, base_to_t6: np.ndarray, config, q_ref: np.ndarray, where: str, t: float | None = None) -> np.ndarray:
         """Joint angles (rad; m for prismatic joints) of T6 (base to link 6) in ``config``, branch nearest ``q_ref``;
@@ -387,7 +378,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         if q_c is not None and p.static and params.config is None:
             p.config = kin.config_of(q_c)      # a joint-defined position (park): go to its joints
         else:
-            p.config = kin.bind(p.config, params, q_b, where, cartesian=False)
+            p.config = redundancy.bind_for(kin, p.config, params, q_b, where, cartesian=False)
             q_c = _fit_range(limits, kin.ik(t6_c, p.config, q_b, where, t_est), kin.revolute)
         check_range(limits, q_c, where, "destination", units)
         p.dq = q_b - q_c
@@ -399,7 +390,7 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         raise ConfigurationChange(
             f"{where}: Cartesian mode cannot change the arm configuration from {cfg_b} to {p.config}; "
             "use setmod('joint') for this move")
-    p.config = kin.bind(p.config, params, q_b, where, cartesian=True)
+    p.config = redundancy.bind_for(kin, p.config, params, q_b, where, cartesian=True)
     p.dq = np.zeros(kin.dof)
     if dist < 1e-12 and p.theta < 1e-12:
         # (a redundant arm may move in place: its rule's q7 at the end, e.g. a self-motion)

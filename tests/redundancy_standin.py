@@ -6,7 +6,8 @@ Tests only: it lets rccl.redundancy and the generators be tested on pure math be
 besides) the generated rccl.kinematics.panda; it follows that module's contract for a
 redundant arm: ``ik(T, config, q_ref, q7=...)``, ``jacobian6(q)`` (6, 7), ``config_of(q)``.
 Table (Franka's documentation): a = 0, 0, 0, 0.0825, -0.0825, 0, 0.088 m; d = 0.333, 0,
-0.316, 0, 0.384, 0, 0 m; alpha = 0, -90, 90, 90, -90, 90, 90 deg; T6 is link 7's frame.
+0.316, 0, 0.384, 0, 0 m; alpha = 0, -90, 90, 90, -90, 90, 90 deg; T6 is the flange
+frame, 0.107 m along link 7's z axis (as models/panda.toml's frame 7).
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ JOINT_KINDS = ("revolute",) * 7
 LOWER = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
 UPPER = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 VELOCITY = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+FLANGE = 0.107
 READY = np.array([0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4])
 
 
@@ -68,13 +70,15 @@ def fk(q) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     if q.ndim == 2:
         return np.array([fk(x) for x in q])
-    return frames(q)[-1]
+    t = frames(q)[-1].copy()
+    t[:3, 3] += FLANGE * t[:3, 2]
+    return t
 
 
 def jacobian0(q) -> np.ndarray:
-    """Geometric Jacobian (6, 7) of link 7's origin, base frame: rows v (m/rad), w (rad/rad)."""
+    """Geometric Jacobian (6, 7) of the flange's origin, base frame: rows v (m/rad), w (rad/rad)."""
     fs = frames(q)
-    p = fs[-1][:3, 3]
+    p = fk(q)[:3, 3]
     j = np.empty((6, 7))
     for i, f in enumerate(fs):
         z, o = f[:3, 2], f[:3, 3]
@@ -84,7 +88,7 @@ def jacobian0(q) -> np.ndarray:
 
 
 def jacobian6(q) -> np.ndarray:
-    """The same Jacobian in link 7's frame (6, 7)."""
+    """The same Jacobian in the flange frame (6, 7)."""
     r = fk(q)[:3, :3]
     j = jacobian0(q)
     return np.vstack([r.T @ j[:3], r.T @ j[3:]])
