@@ -37,7 +37,7 @@ from rccl import EQ, T6, TL, BadRequest, TrajectoryFault, Trsf, makeposition
 GENERATORS = ("quartic", "ruckig")
 FEATURES = ("plain", "functional", "force_limit", "deviation_limit", "monitor", "compliance", "conditional",
             "event_flags", "rate_change", "feedforward", "collision", "redundancy")
-ARMS = ("puma260", "microbo", "puma560", "stanford", "panda")
+ARMS = ("puma260", "microbo", "puma560", "stanford")
 LINKS = ("socket", "zenoh")
 
 # joint values (rad, m) away from every singularity and joint stop, as in the per-arm tests
