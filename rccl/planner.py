@@ -153,7 +153,7 @@ class Planner:
             raise BadRequest(f"selfmove: the {self.kin.name} has {getattr(self.kin, 'dof', 6)} joints and no "
                              "self-motion: its pose fixes its joints")
         target, duration = redundancy.check_target(q7, duration, self.limits)
-        if self._pred_q is None:
+        if self._pred_q is None or not self.gen.busy:     # (at rest: from where the arm is)
             q = self.gen.q.copy()
             self._pred_q, self._pred_t6 = q, self.kin.fk(q)
         t6, q_start = self._pred_t6.copy(), self._pred_q
@@ -238,6 +238,10 @@ class Planner:
 
     # -- planning-level check -------------------------------------------------------------
     def _precheck(self, req: Request) -> None:
+        if getattr(self.kin, "redundant", False) and not self.gen.busy:
+            # a redundant arm's rules (far, time) end q7 where the samples took it, not where the
+            # path check predicted: at rest, plan from where the arm is
+            self._pred_q = None
         if self._pred_q is None:
             q = self.gen.q.copy()
             self._pred_q, self._pred_t6 = q, self.kin.fk(q)
