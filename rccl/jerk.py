@@ -174,9 +174,11 @@ class JerkLimitedGenerator:
         self.move: _Move | None = None
         self._abort: MotionEnd | None = None
         self._braking = False
-        self._otg = Ruckig(6, self.dt)
-        self._inp = InputParameter(6)
-        self._out = OutputParameter(6)
+        # Ruckig's state space: the arm's joints in joint mode (and braking), the tool's 6-vector in
+        # Cartesian mode; one record set per size (a single one for a 6-joint arm)
+        self._dofs = sorted({6, len(self.q)})
+        self._records = {n: (Ruckig(n, self.dt), InputParameter(n), OutputParameter(n)) for n in self._dofs}
+        self._otg, self._inp, self._out = self._records[len(self.q)]
         self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
         self._step_list = self._step_bound.tolist()
         self._lo_list, self._hi_list = (limits.lower - 1e-9).tolist(), (limits.upper + 1e-9).tolist()
@@ -205,7 +207,8 @@ class JerkLimitedGenerator:
         self.jerk = _capped(self._jerk_base, limits)
         if self.move is not None and self.move.mode == "joint":
             self._inp.max_velocity = np.minimum(self._inp.max_velocity, self.jerk.joint_velocity).tolist()
-        self._otg = Ruckig(6, dt)
+        self._records = {n: (Ruckig(n, dt), inp, out) for n, (_, inp, out) in self._records.items()}
+        self._otg = self._records[self._inp.degrees_of_freedom][0]
         self._step_bound = limits.joint_velocity * dt * STEP_MARGIN + 1e-9
         self._step_list = self._step_bound.tolist()
         self.functional.set_period(limits.joint_velocity, dt, limits.joint_acceleration)
@@ -344,13 +347,15 @@ class JerkLimitedGenerator:
         move still following a moving target or when blending (``carry``), from Ruckig's present
         state (position, velocity, acceleration in the move's state space)."""
         target = self._target(mv)      # first: a refused destination leaves the input record untouched
+        n = len(self.q) if mv.mode == "joint" else 6
+        self._otg, self._inp, self._out = self._records[n]
         inp, lim, params = self._inp, self.jerk, mv.req.params
         inp.control_interface = ControlInterface.Position
         if not carry and not (prev is not None and prev.mode == "joint" and mv.mode == "joint"):
-            inp.current_velocity = [0.0] * 6
-            inp.current_acceleration = [0.0] * 6
-        inp.target_velocity = [0.0] * 6
-        inp.target_acceleration = [0.0] * 6
+            inp.current_velocity = [0.0] * n
+            inp.current_acceleration = [0.0] * n
+        inp.target_velocity = [0.0] * n
+        inp.target_acceleration = [0.0] * n
         inp.minimum_duration = params.travel_time
         if mv.mode == "joint":
             inp.synchronization = Synchronization.Time
@@ -441,18 +446,21 @@ class JerkLimitedGenerator:
     def _end_now(self, mv: _Move, end: MotionEnd) -> None:
         """Finish ``mv`` with ``end`` and brake the joints to rest (Ruckig's velocity interface)."""
         inp = self._inp
+        n = len(self.q)
         if mv.mode == "joint":   # Ruckig's own state: the brake continues the profile's acceleration
             v, a = np.array(inp.current_velocity), list(inp.current_acceleration)
         else:   # Cartesian mode tracks no joint state: the last step's velocity, zero acceleration
-            v, a = (self.q - self.q_prev) / self.dt, [0.0] * 6
+            v, a = (self.q - self.q_prev) / self.dt, [0.0] * n
+            self._otg, self._inp, self._out = self._records[n]     # (the joints' record set)
+            inp = self._inp
         inp.control_interface = ControlInterface.Velocity
         inp.synchronization = Synchronization.No
         inp.minimum_duration = None
         inp.current_position = self.q.tolist()
         inp.current_velocity = np.clip(v, -self.jerk.joint_velocity, self.jerk.joint_velocity).tolist()
         inp.current_acceleration = a
-        inp.target_velocity = [0.0] * 6
-        inp.target_acceleration = [0.0] * 6
+        inp.target_velocity = [0.0] * n
+        inp.target_acceleration = [0.0] * n
         inp.max_velocity = self.jerk.joint_velocity.tolist()
         inp.max_acceleration = self.jerk.joint_acceleration.tolist()
         inp.max_jerk = self.jerk.joint_jerk.tolist()

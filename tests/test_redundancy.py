@@ -304,3 +304,34 @@ def test_a_rule_giving_no_number_is_refused_naming_it():
     with pytest.raises(UnreachableTarget, match=r"f\(0\.\d+ s\) = nan is not a finite number of radians"):
         pl.move(makeposition("B", T6, EQ, Trsf("B", t1), TL, T6))
     assert len(pl.queue) == 0
+
+
+@pytest.mark.parametrize("kind", GENERATORS)
+def test_a_rule_of_time_blends_into_a_joint_move_without_a_jump(kind):
+    pl, _ = planner(kind)
+    t0, t1 = line_target()
+    pl.setmod("c")
+    pl.setvel(0.1, 0.5)
+    q70 = float(P.READY[6])
+    pl.setfree(q7=lambda t: q70 + 0.3 * math.sin(t))
+    pl.move(makeposition("B", T6, EQ, Trsf("B", t1), TL, T6))
+    pl.setmod("j")
+    pl.setfree()
+    qs = run(pl, pl.move(makeposition("A", T6, EQ, Trsf("A", t0), TL, T6)), 600)
+    # every step within the joint speed limits (the generators' step check would fault otherwise)
+    speed = np.abs(np.diff(qs, axis=0)).max(axis=0) / DT
+    assert np.all(speed <= P.VELOCITY * 1.25)
+    assert np.allclose(P.fk(qs[-1]), t0, atol=1e-9)
+
+
+def test_at_rest_the_next_rule_starts_from_where_the_arm_is():
+    pl, _ = planner("quartic")
+    t0, t1 = line_target()
+    pl.setmod("c")
+    pl.setvel(0.1, 0.5)
+    pl.setfree("far")
+    run(pl, pl.move(makeposition("B", T6, EQ, Trsf("B", t1), TL, T6)))
+    here = float(pl.gen.q[6])
+    pl.setfree(q7=lambda t: here + 0.1 * math.sin(t))    # f(0) is the q7 the arm has, not move()'s guess
+    qs = run(pl, pl.move(makeposition("A", T6, EQ, Trsf("A", t0), TL, T6)))
+    assert np.allclose(P.fk(qs[-1]), t0, atol=1e-9)
