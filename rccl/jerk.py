@@ -11,7 +11,7 @@ record; the result code says whether the move is still running (``Working``), do
 (``Finished``) or refused (negative: a ``MotionError`` naming the move). The target is
 re-solved every sample, so a moving target re-plans from the arm's present state.
 
-- joint mode: the state is the six joint angles (rad, rad/s, rad/s^2); the target is the
+- joint mode: the state is the arm's joint angles (rad, rad/s, rad/s^2); the target is the
   destination's joints (inverse kinematics in the requested configuration); all joints
   start and stop together (Ruckig's time synchronisation);
 - Cartesian mode: the state is the tool frame in the base frame as six numbers: the tool
