@@ -165,8 +165,9 @@ class SelfMotion(FreeRule):
 class FarFromLimits(FreeRule):
     """Each call, q7 is the candidate within ``step`` rad of ``q_ref``'s q7 (``candidates``
     evenly spaced values, the previous one among them) whose joints have the least
-    :func:`cost`; joint ranges ``lower``/``upper`` (rad). A candidate with no solution is
-    skipped; with none at all the previous q7's error is raised."""
+    :func:`cost`; joint ranges ``lower``/``upper`` (rad). A candidate with no solution, or
+    with a joint outside its range, is skipped; with none left the previous q7 is solved
+    (its error, or its joints for the range check to name)."""
 
     lower: np.ndarray
     upper: np.ndarray
@@ -186,6 +187,8 @@ class FarFromLimits(FreeRule):
             try:
                 q = module.ik(t6, config, q_ref, q7=v)
             except ValueError:
+                continue
+            if not np.all((q >= self.lower) & (q <= self.upper)):
                 continue
             c = cost(q, module.jacobian6(q), self.lower, self.upper, self.sigma_ref, self.weight)
             if c < best_cost:
