@@ -335,3 +335,19 @@ def test_at_rest_the_next_rule_starts_from_where_the_arm_is():
     pl.setfree(q7=lambda t: here + 0.1 * math.sin(t))    # f(0) is the q7 the arm has, not move()'s guess
     qs = run(pl, pl.move(makeposition("A", T6, EQ, Trsf("A", t0), TL, T6)))
     assert np.allclose(P.fk(qs[-1]), t0, atol=1e-9)
+
+
+def test_far_rule_picks_the_cheapest_candidate_within_its_window():
+    rule = redundancy.FarFromLimits(P.LOWER, P.UPPER, step=0.05)
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        q = P.READY + rng.uniform(-0.3, 0.3, 7)
+        t6 = P.fk(q)
+        best = rule.solve(P, t6, P.config_of(q), q, 0.0, q[6])
+        assert abs(best[6] - q[6]) <= 0.05 + 1e-12
+        assert np.allclose(P.fk(best), t6, atol=1e-9)
+        costs = []
+        for v in q[6] + np.linspace(-0.05, 0.05, 5):
+            c = P.ik(t6, None, q, q7=v)
+            costs.append(redundancy.cost(c, P.jacobian6(c), P.LOWER, P.UPPER))
+        assert redundancy.cost(best, P.jacobian6(best), P.LOWER, P.UPPER) == pytest.approx(min(costs), rel=1e-9)
