@@ -79,6 +79,7 @@ bench: $(STAMP)
 	$(PY) -m bench.identification --robot stanford --out reports/identification-stanford.md
 	$(PY) -m pip install --quiet --no-deps -e .   # rebuild the C kernels from the current generated C
 	$(PY) -m bench.run
+	$(PY) -m bench.ik_redundant   # the Panda's closed-form IK with q7 free: reports/ik-redundant.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

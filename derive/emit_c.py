@@ -60,7 +60,7 @@ class CPrinter:
 
     def _signed(self, e: sp.Expr) -> tuple[str, bool]:
         """Text of |e| and whether e is negated, so callers can fold the sign."""
-        if e.is_Number:
+        if e.is_Number or e.is_NumberSymbol:  # pi: an atan2 of constants folded by SymPy
             return _num(abs(e)), bool(e < 0)
         if e.is_Symbol:
             return self.names.get(e, e.name), False
@@ -295,6 +295,10 @@ def _vector_trig(prog: LoweredKernel) -> TrigSplit | None:
         a = f.args[0]
         if a.atoms(sp.Function) or not a.free_symbols <= inputs | xsyms:
             return None
+    # the helper sums are computed before the row: only of inputs (a redundant arm's ik has
+    # atan2 locals of the config signs, derive.redundant_kernels)
+    if any(not f.free_symbols <= inputs for sym, f in prog.trig if sym in xsyms):
+        return None
     names = dict(prog.symbol_names)
     for sym, _ in prog.trig:
         names[sym] = sym.name

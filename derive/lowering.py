@@ -502,9 +502,9 @@ def all_configurations_kernels(kernels: list[Kernel]) -> list[Kernel]:
     (n_configs, n_guards), a configuration being valid when all its guards are >= 0.
     """
     ik = next((k for k in kernels if k.name == "ik"), None)
-    if ik is None or len(ik.inputs) != 2 or ik.inputs[1].name != "config":
+    if ik is None or ik.inputs[-1].name != "config":
         return []
-    signs = list(ik.inputs[1].value)
+    signs = list(ik.inputs[-1].value)
     q = ik.outputs[0].value
     rows, grows = [], []
     for combo in itertools.product((1, -1), repeat=len(signs)):
@@ -513,5 +513,6 @@ def all_configurations_kernels(kernels: list[Kernel]) -> list[Kernel]:
         grows.append(dag_xreplace([g.expr for g in ik.guards], sub))
     doc = ("every configuration of ik at once (rows in Config.all() order); guards per row, "
            "a row is valid when all its guards are >= 0")
-    return [Kernel(ik.robot, "ik_all", doc, (ik.inputs[0],),
+    # every input but config (the pose; a redundant arm's free value too: derive.redundant_kernels)
+    return [Kernel(ik.robot, "ik_all", doc, tuple(ik.inputs[:-1]),
                    (Arg("q", sp.Matrix(rows)), Arg("guards", sp.Matrix(grows))), (), dict(ik.params), ik.source)]

@@ -34,6 +34,15 @@ FUNCTIONS: Mapping[str, tuple[str, str]] = {
 #: the public function names, in binding order
 PUBLIC: tuple[str, ...] = tuple(FUNCTIONS)
 
+#: a redundant 7-joint arm (the Panda) names its free parameter: the value of joint 7, q7
+#: (rad). Its inverse (derive.inverse_redundant; runtime rccl.kinematics.redundant_ik) takes
+#: the pose T of the flange (frame 7) and q7; config has the fields shoulder, elbow, wrist;
+#: every returned q reproduces T and lies in the joint ranges
+REDUNDANT: Mapping[str, tuple[str, str]] = {
+    "ik": ("T (4, 4), config, q_ref (7,) | None, q7 (keyword, rad)", "(7,) q"),
+    "ik_all": ("T (4, 4), q7 (rad), q_ref (7,) | None", "list of (config, (7,) q), every solution for that q7"),
+}
+
 #: the dynamics (thesis eq. 4.6, ``derive.dynamics``) of a generated module, bound after the
 #: functions above; ``b`` is the robot's number of base parameters (``BASE_PARAMETERS``)
 DYNAMICS: Mapping[str, tuple[str, str]] = {
