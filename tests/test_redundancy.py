@@ -351,3 +351,44 @@ def test_far_rule_picks_the_cheapest_candidate_within_its_window():
             c = P.ik(t6, None, q, q7=v)
             costs.append(redundancy.cost(c, P.jacobian6(c), P.LOWER, P.UPPER))
         assert redundancy.cost(best, P.jacobian6(best), P.LOWER, P.UPPER) == pytest.approx(min(costs), rel=1e-9)
+
+
+# -- the same with the Panda's generated closed-form IK (rccl.kinematics.panda_ik) ----------------
+def closed_form():
+    """The generated closed-form IK with q7 given (redik), the stand-in's 6x7 Jacobian beside it
+    (the generated fk and the stand-in's agree to rounding: checked here)."""
+    import types
+    from rccl.kinematics import panda_ik as K
+    rng = np.random.default_rng(11)
+    for q in rng.uniform(P.LOWER, P.UPPER, (5, 7)):
+        assert np.allclose(K.fk(q), P.fk(q), atol=1e-12)
+    return types.SimpleNamespace(ROBOT="panda", JOINT_KINDS=P.JOINT_KINDS, fk=K.fk, ik=K.ik,
+                                 config_of=K.config_of, Config=type(K.config_of(P.READY)),
+                                 jacobian6=P.jacobian6)
+
+
+@pytest.mark.parametrize("kind", GENERATORS)
+@pytest.mark.parametrize("rule", ["hold", "time", "far", "selfmove"])
+def test_each_rule_with_the_generated_closed_form_ik(kind, rule):
+    kin = Kinematics(closed_form())
+    pl = Planner(kin, P.limits(), GENERATORS[kind](kin, P.limits(), DT, P.READY.copy()))
+    t0, t1 = line_target()
+    pl.setmod("c")
+    pl.setvel(0.1, 0.5)
+    q70 = float(P.READY[6])
+    if rule == "selfmove":
+        qs = run(pl, pl.selfmove(q7=q70 - 0.4, duration=1.0))
+        assert max(float(np.abs(kin.fk(q) - t0).max()) for q in qs) < 1e-9
+        assert qs[-1, 6] == pytest.approx(q70 - 0.4, abs=1e-12)
+    else:
+        pl.setfree(**{"hold": {"spec": "hold"}, "far": {"spec": "far"},
+                      "time": {"q7": lambda t: q70 + 0.2 * math.sin(1.5 * t)}}[rule])
+        qs = run(pl, pl.move(makeposition("B", T6, EQ, Trsf("B", t1), TL, T6)))
+        pts = np.array([kin.fk(q)[:3, 3] for q in qs])
+        assert np.max(distance_to_line(pts, t0[:3, 3], t1[:3, 3])) < LINE_TOL[kind]
+        assert np.allclose(kin.fk(qs[-1]), t1, atol=1e-9)
+        if rule == "hold":
+            assert np.all(qs[:, 6] == q70)
+        elif rule == "far":
+            assert 0 < np.max(np.abs(np.diff(qs[:, 6]))) <= redundancy.FAR_STEP + 1e-12
+    assert all(P.limits().out_of_range(q) is None for q in qs)
