@@ -58,8 +58,11 @@ def arm_report(d: Derivation) -> str:
     out += ["## A matrices (3.3)", ""]
     for k, a in enumerate(a_matrices(dh), start=1):
         out += _matrix(a, f"A{k}")
-    out += ["", "## T6 = A1 ... A6 (3.16)", ""]
-    out += _entries(d.t6[:3, :], "T6")
+    n = len(dh.links)
+    out += ["", f"## T{n} = A1 ... A{n} (3.16)", ""]
+    out += _entries(d.t6[:3, :], f"T{n}")
+    if ik is None:
+        return "\n".join(out + _redundant_sections(d)) + "\n"
     out += ["", f"## Inverse kinematics: {ik.kind} class, Paul's method (3.19)", "",
             "Each step reads an element of (A1..Ai)^-1 T6 = A(i+1)..A6 that holds one new unknown",
             "(the thesis equation it mirrors on the PUMA 260 in the first column).", "",
@@ -78,13 +81,51 @@ def arm_report(d: Derivation) -> str:
             "| guard | error | meaning |", "|---|---|---|"]
     for name, _, error, message in ik.guards:
         out.append(f"| {name} | {error} | {message} |")
-    out += ["", "## Jacobian of link 6 observed in frame 4 (3.54-3.61)", ""]
+    out += _jacobian_and_gravity(d)
+    return "\n".join(out) + "\n"
+
+
+def _redundant_sections(d: Derivation) -> list[str]:
+    """A 7-joint arm: the plug-in point of its inverse kinematics, its 6 x 7 Jacobians (sizes:
+    their entries are the expanded products, hundreds of terms), gravity."""
+    from derive.redundant import SOLVER_MODULE, solver_available
+
+    n = len(d.spec.dh.links)
+    out = ["", "## Inverse kinematics: redundant class (7 joints)", "",
+           "A pose fixes six of the seven joint variables' combinations: Paul's method (3.19) has one",
+           "unknown too many. The closed-form solver with a free parameter (one joint or an arm",
+           f"angle) is `{SOLVER_MODULE}` (plugged in by derive/redundant.py): "
+           + ("present, its kernels are emitted." if solver_available() else
+              "not derived yet, so the generated module's ik and ik_all raise NoSolver naming it."),
+           "", f"## Jacobians (6 x {n}): link {n} observed in frame {n} and in frame 4's axes", "",
+           f"{n}J column i is D_(i-1,{n}) c_i (3.57-3.61 with k = {n}); 4J = diag(B, B) {n}J with B the",
+           f"rotation of frame {n} in frame 4 (3.81), the motion of link {n}'s origin in frame 4's axes.",
+           "The inverse computations are the runtime's minimum-norm and least-squares solutions",
+           "(rccl/kinematics/redundant.py); no symbolic inverse.", "",
+           "| matrix | non-zero entries | operations (SymPy count_ops, expanded) |", "|---|---|---|"]
+    for name, m in (("4J", d.diff.j4), (f"{n}J", d.diff.j6)):
+        nz = sum(1 for e in m if e != 0)
+        out.append(f"| {name} | {nz} | {sum(sp.count_ops(e) for e in m)} |")
+    return out + _gravity(d)
+
+
+def _jacobian_and_gravity(d: Derivation) -> list[str]:
+    """The link-4 Jacobian of a 6-joint arm, the denominators of its inverse, gravity."""
+    diff = d.diff
+    out = ["", "## Jacobian of link 6 observed in frame 4 (3.54-3.61)", ""]
     out += _entries(diff.j4, "4J")
     if diff.y != sp.eye(6):
         out += ["", "Joints 2 and 3 are parallel: 4J = 4J' Y with Y of 3.63 (dq2 + dq3 as one rate).", ""]
     out += ["", "Factors of the denominators of the inverse (a zero is a singularity):", "", "```"]
     out += [_expr(f) for f in diff.det_factors]
-    out += ["```", "", "## Gravity (4.20, 4.24)", "",
+    out += ["```"]
+    return out + _gravity(d)
+
+
+def _gravity(d: Derivation) -> list[str]:
+    """The gravity coefficients with their meanings, and their regressor (4.20, 4.24)."""
+    spec, gm = d.spec, d.gravity
+    out = ["", "## Gravity (4.20, 4.24)", "",
             "tau_g = Y(q) c holds the arm against g = (0, 0, -g) in the base frame. "
             + ("The coefficients are the model file's grouping." if spec.com_form is not None else
                "The coefficients are the minimal identifiable set found by the derivation "
@@ -96,7 +137,7 @@ def arm_report(d: Derivation) -> str:
         out.append(f"| {n} | `{_expr(m)}` |")
     out += ["", "Regressor Y(q), one row per joint:", ""]
     out += _entries(gm.regressor, "Y")
-    return "\n".join(out) + "\n"
+    return out
 
 
 def write_arm_report(d: Derivation, path: Path) -> Path:

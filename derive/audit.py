@@ -132,7 +132,7 @@ def check_partial_derivative(dh) -> float:
     mats = a_matrices(dh)
     params = sorted(set().union(*(m.free_symbols for m in mats)) - set(Q), key=str)   # link lengths: any values
     values = {p: float(rng.uniform(0.05, 0.3)) for p in params}
-    amats = [sp.lambdify([Q], m.subs(values), "numpy") for m in mats]
+    amats = [sp.lambdify([Q[:6]], m.subs(values), "numpy") for m in mats]
     q = rng.uniform(-1.5, 1.5, size=6)
     h = 1e-6
 

@@ -12,8 +12,11 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-#: joint variables, shared by both robots (q2, q3 are lengths on the Microbo)
-Q = sp.symbols("q1:7", real=True)
+#: joint variables of up to 7 joints, shared by every arm (q2, q3 are lengths on the
+#: Microbo); a 6-joint arm uses Q[:6], the redundant Panda all seven
+Q = sp.symbols("q1:8", real=True)
+#: the joint counts the derivation handles: six (the thesis's arms) and seven (redundant)
+N_JOINTS = (6, 7)
 
 #: the PUMA's fixed link lengths of Table 3.1 (metres)
 a2, d3, d4 = sp.symbols("a2 d3 d4", positive=True)
@@ -102,6 +105,11 @@ def a_matrices(robot: DHRobot) -> list[sp.Matrix]:
     return [a_matrix(link) for link in robot.links]
 
 
+def joint_symbols(robot: DHRobot) -> tuple[sp.Symbol, ...]:
+    """q1..qn of ``robot`` (n = 6 or 7)."""
+    return Q[:len(robot.links)]
+
+
 def inverse_transform(t: sp.Matrix) -> sp.Matrix:
     """Inverse of a homogeneous transform: (R^T, -R^T p)."""
     r = t[:3, :3]
@@ -142,9 +150,9 @@ def dh_from_model(model) -> tuple[DHRobot, dict[sp.Symbol, float]]:
     value is a symbol named after its table entry (a2, d3, ...). For the thesis arms this
     is Table 3.1 / 3.2 exactly (``PUMA260``, ``MICROBO``).
     """
-    if model.n_joints != 6:
+    if model.n_joints not in N_JOINTS:
         raise ValueError(f"{model.path}: robot.n_joints = {model.n_joints}: the derivation "
-                         "handles six-joint arms")
+                         "handles six-joint arms and seven-joint (redundant) ones")
     params: dict[sp.Symbol, float] = {}
     links = []
     for j, q in zip(model.joints, Q):

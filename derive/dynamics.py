@@ -26,8 +26,9 @@ import sympy as sp
 from derive.dh import Q, DHRobot
 from derive.gravity import g0
 
-QD = sp.symbols("qd1:7", real=True)
-QDD = sp.symbols("qdd1:7", real=True)
+#: joint rates and accelerations of up to 7 joints (a 6-joint arm uses the first six)
+QD = sp.symbols("qd1:8", real=True)
+QDD = sp.symbols("qdd1:8", real=True)
 #: the ten inertial parameters of a link, in the order of the regressor's columns
 PARAM_KINDS = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
 
@@ -37,9 +38,20 @@ def link_params(j: int) -> dict[str, sp.Symbol]:
     return {k: sp.Symbol(f"{k}{j}", real=True) for k in PARAM_KINDS}
 
 
-#: all 60 link parameters, link by link, then the six rotor inertias
-STANDARD: tuple[sp.Symbol, ...] = tuple(s for j in range(1, 7) for s in link_params(j).values())
-ROTOR: tuple[sp.Symbol, ...] = tuple(sp.Symbol(f"IA{j}", real=True) for j in range(1, 7))
+#: the link parameters of up to 7 links, link by link (10 per link), and the rotor inertias;
+#: an n-joint arm's are ``standard_params(n)`` and ``rotor_params(n)``
+STANDARD: tuple[sp.Symbol, ...] = tuple(s for j in range(1, 8) for s in link_params(j).values())
+ROTOR: tuple[sp.Symbol, ...] = tuple(sp.Symbol(f"IA{j}", real=True) for j in range(1, 8))
+
+
+def standard_params(n: int) -> tuple[sp.Symbol, ...]:
+    """The 10 n standard link parameters of an n-joint arm (60 for the thesis's arms)."""
+    return STANDARD[:10 * n]
+
+
+def rotor_params(n: int) -> tuple[sp.Symbol, ...]:
+    """The n rotor inertias IA1..IAn."""
+    return ROTOR[:n]
 
 
 def cross(a: Sequence[sp.Expr], b: Sequence[sp.Expr]) -> list[sp.Expr]:
@@ -169,13 +181,15 @@ def transport(prog: Program, r: sp.Matrix, p, f, n) -> tuple[list[sp.Expr], list
 
 
 def rnea(prog: Program, robot: DHRobot, params: Sequence[dict[str, sp.Expr]], qd, qdd,
-         rotor: Sequence[sp.Expr] = (0,) * 6, gravity: sp.Expr = g0) -> list[sp.Expr]:
+         rotor: Sequence[sp.Expr] | None = None, gravity: sp.Expr = g0) -> list[sp.Expr]:
     """Joint torques t_j of 4.6 without friction: D qdd + c + t_g (+ rotor IA_j qdd_j)."""
+    nj = len(robot.links)
+    rotor = (0,) * nj if rotor is None else rotor
     m = motion(prog, robot, qd, qdd, gravity)
-    tau: list[sp.Expr] = [sp.Integer(0)] * 6
+    tau: list[sp.Expr] = [sp.Integer(0)] * nj
     f_tot: list[sp.Expr] | None = None
     n_tot: list[sp.Expr] | None = None
-    for j in range(5, -1, -1):
+    for j in range(nj - 1, -1, -1):
         f, n = body_wrench(m.w[j], m.dw[j], m.a[j], params[j])
         if f_tot is not None:
             fc, nc = transport(prog, m.R[j + 1], m.p[j + 1], f_tot, n_tot)
@@ -199,18 +213,20 @@ def move_params(r: sp.Matrix, p, par: dict[str, sp.Expr], let: Callable = lambda
 
 
 def crba(prog: Program, robot: DHRobot, params: Sequence[dict[str, sp.Expr]],
-         rotor: Sequence[sp.Expr] = (0,) * 6) -> sp.Matrix:
+         rotor: Sequence[sp.Expr] | None = None) -> sp.Matrix:
     """The inertia matrix D(q) (4.6) by composite rigid bodies, in the joint frames."""
+    nj = len(robot.links)
+    rotor = (0,) * nj if rotor is None else rotor
     st = steps(robot)
     rs = [s.R.applyfunc(prog.let) for s in st]
     ps = [prog.vec(s.p) for s in st]
-    comp: list[dict[str, sp.Expr]] = [dict() for _ in range(6)]
-    comp[5] = {k: prog.let(v) for k, v in params[5].items()}
-    for j in range(4, -1, -1):
+    comp: list[dict[str, sp.Expr]] = [dict() for _ in range(nj)]
+    comp[nj - 1] = {k: prog.let(v) for k, v in params[nj - 1].items()}
+    for j in range(nj - 2, -1, -1):
         moved = move_params(rs[j + 1], ps[j + 1], comp[j + 1], prog.let)
         comp[j] = {k: prog.let(params[j][k] + moved[k]) for k in PARAM_KINDS}
-    d = sp.zeros(6, 6)
-    for j in range(6):
+    d = sp.zeros(nj, nj)
+    for j in range(nj):
         c = comp[j]
         if robot.links[j].prismatic:
             n, f = [c["MY"], -c["MX"], 0], [0, 0, c["M"]]
@@ -253,17 +269,18 @@ def derivatives(prog: Program, outputs: Sequence[sp.Expr], wrt: Sequence[sp.Symb
 def coriolis_matrix(prog: Program, d: sp.Matrix, qd: Sequence[sp.Expr], first: int = 0) -> sp.Matrix:
     """Christoffel form C(q, qd) of c = C qd with D' - 2C skew (what Pinocchio computes):
     C = (D' + P - P^T) / 2, P_kj = d(D qd)_k / d q_j, D' = sum_j qd_j dD/dq_j."""
-    flat = [d[i, j] for i in range(6) for j in range(i, 6)]
+    nj = d.rows
+    flat = [d[i, j] for i in range(nj) for j in range(i, nj)]
     index = {}
     n = 0
-    for i in range(6):
-        for j in range(i, 6):
+    for i in range(nj):
+        for j in range(i, nj):
             index[(i, j)] = index[(j, i)] = n
             n += 1
-    dd = derivatives(prog, flat, Q, first)  # dd[k][index(i, j)] = dD_ij / dq_k
-    ddot = sp.Matrix(6, 6, lambda i, j: prog.let(sum(qd[k] * dd[k][index[(i, j)]] for k in range(6))))
-    pm = sp.Matrix(6, 6, lambda k, j: prog.let(sum(dd[j][index[(k, i)]] * qd[i] for i in range(6))))
-    return sp.Matrix(6, 6, lambda k, j: prog.let((ddot[k, j] + pm[k, j] - pm[j, k]) / 2))
+    dd = derivatives(prog, flat, Q[:nj], first)  # dd[k][index(i, j)] = dD_ij / dq_k
+    ddot = sp.Matrix(nj, nj, lambda i, j: prog.let(sum(qd[k] * dd[k][index[(i, j)]] for k in range(nj))))
+    pm = sp.Matrix(nj, nj, lambda k, j: prog.let(sum(dd[j][index[(k, i)]] * qd[i] for i in range(nj))))
+    return sp.Matrix(nj, nj, lambda k, j: prog.let((ddot[k, j] + pm[k, j] - pm[j, k]) / 2))
 
 
 @dataclass
@@ -282,13 +299,14 @@ def regressor(prog: Program, robot: DHRobot, qd, qdd, keep: Sequence[sp.Symbol] 
     ``combos`` maps a column name to {standard parameter: weight} (a base column that is a
     fixed combination of standard columns); default: each kept parameter's own column."""
     m = motion(prog, robot, qd, qdd, gravity)
-    wanted = list(keep) if keep is not None else list(STANDARD) + list(ROTOR)
+    nj = len(robot.links)
+    wanted = list(keep) if keep is not None else list(standard_params(nj)) + list(rotor_params(nj))
     combos = combos or {p: {p: sp.Integer(1)} for p in wanted}
     out = Columns()
     for name in wanted:
         parts = combos[name]
         # the standard columns of this combination, link by link (tip first: carry down)
-        tau = [sp.Integer(0)] * 6
+        tau = [sp.Integer(0)] * nj
         by_link: dict[int, dict[str, sp.Expr]] = {}
         for p, weight in parts.items():
             if p in ROTOR:
@@ -298,7 +316,7 @@ def regressor(prog: Program, robot: DHRobot, qd, qdd, keep: Sequence[sp.Symbol] 
             j = STANDARD.index(p) // 10
             by_link.setdefault(j, {k: sp.Integer(0) for k in PARAM_KINDS})[PARAM_KINDS[STANDARD.index(p) % 10]] += weight
         f_tot = n_tot = None
-        for j in range(5, -1, -1):
+        for j in range(nj - 1, -1, -1):
             if f_tot is not None:
                 f_tot, n_tot = transport(prog, m.R[j + 1], m.p[j + 1], f_tot, n_tot)
             if j in by_link:

@@ -35,9 +35,10 @@ from derive.dynamics import (PARAM_KINDS, QD, QDD, ROTOR, STANDARD, Program, mov
 from derive.gravity import g0
 
 #: inputs of the base-parameter kernel: the data file's inertials (DH frame k) and rotors
-MASS = sp.symbols("m1:7", positive=True)
-COMS = [sp.symbols(f"x{k} y{k} z{k}", real=True) for k in range(1, 7)]
-INERTIA = [sp.symbols(f"ixx{k} iyy{k} izz{k} ixy{k} ixz{k} iyz{k}", real=True) for k in range(1, 7)]
+#: (up to 7 links; an n-joint arm uses the first n)
+MASS = sp.symbols("m1:8", positive=True)
+COMS = [sp.symbols(f"x{k} y{k} z{k}", real=True) for k in range(1, 8)]
+INERTIA = [sp.symbols(f"ixx{k} iyy{k} izz{k} ixy{k} ixz{k} iyz{k}", real=True) for k in range(1, 8)]
 RELATIVE_RANK_TOL = 1e-9
 
 
@@ -55,11 +56,12 @@ class BaseParameters:
 
 def _regroup(robot: DHRobot) -> tuple[dict[sp.Symbol, sp.Expr], list[str]]:
     """The two grouping rules, tip to base: {kept standard parameter: its group}."""
-    reg = [dict(link_params(j + 1)) for j in range(6)]
+    nj = len(robot.links)
+    reg = [dict(link_params(j + 1)) for j in range(nj)]
     gone: set[str] = set()
     rules = []
     st = steps(robot)
-    for j in range(5, -1, -1):
+    for j in range(nj - 1, -1, -1):
         par = reg[j]
         n = j + 1
         zero = {k: sp.Integer(0) for k in PARAM_KINDS}
@@ -84,23 +86,25 @@ def _regroup(robot: DHRobot) -> tuple[dict[sp.Symbol, sp.Expr], list[str]]:
         for k in PARAM_KINDS:
             reg[j - 1][k] = sp.expand(reg[j - 1][k] + moved[k])
     kept = {}
-    for j in range(6):
+    for j in range(nj):
         for k, s in link_params(j + 1).items():
             if s.name not in gone:
                 kept[s] = sp.expand(reg[j][k])
-    for r in ROTOR:
+    for r in ROTOR[:nj]:
         kept[r] = r
     return kept, rules
 
 
 def numeric_columns(robot: DHRobot, names: Sequence[sp.Symbol], values: dict[sp.Symbol, float],
                      n: int = 24, seed: int = 3) -> np.ndarray:
-    """The regressor columns of ``names`` at n random states, stacked: (6 n, len(names))."""
+    """The regressor columns of ``names`` at n random states, stacked: (nj n, len(names))."""
+    nj = len(robot.links)
     prog = Program("w")
     cols = regressor(prog, robot, QD, QDD, keep=list(names))
     subs = {k: float(v) for k, v in values.items()}
     pr = NumPyPrinter({"fully_qualified_modules": False})
-    lines = ["def f(q1, q2, q3, q4, q5, q6, qd1, qd2, qd3, qd4, qd5, qd6, qdd1, qdd2, qdd3, qdd4, qdd5, qdd6):"]
+    args = [f"{v}{j}" for v in ("q", "qd", "qdd") for j in range(1, nj + 1)]
+    lines = [f"def f({', '.join(args)}):"]
     for s, e in prog.defs:
         lines.append(f"    {s} = {pr.doprint(sp.sympify(e).xreplace(subs))}")
     outs = ", ".join(pr.doprint(sp.sympify(t).xreplace(subs)) for col in cols.torque for t in col)
@@ -108,11 +112,11 @@ def numeric_columns(robot: DHRobot, names: Sequence[sp.Symbol], values: dict[sp.
     env = {"numpy": np, "sin": np.sin, "cos": np.cos}
     exec("\n".join(lines).replace("numpy.", ""), env)
     rng = np.random.default_rng(seed)
-    x = rng.uniform(-2.0, 2.0, size=(18, n))
+    x = rng.uniform(-2.0, 2.0, size=(3 * nj, n))
     vals = env["f"](*x)
-    flat = np.array([np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in vals])  # (6 K, n)
+    flat = np.array([np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in vals])  # (nj K, n)
     k = len(names)
-    return flat.reshape(k, 6, n).transpose(2, 1, 0).reshape(6 * n, k)
+    return flat.reshape(k, nj, n).transpose(2, 1, 0).reshape(nj * n, k)
 
 
 def _small_rational(x: float) -> Fraction | None:
@@ -159,7 +163,7 @@ def standard_from_links(robot: DHRobot) -> dict[sp.Symbol, sp.Expr]:
     """The 60 standard parameters (joint frames) in the data file's terms: mass m_k, centre
     of mass (x_k, y_k, z_k) and inertia about it (ixx_k ...), both in DH frame k."""
     out: dict[sp.Symbol, sp.Expr] = {}
-    for k in range(6):
+    for k in range(len(robot.links)):
         m, c = MASS[k], COMS[k]
         ixx, iyy, izz, ixy, ixz, iyz = INERTIA[k]
         ic = sp.Matrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])

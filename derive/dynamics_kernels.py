@@ -38,10 +38,11 @@ def _kernel(spec: RobotSpec, name: str, doc: str, inputs: list[Arg], outputs: li
 def dynamics_kernels(spec: RobotSpec, links) -> tuple[list[Kernel], BaseParameters]:
     """The dynamics kernels of ``spec`` with the link inertials ``links`` (rcci.models.LinkInertial)."""
     dh = spec.dh
+    nj = len(dh.links)
     std = numeric_standard(dh, spec.params, links)
     par = [{k: sp.Float(std[s], 17) if std[s] else sp.Integer(0) for k, s in link_params(j + 1).items()}
-           for j in range(6)]
-    q, qd, qdd = sp.Matrix(Q), sp.Matrix(QD), sp.Matrix(QDD)
+           for j in range(nj)]
+    q, qd, qdd = sp.Matrix(Q[:nj]), sp.Matrix(QD[:nj]), sp.Matrix(QDD[:nj])
     qa = Arg("q", q, "joint variables (rad; m on prismatic joints)")
     qda = Arg("qd", qd, "joint rates (rad/s; m/s)")
     qdda = Arg("qdd", qdd, "joint accelerations (rad/s^2; m/s^2)")
@@ -57,7 +58,7 @@ def dynamics_kernels(spec: RobotSpec, links) -> tuple[list[Kernel], BaseParamete
     ks.append(_kernel(spec, "inertia_matrix", "D(q): the joint-space inertia matrix (composite rigid bodies)",
                       [qa], [Arg("D", d, "kg m^2 (kg on prismatic rows and columns)")], prog, "4.6"))
     prog = Program(PREFIX)
-    c = rnea(prog, dh, par, QD, [0] * 6, gravity=0)
+    c = rnea(prog, dh, par, QD, [0] * nj, gravity=0)
     ks.append(_kernel(spec, "coriolis", "c(q, qd): Coriolis and centrifugal torques (Newton-Euler, "
                       "qdd = 0, no gravity)", [qa, qda], [Arg("c", sp.Matrix(c), "N m (N)")], prog, "4.6"))
     prog = Program(PREFIX)
@@ -68,10 +69,10 @@ def dynamics_kernels(spec: RobotSpec, links) -> tuple[list[Kernel], BaseParamete
     bp = base_parameters(dh, spec.params)
     prog = Program(PREFIX)
     cols = regressor(prog, dh, QD, QDD, keep=list(bp.leaders))
-    y = sp.Matrix(6, len(bp.names), lambda i, j: cols.torque[j][i])
+    y = sp.Matrix(nj, len(bp.names), lambda i, j: cols.torque[j][i])
     ks.append(_kernel(spec, "base_regressor", "Y(q, qd, qdd) with t_j = Y beta (rigid body, gravity and "
                       "rotor inertias; beta: the base parameters)", [qa, qda, qdda],
-                      [Arg("Y", y, "6 x b, columns in BASE_PARAMETERS order")], prog, "4.6"))
+                      [Arg("Y", y, f"{nj} x b, columns in BASE_PARAMETERS order")], prog, "4.6"))
     ks.append(_base_parameter_kernel(spec, bp))
     return ks, bp
 
@@ -81,15 +82,16 @@ def _base_parameter_kernel(spec: RobotSpec, bp: BaseParameters) -> Kernel:
     from derive.dynamics_base import standard_from_links
 
     std = standard_from_links(spec.dh)
-    rotor = sp.Matrix(sp.symbols("rotor1:7", real=True))
+    nj = len(spec.dh.links)
+    rotor = sp.Matrix(sp.symbols(f"rotor1:{nj + 1}", real=True))
     sub = {**std, **dict(zip(ROTOR, rotor))}
     beta = sp.Matrix([sp.expand(sp.sympify(m).xreplace(sub)) for m in bp.meanings])
     prog = Program(PREFIX)
-    return _kernel(spec, "base_parameters", "the base parameters of link inertials: masses (6,) kg, "
-                   "centres of mass (6, 3) m and inertias about them (6, 6: ixx iyy izz ixy ixz iyz) "
-                   "kg m^2 in DH frames 1..6, rotor inertias (6,) at the joints",
-                   [Arg("m", sp.Matrix(MASS), "kg"), Arg("com", sp.Matrix([list(r) for r in COMS]), "m"),
-                    Arg("inertia", sp.Matrix([list(r) for r in INERTIA]), "kg m^2"),
+    return _kernel(spec, "base_parameters", f"the base parameters of link inertials: masses ({nj},) kg, "
+                   f"centres of mass ({nj}, 3) m and inertias about them ({nj}, 6: ixx iyy izz ixy ixz iyz) "
+                   f"kg m^2 in DH frames 1..{nj}, rotor inertias ({nj},) at the joints",
+                   [Arg("m", sp.Matrix(MASS[:nj]), "kg"), Arg("com", sp.Matrix([list(r) for r in COMS[:nj]]), "m"),
+                    Arg("inertia", sp.Matrix([list(r) for r in INERTIA[:nj]]), "kg m^2"),
                     Arg("rotor", rotor, "kg m^2 (kg)")],
                    [Arg("beta", beta, BASE_NAMES_LABEL + ", ".join(bp.names))], prog, "4.6")
 

@@ -190,7 +190,10 @@ def best_program(kernel: Kernel) -> tuple[LoweredKernel, str]:
     if len(cols) == 1:
         cross_choices += [{cols[0]: c} for c in range(3)]
     _, exprs = outputs_of(kernel)
-    large = dag_size(exprs) > LARGE_KERNEL or tree_size(exprs) > LARGE_TREE
+    # a 7-joint arm's kernels (expanded seven-fold products) take the one-pass lowering: the
+    # search below costs minutes per kernel on them
+    seven = any(a.name == "q" and a.value.rows == 7 for a in kernel.inputs)
+    large = seven or dag_size(exprs) > LARGE_KERNEL or tree_size(exprs) > LARGE_TREE
     collapses = (False,) if large or kernel.program else (False, True)
     factors = ("",) if large else ("", "count") if kernel.program else ("", "count", "base", "tip")
     stagings = (True,) if kernel.program else (False, True) if kernel.stages else (False,)

@@ -27,7 +27,8 @@ from rcci.models.kinematics import DYNAMICS, PUBLIC
 COMMAND = "make derive  (python -m derive)"
 #: the runtime's configuration record (rccl.kinematics.runtime) of each class's config signs
 CONFIG_CLASSES = {("arm", "elbow", "wrist"): "ArmConfig", ("wrist",): "WristConfig",
-                  ("arm", "boom", "wrist"): "BoomConfig"}
+                  ("arm", "boom", "wrist"): "BoomConfig",
+                  (): "NoConfig"}  # a redundant arm before its solver (rccl.kinematics.redundant)
 
 
 class _OnePrinter(PythonCodePrinter):

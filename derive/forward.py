@@ -17,12 +17,20 @@ def tidy_matrix(m: sp.Matrix) -> sp.Matrix:
     return m.applyfunc(tidy)
 
 
+def simplifier(robot: DHRobot):
+    """How the products of ``robot``'s A matrices are simplified: ``tidy`` (trigsimp, the
+    thesis's S23 forms) for a 6-joint arm; ``sp.expand`` alone for a 7-joint one, whose
+    seven-fold products trigsimp takes minutes per entry to fold (the emitters' common-
+    subexpression elimination shares the products instead)."""
+    return tidy if len(robot.links) <= 6 else sp.expand
+
+
 @lru_cache(maxsize=None)
 def base_to_link(robot: DHRobot, k: int) -> sp.Matrix:
     """T_k = A_1 ... A_k (thesis 4.9): frame k in the base frame; T_0 = I."""
     if k == 0:
         return sp.eye(4)
-    return tidy_matrix(base_to_link(robot, k - 1) * a_matrices(robot)[k - 1])
+    return (base_to_link(robot, k - 1) * a_matrices(robot)[k - 1]).applyfunc(simplifier(robot))
 
 
 @lru_cache(maxsize=None)
@@ -30,20 +38,21 @@ def link_to_link(robot: DHRobot, i: int, k: int) -> sp.Matrix:
     """Frame k in frame i: A_{i+1} ... A_k for i <= k, the inverse otherwise."""
     if i == k:
         return sp.eye(4)
+    simplify = simplifier(robot)
     if i > k:
-        return tidy_matrix(inverse_transform(link_to_link(robot, k, i)))
+        return inverse_transform(link_to_link(robot, k, i)).applyfunc(simplify)
     if i == 0:
         return base_to_link(robot, k)  # the same products, computed once
     a = a_matrices(robot)
     out = sp.eye(4)
     for j in range(i, k):
-        out = tidy_matrix(out * a[j])
+        out = (out * a[j]).applyfunc(simplify)
     return out
 
 
 def t6(robot: DHRobot) -> sp.Matrix:
-    """Thesis 3.16: link 6 in the base frame."""
-    return base_to_link(robot, 6)
+    """Thesis 3.16: link 6 in the base frame (the last link, link 7, of a 7-joint arm)."""
+    return base_to_link(robot, len(robot.links))
 
 
 def chain_groups(robot: DHRobot) -> list[list[int]]:
@@ -80,7 +89,7 @@ def t6_chained(robot: DHRobot) -> tuple[list[tuple[sp.Symbol, sp.Expr]], sp.Matr
     for g in reversed(groups):
         run = sp.eye(4)
         for i in g:
-            run = tidy_matrix(run * a[i])
+            run = (run * a[i]).applyfunc(simplifier(robot))
         if acc is None:
             acc = run
             continue

@@ -15,11 +15,12 @@ import numpy as np
 import sympy as sp
 
 from derive.dh import Q, DHRobot
-from derive.forward import base_to_link, link_to_link, tidy
+from derive.forward import base_to_link, link_to_link, simplifier, tidy
 
 g0 = sp.Symbol("g", positive=True)
-MASSES = sp.symbols("m1:7", positive=True)
-COM = [sp.symbols(f"x{k} y{k} z{k}", real=True) for k in range(1, 7)]
+#: link masses and centres of mass of up to 7 links (a 6-joint arm uses the first six)
+MASSES = sp.symbols("m1:8", positive=True)
+COM = [sp.symbols(f"x{k} y{k} z{k}", real=True) for k in range(1, 8)]
 #: tool load of 4.26: mass m_t at distance d_t along z6
 m_t, d_t = sp.symbols("m_t d_t", real=True)
 
@@ -28,8 +29,9 @@ def gravity_general(robot: DHRobot, com: list[tuple[sp.Expr, sp.Expr, sp.Expr]],
                     masses=MASSES) -> sp.Matrix:
     """Thesis 4.20 for arbitrary centres of mass ``com[k-1]`` in frame k."""
     gvec = sp.Matrix([0, 0, -g0])
+    n_links = len(robot.links)
     tau = []
-    for i in range(1, 7):
+    for i in range(1, n_links + 1):
         t_prev = base_to_link(robot, i - 1)
         n, o, a = t_prev[:3, 0], t_prev[:3, 1], t_prev[:3, 2]
         if robot.links[i - 1].prismatic:
@@ -37,10 +39,10 @@ def gravity_general(robot: DHRobot, com: list[tuple[sp.Expr, sp.Expr, sp.Expr]],
         else:
             h = sp.Matrix([[(gvec.T * o)[0], -(gvec.T * n)[0], 0, 0]])
         total = sp.zeros(4, 1)
-        for k in range(i, 7):
+        for k in range(i, n_links + 1):
             r = sp.Matrix([*com[k - 1], 1])
             total += masses[k - 1] * link_to_link(robot, i - 1, k) * r
-        tau.append(tidy(-(h * total)[0]))
+        tau.append(simplifier(robot)(-(h * total)[0]))
     return sp.Matrix(tau)
 
 
@@ -100,17 +102,21 @@ def _group(robot: DHRobot, general: sp.Matrix, meanings: dict[str, sp.Expr],
 
 
 
-#: the tool load of 4.26 as a substitution: a point mass m_t at d_t along z6 joins link 6
-#: (mass and first moment add)
-_M6 = MASSES[5]
-_X6, _Y6, _Z6 = COM[5]
-TOOL = {_M6: _M6 + m_t, _X6: _M6 * _X6 / (_M6 + m_t), _Y6: _M6 * _Y6 / (_M6 + m_t),
-        _Z6: (_M6 * _Z6 + m_t * d_t) / (_M6 + m_t)}
+def tool_substitution(n: int) -> dict[sp.Symbol, sp.Expr]:
+    """The tool load of 4.26 as a substitution: a point mass m_t at d_t along the last
+    link's z axis (z6 of the thesis arms) joins link n (mass and first moment add)."""
+    m, (x, y, z) = MASSES[n - 1], COM[n - 1]
+    return {m: m + m_t, x: m * x / (m + m_t), y: m * y / (m + m_t), z: (m * z + m_t * d_t) / (m + m_t)}
+
+
+#: the thesis arms' tool substitution (link 6)
+TOOL = tool_substitution(6)
 
 
 def _symbols(robot: DHRobot) -> dict[str, sp.Symbol]:
     """The names a model file's grouping may use: masses, centres of mass, g, DH lengths."""
-    out = {s.name: s for s in (*MASSES, *(c for r in COM for c in r), g0, *robot.params)}
+    n = len(robot.links)
+    out = {s.name: s for s in (*MASSES[:n], *(c for r in COM[:n] for c in r), g0, *robot.params)}
     return out
 
 
@@ -132,7 +138,8 @@ def grouped_gravity(robot: DHRobot, com_form, meanings) -> GravityModel:
 
     com = [tuple(parse(x, f"com_form[{k}]") for x in row) for k, row in enumerate(com_form)]
     general = gravity_general(robot, com)
-    return _group(robot, general, {n: parse(t, f"meanings.{n}") for n, t in meanings}, com, TOOL)
+    return _group(robot, general, {n: parse(t, f"meanings.{n}") for n, t in meanings}, com,
+                  tool_substitution(len(robot.links)))
 
 
 def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityModel:
@@ -146,9 +153,10 @@ def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityMo
     of the kept ones, which folds its parameter into theirs (as 4.24 folds a2 (m2+..+m6)
     into c12). Coefficient ``c<axis><k>`` is g times the group led by m_k <axis>_k (N m or N).
     """
-    moments = [sp.Symbol(f"{a}{k}_moment", real=True) for k in range(1, 7) for a in "xyz"]
-    phi = moments + list(MASSES)
-    com = [tuple(moments[3 * k + j] / MASSES[k] for j in range(3)) for k in range(6)]
+    n_links = len(robot.links)
+    moments = [sp.Symbol(f"{a}{k}_moment", real=True) for k in range(1, n_links + 1) for a in "xyz"]
+    phi = moments + list(MASSES[:n_links])
+    com = [tuple(moments[3 * k + j] / MASSES[k] for j in range(3)) for k in range(n_links)]
     tau = sp.Matrix([sp.expand(e) for e in gravity_general(robot, com)])
     # sines and cosines of the revolute joints' angles, a prismatic joint's extension itself
     gens = [g for q, link in zip(Q, robot.links)
@@ -161,7 +169,7 @@ def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityMo
     cols = []  # per parameter: {(row, monomial): coefficient}
     for p in phi:
         col = {}
-        for i in range(6):
+        for i in range(n_links):
             for mono, c in coefficients(sp.diff(tau[i], p)).items():
                 col[(i, mono)] = c
         cols.append(col)
@@ -192,7 +200,7 @@ def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityMo
             raise ValueError(f"{robot.name}: gravity column {phi[j]} is not a fixed combination of the kept ones")
         for n, jj in enumerate(kept):
             beta[jj] = beta[jj] + k[n] * phi[j]
-    to_links = {moments[3 * k + j]: MASSES[k] * COM[k][j] for k in range(6) for j in range(3)}
+    to_links = {moments[3 * k + j]: MASSES[k] * COM[k][j] for k in range(n_links) for j in range(3)}
     names, meanings, columns = [], {}, []
     for jj in kept:
         p = phi[jj]
@@ -200,18 +208,19 @@ def minimal_gravity(robot: DHRobot, values: dict[sp.Symbol, float]) -> GravityMo
         names.append(name)
         meanings[name] = sp.expand(g0 * beta[jj].subs(to_links))
         columns.append(jj)
-    regressor = sp.Matrix([[sp.expand(sp.diff(tau[i], phi[jj]) / g0) for jj in columns] for i in range(6)])
-    regressor = regressor.applyfunc(tidy)
+    regressor = sp.Matrix([[sp.expand(sp.diff(tau[i], phi[jj]) / g0) for jj in columns] for i in range(n_links)])
+    regressor = regressor.applyfunc(simplifier(robot))
     syms = tuple(sp.Symbol(n, real=True) for n in names)
     # exact: tau = regressor * (g beta), beta in the moments
     beta_m = [g0 * beta[jj] for jj in columns]
     residual = (tau - regressor * sp.Matrix(beta_m)).applyfunc(lambda e: sp.simplify(sp.expand(sp.expand_trig(e))))
     if any(e != 0 for e in residual):
         raise ValueError(f"{robot.name}: minimal gravity regressor is not exact: {list(residual)}")
-    general = gravity_general(robot, [tuple(r) for r in COM])
-    tool = tuple(sp.simplify(sp.expand(meanings[n].subs(TOOL, simultaneous=True) - meanings[n])) for n in names)
+    general = gravity_general(robot, [tuple(r) for r in COM[:n_links]])
+    tool_sub = tool_substitution(n_links)
+    tool = tuple(sp.simplify(sp.expand(meanings[n].subs(tool_sub, simultaneous=True) - meanings[n])) for n in names)
     return GravityModel(robot, general, tuple(names), syms, tuple(meanings[n] for n in names),
-                        regressor, tool, tuple(tuple(r) for r in COM))
+                        regressor, tool, tuple(tuple(r) for r in COM[:n_links]))
 
 
 def gravity_model(spec) -> GravityModel:

@@ -118,7 +118,7 @@ class SphericalWrist:
 
     def joints(self, sub123: dict[sp.Symbol, sp.Expr]) -> tuple[sp.Expr, ...]:
         """theta4, theta5, theta6, |S5| with q1..q3 given by ``sub123``, and theta6 of q1..q4."""
-        q1, q2, q3, q4, q5, q6 = Q
+        q1, q2, q3, q4, q5, q6 = Q[:6]
         theta4 = self.theta4.subs(sub123, simultaneous=True)
         norm = self.norm.subs(sub123, simultaneous=True)
         theta5 = self.theta5.subs({**sub123, q4: theta4}, simultaneous=True)
@@ -131,7 +131,7 @@ def spherical_wrist(r: DHRobot) -> SphericalWrist:
     +-C4 S5 and +-S4 S5, the wrist sign choosing the branch: the 180 degree shift of the text
     after 3.31), then of A4^-1..A1^-1 T6 = U5 (3.33, +-S5, +-C5), then the 2nd column of
     A5^-1..A1^-1 T6 = U6 (3.35, +-S6, +-C6)."""
-    q1, q2, q3, q4, q5, q6 = Q
+    q1, q2, q3, q4, q5, q6 = Q[:6]
     e_4a, e_4b = pick(r, "3.31", 3, 1, 3), pick(r, "3.31", 3, 2, 3)
     k_c = sp.simplify(e_4a.rhs / (sp.cos(q4) * sp.sin(q5)))
     k_s = sp.simplify(e_4b.rhs / (sp.sin(q4) * sp.sin(q5)))
@@ -156,7 +156,7 @@ def articulated_ik(r: DHRobot) -> IKSolution:
     parallel, a spherical wrist at the origin of frame 6; the elbow offset a3 and the base
     height d1 may be non-zero (PUMA 560). Config signs arm, elbow, wrist (each +1 or -1).
     """
-    q1, q2, q3, q4, q5, q6 = Q
+    q1, q2, q3, q4, q5, q6 = Q[:6]
     s1, c1 = sp.sin(q1), sp.cos(q1)
     a2 = r.links[1].a
     eqs: list[PickedEquation] = []
@@ -265,7 +265,7 @@ def cylindrical_ik(r: DHRobot) -> IKSolution:
     """The Microbo class (thesis eqs. 3.42-3.53 for the Microbo Ecureuil): a revolute
     column, vertical and radial prismatic joints meeting its axis, a spherical wrist;
     config sign wrist (+1 or -1)."""
-    q1, q2, q3, q4, q5, q6 = Q
+    q1, q2, q3, q4, q5, q6 = Q[:6]
     eqs: list[PickedEquation] = []
     # 3.42: the fourth column of A1^-1 T6 = U2 (cylindrical coordinates)
     e_p1 = pick(r, "3.42", 1, 1, 4)
@@ -336,7 +336,7 @@ def spherical_ik(r: DHRobot) -> IKSolution:
     which the runtime reports Unreachable (prismatic joint out of its range) unless the
     model's range of joint 3 allows it; the Stanford arm's (0.30-1.27 m) does not.
     """
-    q1, q2, q3, q4, q5, q6 = Q
+    q1, q2, q3, q4, q5, q6 = Q[:6]
     s1, c1 = sp.sin(q1), sp.cos(q1)
     eqs: list[PickedEquation] = []
 
@@ -440,8 +440,20 @@ def _wrist_reasons(r: DHRobot) -> list[str]:
     return out
 
 
+#: the class of a 7-joint arm: its inverse kinematics has a free parameter (derive.redundant)
+REDUNDANT = "redundant (7 joints)"
+
+
 def class_reasons(r: DHRobot) -> dict[str, list[str]]:
-    """For each class with a closed-form inverse, the conditions ``r`` fails (empty = in it)."""
+    """For each class with a closed-form inverse, the conditions ``r`` fails (empty = in it).
+
+    A 7-joint arm is of the redundant class: the 6-joint classes' conditions do not apply
+    (Pieper's closed forms solve six unknowns from one pose); its inverse kinematics,
+    with one joint (or an arm angle) free, plugs in through ``derive.redundant``."""
+    if len(r.links) == 7:
+        six = ["six joints (Pieper's closed forms solve six unknowns from one pose)"]
+        return {REDUNDANT: [], "articulated (PUMA class)": six, "cylindrical (Microbo class)": six,
+                "spherical (Stanford class)": six}
     l1, l2, l3 = r.links[:3]
     wrist = _wrist_reasons(r)
     art = []
@@ -476,10 +488,13 @@ def class_reasons(r: DHRobot) -> dict[str, list[str]]:
             "spherical (Stanford class)": sph + wrist}
 
 
-def solve_ik(r: DHRobot) -> IKSolution:
+def solve_ik(r: DHRobot) -> IKSolution | None:
     """The closed-form inverse of ``r``, chosen by the shape of its DH table; an arm outside
-    every class is refused with the conditions it fails."""
+    every class is refused with the conditions it fails. None for a 7-joint arm: a pose
+    does not fix its joints, its solver (with a free parameter) is ``derive.redundant``'s."""
     reasons = class_reasons(r)
+    if not reasons.get(REDUNDANT, ["-"]):
+        return None  # the redundant class: derive.redundant, not Paul's method
     if not reasons["articulated (PUMA class)"]:
         return articulated_ik(r)
     if not reasons["cylindrical (Microbo class)"]:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.dh import Q, DHRobot
-from derive.forward import link_to_link, tidy, tidy_matrix
+from derive.forward import link_to_link, simplifier, tidy, tidy_matrix
 
 
 def _cross(u: sp.Matrix, v: sp.Matrix) -> sp.Matrix:
@@ -63,9 +63,9 @@ def link_jacobian(robot: DHRobot, k: int) -> sp.Matrix:
     arms (A5 and A6 have no translation).
     """
     cols = []
-    for i in range(1, 7):
+    for i in range(1, len(robot.links) + 1):
         x = link_to_link(robot, i - 1, k)
-        cols.append(tidy_matrix(d_map(x) * joint_screw(robot.links[i - 1].prismatic)))
+        cols.append((d_map(x) * joint_screw(robot.links[i - 1].prismatic)).applyfunc(simplifier(robot)))
     return sp.Matrix.hstack(*cols)
 
 
@@ -113,7 +113,7 @@ class Differential:
     j4: sp.Matrix  # 4J
     j6: sp.Matrix  # 6J
     j4_reduced: sp.Matrix  # 4J' (PUMA) or 4J (Microbo): the matrix that is inverted
-    j4_reduced_inv: sp.Matrix
+    j4_reduced_inv: sp.Matrix | None  # None for a 7-joint arm (6 x 7: no inverse)
     y: sp.Matrix  # 4J = 4J' Y (identity for the Microbo)
     b: sp.Matrix  # 3.81/3.82: D_{4,6} = diag(B, B)
     d46: sp.Matrix
@@ -122,6 +122,8 @@ class Differential:
 
 
 def differential(robot: DHRobot, reduce_23: bool) -> Differential:
+    if len(robot.links) == 7:
+        return redundant_differential(robot)
     j4 = link_jacobian(robot, 4)
     j6 = link_jacobian(robot, 6)
     y = y_matrix() if reduce_23 else sp.eye(6)
@@ -140,6 +142,24 @@ def differential(robot: DHRobot, reduce_23: bool) -> Differential:
                 dens.add(base)
     return Differential(robot, j4, j6, j4r, j4r_inv, y, b, d46, f46,
                         tuple(sorted(dens, key=sp.default_sort_key)))
+
+
+def redundant_differential(robot: DHRobot) -> Differential:
+    """The Jacobians of a 7-joint arm: nJ (6 x 7), the motion of the last link observed in
+    its own frame (column i = D_{i-1,n}(c_i), 3.57-3.61 with k = n), and 4J = diag(B, B) nJ,
+    the same motion (of the last link's origin) observed in frame 4's axes, B the rotation
+    of frame n in frame 4 (3.81). Frame 4 is not at the last link's origin here (no
+    spherical wrist), so 4J is this re-expression, not kJ of 3.57 with k = 4. A 6 x 7 matrix
+    has no inverse: the runtime's joint_from_cartesian / force_from_torque are the
+    minimum-norm and least-squares solutions (rcci.models.kinematics); no symbolic inverse,
+    reduction (3.62-3.67) or singular factors are derived."""
+    n = len(robot.links)
+    jn = link_jacobian(robot, n)
+    x4n = link_to_link(robot, 4, n)
+    b = x4n[:3, :3]
+    j4 = (sp.diag(b, b) * jn).applyfunc(sp.expand)
+    return Differential(robot, j4, jn, j4, None, sp.eye(n), b, d_map(x4n).applyfunc(sp.expand),
+                        f_map(x4n).applyfunc(sp.expand), ())
 
 
 def triangular_pivots(m: sp.Matrix) -> list[tuple[int, int]] | None:

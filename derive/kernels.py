@@ -28,7 +28,7 @@ class Derivation:
 
     spec: RobotSpec
     t6: sp.Matrix
-    ik: IKSolution
+    ik: IKSolution | None  # None for a 7-joint arm (derive.redundant plugs its solver in)
     diff: Differential
     gravity: GravityModel
 
@@ -40,29 +40,43 @@ def _guard(name: str, expr: sp.Expr, error: str, message: str) -> Guard:
 def build_kernels(d: Derivation) -> list[Kernel]:
     spec, robot = d.spec, d.spec.name
     params = dict(spec.params)
-    q = sp.Matrix(Q)
+    n = len(spec.dh.links)
+    q = sp.Matrix(Q[:n])
     qarg = Arg("q", q, "joint variables (rad; m for Microbo joints 2, 3)")
     ks: list[Kernel] = []
 
-    def kernel(name, doc, inputs, outputs, guards=(), source="", stages=(), staged=()):
+    def kernel(name, doc, inputs, outputs, guards=(), source="", stages=(), staged=(), program=False):
         used = set()
         for o in outputs:
             used |= o.value.free_symbols
         for g in guards:
             used |= g.expr.free_symbols
-        given = set().union(*(a.value.free_symbols for a in inputs)) | set(params)
+        defined = set()
+        if program:  # the outputs are written in the stage symbols, each defined from the inputs
+            defined = {s for s, _ in stages}
+            for _, e in stages:
+                used |= sp.sympify(e).free_symbols
+        given = set().union(*(a.value.free_symbols for a in inputs)) | set(params) | defined
         if used - given:
             raise ValueError(f"{robot}.{name}: outputs depend on {sorted(map(str, used - given))}, "
                              "which are neither inputs nor robot constants")
         kp = {s: v for s, v in params.items() if s in used}
         ks.append(Kernel(robot, name, doc, tuple(inputs), tuple(outputs), tuple(guards), kp, source,
-                         tuple(stages), tuple(staged)))
+                         tuple(stages), tuple(staged), program=program))
 
     # -- forward kinematics ------------------------------------------------------------
     chain_defs, chain_t6 = t6_chained(spec.dh)  # structure hint: one run of A matrices at a time
-    kernel("fk", "T6: link 6 in the base frame (4x4 homogeneous transform, m)",
-           [qarg], [Arg("T", d.t6, "base_to_link6")], source="3.16-3.18",
+    kernel("fk", f"T{n}: link {n} in the base frame (4x4 homogeneous transform, m)",
+           [qarg], [Arg("T", d.t6, f"base_to_link{n}")], source="3.16-3.18",
            stages=tuple(chain_defs), staged=(chain_t6,))
+    if d.ik is None:  # a redundant arm: its IK kernels, when derive.redundant has a solver
+        from derive.redundant import redundant_ik_kernels
+
+        for k in redundant_ik_kernels(d):
+            ks.append(k)
+        _differential_kernels(d, kernel, qarg, n)
+        _gravity_kernels(d, kernel, qarg, n)
+        return _with_dynamics(ks, spec)
 
     # -- inverse kinematics ------------------------------------------------------------
     cfg = sp.Matrix(d.ik.config)
@@ -128,6 +142,55 @@ def build_kernels(d: Derivation) -> list[Kernel]:
                [qarg, Arg("tau", tau, "joint torques")],
                [Arg("f", force, f"force/moment in frame {frame}")], inv_guards, src[3], *st.get("force", ()))
 
+    _gravity_kernels(d, kernel, qarg, n)
+    return _with_dynamics(ks, spec)
+
+
+def _differential_kernels(d: Derivation, kernel, qarg: Arg, n: int) -> None:
+    """A 7-joint arm's Jacobians (6 x n, derive.jacobian.redundant_differential) and the two
+    forward computations; the inverse ones are the runtime's least-squares solutions."""
+    j4, jn = d.diff.j4, d.diff.j6
+    kernel("jacobian4", f"4J: motion of link {n} observed in frame 4 per unit joint rate",
+           [qarg], [Arg("J", j4, "(dx, dy, dz, dx_rot, dy_rot, dz_rot) in frame 4")], source="3.54-3.61, 3.81")
+    kernel("jacobian6", f"{n}J: motion of link {n} observed in frame {n} per unit joint rate",
+           [qarg], [Arg("J", jn, f"(dx, dy, dz, dx_rot, dy_rot, dz_rot) in frame {n}")], source="3.54-3.61")
+    dq, f = _vec("dq", n), _vec("f", 6)
+    for frame, j in ((4, j4), (6, jn)):
+        where = 4 if frame == 4 else n
+        # a program: J's entries once (as the jacobian kernels), then J dq and J^T f in them;
+        # J dq written out expanded is too large for the emitters' search on seven joints
+        names = sp.numbered_symbols("jc", real=True)
+        stages = []
+        js = sp.zeros(6, n)
+        for r in range(6):
+            for c in range(n):
+                if j[r, c] != 0:
+                    js[r, c] = next(names)
+                    stages.append((js[r, c], j[r, c]))
+        dc_out, tau_out = js * dq, js.T * f
+        kernel(f"cartesian_from_joint{frame}", f"dc = J dq observed in frame {where}",
+               [qarg, Arg("dq", dq, "joint rates or differentials")],
+               [Arg("dc", dc_out, f"Cartesian differential in frame {where}")], (), "3.71, 3.75",
+               stages=tuple(stages), staged=(dc_out,), program=True)
+        kernel(f"torque_from_force{frame}", f"tau = J^T f with f observed in frame {where}",
+               [qarg, Arg("f", f, f"force/moment in frame {where}")],
+               [Arg("tau", tau_out, "joint torques (N m)")], (), "3.72, 3.76",
+               stages=tuple(stages), staged=(tau_out,), program=True)
+
+
+def _with_dynamics(ks: list[Kernel], spec: RobotSpec) -> list[Kernel]:
+    """The kernels followed by the whole equation 4.6 (derive.dynamics): D, c, C, inverse
+    dynamics, base regressor."""
+    from derive.dynamics_kernels import dynamics_kernels
+    from rcci.models import load_robot
+
+    return ks + dynamics_kernels(spec, load_robot(spec.name).links)[0]
+
+
+def _gravity_kernels(d: Derivation, kernel, qarg: Arg, n: int) -> None:
+    """Gravity (4.8-4.26): the grouped or minimal coefficients, their regressor, 4.20 from
+    link data, the coefficients of link data and the tool load."""
+    spec = d.spec
     # -- gravity -----------------------------------------------------------------------
     gm = d.gravity
     if spec.gravity_coeffs and tuple(gm.coeff_names) != tuple(spec.gravity_coeffs):
@@ -139,10 +202,10 @@ def build_kernels(d: Derivation) -> list[Kernel]:
            [qarg, Arg("c", c, "gravity loading coefficients " + ", ".join(gm.coeff_names))],
            [Arg("tau", gm.regressor * c, "N m (N on prismatic joints)")], source="4.24, 4.25")
     kernel("gravity_regressor", "d tau_g / d c (tau_g is linear in the coefficients)",
-           [qarg], [Arg("Y", gm.regressor, "6 x k")], source="4.24")
-    masses = sp.Matrix(MASSES)
-    com = sp.Matrix([list(r) for r in COM])
-    general = gravity_general(spec.dh, [tuple(r) for r in COM])
+           [qarg], [Arg("Y", gm.regressor, f"{n} x k")], source="4.24")
+    masses = sp.Matrix(MASSES[:n])
+    com = sp.Matrix([list(r) for r in COM[:n]])
+    general = gravity_general(spec.dh, [tuple(r) for r in COM[:n]])
     kernel("gravity_links", "tau_g from link masses and centres of mass (eq. 4.20, no "
            "centre-of-mass assumption)",
            [qarg, Arg("m", masses, "link masses, kg"),
@@ -155,17 +218,11 @@ def build_kernels(d: Derivation) -> list[Kernel]:
             Arg("com", com, "centre of mass of link k in frame k, m (row k-1)")],
            [Arg("c", meaning, ", ".join(gm.coeff_names))], source="4.24")
     load = sp.Matrix([m_t, d_t])
-    kernel("tool_load", "coefficients with a tool of mass m_t at d_t along z6 (4.26)",
+    kernel("tool_load", f"coefficients with a tool of mass m_t at d_t along z{n} (4.26)",
            [Arg("c", c, "coefficients without the tool"),
             Arg("load", load, "(m_t kg, d_t m)")],
            [Arg("c_loaded", c + sp.Matrix(gm.tool_update), "coefficients with the tool")],
            source="4.26")
-    # -- the whole equation 4.6 (derive.dynamics): D, c, C, inverse dynamics, base regressor
-    from derive.dynamics_kernels import dynamics_kernels
-    from rcci.models import load_robot
-
-    ks += dynamics_kernels(spec, load_robot(robot).links)[0]
-    return ks
 
 
 def _jacobian_guards(ik: IKSolution) -> list[Guard]:

@@ -19,7 +19,8 @@ from derive.inverse import class_reasons
 #: the configuration signs of each inverse-kinematics class
 CONFIG_FIELDS = {"articulated (PUMA class)": ("arm", "elbow", "wrist"),
                  "cylindrical (Microbo class)": ("wrist",),
-                 "spherical (Stanford class)": ("arm", "boom", "wrist")}
+                 "spherical (Stanford class)": ("arm", "boom", "wrist"),
+                 "redundant (7 joints)": ()}  # its configurations come with its solver
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,18 @@
 versions) and ``rccl.kinematics`` runs them; both sides import this module, so the names
 and errors they agree on are written once. Units are SI (rad, m, N, N m); a pose is a 4x4
 homogeneous transform of link 6 in the base frame (thesis eq. 3.16-3.18); ``n`` is the
-robot's number of joints (6 for both arms), ``k`` its number of gravity coefficients.
-Every function taking ``q`` also takes a batch ``(N, n)`` and then returns ``(N, ...)``.
+robot's number of joints (6 for the thesis's arms; 7 for a redundant arm such as the Panda,
+whose "T6" is its last link frame, link 7, and whose "frame 6" in the Jacobian functions is
+that last frame), ``k`` its number of gravity coefficients. Every function taking ``q`` also
+takes a batch ``(N, n)`` and then returns ``(N, ...)``.
+
+A redundant arm (n = 7): ``jacobian4``/``jacobian6`` are 6 x 7; ``joint_from_cartesian`` is
+the minimum-norm solution dq = J^+ dc (exact where J has rank 6) and ``force_from_torque``
+the least-squares f = (J^T)^+ tau, both raising ``Singular`` where J loses rank
+(rccl/kinematics/redundant.py). Its ``ik``/``ik_all`` come from a closed-form solver with
+a free parameter (derive/redundant.py is the plug-in point); until it exists they raise
+``NoSolver`` (a KinematicsError and NotImplementedError) naming it, and ``config_of``
+returns the single record ``NoConfig()``.
 """
 from __future__ import annotations
 
@@ -69,6 +79,11 @@ class Singular(KinematicsError):
 
 class InvalidInput(KinematicsError):
     """An argument has the wrong shape, is not finite, or is not a rigid transform."""
+
+
+class NoSolver(KinematicsError, NotImplementedError):
+    """The arm's inverse kinematics has not been derived (a redundant arm before its
+    closed-form solver exists: derive/redundant.py)."""
 
 
 #: the error names a generated guard may raise (``GuardInfo.error``), by class

@@ -49,8 +49,11 @@ def load_limits(robot: str) -> Limits:
 
     model = load_robot(robot)
     vel = np.array(model.max_velocity, dtype=float)
+    acc = vel / ACCEL_RAMP_S
+    if model.max_acceleration is not None:   # a published acceleration limit (the Panda's) caps the estimate
+        acc = np.minimum(acc, np.asarray(model.max_acceleration, dtype=float))
     return Limits(np.array(model.lower, dtype=float), np.array(model.upper, dtype=float), vel,
-                  vel / ACCEL_RAMP_S, source=str(model.path))
+                  acc, source=str(model.path))
 
 
 def for_link(limits: Limits, rounding: np.ndarray, period: float) -> Limits:

@@ -27,11 +27,12 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def pinocchio_fk(robot: str = "puma260"):
     """T6 by Pinocchio on models/urdf/<robot>.urdf (the reference the measured paths are
-    judged against): a function q (6,) -> (4, 4) base_link -> link6, metres."""
+    judged against): a function q (n,) -> (4, 4) base_link -> the last link (link6; link7 of
+    a 7-joint arm), metres."""
     import pinocchio as pin
     model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
     data = model.createData()
-    fid = model.getFrameId("link6")
+    fid = model.getFrameId(f"link{model.nq}")
 
     def fk(q):
         pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))

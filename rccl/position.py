@@ -165,7 +165,7 @@ def joint_position(name: str, kin, q) -> Position:
     Built as the equation T6 = FK(q) with a const transform, so it behaves like any other.
     """
     q = np.asarray(q, dtype=float)
-    n = getattr(kin, "dof", 6)      # the arm's number of joints (rccl.segments.Kinematics)
+    n = len(getattr(kin, "revolute", getattr(kin, "LOWER", q)))   # the arm's joints (6; 7 on a redundant arm)
     if q.shape != (n,) or not np.all(np.isfinite(q)):
         raise PositionError(f"joint_position({name!r}): q must be {n} finite joint angles (rad), got {q!r}")
     base_to_t6 = Trsf(name.upper(), kin.fk(q))

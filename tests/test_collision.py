@@ -25,7 +25,7 @@ from rccl.session import load_kinematics
 from rccl.trajectory import TrajectoryGenerator
 from rccl.transform import T6, Trsf
 
-ARMS = ("puma260", "microbo", "puma560", "stanford")
+ARMS = ("puma260", "microbo", "puma560", "stanford", "panda")
 START = np.radians([10.0, 80.0, -170.0, 10.0, -60.0, 5.0])     # the composition matrix's PUMA 260 start
 MARGIN = 0.01
 

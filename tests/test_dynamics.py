@@ -27,9 +27,11 @@ ARMS = {name: _arm(name) for name in ROBOTS}
 
 
 def _state(mod, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A state from 18 numbers in [0, 1]: q in the joint ranges, qd in +-2, qdd in +-5."""
+    """A state from 3 n numbers in [0, 1] (n joints; u has 21, enough for 7): q in the joint
+    ranges, qd in +-2, qdd in +-5."""
     lo, hi = np.asarray(mod.LOWER), np.asarray(mod.UPPER)
-    return lo + (hi - lo) * u[:6], 4.0 * u[6:12] - 2.0, 10.0 * u[12:] - 5.0
+    n = len(lo)
+    return lo + (hi - lo) * u[:n], 4.0 * u[n:2 * n] - 2.0, 10.0 * u[2 * n:3 * n] - 5.0
 
 
 def _close(a, b, rel: float = REL) -> None:
@@ -43,7 +45,7 @@ def _full(m: np.ndarray) -> np.ndarray:
     return np.triu(m) + np.triu(m, 1).T
 
 
-UNIT = st.lists(st.floats(0.0, 1.0), min_size=18, max_size=18).map(np.array)
+UNIT = st.lists(st.floats(0.0, 1.0), min_size=21, max_size=21).map(np.array)
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
@@ -57,8 +59,9 @@ def test_against_pinocchio(robot: str, u: np.ndarray) -> None:
     d = mod.inertia_matrix(q)
     _close(d, _full(pin.crba(model, data, q)))
     grav = pin.computeGeneralizedGravity(model, data, q)
-    _close(mod.inverse_dynamics(q, np.zeros(6), np.zeros(6)), grav)
-    _close(mod.coriolis(q, qd), pin.rnea(model, data, q, qd, np.zeros(6)) - grav)
+    zero = np.zeros(len(q))
+    _close(mod.inverse_dynamics(q, zero, zero), grav)
+    _close(mod.coriolis(q, qd), pin.rnea(model, data, q, qd, zero) - grav)
     c = mod.coriolis_matrix(q, qd)
     _close(c, pin.computeCoriolisMatrix(model, data, q, qd))
     _close(c @ qd, mod.coriolis(q, qd))
@@ -86,22 +89,23 @@ def test_base_regressor_reproduces_rnea(robot: str, u: np.ndarray) -> None:
     inertia = np.array([[i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
                         for i in (np.asarray(li.inertia) for li in rm.links)])
     y = mod.base_regressor(q, qd, qdd)
-    assert y.shape == (6, len(mod.BASE_PARAMETERS))
-    beta = mod.base_parameters(masses, coms, inertia, np.zeros(6))
+    n = len(q)
+    assert y.shape == (n, len(mod.BASE_PARAMETERS))
+    beta = mod.base_parameters(masses, coms, inertia, np.zeros(n))
     _close(y @ beta, mod.inverse_dynamics(q, qd, qdd))
     # random inertials (DH frame k), moved into Pinocchio's joint frames
     rng = np.random.default_rng(int(u[0] * 2**31))
     other = model.copy()
-    m2 = rng.uniform(0.5, 5.0, 6)
-    c2 = rng.uniform(-0.2, 0.2, (6, 3))
+    m2 = rng.uniform(0.5, 5.0, n)
+    c2 = rng.uniform(-0.2, 0.2, (n, 3))
     rows = []
-    for k in range(6):
+    for k in range(n):
         a = rng.normal(size=(3, 3))
         ic = a @ a.T * 1e-2 + np.eye(3) * 1e-3
         rows.append([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])
         f = other.frames[other.getFrameId(f"link{k + 1}")]
         other.inertias[f.parentJoint] = f.placement.act(pin.Inertia(float(m2[k]), c2[k], ic))
-    rotor = rng.uniform(0.0, 0.1, 6)
+    rotor = rng.uniform(0.0, 0.1, n)
     other.armature = rotor
     data = other.createData()
     tau = pin.rnea(other, data, q, qd, qdd)
@@ -124,7 +128,7 @@ def test_gravity_is_the_static_case(robot: str) -> None:
     rng = np.random.default_rng(7)
     for _ in range(50):
         q = rng.uniform(mod.LOWER, mod.UPPER)
-        tg = mod.inverse_dynamics(q, np.zeros(6), np.zeros(6))
+        tg = mod.inverse_dynamics(q, np.zeros(len(q)), np.zeros(len(q)))
         _close(tg, mod.gravity_links(q, masses, coms))
         _close(tg, mod.gravity(q, coeffs))
 
@@ -133,12 +137,12 @@ def test_gravity_is_the_static_case(robot: str) -> None:
 def test_batched_equals_single(robot: str) -> None:
     mod, _ = ARMS[robot]
     rng = np.random.default_rng(1)
-    n = 33
-    q = rng.uniform(mod.LOWER, mod.UPPER, (n, 6))
-    qd, qdd = rng.uniform(-2, 2, (n, 6)), rng.uniform(-5, 5, (n, 6))
+    n, nj = 33, len(mod.LOWER)
+    q = rng.uniform(mod.LOWER, mod.UPPER, (n, nj))
+    qd, qdd = rng.uniform(-2, 2, (n, nj)), rng.uniform(-5, 5, (n, nj))
     tau = mod.inverse_dynamics(q, qd, qdd)
     d = mod.inertia_matrix(q)
-    assert tau.shape == (n, 6) and d.shape == (n, 6, 6)
+    assert tau.shape == (n, nj) and d.shape == (n, nj, nj)
     for i in (0, 17, 32):
         np.testing.assert_array_equal(tau[i], mod.inverse_dynamics(q[i], qd[i], qdd[i]))
         np.testing.assert_array_equal(d[i], mod.inertia_matrix(q[i]))

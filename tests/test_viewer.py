@@ -126,7 +126,7 @@ def test_the_replay_draws_the_collision_shapes_on_request(tmp_path):
     assert green.mean() > 0.02, f"{green.mean():.4f} of the picture is the shapes' green {COLLISION_COLOR}"
 
 
-@pytest.mark.parametrize("robot", ["puma260", "stanford"])
+@pytest.mark.parametrize("robot", ["puma260", "stanford", "panda"])
 def test_the_collision_shapes_ride_on_their_links(robot):
     """The view places each collision shape on its link once; at any q the link's pose times that placement is
     where rccl.collision puts the shape (what the path checks use)."""
@@ -147,8 +147,9 @@ def test_the_collision_shapes_ride_on_their_links(robot):
         view.close()
 
 
-@pytest.mark.parametrize("robot", ["puma260", "microbo"])
+@pytest.mark.parametrize("robot", ["puma260", "microbo", "panda"])
 def test_the_view_draws_link_6_where_the_kinematics_put_it(robot):
+    """The last link (link 6; link 7 of the Panda) where the generated fk puts it."""
     import rccl.kinematics
 
     from rcci.view.scene import ArmTree
@@ -159,7 +160,7 @@ def test_the_view_draws_link_6_where_the_kinematics_put_it(robot):
     rng = np.random.default_rng(18)
     for _ in range(20):
         q = rng.uniform(model.lower, model.upper)
-        assert np.allclose(tree.link_poses(q)["link6"], kin.fk(q), atol=1e-9)
+        assert np.allclose(tree.link_poses(q)[f"link{model.n_joints}"], kin.fk(q), atol=1e-9)
 
 
 def _corner(name: str, x: float, y: float, z: float):

@@ -1,6 +1,6 @@
 """Exceptions of the generated kinematics modules: the contract's (``rcci.models.kinematics``), named here."""
 from __future__ import annotations
 
-from rcci.models.kinematics import InvalidInput, KinematicsError, Singular, Unreachable
+from rcci.models.kinematics import InvalidInput, KinematicsError, NoSolver, Singular, Unreachable
 
-__all__ = ["KinematicsError", "Unreachable", "Singular", "InvalidInput"]
+__all__ = ["KinematicsError", "Unreachable", "Singular", "InvalidInput", "NoSolver"]

@@ -19,6 +19,7 @@ import numpy as np
 
 from rcci.models.kinematics import PUBLIC  # the contract's public functions, in binding order
 from rccl.kinematics import exceptions
+from rccl.kinematics.redundant import NoConfig  # noqa: F401  (a redundant arm's Config, before its solver)
 
 #: two solutions closer than this (rad or m, per joint) are the same solution: at a
 #: boundary (stretched elbow, arm on the d3 cylinder) the two branches meet through a
@@ -521,7 +522,11 @@ def public_api(robot: Robot) -> PublicAPI:
         return fn
 
     c_from_j, t_from_f = framed("cartesian_from_joint"), framed("torque_from_force")
-    j_from_c, f_from_t = framed("joint_from_cartesian"), framed("force_from_torque")
+    if "joint_from_cartesian4" not in kernels:  # a redundant arm: least squares (rccl.kinematics.redundant)
+        from rccl.kinematics import redundant
+        j_from_c, f_from_t = redundant.least_squares(robot)
+    else:
+        j_from_c, f_from_t = framed("joint_from_cartesian"), framed("force_from_torque")
 
     def cartesian_from_joint(q, dq, frame=6, out=None):
         """dc = J dq observed in frame 4 or 6 (thesis 3.71, 3.75, 3.79)."""
@@ -570,6 +575,9 @@ def public_api(robot: Robot) -> PublicAPI:
         """Coefficients with a tool of `mass` kg at `com` on the z6 axis (thesis 4.26)."""
         return robot.tool_load(coeffs, mass, com)
 
+    if "ik" not in kernels:  # a redundant arm before its solver is derived (derive.redundant)
+        from rccl.kinematics.redundant import missing_solver
+        ik, ik_all, config_of = missing_solver(name).values()
     fast = backend.public_ik(name, {"ik": ik, "ik_all": ik_all, "config_of": config_of}, kernels,
                              robot.config_type, robot.revolute, robot.lower, robot.upper,
                              RIGID_TOL, SAME_SOLUTION_TOL)
