@@ -33,9 +33,9 @@ from bench.output import emit  # noqa: E402
 from rccl.jerk import JerkLimitedGenerator  # noqa: E402
 from rccl.limits import load_limits  # noqa: E402
 from rccl.planner import Planner  # noqa: E402
-from rccl.position import EQ, TL, makeposition  # noqa: E402
+from rccl.position import EQ, TL, joint_position, makeposition  # noqa: E402
 from rccl.redundancy import FAR_CANDIDATES  # noqa: E402
-from rccl.session import load_kinematics  # noqa: E402
+from rccl.segments import Kinematics  # noqa: E402
 from rccl.trajectory import TrajectoryGenerator  # noqa: E402
 from rccl.transform import T6, Trsf, rot_matrix  # noqa: E402
 
@@ -54,30 +54,50 @@ def targets(t0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t0, t1
 
 
-def program(pl: Planner, rule: str, q7_0: float) -> None:
-    """Queue one leg of the tour under ``rule``."""
-    t0, t1 = targets(pl.kin.fk(pl.gen.q))
-    pl.setmod("c")
+def program(pl: Planner, rule: str, ready: np.ndarray) -> None:
+    """Queue one leg of the tour under ``rule``: back to the ready joints (joint mode, q7 too),
+    then the line out under the rule (or a self-motion)."""
+    t0, t1 = targets(pl.kin.fk(ready))
+    pl.setfree("hold")
+    pl.setmod("j")
     pl.setvel(0.1, 0.5)
+    pl.move(joint_position("ready", pl.kin, ready))
+    pl.setmod("c")
     if rule == "selfmove":
-        pl.selfmove(q7=q7_0 - 0.3 if pl.gen.q[6] > q7_0 - 0.15 else q7_0, duration=1.0)
+        pl.selfmove(q7=float(ready[6]) - 0.3, duration=1.0)
         return
     if rule == "time":
-        start = float(pl.gen.q[6])
+        start = float(ready[6])
         pl.setfree(q7=lambda t: start + 0.2 * math.sin(2.0 * t))
     elif rule == "far":
         pl.setfree("far")
-    else:
-        pl.setfree("hold")
     pl.move(makeposition("B", T6, EQ, Trsf("B", t1), TL, T6))
-    pl.setfree("hold")
-    pl.move(makeposition("A", T6, EQ, Trsf("A", t0), TL, T6))
+
+
+def panda_kinematics() -> tuple[Kinematics, str]:
+    """The Panda's generated kinematics and a sentence saying where its IK comes from: the
+    closed-form IK plugged into rccl.kinematics.panda, or, while that module's ik is the
+    derivation's NoSolver placeholder, the generated rccl.kinematics.panda_ik beside it."""
+    import types
+    from rcci.models import load_robot
+    from rccl.kinematics import load
+    module = load(ROBOT)
+    q = np.array(load_robot(ROBOT).poses["ready"], dtype=float)
+    try:
+        module.ik(module.fk(q), module.config_of(q), q, q7=q[6])
+        return Kinematics(module), "the generated `rccl.kinematics.panda` (closed-form IK with q7 given)"
+    except NotImplementedError:
+        from rccl.kinematics import panda_ik
+        both = types.SimpleNamespace(**{k: getattr(module, k) for k in dir(module) if not k.startswith("__")})
+        both.ik, both.config_of, both.Config = panda_ik.ik, panda_ik.config_of, type(panda_ik.config_of(q))
+        return Kinematics(both), ("the generated `rccl.kinematics.panda` (fk, Jacobians) with the generated "
+                                  "closed-form IK of `rccl.kinematics.panda_ik` (panda's ik is still the placeholder)")
 
 
 def run(kind: str, rule: str, cycles: int) -> dict:
     """Per-cycle CPU times (us) of ``cycles`` generator steps on the tour under ``rule``."""
     from rcci.models import load_robot
-    kin, limits = load_kinematics(ROBOT), load_limits(ROBOT)
+    kin, limits = panda_kinematics()[0], load_limits(ROBOT)
     q0 = np.array(load_robot(ROBOT).poses["ready"], dtype=float)
     gen = GENERATORS[kind](kin, limits, 1.0 / RATE_HZ, q0)
     pl = Planner(kin, limits, gen)
@@ -86,7 +106,7 @@ def run(kind: str, rule: str, cycles: int) -> dict:
     try:
         for i in range(cycles):
             if not gen.busy:
-                program(pl, rule, float(q0[6]))
+                program(pl, rule, q0)
             t = time.thread_time_ns()
             gen.step()
             times[i] = (time.thread_time_ns() - t) / 1e3
@@ -103,6 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cycles", type=int, default=3000, help="cycles per row")
     ap.add_argument("--out", default=str(ROOT / "reports" / "bench-redundancy.md"), help="'-' to print only")
     args = ap.parse_args(argv)
+    from rccl.kinematics import backend as kb
+    compiled = ", ".join(f"{r} {'compiled C' if kb.c_module(r) is not None else 'Python (C NOT built)'}"
+                         for r in ("panda", "panda_ik"))
     load_before = os.getloadavg()
     rows = [run(kind, rule, args.cycles) for kind in GENERATORS for rule in RULES]
     load_after = os.getloadavg()
@@ -113,8 +136,8 @@ def main(argv: list[str] | None = None) -> int:
         "`step()` alone",
         f"(`time.thread_time_ns` around each call, garbage collector off) at {RATE_HZ} Hz, {args.cycles} cycles "
         "per row, on a tour",
-        "of Cartesian lines out and back (10 cm, 0.25 rad) with the rule on the way out; *selfmove* is a",
-        "tour of 1 s self-motions of 0.3 rad. Kinematics: the generated `rccl.kinematics.panda`.",
+        "of joint-mode moves to the ready joints, each followed by a Cartesian line out (10 cm, 0.25 rad) under the",
+        f"rule; *selfmove* by a 1 s self-motion of 0.3 rad instead. Kinematics: {panda_kinematics()[1]}; {compiled}.",
         f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}, "
         f"{os.cpu_count()} cores. **Load average** (1, 5, 15 min) before: "
         f"{load_before[0]:.2f}, {load_before[1]:.2f}, {load_before[2]:.2f}; after: "

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
 
+from . import redundancy
 from .adaptive.functional import FunctionalUpdater
 from .ending import MotionEnd
 from .exceptions import BadRequest, MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
@@ -316,6 +317,7 @@ class JerkLimitedGenerator:
         req.status = "running"
         try:
             mv = _Move(req, self.kin, self.q)
+            redundancy.anchor(mv.config, self.q)     # a 7-joint arm's q7 rule starts where the arm is
             if blend_from is not None and mv.mode == "cartesian":
                 mv.r_ref = blend_from.r_ref      # the state's rotation vector stays relative to the same frame
             self._prepare(mv, self.move, carry=blend_from is not None)

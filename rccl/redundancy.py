@@ -242,9 +242,9 @@ class Binding:
     """A redundant arm's configuration for one request: the arm configuration (``arm``) and the
     free parameter's ``rule``. Equal to its arm configuration (the configuration checks of
     the planning level are unchanged). ``t0`` is the generator's time (s) of the first
-    sample solved with it and ``q7_0`` the arm's q7 (rad) then (until then: where the
-    planning level expects the motion to start); ``frozen`` a q7 (rad) held from the end of
-    its segment on."""
+    sample solved with it and ``q7_0`` the q7 (rad) its motion starts from (the corner it was
+    planned from, or where the arm is: :func:`anchor`); ``frozen`` a q7 (rad) held from the
+    end of its segment on."""
 
     __slots__ = ("arm", "rule", "t0", "q7_0", "frozen")
 
@@ -309,10 +309,18 @@ def solve(kin, t6: np.ndarray, config, q_ref: np.ndarray, t: float | None = None
         if kin.clock is None:
             raise BadRequest(f"{kin.name}: no trajectory generator clock for the free parameter's rule")
         now = kin.clock()
-        if config.t0 is None:         # the motion's first sample: its clock and q7 start here
-            config.t0, config.q7_0 = now, float(q_ref[FREE_JOINT])
+        if config.t0 is None:         # the motion's first sample: its clock starts here
+            config.t0 = now
         t = now - config.t0
     return config.rule.solve(kin.module, t6, config.arm, q_ref, t, config.q7_0)
+
+
+def anchor(config, q: np.ndarray) -> None:
+    """The motion of ``config`` (a Binding) starts at the joints ``q`` (rad), not at the corner
+    the planning level predicted: its rule's q7_0 is ``q``'s (Ruckig starts each move where
+    the arm is; the quartic starts a segment at its planned corner, re-planned if it moved)."""
+    if isinstance(config, Binding):
+        config.q7_0 = float(q[FREE_JOINT])
 
 
 def freeze(config, q: np.ndarray) -> None:

@@ -392,3 +392,19 @@ def test_each_rule_with_the_generated_closed_form_ik(kind, rule):
         elif rule == "far":
             assert 0 < np.max(np.abs(np.diff(qs[:, 6]))) <= redundancy.FAR_STEP + 1e-12
     assert all(P.limits().out_of_range(q) is None for q in qs)
+
+
+@pytest.mark.parametrize("kind", GENERATORS)
+def test_a_selfmove_queued_behind_a_joint_move_starts_at_its_corner(kind):
+    # (found by bench/redundancy.py: the quartic joins the joint move into the self-motion while
+    # the arm still moves; the rule must ramp from the corner's q7, not the moving arm's)
+    from rccl.position import joint_position
+    q1 = P.READY + np.array([0.2, 0.1, 0.0, 0.1, 0.0, 0.0, 0.15])
+    pl, _ = planner(kind)
+    pl.setmod("j")
+    pl.move(joint_position("q1", pl.kin, q1))
+    qs = run(pl, pl.selfmove(q7=float(q1[6]) - 0.3, duration=1.0), 600)
+    speed = np.abs(np.diff(qs, axis=0)).max(axis=0) / DT
+    assert np.all(speed <= P.VELOCITY * 1.25)
+    assert qs[-1, 6] == pytest.approx(q1[6] - 0.3, abs=1e-12)
+    assert np.allclose(P.fk(qs[-1]), P.fk(q1), atol=1e-9)
