@@ -37,7 +37,7 @@ from rccl import EQ, T6, TL, BadRequest, TrajectoryFault, Trsf, makeposition
 GENERATORS = ("quartic", "ruckig")
 FEATURES = ("plain", "functional", "force_limit", "deviation_limit", "monitor", "compliance", "conditional",
             "event_flags", "rate_change", "feedforward", "collision", "redundancy")
-ARMS = ("puma260", "microbo", "puma560", "stanford")
+ARMS = ("puma260", "microbo", "puma560", "stanford", "panda")
 LINKS = ("socket", "zenoh")
 
 # joint values (rad, m) away from every singularity and joint stop, as in the per-arm tests
@@ -97,7 +97,11 @@ def simula(robot: str, link: str) -> Iterator:
 
 def open_arm(url: str, robot: str, generator: str):
     # timeout: a lockstep simula may be descheduled for seconds on a shared machine (load 16 seen)
-    return rccl.open(url, robot, trajectory=generator, record=True, on_error="raise", timeout=5.0)
+    extra = {}
+    if robot == "panda":       # the closed-form IK with q7 given (tests/rccl_arm.py says from where)
+        from rccl_arm import panda_kinematics
+        extra["kinematics"] = panda_kinematics()
+    return rccl.open(url, robot, trajectory=generator, record=True, on_error="raise", timeout=5.0, **extra)
 
 
 def start(arm) -> np.ndarray:

@@ -14,23 +14,20 @@ joints trail the commanded ones by a fraction of a sample's step).
 from __future__ import annotations
 
 import math
-import types
 
 import numpy as np
 import pytest
 
 import rccl
-import rccl.kinematics
 from rccl import EQ, T6, TL, Trsf, makeposition
 from rccl import redundancy
 from rccl.exceptions import SingularPath, UnreachableTarget
 from rccl.limits import load_limits
 from rccl.plots import pinocchio_fk
-from rccl.segments import Kinematics
 from rcci.models import load_robot
 
 from rccl.position import joint_position
-from rccl_arm import lockstep_simula, tail
+from rccl_arm import lockstep_simula, panda_kinematics, tail
 
 ROBOT = "panda"
 LINE_TOL = {"quartic": 1e-9, "ruckig": 1e-7}
@@ -51,24 +48,6 @@ def world():
 @pytest.fixture(scope="module")
 def ready():
     return np.array(load_robot(ROBOT).poses["ready"], dtype=float)
-
-
-def panda_kinematics() -> Kinematics:
-    """The Panda's generated kinematics for RCCL. Until the derivation plugs the closed-form IK
-    into rccl.kinematics.panda (its ``ik`` raises NoSolver meanwhile), the IK and configurations
-    come from the generated rccl.kinematics.panda_ik (the same frames: fk compared here)."""
-    module = rccl.kinematics.load(ROBOT)
-    q = np.array(load_robot(ROBOT).poses["ready"], dtype=float)
-    try:
-        module.ik(module.fk(q), module.config_of(q), q, q7=q[6])
-        return Kinematics(module)
-    except NotImplementedError:
-        from rccl.kinematics import panda_ik
-        assert np.allclose(panda_ik.fk(q), module.fk(q), atol=1e-12)
-        both = types.SimpleNamespace(**{k: getattr(module, k) for k in dir(module) if not k.startswith("__")})
-        both.ik, both.config_of = panda_ik.ik, panda_ik.config_of
-        both.Config = type(panda_ik.config_of(q))
-        return Kinematics(both)
 
 
 def arm_on(sim, generator: str):
