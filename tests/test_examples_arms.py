@@ -12,6 +12,7 @@ import pytest
 
 import rccl.kinematics
 from rci.simula.process import SimulaProcess
+from rccl_arm import panda_kinematics
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -51,7 +52,8 @@ def test_the_panda_example_runs_its_lines_and_self_motion(capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         with SimulaProcess("-p", "--power-on", robot="panda", lockstep=True) as sim:
-            out = ex.run(sim.url, timeout=2.0)
+            # (the closed-form IK: rccl_arm.panda_kinematics says from which generated module)
+            out = ex.run(sim.url, timeout=2.0, kinematics=panda_kinematics())
     assert list(out) == ["OUT", "SELF", "BACK", "SIDE"]
     kin = rccl.kinematics.load("panda")
     from rcci.models import load_robot
