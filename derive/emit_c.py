@@ -299,7 +299,7 @@ def _vector_trig(prog: LoweredKernel) -> TrigSplit | None:
         if a.atoms(sp.Function) or not a.free_symbols <= inputs | xsyms:
             return None
     # the helper sums are computed before the row: only of inputs (a redundant arm's ik has
-    # atan2 locals of the config signs, derive.redundant_kernels)
+    # atan2 locals of the config signs, derive.inverse_redundant)
     if any(not f.free_symbols <= inputs for sym, f in prog.trig if sym in xsyms):
         return None
     names = dict(prog.symbol_names)

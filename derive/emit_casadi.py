@@ -40,7 +40,7 @@ class _ToSX:
             return self.env[e]
         if e in self.memo:
             return self.memo[e]
-        if e.is_Number:
+        if e.is_Number or e.is_NumberSymbol:  # pi: a redundant arm's range wrap (derive.inverse_redundant)
             out = ca.SX(float(e))
         elif e.is_Add:
             args = [self(a) for a in e.args]

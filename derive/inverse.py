@@ -451,8 +451,10 @@ def class_reasons(r: DHRobot) -> dict[str, list[str]]:
     (Pieper's closed forms solve six unknowns from one pose); its inverse kinematics,
     with one joint (or an arm angle) free, plugs in through ``derive.redundant``."""
     if len(r.links) == 7:
+        from derive.redundant import class_reasons as redundant_reasons  # derive.inverse_redundant's
+
         six = ["six joints (Pieper's closed forms solve six unknowns from one pose)"]
-        return {REDUNDANT: [], "articulated (PUMA class)": six, "cylindrical (Microbo class)": six,
+        return {REDUNDANT: redundant_reasons(r), "articulated (PUMA class)": six, "cylindrical (Microbo class)": six,
                 "spherical (Stanford class)": six}
     l1, l2, l3 = r.links[:3]
     wrist = _wrist_reasons(r)

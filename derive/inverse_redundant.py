@@ -37,7 +37,8 @@ from dataclasses import dataclass
 import sympy as sp
 
 from derive.dh import DHRobot, a_matrix, inverse_transform
-from derive.inverse import POSE, REACH_RTOL, SINGULAR_TOL, OutsideClass, solve_sin_cos
+from derive.inverse import POSE, POSE_INPUT, REACH_RTOL, SINGULAR_TOL, OutsideClass, solve_sin_cos
+from derive.kernel import Arg, Guard, Kernel
 
 #: joint variables of a 7-joint arm (the same symbols as derive.dh.Q's)
 Q7 = sp.symbols("q1:8", real=True)
@@ -48,6 +49,8 @@ shoulder, elbow, wrist = sp.symbols("shoulder elbow wrist", real=True)
 CONFIG_FIELDS = ("shoulder", "elbow", "wrist")
 #: the class's name, as the keys of derive.inverse.class_reasons name the 6-joint classes
 CLASS = "redundant (Panda class, q7 free)"
+#: pi as a number for the emitted code (an atan2 of constants folds to pi in SymPy)
+PI = sp.Float(sp.pi.evalf(20), 20)
 
 
 def _zero(e) -> bool:
@@ -200,12 +203,34 @@ def _rz(q: sp.Expr) -> sp.Matrix:
     return sp.Matrix([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
 
 
-def ik_kernels(derivation) -> list:
-    """The plug-in of derive.redundant (the 7-joint derivation): the ``ik`` and
-    ``config_indicators`` kernels of ``derivation.spec``'s arm (derive.redundant_kernels
-    builds them; ``ik_all`` is added by the C lowering, derive.lowering)."""
-    from derive.redundant_kernels import build
+def solver_kernels(ik: RedundantIK, params: dict[sp.Symbol, float], robot: str) -> list[Kernel]:
+    """The ``ik`` kernel (T (4, 4) of the flange, m; q7, rad; config signs -> q (7,) and the
+    guards) and ``config_indicators`` (q (7,) -> the values whose signs are q's config)."""
 
+    def kernel(name, doc, inputs, outputs, guards=(), source=""):
+        # pi (from atan2 of constant coefficients) as a number: the C printer takes no symbol pi
+        outputs = [Arg(o.name, o.value.xreplace({sp.pi: PI}), o.doc) for o in outputs]
+        guards = [Guard(g.name, g.expr.xreplace({sp.pi: PI}), g.error, g.message) for g in guards]
+        used = set().union(*(o.value.free_symbols for o in outputs), *(g.expr.free_symbols for g in guards))
+        return Kernel(robot, name, doc, tuple(inputs), tuple(outputs), tuple(guards),
+                      {s: v for s, v in params.items() if s in used}, source)
+
+    return [
+        kernel("ik", "joint variables for pose T and free value q7 in one configuration (signs +-1: "
+               + ", ".join(CONFIG_FIELDS) + ")",
+               [Arg("T", POSE_INPUT, "base_to_flange"), Arg("q7", sp.Matrix([FREE]), "joint 7 (rad)"),
+                Arg("config", sp.Matrix(ik.config), "configuration signs")],
+               [Arg("q", sp.Matrix(ik.joints), "joint variables")],
+               [Guard(*g) for g in ik.guards], source="3.19-3.21"),
+        kernel("config_indicators", "values whose signs are the configuration of q ("
+               + ", ".join(CONFIG_FIELDS) + ")", [Arg("q", sp.Matrix(Q7), "joint variables (rad)")],
+               [Arg("indicator", sp.Matrix(ik.indicators), "sign = configuration")], source="3.21"),
+    ]
+
+
+def ik_kernels(derivation) -> list[Kernel]:
+    """The plug-in of derive.redundant (the 7-joint derivation): the ``ik`` and
+    ``config_indicators`` kernels of ``derivation.spec``'s arm (``ik_all`` is added by the C
+    lowering, derive.lowering.all_configurations_kernels)."""
     spec = derivation.spec
-    ks = build(redundant_ik(spec.dh), dict(spec.params), spec.name)
-    return [k for k in ks if k.name in ("ik", "config_indicators")]
+    return solver_kernels(redundant_ik(spec.dh), dict(spec.params), spec.name)

@@ -513,6 +513,6 @@ def all_configurations_kernels(kernels: list[Kernel]) -> list[Kernel]:
         grows.append(dag_xreplace([g.expr for g in ik.guards], sub))
     doc = ("every configuration of ik at once (rows in Config.all() order); guards per row, "
            "a row is valid when all its guards are >= 0")
-    # every input but config (the pose; a redundant arm's free value too: derive.redundant_kernels)
+    # every input but config (the pose; a redundant arm's free value too: derive.inverse_redundant)
     return [Kernel(ik.robot, "ik_all", doc, tuple(ik.inputs[:-1]),
                    (Arg("q", sp.Matrix(rows)), Arg("guards", sp.Matrix(grows))), (), dict(ik.params), ik.source)]

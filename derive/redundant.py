@@ -34,3 +34,12 @@ def redundant_ik_kernels(derivation) -> list:
         return []
     module = importlib.import_module(SOLVER_MODULE)
     return list(module.ik_kernels(derivation))
+
+
+def class_reasons(r) -> list[str]:
+    """The conditions of the redundant class that the 7-joint table ``r`` fails, from
+    ``derive.inverse_redundant.class_reasons`` (empty = its closed form applies); empty while
+    that solver does not exist (the generated ``ik`` then raises NoSolver)."""
+    if not solver_available():
+        return []
+    return list(importlib.import_module(SOLVER_MODULE).class_reasons(r))

@@ -20,7 +20,7 @@ from derive.inverse import class_reasons
 CONFIG_FIELDS = {"articulated (PUMA class)": ("arm", "elbow", "wrist"),
                  "cylindrical (Microbo class)": ("wrist",),
                  "spherical (Stanford class)": ("arm", "boom", "wrist"),
-                 "redundant (7 joints)": ()}  # its configurations come with its solver
+                 "redundant (7 joints)": ("shoulder", "elbow", "wrist")}  # derive.inverse_redundant
 
 
 @dataclass(frozen=True)

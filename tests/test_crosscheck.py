@@ -74,6 +74,15 @@ def test_ik_round_trip(name):
             with pytest.raises(NoSolver, match="inverse_redundant"):
                 call()
         return
+    if len(mod.JOINT_KINDS) == 7:  # a redundant arm: ik_all(T, q7) with q7 free (more in test_ik_redundant.py)
+        rng = np.random.default_rng(28)
+        for q in rng.uniform(mod.LOWER, mod.UPPER, size=(100, 7)):
+            t = mod.fk(q)
+            sols = mod.ik_all(t, q[6])
+            assert all(np.abs(mod.fk(s)[:3] - t[:3]).max() < 1e-9 for _, s in sols)
+            near = [np.abs((s - q + np.pi) % (2 * np.pi) - np.pi).max() for _, s in sols]
+            assert min(near) < 1e-8, (q, near)  # the drawn q is among the solutions
+        return
 
     @settings(max_examples=150, deadline=None)
     @given(joints(name))
@@ -115,9 +124,31 @@ def test_crosscheck_sweep(name):
     cc.check_jacobian_computations(mod, arm, qs, res)
     cc.check_gravity(mod, arm, qs, res)
     if cc.has_ik(mod):
-        cc.check_inverse(mod, qs, res)
-    limits = {"model-file coefficients": 1e-9, "relative": 1e-11, "ik(fk(q)": 1e-10}
+        (cc.check_inverse_redundant if cc.redundant(mod) else cc.check_inverse)(mod, qs, res)
+    # q7 free: the runtime's guarantee, every returned solution within 1e-9 (redundant_ik.REPRODUCE_TOL)
+    limits = {"model-file coefficients": 1e-9, "relative": 1e-11, "ik(fk(q)": 1e-10, "q7 free": 1e-9}
     for key, err in res.errors.items():
         tol = next((v for k, v in limits.items() if k in key), 1e-12)
         assert err < tol, f"{name}: {key}: {err:.3g} >= {tol:g}"
         assert res.counts[key] > 0, key
+
+
+def test_redundant_inverse_computations_are_minimum_norm_and_least_squares():
+    """The Panda's 6 x 7 Jacobian: joint_from_cartesian solves J dq = dc with dq in J's row
+    space (the minimum-norm solution), force_from_torque leaves a residual tau - J^T f
+    orthogonal to J^T's range (least squares), in frame 4 and in the last frame; at the
+    straight-up pose (joints 1, 3, 5, 7 on one vertical line) J loses rank: Singular."""
+    mod = cc.MODULES["panda"]
+    rng = np.random.default_rng(11)
+    for q in rng.uniform(mod.LOWER, mod.UPPER, size=(20, 7)):
+        for frame in (4, 6):
+            j = mod.jacobian4(q) if frame == 4 else mod.jacobian6(q)
+            dc, tau = rng.normal(size=6), rng.normal(size=7)
+            dq = mod.joint_from_cartesian(q, dc, frame)
+            assert np.abs(j @ dq - dc).max() < 1e-10
+            null = np.linalg.svd(j)[2][-1]                  # J's null space (one direction)
+            assert abs(null @ dq) < 1e-10 * max(1.0, np.abs(dq).max())
+            f = mod.force_from_torque(q, tau, frame)
+            assert np.abs(j @ (tau - j.T @ f)).max() < 1e-10 * max(1.0, np.abs(tau).max())
+    with pytest.raises(errors.Singular, match="rank < 6"):
+        mod.joint_from_cartesian(np.zeros(7), np.ones(6))

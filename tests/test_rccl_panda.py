@@ -4,8 +4,8 @@ A joint-mode program moves the redundant arm through joint-defined positions
 (``rccl.position.joint_position``: the targets carry their joints, so no inverse kinematics is
 needed) and the encoders must reach each target. The world side is simula's Pinocchio model
 of models/urdf/panda.urdf; the generated kinematics (rccl.kinematics.panda) give the tool
-frame T7. Until the Panda's closed-form solver exists (derive/inverse_redundant.py), a move
-that needs inverse kinematics is refused with an error naming the missing solver.
+frame T7. The Panda's closed-form inverse needs the free value q7, for which RCCL has no rule
+yet (issue 28 item 3): a move that needs inverse kinematics is refused naming the free value.
 """
 from __future__ import annotations
 
@@ -69,12 +69,14 @@ def test_joint_mode_program_reaches_its_targets(sim):
         assert np.abs(arm.measured_q() - MODEL.poses["ready"]).max() < 2e-3
 
 
-def test_a_move_that_needs_inverse_kinematics_names_the_missing_solver(sim):
+def test_a_move_that_needs_inverse_kinematics_names_the_missing_free_value(sim):
+    """The closed-form IK exists (q7 free) but RCCL has no rule for q7 yet (issue 28 item 3):
+    a Cartesian target is refused, naming the free value the inverse needs."""
     with open_arm(sim, "panda") as arm:
         arm.setmod("joint")
         t7 = arm.kinematics.fk(TARGETS["A"])
         pos = makeposition("P", T6, EQ, Trsf("P", t7), TL, T6)
-        with pytest.raises(UnreachableTarget, match="inverse_redundant"):
+        with pytest.raises(UnreachableTarget, match="needs the free value"):
             arm.move(pos)
             arm.waitfor(pos.end)
 

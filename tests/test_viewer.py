@@ -217,3 +217,24 @@ def test_the_view_commands_explain_themselves(cmd, needles):
     assert r.returncode == 0, r.stderr
     for n in needles:
         assert n in r.stdout
+
+
+def test_the_view_shows_the_panda_and_its_collision_shapes(tmp_path):
+    """The 7-joint Panda in the view at its ready pose, drawn from models/urdf/panda.urdf (the
+    arm's orange), and with the collision shapes of models/collision/panda.toml on request (their
+    translucent green over it). docs/panda-view.png was taken the same way (ArmView('panda', collision=True) at
+    the ready pose, rcci.view.screenshot.screenshot at its default 1200 x 800)."""
+    from rcci.view.scene import ArmView
+    from rcci.view.screenshot import screenshot
+
+    shots = {}
+    for collision in (False, True):
+        view = ArmView("panda", port=0, collision=collision, q=load_robot("panda").poses["ready"])
+        try:
+            shots[collision] = pixels(screenshot(view.url, tmp_path / f"panda-{collision}.png", size=SIZE)).astype(int)
+        finally:
+            view.close()
+    assert arm_orange(shots[False]).mean() > 0.01
+    picture = shots[True]
+    green = (picture[..., 1] - np.maximum(picture[..., 0], picture[..., 2])) > 12
+    assert green.mean() > 0.02

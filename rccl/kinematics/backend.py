@@ -33,7 +33,7 @@ def _warn_once(message: str) -> None:
 
 
 #: the hand-written runtime every generated ``_c/<robot>.c`` includes
-RUNTIME_HEADERS = ("kin_prelude.h", "kin_runtime.h")
+RUNTIME_HEADERS = ("kin_prelude.h", "kin_runtime.h", "kin_redundant.h")
 
 
 def source_hash(c_file: Path) -> str:
@@ -164,3 +164,30 @@ def public_ik(robot: str, fallbacks: dict[str, Callable], kernels: dict[str, Any
     mod.ik_setup(config_type, fields, tuple(config_type.all()), [float(r) for r in revolute],
                  [float(x) for x in lower], [float(x) for x in upper], float(rigid_tol), float(same_tol))
     return {name: mod.public(name, fn) for name, fn in fallbacks.items()}
+
+
+def public_redundant_ik(robot: str, fallbacks: dict[str, Callable], kernels: dict[str, Any], config_type: type,
+                        lower: Any, upper: Any, singular: tuple[bool, ...],
+                        tols: tuple[float, float, float, float]) -> dict[str, Callable]:
+    """Fast entries of a redundant arm's ``ik(T, config, q_ref=None, q7=...)`` and
+    ``ik_all(T, q7, q_ref=None)`` (keys of ``fallbacks``, with ``config_of``, which stays the
+    fallback), or the fallbacks themselves without the compiled kernels.
+
+    The C (rccl/kinematics/_c/kin_redundant.h) checks the pose, q7 (inside joint 7's range),
+    q_ref and the guards (``singular``: per guard, True when its failure is Singular), moves
+    each joint into its range ``lower``..``upper`` (rad), evaluates fk of every solution
+    against T, and drops duplicates; ``tols`` = (rigid, same solution, range, reproduce), the
+    runtime's. Whenever anything is off it calls the fallback, which raises or decides.
+    """
+    mod = c_module(robot)
+    if not (hasattr(mod, "redundant_setup") and _compiled(mod, kernels, "ik") and _compiled(mod, kernels, "fk")):
+        return dict(fallbacks)
+    import dataclasses
+
+    fields = tuple(f.name for f in dataclasses.fields(config_type))
+    if not mod.redundant_setup(config_type, fields, tuple(config_type.all()), [float(x) for x in lower],
+                               [float(x) for x in upper], tuple(bool(s) for s in singular), *map(float, tols)):
+        return dict(fallbacks)
+    return {"ik": mod.redundant_public("redundant_ik", fallbacks["ik"]),
+            "ik_all": mod.redundant_public("redundant_ik_all", fallbacks["ik_all"]),
+            "config_of": fallbacks["config_of"]}

@@ -17,6 +17,7 @@ import numpy
 
 from rccl.kinematics import backend as _backend
 from rccl.kinematics import runtime as _rt
+from rccl.kinematics import redundant_ik as _red
 
 ROBOT = 'panda'
 #: model constants used (m, m/s^2), from panda.toml
@@ -33,7 +34,7 @@ JOINT_KINDS = ('revolute', 'revolute', 'revolute', 'revolute', 'revolute', 'revo
 LOWER = numpy.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
 UPPER = numpy.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 GRAVITY_COEFFS = ('cx2', 'cz2', 'cx3', 'cz3', 'cx4', 'cz4', 'cx5', 'cz5', 'cx6', 'cz6', 'cx7', 'cy7')
-Config = _rt.NoConfig
+Config = _red.RedundantConfig
 CONFIGS = Config.all()
 
 
@@ -277,6 +278,260 @@ def _fk_many(q):
     T_[:, 3, 2] = 0
     T_[:, 3, 3] = 1
     return (T_,)
+
+
+def _ik_one(T, q7, config):
+    """joint variables for pose T and free value q7 in one configuration (signs +-1: shoulder, elbow, wrist) (thesis 3.19-3.21); one configuration."""
+    ax = T[0, 2]
+    ay = T[1, 2]
+    az = T[2, 2]
+    elbow = config[1]
+    nx = T[0, 0]
+    ny = T[1, 0]
+    nz = T[2, 0]
+    ox = T[0, 1]
+    oy = T[1, 1]
+    oz = T[2, 1]
+    px = T[0, 3]
+    py = T[1, 3]
+    pz = T[2, 3]
+    q7_free = q7
+    shoulder = config[0]
+    wrist = config[2]
+    sq7_free = math.sin(q7_free)
+    cq7_free = math.cos(q7_free)
+    x0 = cq7_free*oy + ny*sq7_free
+    x1 = 2*A3
+    x2 = A4*x1 + 2*D3*D5
+    x3 = 2*A4*D3 - D5*x1
+    x4 = 2*pz
+    x5 = D7*az
+    x6 = 2*D1
+    x7 = D7*ax
+    x8 = 2*px
+    x9 = D7*ay
+    x10 = 2*py
+    x11 = cq7_free*nz
+    x12 = A6*x6
+    x13 = oz*sq7_free
+    x14 = cq7_free*nx
+    x15 = A6*x8
+    x16 = cq7_free*ny
+    x17 = A6*x10
+    x18 = A6*x4
+    x19 = ox*sq7_free
+    x20 = oy*sq7_free
+    x21 = D7**2
+    x22 = 2*A6
+    x23 = x22*x7
+    x24 = x22*x9
+    x25 = x22*x5
+    x26 = A6**2
+    x27 = 2*x26
+    x28 = cq7_free**2*x26
+    x29 = sq7_free**2*x26
+    x30 = -A3**2 - A4**2 + D1**2 - D1*x4 - D3**2 - D5**2 + ax**2*x21 + ay**2*x21 + az**2*x21 + nx**2*x28 + ny**2*x28 + nz**2*x28 + ox**2*x29 + oy**2*x29 + oz**2*x29 + px**2 + py**2 + pz**2 - x10*x9 + x11*x12 - x11*x13*x27 - x11*x18 + x11*x25 - x12*x13 + x13*x18 - x13*x25 - x14*x15 - x14*x19*x27 + x14*x23 + x15*x19 - x16*x17 - x16*x20*x27 + x16*x24 + x17*x20 - x19*x23 - x20*x24 - x4*x5 + x5*x6 - x7*x8
+    x31 = x2**2
+    x32 = x3**2
+    x33 = x30**2
+    x34 = -x33
+    x35 = math.atan2(x2, x3) - math.atan2(x30, elbow*math.sqrt((1/2)*x31 + (1/2)*x32 - 1/2*x33 + (1/2)*abs(x31 + x32 + x34)))
+    x36 = math.sin(x35)
+    x37 = cq7_free*oz + nz*sq7_free
+    x38 = px - x7
+    x39 = cq7_free*ox + nx*sq7_free
+    x40 = py - x9
+    x41 = pz - x5
+    x42 = -D1*x37 + x0*x40 + x37*x41 + x38*x39
+    x43 = math.cos(x35)
+    x44 = A3*x43 + A4 - D3*x36
+    x45 = -x44
+    x46 = x45**2
+    x47 = -D1*az + ax*x38 + ay*x40 + az*x41
+    x48 = x11 - x13
+    x49 = -ox*sq7_free + x14
+    x50 = -oy*sq7_free + x16
+    x51 = D1*x48 - x38*x49 - x40*x50 - x41*x48
+    x52 = A6 + x51
+    x53 = -A3*x36 - D3*x43 - D5
+    x54 = x47**2
+    x55 = x52**2
+    x56 = x53**2
+    x57 = -x56
+    x58 = x54 + x55
+    x59 = -math.atan2(x47, x52) + math.atan2(x53, wrist*math.sqrt((1/2)*x54 + (1/2)*x55 - 1/2*x56 + (1/2)*abs(x57 + x58)))
+    x60 = math.cos(x59)
+    x61 = math.sin(x59)
+    x62 = A6*x60 - x47*x61 + x51*x60
+    x63 = 1/math.sqrt(x42**2*x46 + x46*x62**2)
+    x64 = x42*x45
+    x65 = x63*x64
+    x66 = x36*x65
+    x67 = x43*x60
+    x68 = x36*x61
+    x69 = x45*x62
+    x70 = x63*x69
+    x71 = -x67 - x68*x70
+    x72 = x36*x60
+    x73 = x43*x61 - x70*x72
+    x74 = ay*x71 + x0*x66 + x50*x73
+    x75 = ax*x71 + x39*x66 + x49*x73
+    x76 = math.sqrt(x74**2 + x75**2)
+    q_ = numpy.array([math.atan2(shoulder*x74, shoulder*x75), math.atan2(shoulder*x76, az*x71 + x37*x66 + x48*x73), math.atan2(shoulder*(-az*x61*x65 - x37*x70 - x48*x60*x65), -shoulder*(az*(x43*x45*x61*x62*x63 - x72) - x37*x43*x65 + x48*(x67*x70 + x68))), -x35, math.atan2(-x64, x69), x59, q7_free], dtype=float)
+    guard_elbow_reach = float(1.000000000001*x31 + 1.000000000001*x32 + x34)
+    guard_wrist_height = float(1.000000000001*x54 + 1.000000000001*x55 + x57)
+    guard_axis6 = float(math.sqrt(x58) - 1.0e-9)
+    guard_axis5 = float(abs(x44) - 1.0e-9)
+    guard_shoulder = float(x76 - 1.0e-9)
+    return (q_, guard_elbow_reach, guard_wrist_height, guard_axis6, guard_axis5, guard_shoulder,)
+
+
+def _ik_many(T, q7, config):
+    """joint variables for pose T and free value q7 in one configuration (signs +-1: shoulder, elbow, wrist) (thesis 3.19-3.21); batched."""
+    ax = T[:, 0, 2]
+    ay = T[:, 1, 2]
+    az = T[:, 2, 2]
+    elbow = config[:, 1]
+    nx = T[:, 0, 0]
+    ny = T[:, 1, 0]
+    nz = T[:, 2, 0]
+    ox = T[:, 0, 1]
+    oy = T[:, 1, 1]
+    oz = T[:, 2, 1]
+    px = T[:, 0, 3]
+    py = T[:, 1, 3]
+    pz = T[:, 2, 3]
+    q7_free = q7
+    shoulder = config[:, 0]
+    wrist = config[:, 2]
+    sq7_free = numpy.sin(q7_free)
+    cq7_free = numpy.cos(q7_free)
+    x0 = cq7_free*oy + ny*sq7_free
+    x1 = 2*A3
+    x2 = A4*x1 + 2*D3*D5
+    x3 = 2*A4*D3 - D5*x1
+    x4 = 2*pz
+    x5 = D7*az
+    x6 = 2*D1
+    x7 = D7*ax
+    x8 = 2*px
+    x9 = D7*ay
+    x10 = 2*py
+    x11 = cq7_free*nz
+    x12 = A6*x6
+    x13 = oz*sq7_free
+    x14 = cq7_free*nx
+    x15 = A6*x8
+    x16 = cq7_free*ny
+    x17 = A6*x10
+    x18 = A6*x4
+    x19 = ox*sq7_free
+    x20 = oy*sq7_free
+    x21 = D7**2
+    x22 = 2*A6
+    x23 = x22*x7
+    x24 = x22*x9
+    x25 = x22*x5
+    x26 = A6**2
+    x27 = 2*x26
+    x28 = cq7_free**2*x26
+    x29 = sq7_free**2*x26
+    x30 = -A3**2 - A4**2 + D1**2 - D1*x4 - D3**2 - D5**2 + ax**2*x21 + ay**2*x21 + az**2*x21 + nx**2*x28 + ny**2*x28 + nz**2*x28 + ox**2*x29 + oy**2*x29 + oz**2*x29 + px**2 + py**2 + pz**2 - x10*x9 + x11*x12 - x11*x13*x27 - x11*x18 + x11*x25 - x12*x13 + x13*x18 - x13*x25 - x14*x15 - x14*x19*x27 + x14*x23 + x15*x19 - x16*x17 - x16*x20*x27 + x16*x24 + x17*x20 - x19*x23 - x20*x24 - x4*x5 + x5*x6 - x7*x8
+    x31 = x2**2
+    x32 = x3**2
+    x33 = x30**2
+    x34 = -x33
+    x35 = numpy.arctan2(x2, x3) - numpy.arctan2(x30, elbow*numpy.sqrt((1/2)*x31 + (1/2)*x32 - 1/2*x33 + (1/2)*abs(x31 + x32 + x34)))
+    x36 = numpy.sin(x35)
+    x37 = cq7_free*oz + nz*sq7_free
+    x38 = px - x7
+    x39 = cq7_free*ox + nx*sq7_free
+    x40 = py - x9
+    x41 = pz - x5
+    x42 = -D1*x37 + x0*x40 + x37*x41 + x38*x39
+    x43 = numpy.cos(x35)
+    x44 = A3*x43 + A4 - D3*x36
+    x45 = -x44
+    x46 = x45**2
+    x47 = -D1*az + ax*x38 + ay*x40 + az*x41
+    x48 = x11 - x13
+    x49 = -ox*sq7_free + x14
+    x50 = -oy*sq7_free + x16
+    x51 = D1*x48 - x38*x49 - x40*x50 - x41*x48
+    x52 = A6 + x51
+    x53 = -A3*x36 - D3*x43 - D5
+    x54 = x47**2
+    x55 = x52**2
+    x56 = x53**2
+    x57 = -x56
+    x58 = x54 + x55
+    x59 = -numpy.arctan2(x47, x52) + numpy.arctan2(x53, wrist*numpy.sqrt((1/2)*x54 + (1/2)*x55 - 1/2*x56 + (1/2)*abs(x57 + x58)))
+    x60 = numpy.cos(x59)
+    x61 = numpy.sin(x59)
+    x62 = A6*x60 - x47*x61 + x51*x60
+    x63 = 1/numpy.sqrt(x42**2*x46 + x46*x62**2)
+    x64 = x42*x45
+    x65 = x63*x64
+    x66 = x36*x65
+    x67 = x43*x60
+    x68 = x36*x61
+    x69 = x45*x62
+    x70 = x63*x69
+    x71 = -x67 - x68*x70
+    x72 = x36*x60
+    x73 = x43*x61 - x70*x72
+    x74 = ay*x71 + x0*x66 + x50*x73
+    x75 = ax*x71 + x39*x66 + x49*x73
+    x76 = numpy.sqrt(x74**2 + x75**2)
+    q_ = numpy.empty((T.shape[0],) + (7,))
+    q_[:, 0] = numpy.arctan2(shoulder*x74, shoulder*x75)
+    q_[:, 1] = numpy.arctan2(shoulder*x76, az*x71 + x37*x66 + x48*x73)
+    q_[:, 2] = numpy.arctan2(shoulder*(-az*x61*x65 - x37*x70 - x48*x60*x65), -shoulder*(az*(x43*x45*x61*x62*x63 - x72) - x37*x43*x65 + x48*(x67*x70 + x68)))
+    q_[:, 3] = -x35
+    q_[:, 4] = numpy.arctan2(-x64, x69)
+    q_[:, 5] = x59
+    q_[:, 6] = q7_free
+    guard_elbow_reach = numpy.broadcast_to(numpy.asarray(1.000000000001*x31 + 1.000000000001*x32 + x34, dtype=float), (T.shape[0],))
+    guard_wrist_height = numpy.broadcast_to(numpy.asarray(1.000000000001*x54 + 1.000000000001*x55 + x57, dtype=float), (T.shape[0],))
+    guard_axis6 = numpy.broadcast_to(numpy.asarray(numpy.sqrt(x58) - 1.0e-9, dtype=float), (T.shape[0],))
+    guard_axis5 = numpy.broadcast_to(numpy.asarray(abs(x44) - 1.0e-9, dtype=float), (T.shape[0],))
+    guard_shoulder = numpy.broadcast_to(numpy.asarray(x76 - 1.0e-9, dtype=float), (T.shape[0],))
+    return (q_, guard_elbow_reach, guard_wrist_height, guard_axis6, guard_axis5, guard_shoulder,)
+
+
+def _config_indicators_one(q):
+    """values whose signs are the configuration of q (shoulder, elbow, wrist) (thesis 3.21); one configuration."""
+    q2 = q[1]
+    q4 = q[3]
+    q5 = q[4]
+    s2 = math.sin(q2)
+    s4 = math.sin(q4)
+    c4 = math.cos(q4)
+    c5 = math.cos(q5)
+    x0 = A3*c4
+    x1 = 2*D5
+    x2 = D3*s4
+    indicator_ = numpy.array([s2, -2*A3*A4*s4 + 2*A4*D3*c4 - x0*x1 - x1*x2, -A4*c5 - c5*x0 - c5*x2], dtype=float)
+    return (indicator_,)
+
+
+def _config_indicators_many(q):
+    """values whose signs are the configuration of q (shoulder, elbow, wrist) (thesis 3.21); batched."""
+    q2 = q[:, 1]
+    q4 = q[:, 3]
+    q5 = q[:, 4]
+    s2 = numpy.sin(q2)
+    s4 = numpy.sin(q4)
+    c4 = numpy.cos(q4)
+    c5 = numpy.cos(q5)
+    x0 = A3*c4
+    x1 = 2*D5
+    x2 = D3*s4
+    indicator_ = numpy.empty((q.shape[0],) + (3,))
+    indicator_[:, 0] = s2
+    indicator_[:, 1] = -2*A3*A4*s4 + 2*A4*D3*c4 - x0*x1 - x1*x2
+    indicator_[:, 2] = -A4*c5 - c5*x0 - c5*x2
+    return (indicator_,)
 
 
 def _jacobian4_one(q):
@@ -13676,6 +13931,14 @@ _KERNELS = _backend.accelerate(ROBOT, {
         inputs=(('q', (7,)),),
         outputs=(('T', (4, 4)),),
         guards=()),
+    'ik': _rt.KernelFn('ik', _ik_one, _ik_many,
+        inputs=(('T', (4, 4)), ('q7', ()), ('config', (3,))),
+        outputs=(('q', (7,)),),
+        guards=(_rt.GuardInfo('guard_elbow_reach', 'Unreachable', "the wrist point is outside the elbow's range of shoulder-wrist distances"), _rt.GuardInfo('guard_wrist_height', 'Unreachable', 'for this q7 no q6 puts the shoulder point at the height along the joint-5 axis that the elbow needs'), _rt.GuardInfo('guard_axis6', 'Singular', 'the shoulder point is on the joint-6 axis: q6 is undetermined'), _rt.GuardInfo('guard_axis5', 'Singular', 'the shoulder point is on the joint-5 axis: q5 is undetermined'), _rt.GuardInfo('guard_shoulder', 'Singular', 'sin q2 = 0: joints 1 and 3 are aligned and only q1 + q3 is determined'))),
+    'config_indicators': _rt.KernelFn('config_indicators', _config_indicators_one, _config_indicators_many,
+        inputs=(('q', (7,)),),
+        outputs=(('indicator', (3,)),),
+        guards=()),
     'jacobian4': _rt.KernelFn('jacobian4', _jacobian4_one, _jacobian4_many,
         inputs=(('q', (7,)),),
         outputs=(('J', (6, 7)),),
@@ -13746,7 +14009,7 @@ _KERNELS = _backend.accelerate(ROBOT, {
         guards=()),
 })
 
-_ROBOT = _rt.Robot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
+_ROBOT = _red.RedundantRobot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
 _API = _rt.public_api(_ROBOT)  # the contract's functions: compiled fast entries, runtime checks behind
 (fk, ik, ik_all, config_of, jacobian4, jacobian6, cartesian_from_joint, torque_from_force,
  joint_from_cartesian, force_from_torque, gravity, gravity_regressor, gravity_links, coefficients_from_links, tool_load) = _API

@@ -60,6 +60,16 @@ def missing_solver(name: str) -> dict[str, Callable]:
     return {"ik": fail("ik"), "ik_all": fail("ik_all"), "config_of": config_of}
 
 
+def _into(name: str, what: str, out, value: np.ndarray) -> np.ndarray:
+    """numpy's ``out=`` convention: ``value`` written into ``out`` (float64, writable, the result's shape)."""
+    if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == value.shape
+            and out.flags.writeable):
+        raise exceptions.InvalidInput(f"{name}.{what}: out must be a writable float64 numpy array of shape "
+                                      f"{value.shape}, got {getattr(out, 'shape', type(out).__name__)}")
+    out[...] = value
+    return out
+
+
 def least_squares(robot) -> tuple[dict[int, Callable], dict[int, Callable]]:
     """{frame: joint_from_cartesian}, {frame: force_from_torque} of a redundant ``robot``
     (rccl.kinematics.runtime.Robot) from its Jacobian kernels ``jacobian4`` and
@@ -77,7 +87,7 @@ def least_squares(robot) -> tuple[dict[int, Callable], dict[int, Callable]]:
         def joint_from_cartesian(q, dc, out=None):
             """Minimum-norm dq = J^+ dc, dc observed in frame 4 or the last frame (6 x n J)."""
             res = (pinv(q, frame, "joint_from_cartesian") @ np.asarray(dc, float)[..., :, None])[..., 0]
-            return res if out is None else robot._into("joint_from_cartesian", out, res)
+            return res if out is None else _into(robot.name, "joint_from_cartesian", out, res)
         return joint_from_cartesian
 
     def force(frame: int) -> Callable:
@@ -85,7 +95,7 @@ def least_squares(robot) -> tuple[dict[int, Callable], dict[int, Callable]]:
             """Least-squares f = (J^T)^+ tau = (J^+)^T tau, observed in frame 4 or the last frame."""
             p = np.swapaxes(pinv(q, frame, "force_from_torque"), -1, -2)
             res = (p @ np.asarray(tau, float)[..., :, None])[..., 0]
-            return res if out is None else robot._into("force_from_torque", out, res)
+            return res if out is None else _into(robot.name, "force_from_torque", out, res)
         return force_from_torque
 
     return {f: joint(f) for f in (4, 6)}, {f: force(f) for f in (4, 6)}

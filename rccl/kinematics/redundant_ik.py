@@ -1,7 +1,9 @@
 """Runtime of a redundant 7-joint arm's closed-form inverse kinematics (q7 the free parameter).
 
-The generated module (``rccl/kinematics/<robot>_ik.py``, derive.redundant_kernels) holds the
-straight-line kernels; this module gives the contract's entries for a redundant arm:
+The arm's generated module (``rccl/kinematics/<robot>.py``, ``python -m derive``: the kernels of
+derive.inverse_redundant beside fk, Jacobians and dynamics) holds the straight-line kernels;
+this module gives the contract's entries for a redundant arm (the compiled fast entries of
+``ik``/``ik_all``, _c/kin_redundant.h, do the same checks in C and call these for the rest):
 
 * ``ik(T, config, q_ref=None, q7=...)``: q (7,) for the flange pose T (4, 4), the value of
   joint 7 (rad) and a :class:`RedundantConfig`; a batch of poses (N, 4, 4) with q7 a float
@@ -22,13 +24,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from rccl.kinematics import exceptions
-from rccl.kinematics.runtime import SAME_SOLUTION_TOL, Robot, SignedConfig, _fmt_pose, _wrap
+from rccl.kinematics.runtime import RIGID_TOL, SAME_SOLUTION_TOL, Robot, SignedConfig
 
 #: largest |fk(q) - T| element (m for the position, 1 for the rotation) a returned solution may have
 REPRODUCE_TOL = 1e-9
 #: slack (rad) on the joint ranges for rounding at a range's end
 RANGE_TOL = 1e-12
 _SINGULAR = "Singular"
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    """Angles (rad) into [-pi, pi)."""
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+def _fmt_pose(t: np.ndarray) -> str:
+    return np.array2string(np.asarray(t), precision=6, suppress_small=True, separator=", ").replace("\n", "")
 
 
 @dataclass(frozen=True)
@@ -44,17 +55,52 @@ class RedundantConfig(SignedConfig):
     wrist: int = 1
 
 
+#: every configuration, in the order of the ik_all kernel's rows
+_CONFIGS = RedundantConfig.all()
+
+
 class RedundantRobot(Robot):
     """The generated kernels of one redundant arm with the checks of the module doc."""
 
-    def __init__(self, name: str, kernels, lower, upper):
-        super().__init__(name, kernels, ("revolute",) * 7, lower, upper, RedundantConfig, ())
+    def __init__(self, name: str, kernels, kinds, lower, upper, config_type: type = RedundantConfig,
+                 coeff_names=()):
+        if tuple(kinds) != ("revolute",) * 7 or config_type is not RedundantConfig:
+            raise exceptions.InvalidInput(f"{name}: the redundant inverse needs 7 revolute joints and "
+                                          f"RedundantConfig, got {tuple(kinds)} and {config_type.__name__}")
+        super().__init__(name, kernels, kinds, lower, upper, config_type, coeff_names)
 
     def _find_ik_all(self):
         from rccl.kinematics import backend
 
         n_cfg, n_guard = len(RedundantConfig.all()), len(self.kernels["ik"].guards)
         return backend.kernel(self.name, "ik_all", ((4, 4), ()), ((n_cfg, 7), (n_cfg, n_guard)))
+
+    def public_entries(self) -> dict:
+        """ik, ik_all and config_of as the contract's public functions: ik and ik_all the
+        compiled fast entries (rccl/kinematics/_c/kin_redundant.h: the same checks in C, this
+        class's methods behind them for every other call and every error) when the module's
+        C kernels are built, else these methods."""
+        from rccl.kinematics import backend
+
+        singular = tuple(g.error == _SINGULAR for g in self.kernels["ik"].guards)
+        return backend.public_redundant_ik(
+            self.name, {"ik": self.ik, "ik_all": self.ik_all, "config_of": self.config_of}, self.kernels,
+            self.config_type, self.lower, self.upper, singular,
+            (RIGID_TOL, SAME_SOLUTION_TOL, RANGE_TOL, REPRODUCE_TOL))
+
+    def _every_config(self, t3: np.ndarray, v1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q (N, 8, 7), guards (N, 8, n_guard)) of every configuration: the compiled ik_all
+        kernel, or the ik kernel once per configuration (the Python kernels)."""
+        if self.ik_all_kernel is not None:
+            q_all, g_all = self.ik_all_kernel(t3, v1)[:2]
+            return np.array(q_all), np.asarray(g_all)
+        qs, gs = [], []
+        for cfg in _CONFIGS:
+            signs = np.broadcast_to(np.array(cfg.signs, dtype=float), (t3.shape[0], 3))
+            (q,), guards, _ = self.raw("ik", t3, v1, signs)
+            qs.append(np.asarray(q))
+            gs.append(np.stack([np.asarray(g) for g in guards], axis=-1))
+        return np.stack(qs, axis=1), np.stack(gs, axis=1)
 
     def _free(self, q7, t: np.ndarray, where: str) -> np.ndarray:
         try:
@@ -95,7 +141,9 @@ class RedundantRobot(Robot):
 
     def _reproduces(self, q: np.ndarray, t: np.ndarray, context) -> None:
         """Raise KinematicsError unless fk(q) equals t within REPRODUCE_TOL (q (..., 7), t (..., 4, 4))."""
-        (tq,), _, _ = self.raw("fk", q)
+        with np.errstate(all="ignore"):
+            tq = self.kernels["fk"].many(q if q.ndim == 2 else q[None])[0]  # q finite: from a checked solve
+        tq = tq if q.ndim == 2 else tq[0]
         err = np.abs(np.asarray(tq)[..., :3, :] - t[..., :3, :]).reshape(q.shape[:-1] + (12,)).max(axis=-1)
         if np.any(~(err <= REPRODUCE_TOL)):
             i = int(np.argmax(np.atleast_1d(~(err <= REPRODUCE_TOL))))
@@ -143,31 +191,26 @@ class RedundantRobot(Robot):
         batch = t.ndim == 3
         t3, v1 = (t, v) if batch else (t[None], v[None])
         ref2 = None if ref is None else (ref if batch else ref[None])
-        configs = RedundantConfig.all()
-        k = self.kernels["ik"]
+        configs = _CONFIGS
         with np.errstate(all="ignore"):
-            if self.ik_all_kernel is not None:
-                q_all, g_all = self.ik_all_kernel(t3, v1)[:2]
-            else:
-                (q_all, g_all), _, _ = self.raw("ik_all", t3, v1)
-        q_all, g_all = np.array(q_all), np.asarray(g_all)
-        ok = (g_all >= 0).all(axis=-1) & np.isfinite(q_all).all(axis=-1)
-        singular = [i for i, g in enumerate(k.guards) if g.error == _SINGULAR]
-        reach = [i for i, g in enumerate(k.guards) if g.error != _SINGULAR]
-        reachable = (g_all[..., reach] >= 0).all(axis=-1)
-        for i, j in zip(*np.nonzero(~ok & reachable)):  # a reachable branch failing a Singular guard
-            self.ik(t3[i], configs[j], q7=v1[i])  # raises Singular with the message
+            q_all, g_all = self._every_config(t3, v1)
+            ok = (g_all >= 0).all(axis=-1) & np.isfinite(q_all).all(axis=-1)
+            if not ok.all():
+                reach = [i for i, g in enumerate(self.kernels["ik"].guards) if g.error != _SINGULAR]
+                for i, j in zip(*np.nonzero(~ok & (g_all[..., reach] >= 0).all(axis=-1))):
+                    self.ik(t3[i], configs[j], q7=v1[i])  # reachable but singular: raises Singular
         q_all, in_range = self._in_range(q_all, None if ref2 is None else ref2[:, None, :])
         ok &= in_range
         if ok.any():
             self._reproduces(q_all[ok], np.broadcast_to(t3[:, None], q_all.shape[:2] + (4, 4))[ok],
                              lambda i: "in ik_all")
+        # equal solutions (2 pi apart on a joint) kept once: pairwise over the configurations
+        same = (np.abs(_wrap(q_all[:, :, None, :] - q_all[:, None, :, :])) < SAME_SOLUTION_TOL).all(axis=-1)
         out = []
-        for i in range(t3.shape[0]):
+        for ok_i, same_i, q_i in zip(ok.tolist(), same.tolist(), q_all):
             kept: list[int] = []
-            for j in np.nonzero(ok[i])[0]:
-                d = _wrap(q_all[i, kept] - q_all[i, j])
-                if not np.any(np.all(np.abs(d) < SAME_SOLUTION_TOL, axis=-1)):
-                    kept.append(int(j))
-            out.append([(configs[j], q_all[i, j].copy()) for j in kept])
+            for j in range(len(configs)):
+                if ok_i[j] and not any(same_i[j][k] for k in kept):
+                    kept.append(j)
+            out.append([(configs[j], q_i[j].copy()) for j in kept])
         return out if batch else out[0]

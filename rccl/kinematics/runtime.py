@@ -578,9 +578,12 @@ def public_api(robot: Robot) -> PublicAPI:
     if "ik" not in kernels:  # a redundant arm before its solver is derived (derive.redundant)
         from rccl.kinematics.redundant import missing_solver
         ik, ik_all, config_of = missing_solver(name).values()
-    fast = backend.public_ik(name, {"ik": ik, "ik_all": ik_all, "config_of": config_of}, kernels,
-                             robot.config_type, robot.revolute, robot.lower, robot.upper,
-                             RIGID_TOL, SAME_SOLUTION_TOL)
+    if hasattr(robot, "public_entries"):  # a redundant arm: ik(T, config, q_ref, q7), ik_all(T, q7, q_ref)
+        fast = robot.public_entries()  # rccl.kinematics.redundant_ik
+    else:
+        fast = backend.public_ik(name, {"ik": ik, "ik_all": ik_all, "config_of": config_of}, kernels,
+                                 robot.config_type, robot.revolute, robot.lower, robot.upper,
+                                 RIGID_TOL, SAME_SOLUTION_TOL)
     return PublicAPI(
         fk=backend.public(name, "fk", fk, kernels),
         ik=fast["ik"], ik_all=fast["ik_all"], config_of=fast["config_of"],

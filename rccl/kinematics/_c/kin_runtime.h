@@ -2,7 +2,8 @@
  * hand-written: the Python-callable entry of every kernel (shape and NaN checks, results
  * allocated through numpy, batches in chunks and over threads), the public fast entries
  * behind rccl.kinematics.backend.public (single configurations and batches, out=, gravity
- * coefficient mappings, ik / ik_all / config_of with the pose checks), and the module's
+ * coefficient mappings, ik / ik_all / config_of with the pose checks; a redundant arm's in
+ * kin_redundant.h), and the module's
  * init, which adds one function per entry of KERNELS. A generated file includes it after
  * its kernels and their table KERNELS, and ends with RCCL_MODULE_INIT(<robot>). setup.py
  * defines RCCL_SOURCE_HASH (rccl.kinematics.backend.source_hash of the .c and both
@@ -418,9 +419,9 @@ static PyObject *ik_setup(PyObject *self, PyObject *args)
 }
 
 /* 1 when the 16 doubles are clearly a rigid transform: finite, last row exactly 0 0 0 1,
- * rotation orthonormal within half the runtime's tolerance (the borderline band is left to
- * the Python check), determinant > 0 */
-static int pose_ok(const double *t)
+ * rotation orthonormal within half of rigid_tol (the borderline band is left to the Python
+ * check), determinant > 0 */
+static int pose_within(const double *t, double rigid_tol)
 {
     if (!all_finite(t, 16) || t[12] != 0.0 || t[13] != 0.0 || t[14] != 0.0 || t[15] != 1.0) return 0;
     double dev = 0.0;
@@ -431,8 +432,10 @@ static int pose_ok(const double *t)
         }
     const double det = t[0] * (t[5] * t[10] - t[6] * t[9]) - t[1] * (t[4] * t[10] - t[6] * t[8])
                      + t[2] * (t[4] * t[9] - t[5] * t[8]);
-    return dev <= 0.5 * IK.rigid_tol && det > 0;
+    return dev <= 0.5 * rigid_tol && det > 0;
 }
+
+static int pose_ok(const double *t) { return pose_within(t, IK.rigid_tol); }
 
 /* the pose as 16 doubles when it is a plain (4, 4) array and pose_ok */
 static const double *pose_arg(PyObject *x)
@@ -456,12 +459,12 @@ static const double *ref_arg(PyObject *x, int *ok)
     return (const double *)PyArray_DATA(a);
 }
 
-/* the +-1 signs of a Config instance (exactly the generated module's Config class) */
-static int config_signs(PyObject *c, double *signs)
+/* the +-1 signs of a Config instance (exactly the class `type`, fields named by `fields`) */
+static int signs_of(PyObject *c, PyObject *type, PyObject *fields, int nfield, double *signs)
 {
-    if ((PyObject *)Py_TYPE(c) != IK.config_type) return -1;
-    for (int i = 0; i < IK.nfield; ++i) {
-        PyObject *v = PyObject_GetAttr(c, PyTuple_GET_ITEM(IK.fields, i));
+    if (!type || (PyObject *)Py_TYPE(c) != type) return -1;
+    for (int i = 0; i < nfield; ++i) {
+        PyObject *v = PyObject_GetAttr(c, PyTuple_GET_ITEM(fields, i));
         if (!v) { PyErr_Clear(); return -1; }
         const long s = PyLong_CheckExact(v) ? PyLong_AsLong(v) : 0;
         Py_DECREF(v);
@@ -469,6 +472,11 @@ static int config_signs(PyObject *c, double *signs)
         signs[i] = (double)s;
     }
     return 0;
+}
+
+static int config_signs(PyObject *c, double *signs)
+{
+    return signs_of(c, IK.config_type, IK.fields, IK.nfield, signs);
 }
 
 /* (x + pi) mod 2 pi - pi with numpy's floor modulo: runtime._wrap, to the bit */
@@ -657,6 +665,8 @@ static PyMethodDef IK_DEFS[] = {
     {"config_of", (PyCFunction)(void (*)(void))pubfast_config_of, METH_FASTCALL | METH_KEYWORDS,
      "config_of(q): fast entry for one float64 configuration; anything else via the runtime"},
 };
+
+#include "kin_redundant.h"   /* a redundant arm's ik / ik_all (q7 free) */
 #endif
 
 
@@ -923,6 +933,8 @@ static PyMethodDef methods[] = {
     {"threads", threads, METH_NOARGS, "threads() -> the most threads a large batch is split over (RCCL_KINEMATICS_THREADS)"},
 #ifdef RCCL_NUMPY_API
     {"public", public, METH_VARARGS, "public(name, fallback, keys=None) -> fast public entry of a kernel (see public_call)"},
+    {"redundant_setup", redundant_setup, METH_VARARGS, "redundant_setup(Config, fields, configs, lower, upper, singular, rigid_tol, same_tol, range_tol, reproduce_tol) -> True when the redundant ik entries can run"},
+    {"redundant_public", redundant_public, METH_VARARGS, "redundant_public(name, fallback) -> fast entry redundant_ik / redundant_ik_all"},
     {"ik_setup", ik_setup, METH_VARARGS, "ik_setup(Config, fields, configs, revolute, lower, upper, rigid_tol, same_tol): data of the ik/ik_all/config_of entries"},
 #endif
     {NULL, NULL, 0, NULL}
