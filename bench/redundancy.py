@@ -35,7 +35,7 @@ from rccl.limits import load_limits  # noqa: E402
 from rccl.planner import Planner  # noqa: E402
 from rccl.position import EQ, TL, joint_position, makeposition  # noqa: E402
 from rccl.redundancy import FAR_CANDIDATES  # noqa: E402
-from rccl.segments import Kinematics  # noqa: E402
+from rccl.session import load_kinematics  # noqa: E402
 from rccl.trajectory import TrajectoryGenerator  # noqa: E402
 from rccl.transform import T6, Trsf, rot_matrix  # noqa: E402
 
@@ -74,30 +74,10 @@ def program(pl: Planner, rule: str, ready: np.ndarray) -> None:
     pl.move(makeposition("B", T6, EQ, Trsf("B", t1), TL, T6))
 
 
-def panda_kinematics() -> tuple[Kinematics, str]:
-    """The Panda's generated kinematics and a sentence saying where its IK comes from: the
-    closed-form IK plugged into rccl.kinematics.panda, or, while that module's ik is the
-    derivation's NoSolver placeholder, the generated rccl.kinematics.panda_ik beside it."""
-    import types
-    from rcci.models import load_robot
-    from rccl.kinematics import load
-    module = load(ROBOT)
-    q = np.array(load_robot(ROBOT).poses["ready"], dtype=float)
-    try:
-        module.ik(module.fk(q), module.config_of(q), q, q7=q[6])
-        return Kinematics(module), "the generated `rccl.kinematics.panda` (closed-form IK with q7 given)"
-    except NotImplementedError:
-        from rccl.kinematics import panda_ik
-        both = types.SimpleNamespace(**{k: getattr(module, k) for k in dir(module) if not k.startswith("__")})
-        both.ik, both.config_of, both.Config = panda_ik.ik, panda_ik.config_of, type(panda_ik.config_of(q))
-        return Kinematics(both), ("the generated `rccl.kinematics.panda` (fk, Jacobians) with the generated "
-                                  "closed-form IK of `rccl.kinematics.panda_ik` (panda's ik is still the placeholder)")
-
-
 def run(kind: str, rule: str, cycles: int) -> dict:
     """Per-cycle CPU times (us) of ``cycles`` generator steps on the tour under ``rule``."""
     from rcci.models import load_robot
-    kin, limits = panda_kinematics()[0], load_limits(ROBOT)
+    kin, limits = load_kinematics(ROBOT), load_limits(ROBOT)
     q0 = np.array(load_robot(ROBOT).poses["ready"], dtype=float)
     gen = GENERATORS[kind](kin, limits, 1.0 / RATE_HZ, q0)
     pl = Planner(kin, limits, gen)
@@ -125,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     from rccl.kinematics import backend as kb
     compiled = ", ".join(f"{r} {'compiled C' if kb.c_module(r) is not None else 'Python (C NOT built)'}"
-                         for r in ("panda", "panda_ik"))
+                         for r in ("panda",))
     load_before = os.getloadavg()
     rows = [run(kind, rule, args.cycles) for kind in GENERATORS for rule in RULES]
     load_after = os.getloadavg()
@@ -137,7 +117,8 @@ def main(argv: list[str] | None = None) -> int:
         f"(`time.thread_time_ns` around each call, garbage collector off) at {RATE_HZ} Hz, {args.cycles} cycles "
         "per row, on a tour",
         "of joint-mode moves to the ready joints, each followed by a Cartesian line out (10 cm, 0.25 rad) under the",
-        f"rule; *selfmove* by a 1 s self-motion of 0.3 rad instead. Kinematics: {panda_kinematics()[1]}; {compiled}.",
+        f"rule; *selfmove* by a 1 s self-motion of 0.3 rad instead. Kinematics: the generated "
+        f"`rccl.kinematics.panda` (closed-form IK with q7 given), {compiled}.",
         f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}, "
         f"{os.cpu_count()} cores. **Load average** (1, 5, 15 min) before: "
         f"{load_before[0]:.2f}, {load_before[1]:.2f}, {load_before[2]:.2f}; after: "

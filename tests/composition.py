@@ -97,11 +97,7 @@ def simula(robot: str, link: str) -> Iterator:
 
 def open_arm(url: str, robot: str, generator: str):
     # timeout: a lockstep simula may be descheduled for seconds on a shared machine (load 16 seen)
-    extra = {}
-    if robot == "panda":       # the closed-form IK with q7 given (tests/rccl_arm.py says from where)
-        from rccl_arm import panda_kinematics
-        extra["kinematics"] = panda_kinematics()
-    return rccl.open(url, robot, trajectory=generator, record=True, on_error="raise", timeout=5.0, **extra)
+    return rccl.open(url, robot, trajectory=generator, record=True, on_error="raise", timeout=5.0)
 
 
 def start(arm) -> np.ndarray:

@@ -43,24 +43,3 @@ def tail(arm, n0: int) -> tuple[np.ndarray, np.ndarray]:
     tr = arm.trace[n0:]
     return np.array([x[1] for x in tr]), np.array([x[2] for x in tr])
 
-
-def panda_kinematics():
-    """The Panda's generated kinematics for RCCL. Until the derivation plugs the closed-form IK
-    into rccl.kinematics.panda (its ``ik`` raises NoSolver meanwhile), the IK and configurations
-    come from the generated rccl.kinematics.panda_ik (the same frames: fk compared here)."""
-    import types
-    import rccl.kinematics
-    from rcci.models import load_robot
-    from rccl.segments import Kinematics
-    module = rccl.kinematics.load("panda")
-    q = np.array(load_robot("panda").poses["ready"], dtype=float)
-    try:
-        module.ik(module.fk(q), module.config_of(q), q, q7=q[6])
-        return Kinematics(module)
-    except NotImplementedError:
-        from rccl.kinematics import panda_ik
-        assert np.allclose(panda_ik.fk(q), module.fk(q), atol=1e-12)
-        both = types.SimpleNamespace(**{k: getattr(module, k) for k in dir(module) if not k.startswith("__")})
-        both.ik, both.config_of = panda_ik.ik, panda_ik.config_of
-        both.Config = type(panda_ik.config_of(q))
-        return Kinematics(both)

@@ -12,7 +12,6 @@ import pytest
 
 import rccl.kinematics
 from rci.simula.process import SimulaProcess
-from rccl_arm import panda_kinematics
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -52,8 +51,7 @@ def test_the_panda_example_runs_its_lines_and_self_motion(capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         with SimulaProcess("-p", "--power-on", robot="panda", lockstep=True) as sim:
-            # (the closed-form IK: rccl_arm.panda_kinematics says from which generated module)
-            out = ex.run(sim.url, timeout=2.0, kinematics=panda_kinematics())
+            out = ex.run(sim.url, timeout=2.0)
     assert list(out) == ["OUT", "SELF", "BACK", "SIDE"]
     kin = rccl.kinematics.load("panda")
     from rcci.models import load_robot

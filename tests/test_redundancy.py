@@ -353,18 +353,15 @@ def test_far_rule_picks_the_cheapest_candidate_within_its_window():
         assert redundancy.cost(best, P.jacobian6(best), P.LOWER, P.UPPER) == pytest.approx(min(costs), rel=1e-9)
 
 
-# -- the same with the Panda's generated closed-form IK (rccl.kinematics.panda_ik) ----------------
+# -- the same with the Panda's generated kinematics (rccl.kinematics.panda: closed-form IK) --------
 def closed_form():
-    """The generated closed-form IK with q7 given (redik), the stand-in's 6x7 Jacobian beside it
-    (the generated fk and the stand-in's agree to rounding: checked here)."""
-    import types
-    from rccl.kinematics import panda_ik as K
+    """The generated module of the Panda (fk, jacobian6 and the closed-form IK with q7 given);
+    its fk and the stand-in's agree to rounding (checked here)."""
+    from rccl.kinematics import panda as K
     rng = np.random.default_rng(11)
     for q in rng.uniform(P.LOWER, P.UPPER, (5, 7)):
         assert np.allclose(K.fk(q), P.fk(q), atol=1e-12)
-    return types.SimpleNamespace(ROBOT="panda", JOINT_KINDS=P.JOINT_KINDS, fk=K.fk, ik=K.ik,
-                                 config_of=K.config_of, Config=type(K.config_of(P.READY)),
-                                 jacobian6=P.jacobian6)
+    return K
 
 
 @pytest.mark.parametrize("kind", GENERATORS)

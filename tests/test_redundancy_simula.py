@@ -27,7 +27,7 @@ from rccl.plots import pinocchio_fk
 from rcci.models import load_robot
 
 from rccl.position import joint_position
-from rccl_arm import lockstep_simula, panda_kinematics, tail
+from rccl_arm import lockstep_simula, tail
 
 ROBOT = "panda"
 LINE_TOL = {"quartic": 1e-9, "ruckig": 1e-7}
@@ -53,7 +53,7 @@ def ready():
 def arm_on(sim, generator: str):
     """An RCCL Panda on ``sim`` driven by ``generator``, recording its trace."""
     return rccl.open(sim.url, robot=ROBOT, rate_hz=36, record=True, on_error="raise", timeout=2.0,
-                     trajectory=generator, kinematics=panda_kinematics())
+                     trajectory=generator)
 
 
 def go(arm, q: np.ndarray) -> np.ndarray:
