@@ -11,7 +11,7 @@ record; the result code says whether the move is still running (``Working``), do
 (``Finished``) or refused (negative: a ``MotionError`` naming the move). The target is
 re-solved every sample, so a moving target re-plans from the arm's present state.
 
-- joint mode: the state is the six joint angles (rad, rad/s, rad/s^2); the target is the
+- joint mode: the state is the arm's joint angles (rad, rad/s, rad/s^2); the target is the
   destination's joints (inverse kinematics in the requested configuration); all joints
   start and stop together (Ruckig's time synchronisation);
 - Cartesian mode: the state is the tool frame in the base frame as six numbers: the tool
@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, RuckigError, Synchronization
 
+from . import redundancy
 from .adaptive.functional import FunctionalUpdater
 from .ending import MotionEnd
 from .exceptions import BadRequest, MotionError, PowerOff, SingularPath, TrajectoryFault, UnreachableTarget
@@ -156,6 +157,8 @@ class JerkLimitedGenerator:
     def __init__(self, kin, limits: Limits, dt: float, q0: np.ndarray,
                  queue: MotionQueue[Request] | None = None, jerk: JerkLimits | None = None) -> None:
         self.kin = kin
+        if getattr(kin, "redundant", False):
+            kin.clock = lambda: self.t     # the free parameter's rules of time (rccl.redundancy)
         self.limits = limits
         self._jerk_base = jerk if jerk is not None else JerkLimits.from_limits(limits)
         self.jerk = _capped(self._jerk_base, limits)
@@ -172,9 +175,11 @@ class JerkLimitedGenerator:
         self.move: _Move | None = None
         self._abort: MotionEnd | None = None
         self._braking = False
-        self._otg = Ruckig(6, self.dt)
-        self._inp = InputParameter(6)
-        self._out = OutputParameter(6)
+        # Ruckig's state space: the arm's joints in joint mode (and braking), the tool's 6-vector in
+        # Cartesian mode; one record set per size (a single one for a 6-joint arm)
+        self._dofs = sorted({6, len(self.q)})
+        self._records = {n: (Ruckig(n, self.dt), InputParameter(n), OutputParameter(n)) for n in self._dofs}
+        self._otg, self._inp, self._out = self._records[len(self.q)]
         self._step_bound = limits.joint_velocity * self.dt * STEP_MARGIN + 1e-9
         self._step_list = self._step_bound.tolist()
         self._lo_list, self._hi_list = (limits.lower - 1e-9).tolist(), (limits.upper + 1e-9).tolist()
@@ -203,7 +208,8 @@ class JerkLimitedGenerator:
         self.jerk = _capped(self._jerk_base, limits)
         if self.move is not None and self.move.mode == "joint":
             self._inp.max_velocity = np.minimum(self._inp.max_velocity, self.jerk.joint_velocity).tolist()
-        self._otg = Ruckig(6, dt)
+        self._records = {n: (Ruckig(n, dt), inp, out) for n, (_, inp, out) in self._records.items()}
+        self._otg = self._records[self._inp.degrees_of_freedom][0]
         self._step_bound = limits.joint_velocity * dt * STEP_MARGIN + 1e-9
         self._step_list = self._step_bound.tolist()
         self.functional.set_period(limits.joint_velocity, dt, limits.joint_acceleration)
@@ -311,6 +317,7 @@ class JerkLimitedGenerator:
         req.status = "running"
         try:
             mv = _Move(req, self.kin, self.q)
+            redundancy.anchor(mv.config, self.q)     # a 7-joint arm's q7 rule starts where the arm is
             if blend_from is not None and mv.mode == "cartesian":
                 mv.r_ref = blend_from.r_ref      # the state's rotation vector stays relative to the same frame
             self._prepare(mv, self.move, carry=blend_from is not None)
@@ -342,13 +349,15 @@ class JerkLimitedGenerator:
         move still following a moving target or when blending (``carry``), from Ruckig's present
         state (position, velocity, acceleration in the move's state space)."""
         target = self._target(mv)      # first: a refused destination leaves the input record untouched
+        n = len(self.q) if mv.mode == "joint" else 6
+        self._otg, self._inp, self._out = self._records[n]
         inp, lim, params = self._inp, self.jerk, mv.req.params
         inp.control_interface = ControlInterface.Position
         if not carry and not (prev is not None and prev.mode == "joint" and mv.mode == "joint"):
-            inp.current_velocity = [0.0] * 6
-            inp.current_acceleration = [0.0] * 6
-        inp.target_velocity = [0.0] * 6
-        inp.target_acceleration = [0.0] * 6
+            inp.current_velocity = [0.0] * n
+            inp.current_acceleration = [0.0] * n
+        inp.target_velocity = [0.0] * n
+        inp.target_acceleration = [0.0] * n
         inp.minimum_duration = params.travel_time
         if mv.mode == "joint":
             inp.synchronization = Synchronization.Time
@@ -439,18 +448,21 @@ class JerkLimitedGenerator:
     def _end_now(self, mv: _Move, end: MotionEnd) -> None:
         """Finish ``mv`` with ``end`` and brake the joints to rest (Ruckig's velocity interface)."""
         inp = self._inp
+        n = len(self.q)
         if mv.mode == "joint":   # Ruckig's own state: the brake continues the profile's acceleration
             v, a = np.array(inp.current_velocity), list(inp.current_acceleration)
         else:   # Cartesian mode tracks no joint state: the last step's velocity, zero acceleration
-            v, a = (self.q - self.q_prev) / self.dt, [0.0] * 6
+            v, a = (self.q - self.q_prev) / self.dt, [0.0] * n
+            self._otg, self._inp, self._out = self._records[n]     # (the joints' record set)
+            inp = self._inp
         inp.control_interface = ControlInterface.Velocity
         inp.synchronization = Synchronization.No
         inp.minimum_duration = None
         inp.current_position = self.q.tolist()
         inp.current_velocity = np.clip(v, -self.jerk.joint_velocity, self.jerk.joint_velocity).tolist()
         inp.current_acceleration = a
-        inp.target_velocity = [0.0] * 6
-        inp.target_acceleration = [0.0] * 6
+        inp.target_velocity = [0.0] * n
+        inp.target_acceleration = [0.0] * n
         inp.max_velocity = self.jerk.joint_velocity.tolist()
         inp.max_acceleration = self.jerk.joint_acceleration.tolist()
         inp.max_jerk = self.jerk.joint_jerk.tolist()

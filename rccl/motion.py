@@ -42,6 +42,7 @@ class MotionParams:
     travel_time: float | None = None      # explicit travel time (settime) overrides the velocities
     transition_time: float = DEFAULT_TRANSITION
     config: Any = None                    # requested arm configuration (setconf), None = keep current
+    free: Any = None                      # a redundant arm's q7 rule (setfree, rccl.redundancy), None = hold q7
     feedforward: Any = None               # rccl.feedforward.FeedForward in current mode, None = position servo
 
     def setvel(self, translational: float, rotational: float) -> None:
@@ -146,5 +147,5 @@ class Request:
 
     def repeated(self) -> "Request":
         """The repetition the generator runs when the queue is empty: same position, held (5.2)."""
-        return Request(self.position, self.snap, replace(self.params, travel_time=None, config=None),
+        return Request(self.position, self.snap, replace(self.params, travel_time=None, config=None, free=None),
                        self.serial, repeat=True, status="running")

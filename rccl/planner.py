@@ -23,7 +23,9 @@ import numpy as np
 from .exceptions import BadRequest, ConfigurationChange, TrajectoryFault
 from .limits import Limits
 from .motion import MotionParams, Request
-from .position import Position
+from . import redundancy
+from .position import EQ, TL, Position, makeposition
+from .transform import T6, Trsf
 from .queue import MotionQueue
 from .sync import Event
 from .segments import Kinematics, plan_path, resolve_config
@@ -130,6 +132,48 @@ class Planner:
                                  f"choice (its configuration has {', '.join(fields)})")
         self.params.config = wanted
 
+    def setfree(self, spec=None, *, q7=None, step: float = redundancy.FAR_STEP) -> None:
+        """A redundant arm's rule for its free parameter q7 in the next moves (rccl.redundancy):
+        ``q7=value`` (rad, held), ``q7=f`` (f(t) rad, t s from each motion's start), ``"far"``
+        (each sample within ``step`` rad of the last, far from joint limits and singularities),
+        ``"hold"`` or None (keep the q7 the arm has: the default). A 6-joint arm refuses it."""
+        if not getattr(self.kin, "redundant", False):
+            raise BadRequest(f"setfree: the {self.kin.name} has {getattr(self.kin, 'dof', 6)} joints and no free "
+                             "parameter: its pose and configuration (setconf) fix its joints")
+        self.params.free = redundancy.rule_of(spec, q7=q7, lower=self.limits.lower, upper=self.limits.upper,
+                                              step=step)
+
+    def selfmove(self, q7: float, duration: float) -> Request:
+        """Self-motion of a redundant arm: q7 to ``q7`` (rad) in ``duration`` s along a minimum-jerk
+        ramp, the other joints through the inverse kinematics, the tool's pose fixed (from where
+        the previous request leaves the arm). Raises before anything moves when the arm would
+        leave a joint range or pass a singularity on the way (naming q7 and how far along)."""
+        self.check()
+        if not getattr(self.kin, "redundant", False):
+            raise BadRequest(f"selfmove: the {self.kin.name} has {getattr(self.kin, 'dof', 6)} joints and no "
+                             "self-motion: its pose fixes its joints")
+        target, duration = redundancy.check_target(q7, duration, self.limits)
+        if self._pred_q is None or not self.gen.busy:     # (at rest: from where the arm is)
+            q = self.gen.q.copy()
+            self._pred_q, self._pred_t6 = q, self.kin.fk(q)
+        t6, q_start = self._pred_t6.copy(), self._pred_q
+        rule = redundancy.SelfMotion(target=target, duration=duration)
+        where = f"selfmove(q7={target:.4f})"
+        redundancy.check_selfmotion(self.kin, self.limits, t6, q_start, rule, where)
+        here = makeposition("selfmove", T6, EQ, Trsf("SELFMOVE", t6), TL, T6)
+        saved = replace(self.params)
+        try:
+            self.params.mode = "cartesian"
+            # the motion outlasts the ramp by SELF_PAD samples: whichever generator runs, q7 has
+            # reached the target at rest when it ends the motion (the quartic ends it at its
+            # outgoing transition, Ruckig a few samples before a zero move's minimum duration)
+            self.params.travel_time = duration + redundancy.SELF_PAD * self.gen.dt
+            self.params.config = None
+            self.params.free = rule
+            return self.move(here)
+        finally:
+            self.params = saved
+
     # -- motion requests ---------------------------------------------------------------
     def move(self, position: Position) -> Request:
         """Queue a motion to ``position`` with the current parameters; return the request.
@@ -160,6 +204,7 @@ class Planner:
         try:
             self.params.settime(transition if transition is not None else saved.transition_time, time)
             self.params.config = None
+            self.params.free = None      # a redundant arm holds its q7 while it stops
             return self.move(self.last.position)
         finally:
             self.params = saved
@@ -193,6 +238,10 @@ class Planner:
 
     # -- planning-level check -------------------------------------------------------------
     def _precheck(self, req: Request) -> None:
+        if getattr(self.kin, "redundant", False) and not self.gen.busy:
+            # a redundant arm's rules (far, time) end q7 where the samples took it, not where the
+            # path check predicted: at rest, plan from where the arm is
+            self._pred_q = None
         if self._pred_q is None:
             q = self.gen.q.copy()
             self._pred_q, self._pred_t6 = q, self.kin.fk(q)

@@ -16,9 +16,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
+from . import redundancy
 from .exceptions import ConfigurationChange, MotionError, SingularPath, UnreachableTarget
 from .limits import Limits
 from .motion import MotionParams, Request
@@ -69,11 +71,21 @@ class Kinematics:
         kinds = getattr(module, "JOINT_KINDS", ("revolute",) * 6)
         self.revolute = np.array([k == "revolute" for k in kinds])
         self.units = tuple("rad" if r else "m" for r in self.revolute)
+        self.dof = len(kinds)
+        #: a 7-joint arm: its free parameter q7 is chosen by a rule (rccl.redundancy, setfree)
+        self.redundant = self.dof > 6
+        #: the running generator's time (s), for the free parameter's rules of time
+        self.clock = None
+        if self.redundant:     # (T6, config, q_ref, t=None) -> joints, q7 by config's rule
+            self._ik = partial(redundancy.solve, self)
 
-    def ik(self, base_to_t6: np.ndarray, config, q_ref: np.ndarray, where: str) -> np.ndarray:
-        """Joint angles (rad; m for prismatic joints) of T6 (base to link 6) in ``config``, branch nearest ``q_ref``."""
+    def ik(self, base_to_t6: np.ndarray, config, q_ref: np.ndarray, where: str, t: float | None = None) -> np.ndarray:
+        """Joint angles (rad; m for prismatic joints) of T6 (base to link 6) in ``config``, branch nearest ``q_ref``;
+        a redundant arm's q7 by ``config``'s rule at ``t`` s from the motion's start (None: the generator's clock)."""
         try:
-            return self._ik(base_to_t6, config, q_ref)
+            if t is None or not self.redundant:
+                return self._ik(base_to_t6, config, q_ref)
+            return self._ik(base_to_t6, config, q_ref, t)
         except ValueError as exc:  # KinematicsError subclasses ValueError
             raise self._error(exc, base_to_t6, config, where) from exc
 
@@ -85,7 +97,7 @@ class Kinematics:
                    f"({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m: {exc}")
 
     def ik_path(self, poses: np.ndarray, config, q_start: np.ndarray, where: str, lams: np.ndarray,
-                limits: Limits | None = None) -> np.ndarray:
+                limits: Limits | None = None, duration: float = 0.0) -> np.ndarray:
         """Joints along a path of T6 poses (N, 4, 4), each solved from the one before: (N + 1, 6), q_start first.
 
         One fast-entry inverse kinematics call per point (about half a microsecond each with
@@ -94,21 +106,28 @@ class Kinematics:
         ranges (``limits``), so the error names the first point that fails (from ``lams``).
         """
         n = poses.shape[0]
-        path = np.empty((n + 1, 6))
+        path = np.empty((n + 1, self.dof))
         path[0] = prev = q_start
         ik = self._ik
+        # a redundant arm's rule sees the planned time of each point: (1 - lam) * duration (s)
+        times = ((1.0 - lams) * duration).tolist() if self.redundant else None
         try:
-            for j in range(n):
-                prev = path[j + 1] = ik(poses[j], config, prev)
+            if times is None:
+                for j in range(n):
+                    prev = path[j + 1] = ik(poses[j], config, prev)
+            else:
+                for j in range(n):
+                    prev = path[j + 1] = ik(poses[j], config, prev, times[j])
             if np.isfinite(path).all():   # (the contract's modules never return NaN; others might)
                 return path
         except ValueError:
             pass
-        self.ik(poses[-1], config, q_start, f"{where}, its destination")
+        if times is None:     # (a redundant arm's destination depends on the path before it: solved in order)
+            self.ik(poses[-1], config, q_start, f"{where}, its destination")
         prev = q_start
         for j in range(n):
             at = f"{where} at {100 * (1 - lams[j]):.0f}% of the path"
-            prev = path[j + 1] = self.ik(poses[j], config, prev, at)
+            prev = path[j + 1] = self.ik(poses[j], config, prev, at, None if times is None else times[j])
             if limits is not None:
                 check_range(limits, prev, at, "path point", self.units)
         return path
@@ -146,7 +165,8 @@ class Plan:
 
     __slots__ = ("mode", "t6_b", "q_b", "t6_c", "x_c", "tool", "tool_inv", "d", "k", "theta", "dist", "config",
                  "dq", "q_dest", "t_lim", "v_start_dir", "v_end_dir", "static", "drive", "basis", "vt_dir", "vr_dir",
-                 "v_start_list", "acc_start", "acc_end", "vt_list", "vr_list", "vt_norm", "vr_norm", "stationary")
+                 "v_start_list", "acc_start", "acc_end", "vt_list", "vr_list", "vt_norm", "vr_norm", "stationary",
+                 "t_est")
 
     def finish(self, limits: Limits) -> "Plan":
         """Precompute the floats ``time_segment`` needs, so timing a segment is plain float arithmetic."""
@@ -351,12 +371,15 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         t_vel = max(t_vel, dist / params.translational_velocity, p.theta / params.rotational_velocity)
     vmax = limits.joint_velocity
     units = kin.units
+    # the planned duration (s) a redundant arm's rule of time is checked with
+    p.t_est = t_est = max(t_vel, params.travel_time or 0.0)
     if p.mode == "joint":
         q_c = getattr(pos, "joints", None)
         if q_c is not None and p.static and params.config is None:
             p.config = kin.config_of(q_c)      # a joint-defined position (park): go to its joints
         else:
-            q_c = _fit_range(limits, kin.ik(t6_c, p.config, q_b, where), kin.revolute)
+            p.config = redundancy.bind_for(kin, p.config, params, q_b, where, cartesian=False)
+            q_c = _fit_range(limits, kin.ik(t6_c, p.config, q_b, where, t_est), kin.revolute)
         check_range(limits, q_c, where, "destination", units)
         p.dq = q_b - q_c
         p.q_dest = q_c
@@ -367,17 +390,19 @@ def plan_path(kin: Kinematics, limits: Limits, dt: float, req: Request, t6_b: np
         raise ConfigurationChange(
             f"{where}: Cartesian mode cannot change the arm configuration from {cfg_b} to {p.config}; "
             "use setmod('joint') for this move")
-    p.dq = np.zeros(len(q_b))
+    p.config = redundancy.bind_for(kin, p.config, params, q_b, where, cartesian=True)
+    p.dq = np.zeros(kin.dof)
     if dist < 1e-12 and p.theta < 1e-12:
-        same = float(np.max(np.abs(t6_b - t6_c))) <= 1e-12
-        p.q_dest = q_b.copy() if same else kin.ik(t6_c, p.config, q_b, where)
+        # (a redundant arm may move in place: its rule's q7 at the end, e.g. a self-motion)
+        same = float(np.max(np.abs(t6_b - t6_c))) <= 1e-12 and not kin.redundant
+        p.q_dest = q_b.copy() if same else kin.ik(t6_c, p.config, q_b, where, t_est)
         p.t_lim = 0.0
-        p.v_start_dir = p.v_end_dir = np.zeros(len(q_b))
+        p.v_start_dir = p.v_end_dir = np.zeros(kin.dof)
         return p.finish(limits)
     n = int(min(check_points, max(8, math.ceil(t_vel / dt))))
     lams = 1.0 - np.arange(1, n + 1) / n
     poses = (drive_coefficients(p.theta, lams) @ p.basis).reshape(n, 4, 4)
-    path = kin.ik_path(poses, p.config, q_b, where, lams, limits)
+    path = kin.ik_path(poses, p.config, q_b, where, lams, limits, t_est)
     bad = (path[1:] < limits.lower - 1e-9) | (path[1:] > limits.upper + 1e-9)
     if bad.any():
         j, i = np.argwhere(bad)[0]
@@ -420,7 +445,7 @@ def _refine(kin: Kinematics, limits: Limits, p: Plan, q_lo: np.ndarray, lam_lo: 
     for _ in range(REFINE_LEVELS):
         lams = lam_lo - width * np.arange(1, m + 1) / m
         poses = (drive_coefficients(p.theta, lams) @ p.basis).reshape(m, 4, 4)
-        sub = kin.ik_path(poses, p.config, q_lo, where, lams, limits)
+        sub = kin.ik_path(poses, p.config, q_lo, where, lams, limits, p.t_est)
         ratio = (np.abs(sub[1:] - sub[:-1]) / vmax).max(axis=1)
         k = int(np.argmax(ratio))
         value = float(ratio[k]) * m / width
@@ -442,16 +467,18 @@ def hold_plan(prev: Segment, req: Request, t6_b: np.ndarray, q_b: np.ndarray, li
     """The plan of holding at the corner of a static segment (the repeated request of an empty queue)."""
     p = Plan()
     p.mode, p.t6_b, p.q_b, p.static = req.mode, t6_b, q_b.copy(), True
-    p.t6_c, p.tool, p.tool_inv, p.config = t6_b, prev.tool, prev.tool_inv, prev.config
+    # (holding still, a redundant arm keeps its q7: the bare configuration, without the motion's rule)
+    p.t6_c, p.tool, p.tool_inv, p.config = t6_b, prev.tool, prev.tool_inv, redundancy.arm_of(prev.config)
     p.x_c = t6_b @ p.tool
     p.d, p.k, p.theta, p.dist = np.zeros(3), np.array([0.0, 0.0, 1.0]), 0.0, 0.0
     p.drive = drive_basis(p.d, p.k)
     p.basis = _t6_basis(p.x_c, p.drive, p.tool_inv, False)
     p.vt_dir = p.vr_dir = np.zeros(3)
-    p.dq = np.zeros(len(q_b))
+    p.dq = np.zeros_like(q_b)
     p.q_dest = q_b.copy()
     p.t_lim = 0.0
-    p.v_start_dir = p.v_end_dir = np.zeros(len(q_b))
+    p.t_est = 0.0
+    p.v_start_dir = p.v_end_dir = np.zeros_like(q_b)
     return p.finish(limits)
 
 

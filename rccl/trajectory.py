@@ -59,6 +59,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import redundancy
 from .adaptive.functional import FunctionalUpdater
 from .drive import drive
 from .ending import MotionEnd
@@ -94,6 +95,8 @@ class TrajectoryGenerator:
         :func:`rccl.limits.for_link` (the speeds less what rounding to encoder counts can add),
         the counts sent never trip RCI's R_REQVEL check."""
         self.kin = kin
+        if getattr(kin, "redundant", False):
+            kin.clock = lambda: self.t     # the free parameter's rules of time (rccl.redundancy)
         self.limits = limits
         self.dt = float(dt)
         self.queue: MotionQueue[Request] = queue if queue is not None else MotionQueue()
@@ -293,10 +296,12 @@ class TrajectoryGenerator:
         tau = prev.tau_out
         t_b = prev.t0 + prev.T
         t6_b = prev.dest_t6()
-        if prev.mode == "joint" or (prev.static and prev.q_dest is not None):
+        if prev.mode == "joint" or (prev.static and prev.q_dest is not None and not self.kin.redundant):
             q_b = prev.dest_q()   # a static Cartesian segment's end joints are known from its checked path
         else:
             q_b = self.kin.ik(t6_b, prev.config, self.q, prev.where)
+            if self.kin.redundant:    # its rule ends here: q7 holds the value it has (rccl.redundancy)
+                redundancy.freeze(prev.config, q_b)
         if now is None:
             req = self.queue.get()
         seg = None

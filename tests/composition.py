@@ -36,8 +36,8 @@ from rccl import EQ, T6, TL, BadRequest, TrajectoryFault, Trsf, makeposition
 
 GENERATORS = ("quartic", "ruckig")
 FEATURES = ("plain", "functional", "force_limit", "deviation_limit", "monitor", "compliance", "conditional",
-            "event_flags", "rate_change", "feedforward", "collision")
-ARMS = ("puma260", "microbo", "puma560", "stanford")
+            "event_flags", "rate_change", "feedforward", "collision", "redundancy")
+ARMS = ("puma260", "microbo", "puma560", "stanford", "panda")
 LINKS = ("socket", "zenoh")
 
 # joint values (rad, m) away from every singularity and joint stop, as in the per-arm tests
@@ -46,6 +46,8 @@ START = {
     "microbo": np.array([0.2, 0.20, 0.32, math.radians(-80.0), math.radians(100.0), 0.1]),
     "puma560": np.array([0.2, 1.2, -2.8, 0.3, -0.8, 0.1]),
     "stanford": np.array([0.2, 1.2, 0.7, 0.3, 0.8, 0.1]),
+    # the Panda's ready pose turned a little at the base and the wrist (7 joints)
+    "panda": np.array([0.2, -0.785, 0.0, -2.356, 0.0, 1.571, 0.6]),
 }
 DIRECTION = np.array([0.6, -0.48, 0.36]) / np.linalg.norm([0.6, -0.48, 0.36])   # of every line (base frame)
 LINE = 0.02            # m, the length of a cell's Cartesian line
@@ -365,23 +367,24 @@ def feedforward(arm) -> str:
     wait(arm, p)
     err = reached(arm, goal)
     trace = arm.adaptive_trace[n0:]
-    # from the motion's first cycle on, every cycle current-servoes all six joints; the cycles before it
+    # from the motion's first cycle on, every cycle current-servoes all the joints; the cycles before it
     # (while the planning level queues the move: more of them on a loaded machine) are position mode
-    first = next((i for i, x in enumerate(trace) if len(x[4]) == 6), None)
-    expect(first is not None, f"none of {len(trace)} cycles current-servoed all six joints")
-    full = sum(1 for x in trace[first:] if len(x[4]) == 6)
+    nj = len(arm.q)
+    first = next((i for i, x in enumerate(trace) if len(x[4]) == nj), None)
+    expect(first is not None, f"none of {len(trace)} cycles current-servoed all {nj} joints")
+    full = sum(1 for x in trace[first:] if len(x[4]) == nj)
     expect(full == len(trace) - first, f"only {full} of the {len(trace) - first} cycles from the motion's start "
-                                       "current-servoed all six joints")
+                                       f"current-servoed all {nj} joints")
     arm.feedforward("position")
     q, _ = line_to(goal, -0.005, "back")
     arm.move(q)
     wait(arm, q)
     expect(not arm.last_command.current, "a joint is still current-servoed in position mode")
-    return (f"{full} of {len(trace) - first} cycles from the start computed torque on 6 joints, {err * 1e3:.2f} mm off, "
+    return (f"{full} of {len(trace) - first} cycles from the start computed torque on {nj} joints, {err * 1e3:.2f} mm off, "
             f"{arm.ff_control.saturated} clipped; comply refused; position mode restored")
 
 
-FLOOR = {"puma260": -0.40, "microbo": -0.08, "puma560": 0.0, "stanford": 0.0}   # m: the table under each base
+FLOOR = {"puma260": -0.40, "microbo": -0.08, "puma560": 0.0, "stanford": 0.0, "panda": 0.0}   # m: the table under each base
 CLEARANCE = 0.005      # m, the collision cell's margin
 
 
@@ -448,6 +451,39 @@ def collision(arm) -> str:
     return (f"line reached {err * 1e3:.2f} mm off ({checked} samples checked); a line {ahead * 1e3:.0f} mm into a "
             f"box refused at {refusal.fraction * 100:.0f}% ({refusal.pair[0]}, {refusal.distance * 1e3:.1f} mm); a "
             f"target drawn into it stopped {stop.distance * 1e3:.1f} mm from it, the arm holds")
+
+
+SELF_TURN = 0.2      # rad, the redundancy cell's self-motion of q7
+
+
+def redundancy(arm) -> str:
+    """A 7-joint arm (rccl.redundancy): the 20 mm line with q7 far from limits and singularities
+    (setfree("far")) reached within 1 mm, q7 changing at most FAR_STEP per sample; then a 1 s
+    self-motion of q7 by 0.2 rad: the commanded T6 stands still (1e-9) and q7 ends on the target.
+    A 6-joint arm refuses setfree with its sentence."""
+    from rccl.redundancy import FAR_STEP
+    t6 = start(arm)
+    p, goal = line_to(t6)
+    cartesian(arm)
+    arm.setfree("far")
+    n0 = len(arm.trace)
+    arm.move(p)
+    wait(arm, p)
+    err = reached(arm, goal)
+    q7 = np.array([x[1][6] for x in arm.trace[n0:]])
+    step = float(np.abs(np.diff(q7)).max())
+    expect(step <= FAR_STEP + 1e-12, f"q7 moved {step:.4f} rad in one sample (rule: {FAR_STEP} at most)")
+    arm.setfree()
+    here, target = arm.t6.copy(), float(arm.q[6]) - SELF_TURN
+    n0 = len(arm.trace)
+    req = arm.selfmove(q7=target, duration=1.0)
+    wait(arm, req.position)
+    trace = arm.trace[n0:]
+    still = max(float(np.abs(arm.kinematics.fk(x[1]) - here).max()) for x in trace)
+    expect(still < 1e-9, f"the commanded T6 moved {still:.2e} during the self-motion")
+    expect(abs(arm.q[6] - target) < 1e-9, f"q7 ended at {arm.q[6]:.6f}, not {target:.6f} rad")
+    return (f"far: line reached {err * 1e3:.2f} mm off, q7 steps <= {step:.4f} rad; self-motion of q7 by "
+            f"{SELF_TURN} rad with T6 still to {still:.1e}")
 
 
 RUNNERS: dict[str, Callable] = {f: globals()[f] for f in FEATURES}

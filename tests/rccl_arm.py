@@ -42,3 +42,4 @@ def tail(arm, n0: int) -> tuple[np.ndarray, np.ndarray]:
     """The commanded and measured joint values the arm recorded from sample ``n0`` on."""
     tr = arm.trace[n0:]
     return np.array([x[1] for x in tr]), np.array([x[2] for x in tr])
+

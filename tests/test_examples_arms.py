@@ -41,3 +41,25 @@ def test_the_arm_reaches_the_targets_of_its_example(robot, capsys):
     assert all(f"{name}: T6 at" in out for name in ex.TARGETS)
     if robot == "stanford":                   # along the boom from P1 to P2: the prismatic joint slides
         assert reached["P2"][1][2] - reached["P1"][1][2] > 0.1
+
+
+def test_the_panda_example_runs_its_lines_and_self_motion(capsys):
+    """examples/panda_line.py on a lockstep simula --robot panda: each stop reached as programmed (the
+    encoders within 1 mm), the self-motion leaves the flange where it was and turns q7 by SELF_TURN."""
+    ex = load("panda_line")
+    assert ex.ROBOT == "panda"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        with SimulaProcess("-p", "--power-on", robot="panda", lockstep=True) as sim:
+            out = ex.run(sim.url, timeout=2.0)
+    assert list(out) == ["OUT", "SELF", "BACK", "SIDE"]
+    kin = rccl.kinematics.load("panda")
+    from rcci.models import load_robot
+    start = kin.fk(np.array(load_robot("panda").poses["ready"], dtype=float))[:3, 3]
+    assert np.linalg.norm(out["OUT"][0] - (start + ex.OUT)) < 1e-3
+    assert np.linalg.norm(out["SELF"][0] - out["OUT"][0]) < 1e-3          # the flange stood still
+    assert out["SELF"][1] - out["OUT"][1] == pytest.approx(ex.SELF_TURN, abs=1e-3)
+    assert np.linalg.norm(out["BACK"][0] - start) < 1e-3
+    assert np.linalg.norm(out["SIDE"][0] - (start + ex.SIDEWAYS)) < 1e-3
+    printed = capsys.readouterr().out
+    assert all(f"{name}: T6 at" in printed for name in out)

@@ -16,7 +16,6 @@ import pytest
 
 from rcci.models import load_robot
 from rccl import EQ, T6, TL, Trsf, makeposition
-from rccl.exceptions import UnreachableTarget
 from rccl.position import joint_position
 from rccl.plots import pinocchio_fk
 
@@ -69,16 +68,19 @@ def test_joint_mode_program_reaches_its_targets(sim):
         assert np.abs(arm.measured_q() - MODEL.poses["ready"]).max() < 2e-3
 
 
-def test_a_move_that_needs_inverse_kinematics_names_the_missing_free_value(sim):
-    """The closed-form IK exists (q7 free) but RCCL has no rule for q7 yet (issue 28 item 3):
-    a Cartesian target is refused, naming the free value the inverse needs."""
+def test_a_move_to_a_pose_holds_q7_by_default(sim):
+    """A joint-mode move to a Cartesian target: the inverse kinematics needs q7, and RCCL's
+    default rule for the free parameter (rccl.redundancy, docs/redundancy.md) holds the q7 the
+    arm has; the target is reached with it."""
     with open_arm(sim, "panda") as arm:
         arm.setmod("joint")
+        q7 = float(arm.q[6])
         t7 = arm.kinematics.fk(TARGETS["A"])
         pos = makeposition("P", T6, EQ, Trsf("P", t7), TL, T6)
-        with pytest.raises(UnreachableTarget, match="needs the free value"):
-            arm.move(pos)
-            arm.waitfor(pos.end)
+        arm.move(pos)
+        arm.waitfor(pos.end)
+        assert arm.q[6] == q7
+        assert np.allclose(arm.kinematics.fk(arm.q), t7, atol=1e-9)
 
 
 def test_the_example_reaches_its_targets(sim, capsys):

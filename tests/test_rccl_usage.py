@@ -105,7 +105,7 @@ def test_waitfor_timeout_names_the_event_and_bad_timeouts_are_refused():
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"robot": "puma"}, r"robot='puma': no such robot; known: microbo, puma260"),
+    ({"robot": "puma"}, r"robot='puma': no such robot; known: microbo, panda, puma260"),
     ({"timeout": -1}, r"timeout must be a number of seconds > 0 or None"),
     ({"rate_hz": 0}, r"rate_hz must be 4..1000"),
 ])
