@@ -13926,6 +13926,86 @@ def _base_parameters_many(m, com, inertia, rotor):
     return (beta_,)
 
 
+def _friction_one(qd):
+    """f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27); one configuration."""
+    qd1 = qd[0]
+    qd2 = qd[1]
+    qd3 = qd[2]
+    qd4 = qd[3]
+    qd5 = qd[4]
+    qd6 = qd[5]
+    qd7 = qd[6]
+    x0 = (0.0 if qd1 == 0 else math.copysign(1, qd1))
+    x1 = (0.0 if qd2 == 0 else math.copysign(1, qd2))
+    x2 = (0.0 if qd3 == 0 else math.copysign(1, qd3))
+    x3 = (0.0 if qd4 == 0 else math.copysign(1, qd4))
+    x4 = (0.0 if qd5 == 0 else math.copysign(1, qd5))
+    x5 = (0.0 if qd6 == 0 else math.copysign(1, qd6))
+    x6 = (0.0 if qd7 == 0 else math.copysign(1, qd7))
+    f_ = numpy.array([-0.30060999999999999*max(0, -x0) + 0.24554000000000001*max(0, x0), -0.48704999999999998*max(0, -x1) + 0.38518999999999998*max(0, x1), -0.24687999999999999*max(0, -x2) + 0.39379999999999998*max(0, x2), -0.70420000000000005*max(0, -x3) + 0.57520000000000004*max(0, x3), -0.46526000000000001*max(0, -x4) + 0.37378*max(0, x4), -0.12447999999999999*max(0, -x5) + 0.17852999999999999*max(0, x5), -0.28763*max(0, -x6) + 0.27726000000000001*max(0, x6)], dtype=float)
+    return (f_,)
+
+
+def _friction_many(qd):
+    """f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27); batched."""
+    qd1 = qd[:, 0]
+    qd2 = qd[:, 1]
+    qd3 = qd[:, 2]
+    qd4 = qd[:, 3]
+    qd5 = qd[:, 4]
+    qd6 = qd[:, 5]
+    qd7 = qd[:, 6]
+    x0 = numpy.sign(qd1)
+    x1 = numpy.sign(qd2)
+    x2 = numpy.sign(qd3)
+    x3 = numpy.sign(qd4)
+    x4 = numpy.sign(qd5)
+    x5 = numpy.sign(qd6)
+    x6 = numpy.sign(qd7)
+    f_ = numpy.empty((qd.shape[0],) + (7,))
+    f_[:, 0] = -0.30060999999999999*numpy.maximum(0, -x0) + 0.24554000000000001*numpy.maximum(0, x0)
+    f_[:, 1] = -0.48704999999999998*numpy.maximum(0, -x1) + 0.38518999999999998*numpy.maximum(0, x1)
+    f_[:, 2] = -0.24687999999999999*numpy.maximum(0, -x2) + 0.39379999999999998*numpy.maximum(0, x2)
+    f_[:, 3] = -0.70420000000000005*numpy.maximum(0, -x3) + 0.57520000000000004*numpy.maximum(0, x3)
+    f_[:, 4] = -0.46526000000000001*numpy.maximum(0, -x4) + 0.37378*numpy.maximum(0, x4)
+    f_[:, 5] = -0.12447999999999999*numpy.maximum(0, -x5) + 0.17852999999999999*numpy.maximum(0, x5)
+    f_[:, 6] = -0.28763*numpy.maximum(0, -x6) + 0.27726000000000001*numpy.maximum(0, x6)
+    return (f_,)
+
+
+def _rotor_torque_one(qdd):
+    """R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6); one configuration."""
+    qdd1 = qdd[0]
+    qdd2 = qdd[1]
+    qdd3 = qdd[2]
+    qdd4 = qdd[3]
+    qdd5 = qdd[4]
+    qdd6 = qdd[5]
+    qdd7 = qdd[6]
+    tau_ = numpy.array([0.20000000000000001*qdd1, 0.20000000000000001*qdd2, 0.20000000000000001*qdd3, 0.20000000000000001*qdd4, 0.050000000000000003*qdd5, 0.050000000000000003*qdd6, 0.050000000000000003*qdd7], dtype=float)
+    return (tau_,)
+
+
+def _rotor_torque_many(qdd):
+    """R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6); batched."""
+    qdd1 = qdd[:, 0]
+    qdd2 = qdd[:, 1]
+    qdd3 = qdd[:, 2]
+    qdd4 = qdd[:, 3]
+    qdd5 = qdd[:, 4]
+    qdd6 = qdd[:, 5]
+    qdd7 = qdd[:, 6]
+    tau_ = numpy.empty((qdd.shape[0],) + (7,))
+    tau_[:, 0] = 0.20000000000000001*qdd1
+    tau_[:, 1] = 0.20000000000000001*qdd2
+    tau_[:, 2] = 0.20000000000000001*qdd3
+    tau_[:, 3] = 0.20000000000000001*qdd4
+    tau_[:, 4] = 0.050000000000000003*qdd5
+    tau_[:, 5] = 0.050000000000000003*qdd6
+    tau_[:, 6] = 0.050000000000000003*qdd7
+    return (tau_,)
+
+
 _KERNELS = _backend.accelerate(ROBOT, {
     'fk': _rt.KernelFn('fk', _fk_one, _fk_many,
         inputs=(('q', (7,)),),
@@ -14007,6 +14087,14 @@ _KERNELS = _backend.accelerate(ROBOT, {
         inputs=(('m', (7,)), ('com', (7, 3)), ('inertia', (7, 6)), ('rotor', (7,))),
         outputs=(('beta', (48,)),),
         guards=()),
+    'friction': _rt.KernelFn('friction', _friction_one, _friction_many,
+        inputs=(('qd', (7,)),),
+        outputs=(('f', (7,)),),
+        guards=()),
+    'rotor_torque': _rt.KernelFn('rotor_torque', _rotor_torque_one, _rotor_torque_many,
+        inputs=(('qdd', (7,)),),
+        outputs=(('tau', (7,)),),
+        guards=()),
 })
 
 _ROBOT = _red.RedundantRobot(ROBOT, _KERNELS, JOINT_KINDS, LOWER, UPPER, Config, GRAVITY_COEFFS)
@@ -14031,3 +14119,5 @@ coriolis = _dynamics_entry('coriolis', 'coriolis(q (n,), qd (n,)) -> (n,) c, Cor
 coriolis_matrix = _dynamics_entry('coriolis_matrix', "coriolis_matrix(q (n,), qd (n,)) -> (n, n) C, c = C qd, D' - 2C skew-symmetric (thesis eq. 4.6)")
 base_regressor = _dynamics_entry('base_regressor', 'base_regressor(q (n,), qd (n,), qdd (n,)) -> (n, b) Y, t_j = Y beta (rotor inertias included) (thesis eq. 4.6)')
 base_parameters = _dynamics_entry('base_parameters', 'base_parameters(m (n,), com (n, 3), inertia (n, 6), rotor (n,)) -> (b,) beta (thesis eq. 4.6)')
+friction = _dynamics_entry('friction', "friction(qd (n,)) -> (n,) f, the data file's eq. 4.27: Coulomb + viscous per direction, 0 at rest (thesis eq. 4.6)")
+rotor_torque = _dynamics_entry('rotor_torque', "rotor_torque(qdd (n,)) -> (n,) R qdd, rotor inertias G^T diag(J_m) G of the data file's rotor_inertia (thesis eq. 4.6)")

@@ -20349,6 +20349,59 @@ static void batch_base_parameters(Py_ssize_t n, const double *const *in, const P
         k_base_parameters(in0 + r * is[0], in1 + r * is[1], in2 + r * is[2], in3 + r * is[3], out0 + r * os[0]);
 }
 
+/* panda.friction: f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) (thesis 4.27; lowering: cse) */
+static inline void k_friction(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL panda.friction */
+    const double t0 = ((double)((in0[0]) > 0.0) - (double)((in0[0]) < 0.0));
+    const double t1 = ((double)((in0[1]) > 0.0) - (double)((in0[1]) < 0.0));
+    const double t2 = ((double)((in0[2]) > 0.0) - (double)((in0[2]) < 0.0));
+    const double t3 = ((double)((in0[3]) > 0.0) - (double)((in0[3]) < 0.0));
+    const double t4 = ((double)((in0[4]) > 0.0) - (double)((in0[4]) < 0.0));
+    const double t5 = ((double)((in0[5]) > 0.0) - (double)((in0[5]) < 0.0));
+    const double t6 = ((double)((in0[6]) > 0.0) - (double)((in0[6]) < 0.0));
+    out0[0] = 0.24554*fmax(0.0, t0) - 0.30061*fmax(0.0, -t0);
+    out0[1] = 0.38519*fmax(0.0, t1) - 0.48705*fmax(0.0, -t1);
+    out0[2] = 0.3938*fmax(0.0, t2) - 0.24688*fmax(0.0, -t2);
+    out0[3] = 0.5752*fmax(0.0, t3) - 0.7042*fmax(0.0, -t3);
+    out0[4] = 0.37378*fmax(0.0, t4) - 0.46526*fmax(0.0, -t4);
+    out0[5] = 0.17853*fmax(0.0, t5) - 0.12448*fmax(0.0, -t5);
+    out0[6] = 0.27726*fmax(0.0, t6) - 0.28763*fmax(0.0, -t6);
+/* END KERNEL panda.friction */
+}
+
+static void batch_friction(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_friction(in0 + r * is[0], out0 + r * os[0]);
+}
+
+/* panda.rotor_torque: R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) (thesis 4.6; lowering: cse) */
+static inline void k_rotor_torque(const double *restrict in0, double *restrict out0)
+{
+/* BEGIN KERNEL panda.rotor_torque */
+    out0[0] = 0.2*in0[0];
+    out0[1] = 0.2*in0[1];
+    out0[2] = 0.2*in0[2];
+    out0[3] = 0.2*in0[3];
+    out0[4] = 0.05*in0[4];
+    out0[5] = 0.05*in0[5];
+    out0[6] = 0.05*in0[6];
+/* END KERNEL panda.rotor_torque */
+}
+
+static void batch_rotor_torque(Py_ssize_t n, const double *const *in, const Py_ssize_t *is, double *const *out, const Py_ssize_t *os)
+{
+    const double *in0 = (const double *)in[0];
+    double *out0 = out[0];
+    (void)is; (void)os;
+    for (Py_ssize_t r = 0; r < n; ++r)
+        k_rotor_torque(in0 + r * is[0], out0 + r * os[0]);
+}
+
 /* panda.ik_all: every configuration of ik at once (rows in Config.all() order); guards per row, a row is valid when all its guards are >= 0 (thesis 3.19-3.21; lowering: cse) */
 static inline void k_ik_all(const double *restrict in0, const double *restrict in1, double *restrict out0, double *restrict out1)
 {
@@ -20957,7 +21010,7 @@ static void batch_ik_all(Py_ssize_t n, const double *const *in, const Py_ssize_t
         k_ik_all(in0 + r * is[0], in1 + r * is[1], out0 + r * os[0], out1 + r * os[1]);
 }
 
-static const kernel_entry KERNELS[21] = {
+static const kernel_entry KERNELS[23] = {
     {"fk", batch_fk, 1, 1, 0,
      {{1, {7, 0}, 7}},
      {{2, {4, 4}, 16}},
@@ -21078,6 +21131,18 @@ static const kernel_entry KERNELS[21] = {
      {"m", "com", "inertia", "rotor"},
      {"beta"},
      "base_parameters(m[7], com[7, 3], inertia[7, 6], rotor[7]) -> (beta[48]): the base parameters of link inertials: masses (7,) kg, centres of mass (7, 3) m and inertias about them (7, 6: ixx iyy izz ixy ixz iyz) kg m^2 in DH frames 1..7, rotor inertias (7,) at the joints Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"friction", batch_friction, 1, 1, 0,
+     {{1, {7, 0}, 7}},
+     {{1, {7, 0}, 7}},
+     {"qd"},
+     {"f"},
+     "friction(qd[7]) -> (f[7]): f(qd): the data file's friction of eq. 4.27 (Coulomb and viscous per direction; 0 at rest, where the static friction is the runtime's) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
+    {"rotor_torque", batch_rotor_torque, 1, 1, 0,
+     {{1, {7, 0}, 7}},
+     {{1, {7, 0}, 7}},
+     {"qdd"},
+     {"tau"},
+     "rotor_torque(qdd[7]) -> (tau[7]): R qdd: the motors' rotor inertias reflected to the joints, R = G^T diag(J_m) G (J_m from the data file's rotor_inertia; not in inverse_dynamics) Each input may carry a leading batch axis N; unbatched inputs are broadcast.", 0},
     {"ik_all", batch_ik_all, 2, 2, 0,
      {{2, {4, 4}, 16}, {0, {0, 0}, 1}},
      {{2, {8, 7}, 56}, {2, {8, 5}, 40}},
