@@ -39,8 +39,8 @@ sys.path.insert(0, str(ROOT))
 from rccl.collision import CollisionWorld  # noqa: E402
 from rccl.collision.path import path_joints  # noqa: E402
 
-ARMS = ("puma260", "microbo", "puma560", "stanford")
-FLOOR = {"puma260": -0.40, "microbo": -0.08, "puma560": 0.0, "stanford": 0.0}   # m, under each base
+ARMS = ("puma260", "microbo", "puma560", "stanford", "panda")
+FLOOR = {"puma260": -0.40, "microbo": -0.08, "puma560": 0.0, "stanford": 0.0, "panda": 0.0}   # m, under each base
 MARGIN = 0.01            # m, the clearance the collision requests are set to
 CONFIGS = 20             # random configurations per arm
 NUMBER, REPEATS = 200, 25        # short runs, many: the best one is the least disturbed on a shared machine
@@ -93,11 +93,11 @@ def bench_arm(robot: str, rng: np.random.Generator) -> dict:
             "samples": len(s), "path_s": path_s}
 
 
-def report(rows: dict[str, dict], seconds: float) -> str:
+def report(rows: dict[str, dict], seconds: float, command: str = COMMAND) -> str:
     load = os.getloadavg()
     us = lambda v: f"{np.median(v) * 1e6:.2f} ({max(v) * 1e6:.2f})"   # noqa: E731
     out = ["# Collision check speed (issue 28, item 4)", "",
-           f"Command: `{COMMAND}` (bench/collision.py says what each column times). Run "
+           f"Command: `{command}` (bench/collision.py says what each column times). Run "
            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} on {platform.machine()} "
            f"({os.cpu_count()} cores, shared), load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} "
            f"(1/5/15 min); {seconds:.0f} s.", "",

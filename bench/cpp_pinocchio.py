@@ -301,11 +301,16 @@ def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False,
 
 
 def robots() -> list[str]:
-    """Every robot under models/ with a URDF and compiled C kernels."""
+    """Every six-joint robot under models/ with a URDF and compiled C kernels. The programs
+    (bench/cpp/) are written for six joint variables and frames link4/link6; a seven-joint
+    arm (the Panda) is compared with Pinocchio in bench/ik_redundant.py (fk) and in the
+    tests' cross-checks, not here."""
+    from rcci.models import load_robot
     from rcci.models.catalogue import available_robots
     from rccl.kinematics import backend
     return [r for r in available_robots()
-            if (ROOT / "models" / "urdf" / f"{r}.urdf").is_file() and (KERNEL_DIR / f"{r}.c").is_file()
+            if load_robot(r).n_joints == 6
+            and (ROOT / "models" / "urdf" / f"{r}.urdf").is_file() and (KERNEL_DIR / f"{r}.c").is_file()
             and backend.c_module(r) is not None]
 
 

@@ -105,14 +105,14 @@ def measure(n_calls: int, n_batch: int, seed: int = 11) -> dict:
     return out
 
 
-def report(m: dict, seconds: float, load: tuple[float, float]) -> str:
+def report(m: dict, seconds: float, load: tuple[float, float], command: str = COMMAND) -> str:
     def row(name, key, entry):
         med, p99 = m[key]
         return f"| {name} | {entry} | {med:.2f} | {p99:.2f} |"
 
     lines = [
         "# The Panda's closed-form inverse kinematics with q7 free", "",
-        f"Written by `{COMMAND}` ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
+        f"Written by `{command}` ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
         f"{seconds:.0f} s, load average {load[0]:.1f} at the start and {load[1]:.1f} at the end on "
         f"{os.cpu_count()} cores). Per-call figures: median and 99th percentile of "
         f"{m['n_calls']} single calls (the Python runtime's: {m['n_calls'] // 20}), microseconds.", "",

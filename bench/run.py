@@ -28,7 +28,7 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from bench import cpp_pinocchio  # noqa: E402
+from bench import beyond_thesis, cpp_pinocchio  # noqa: E402
 from bench.output import progress  # noqa: E402
 import rccl.kinematics  # noqa: E402
 from rccl.kinematics import backend  # noqa: E402
@@ -536,6 +536,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=str(ROOT / "reports" / "bench.md"))
     ap.add_argument("--no-cpp", action="store_true",
                     help="leave out the C++ comparison with Pinocchio (bench/cpp_pinocchio.py)")
+    ap.add_argument("--no-beyond", action="store_true",
+                    help="leave out the redundant IK and collision sections (bench/beyond_thesis.py)")
     args = ap.parse_args(argv)
     robots = args.robot or cpp_pinocchio.robots()
     if not robots:
@@ -554,6 +556,8 @@ def main(argv: list[str] | None = None) -> int:
         runs, tc = cpp_pinocchio.measure()
         shared["_cpp"] = runs
         cpp = cpp_pinocchio.section(runs, tc)
+    if not args.no_beyond:
+        cpp = cpp + beyond_thesis.sections()
     shared["_load"] = (load_start, os.getloadavg()[0])
     write_report(Path(args.out), benches, sizes, n_pin, shared, time.perf_counter() - t_start, cpp)
     print(f"bench: wrote {args.out} in {time.perf_counter() - t_start:.0f} s")
