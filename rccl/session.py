@@ -186,7 +186,7 @@ class Arm(Planner):
         if not how.power:            # the brakes hold the arm: follow them, end any motion
             gen.follow_unpowered(q_meas)
         try:
-            self.adaptive.before(gen, q_meas, qd, np.asarray(how.adcr[:6], dtype=float), how)
+            self.adaptive.before(gen, q_meas, qd, np.asarray(how.adcr[: len(q_meas)], dtype=float), how)
         except MotionError as exc:       # a monitor's error, a force estimate refused: stop the arm, tell the planner
             if gen.faulted is None:
                 gen.freeze(exc)
@@ -401,19 +401,17 @@ class Arm(Planner):
         return Planner.move(self, position)
 
     def _vet_adaptive(self, position: Position) -> None:
-        """Refuse, before it is queued, a motion of an arm without 6 joints that would need the
-        adaptive control's inverse of a square Jacobian (checks, compliance, functional targets)."""
+        """Refuse, before it is queued, a motion of an arm without 6 joints under compliance (5.4.3),
+        which would servo the compliant directions through the inverse of a square Jacobian.
+        Functional targets (E.8 with the free q7 held, ``functional.joint_map``) and limits and
+        monitors (4.56 as the least-squares force of a 6x7 J) run on a 7-joint arm."""
         dof = getattr(self._kin, "dof", 6)
-        if dof == 6:
+        if dof == 6 or not self.adaptive.compliance.forces:
             return
         name = getattr(position, "name", position)
-        functional = any(t.kind == "functional" for t in position.transforms())
-        if functional or (self.gen is not None and self.gen.queue.pending) or self.adaptive.compliance.forces:
-            what = "a functional transform" if functional else ("compliance" if self.adaptive.compliance.forces
-                                                                 else "a limit or monitor (5.4.1-5.4.2)")
-            raise BadRequest(f"move({name!r}): {what} needs the adaptive control (thesis 5.4, E.8, 4.56), which "
-                             f"inverts the 6x6 Jacobian; the {self._kin.name} has {dof} joints (a 6x{dof} "
-                             "Jacobian): not supported on it yet")
+        raise BadRequest(f"move({name!r}): compliance (thesis 5.4.3) servoes the compliant directions through "
+                         f"the inverse of the 6x6 Jacobian; the {self._kin.name} has {dof} joints (a 6x{dof} "
+                         "Jacobian): not supported on it yet")
 
     def _vet_feedforward(self, name) -> None:
         """Refuse, before it is queued, a feed-forward motion with compliance or a force/torque check."""
