@@ -289,10 +289,6 @@ class Arm(Planner):
     def comply(self, spec: str, *values: float) -> None:
         """Make tool-frame force/torque components compliant with these values (N, N*m) from now on (5.4.3)."""
         self._refuse_with_feedforward(f"comply({spec!r})")
-        dof = getattr(self._kin, "dof", 6)
-        if dof != 6:
-            raise BadRequest(f"comply({spec!r}): compliance inverts the 6x6 Jacobian (5.4.3); the {self._kin.name} "
-                             f"has {dof} joints (a 6x{dof} Jacobian): not supported on it yet")
         if self._ff is not None and self.gen is not None and self.gen.busy:
             raise BadRequest(f"comply({spec!r}): a motion in feed-forward current mode ({self._ff.mode!r}) is "
                              "running; wait for it, then call arm.feedforward('position')")
@@ -397,21 +393,7 @@ class Arm(Planner):
             raise PowerOff(f"move({getattr(position, 'name', position)!r}): the arm's power is off, "
                            "it would not move; call arm.power_on() first")
         self._vet_feedforward(getattr(position, "name", position))
-        self._vet_adaptive(position)
         return Planner.move(self, position)
-
-    def _vet_adaptive(self, position: Position) -> None:
-        """Refuse, before it is queued, a motion of an arm without 6 joints under compliance (5.4.3),
-        which would servo the compliant directions through the inverse of a square Jacobian.
-        Functional targets (E.8 with the free q7 held, ``functional.joint_map``) and limits and
-        monitors (4.56 as the least-squares force of a 6x7 J) run on a 7-joint arm."""
-        dof = getattr(self._kin, "dof", 6)
-        if dof == 6 or not self.adaptive.compliance.forces:
-            return
-        name = getattr(position, "name", position)
-        raise BadRequest(f"move({name!r}): compliance (thesis 5.4.3) servoes the compliant directions through "
-                         f"the inverse of the 6x6 Jacobian; the {self._kin.name} has {dof} joints (a 6x{dof} "
-                         "Jacobian): not supported on it yet")
 
     def _vet_feedforward(self, name) -> None:
         """Refuse, before it is queued, a feed-forward motion with compliance or a force/torque check."""

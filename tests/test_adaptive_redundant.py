@@ -6,7 +6,7 @@ really makes for a small pose change at a held q7 (to first order), the function
 bounds those joints, the force estimate is the least-squares f of J^T f = t_a, and its error
 bar is |F J^+^T| e. On simula: the composition cells of the adaptive features on the Panda
 pass (functional targets, the per-cycle collision check, limits, monitors, conditional
-motions), and compliance is still refused with its sentence.
+motions, compliance), compliance force-servoing joints 1-6 with q7 held by the rule.
 """
 from __future__ import annotations
 
@@ -125,6 +125,24 @@ def test_force_limit_on_the_panda(panda_sim):
         assert "50 N in free air: completed" in v.detail and "1 mN" in v.detail, v.detail
 
 
-def test_compliance_still_refused_on_the_panda(panda_sim):
-    v = cm.run_cell(panda_sim.url, "panda", "quartic", "compliance")
-    assert v.status == "refused" and "7 joints" in v.detail, v.detail
+def test_comply_map_never_picks_q7():
+    """With E.8's map at held q7, the comply law's joint choice (select_joints) is among joints 1-6."""
+    from rccl.adaptive.comply import select_joints
+    j = panda.jacobian6(Q)
+    m = joint_map(j)
+    for axes in ([0], [1], [2], [3], [4], [5], [0, 2], [2, 5], [0, 1, 2]):
+        chosen = select_joints(j, axes, m)
+        assert FREE_JOINT not in chosen.values() and len(set(chosen.values())) == len(axes), (axes, chosen)
+
+
+def test_compliance_cell_and_q7_held_on_the_panda(panda_sim):
+    """comply("fz", -2) during a 10 mm line (the composition cell), then: q7 commanded where the rule holds
+    it every cycle, and never force-servoed."""
+    with cm.open_arm(panda_sim.url, "panda", "quartic") as arm:
+        detail = cm.compliance(arm)
+        trace = arm.adaptive_trace
+        forced = [x for x in trace if x[4]]
+        assert forced, detail
+        assert all(FREE_JOINT not in x[4] for x in trace), detail
+        q7 = {float(x[2][FREE_JOINT]) for x in forced}
+        assert max(q7) - min(q7) < 1e-12, f"q7 commanded over {min(q7)}..{max(q7)} rad during compliance"

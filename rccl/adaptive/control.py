@@ -24,6 +24,7 @@ from .comply import Compliance, select_joints, servo_dac
 from .deviation import ToolMaps
 from .exceptions import ForceEstimateError
 from .force import ForceEstimator, JointModel, condition_1, gravity_vector
+from .functional import joint_map
 from .check import Estimate, Sample, estimates_of
 from .limit import vet_limits
 from .stiction import Dither
@@ -62,7 +63,7 @@ class AdaptiveControl:
 
     def __init__(self, kin, model: JointModel) -> None:
         """``kin``: the generated kinematics module (6 joints, or 7 with a free q7: then J is
-        6x7, forces are least squares and compliance is refused by the session)."""
+        6x7, forces are least squares, E.8 and the comply law hold q7: ``functional.joint_map``)."""
         self.kin = kin
         self.model = model
         self.estimator = ForceEstimator(kin, model)
@@ -73,6 +74,7 @@ class AdaptiveControl:
         self._vetted = None                      # the request whose force limits were vetted (limit.vet_limits)
         self._jac6: np.ndarray | None = None
         self._jac6_inv: np.ndarray | None = None
+        self._comply_inv: np.ndarray | None = None   # a 6x7 J's map with q7 held, for the comply law
         self._q = None
         self._qd = None
         self._tool = np.eye(4)
@@ -148,6 +150,11 @@ class AdaptiveControl:
             jinv = self._inverse(q, jac6)
             self.condition = condition_1(jac6, jinv, self._work) if jinv is not None else np.inf
         self._jac6_inv = jinv
+        if comply and not square:     # the comply law through E.8's map with q7 held: the rule keeps q7
+            try:
+                self._comply_inv = joint_map(jac6)
+            except np.linalg.LinAlgError:
+                self._comply_inv = None
         gen.jac6_inv = jinv if square else None
         gen.jac6_cond = self.condition if jinv is not None and square else None
         tool = gen.tool
@@ -198,7 +205,9 @@ class AdaptiveControl:
             return Command(q_nominal)
         jac6 = self._jac6
         maps = self._maps.of(self._tool)
-        j6inv = self._jac6_inv
+        # 6x7 (7 joints): J's inverse with q7 held (functional.joint_map): compliance moves and force-servoes
+        # joints 1-6 (q7's score in select_joints is 0), q7 stays where the free-parameter rule puts it
+        j6inv = self._jac6_inv if self._square else self._comply_inv
         if j6inv is None:
             raise ForceEstimateError("comply: the Jacobian is singular here; no joint can be chosen")
         c.release(self.dt)
