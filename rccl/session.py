@@ -186,7 +186,7 @@ class Arm(Planner):
         if not how.power:            # the brakes hold the arm: follow them, end any motion
             gen.follow_unpowered(q_meas)
         try:
-            self.adaptive.before(gen, q_meas, qd, np.asarray(how.adcr[:6], dtype=float), how)
+            self.adaptive.before(gen, q_meas, qd, np.asarray(how.adcr[: len(q_meas)], dtype=float), how)
         except MotionError as exc:       # a monitor's error, a force estimate refused: stop the arm, tell the planner
             if gen.faulted is None:
                 gen.freeze(exc)
@@ -289,10 +289,6 @@ class Arm(Planner):
     def comply(self, spec: str, *values: float) -> None:
         """Make tool-frame force/torque components compliant with these values (N, N*m) from now on (5.4.3)."""
         self._refuse_with_feedforward(f"comply({spec!r})")
-        dof = getattr(self._kin, "dof", 6)
-        if dof != 6:
-            raise BadRequest(f"comply({spec!r}): compliance inverts the 6x6 Jacobian (5.4.3); the {self._kin.name} "
-                             f"has {dof} joints (a 6x{dof} Jacobian): not supported on it yet")
         if self._ff is not None and self.gen is not None and self.gen.busy:
             raise BadRequest(f"comply({spec!r}): a motion in feed-forward current mode ({self._ff.mode!r}) is "
                              "running; wait for it, then call arm.feedforward('position')")
@@ -397,23 +393,7 @@ class Arm(Planner):
             raise PowerOff(f"move({getattr(position, 'name', position)!r}): the arm's power is off, "
                            "it would not move; call arm.power_on() first")
         self._vet_feedforward(getattr(position, "name", position))
-        self._vet_adaptive(position)
         return Planner.move(self, position)
-
-    def _vet_adaptive(self, position: Position) -> None:
-        """Refuse, before it is queued, a motion of an arm without 6 joints that would need the
-        adaptive control's inverse of a square Jacobian (checks, compliance, functional targets)."""
-        dof = getattr(self._kin, "dof", 6)
-        if dof == 6:
-            return
-        name = getattr(position, "name", position)
-        functional = any(t.kind == "functional" for t in position.transforms())
-        if functional or (self.gen is not None and self.gen.queue.pending) or self.adaptive.compliance.forces:
-            what = "a functional transform" if functional else ("compliance" if self.adaptive.compliance.forces
-                                                                 else "a limit or monitor (5.4.1-5.4.2)")
-            raise BadRequest(f"move({name!r}): {what} needs the adaptive control (thesis 5.4, E.8, 4.56), which "
-                             f"inverts the 6x6 Jacobian; the {self._kin.name} has {dof} joints (a 6x{dof} "
-                             "Jacobian): not supported on it yet")
 
     def _vet_feedforward(self, name) -> None:
         """Refuse, before it is queued, a feed-forward motion with compliance or a force/torque check."""

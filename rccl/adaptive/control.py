@@ -24,6 +24,7 @@ from .comply import Compliance, select_joints, servo_dac
 from .deviation import ToolMaps
 from .exceptions import ForceEstimateError
 from .force import ForceEstimator, JointModel, condition_1, gravity_vector
+from .functional import joint_map
 from .check import Estimate, Sample, estimates_of
 from .limit import vet_limits
 from .stiction import Dither
@@ -61,6 +62,8 @@ class AdaptiveControl:
     """
 
     def __init__(self, kin, model: JointModel) -> None:
+        """``kin``: the generated kinematics module (6 joints, or 7 with a free q7: then J is
+        6x7, forces are least squares, E.8 and the comply law hold q7: ``functional.joint_map``)."""
         self.kin = kin
         self.model = model
         self.estimator = ForceEstimator(kin, model)
@@ -71,6 +74,7 @@ class AdaptiveControl:
         self._vetted = None                      # the request whose force limits were vetted (limit.vet_limits)
         self._jac6: np.ndarray | None = None
         self._jac6_inv: np.ndarray | None = None
+        self._comply_inv: np.ndarray | None = None   # a 6x7 J's map with q7 held, for the comply law
         self._q = None
         self._qd = None
         self._tool = np.eye(4)
@@ -81,23 +85,28 @@ class AdaptiveControl:
         self.dither_options: dict = {}           # keyword arguments of Dither (measurements vary them)
         self.condition = np.inf                  # cond_1 of the Jacobian at the last sample that needed it
         n = model.conv.n
-        self._J = np.empty((n, n))               # frame-6 Jacobian, reused every sample
-        self._J_inv_t = np.empty((n, n))         # (J^-1)^T: row k is J^-1 e_k
-        self._unit = np.eye(n)
+        self._square = n == 6                    # a 7-joint arm's J is 6x7: least squares (4.56), E.8 with q7 held
+        self._J = np.empty((6, n))               # frame-6 Jacobian, reused every sample
+        self._J_inv_t = np.empty((6, n))         # (J^-1)^T: row k is J^-1 e_k (J^+ e_k for 6x7, minimum norm)
+        self._unit = np.eye(6)
         self._q_hist: deque = deque()            # measured q of the last samples (SPEED_WINDOW)
-        self._work = np.empty((n, n))
+        self._work = np.empty((6, n))
         self._gravity_coeffs = gravity_vector(kin, model.gravity_coeffs)
         self._dac_limit = np.minimum(model.max_dac, DAC_MAX).tolist()   # the motor current limit (A.5.1)
 
     def _inverse(self, q: np.ndarray, jac6: np.ndarray) -> np.ndarray | None:
-        """J6^-1 at q (a transposed view of a kept array), or None where J6 is singular."""
+        """J6^-1 at q (a transposed view of a kept array), or None where J6 is singular.
+
+        For a 6x7 Jacobian: the pseudo-inverse J^+ (7x6, the generated minimum-norm
+        ``joint_from_cartesian``), so that t_a J^+ is the least-squares force of 4.56
+        (the f whose J^T f is nearest t_a) and |F J^+^T| e its error bar."""
         try:
             self.kin.joint_from_cartesian(q, self._unit, frame=6, out=self._J_inv_t)
         except KinematicsError:
             return None
         except (AttributeError, TypeError):      # kinematics without the batched differential kernel
             try:
-                self._J_inv_t[:] = np.linalg.inv(jac6).T
+                self._J_inv_t[:] = (np.linalg.inv(jac6) if self._square else np.linalg.pinv(jac6)).T
             except np.linalg.LinAlgError:
                 return None
         return self._J_inv_t.T
@@ -134,11 +143,20 @@ class AdaptiveControl:
         gen.jac6 = self._jac6 = jac6
         want_force = Estimate.FORCE in needs
         jinv = None
-        if comply or functional or want_force:     # one inverse per sample: E.8, the comply law, 4.56
+        square = self._square
+        # one inverse per sample: E.8, the comply law, 4.56; a 6x7 J's E.8 map (q7 held, functional.joint_map)
+        # differs from its least-squares inverse, so the functional limiter makes its own there
+        if comply or (functional and square) or want_force:
             jinv = self._inverse(q, jac6)
             self.condition = condition_1(jac6, jinv, self._work) if jinv is not None else np.inf
-        gen.jac6_inv = self._jac6_inv = jinv
-        gen.jac6_cond = self.condition if jinv is not None else None
+        self._jac6_inv = jinv
+        if comply and not square:     # the comply law through E.8's map with q7 held: the rule keeps q7
+            try:
+                self._comply_inv = joint_map(jac6)
+            except np.linalg.LinAlgError:
+                self._comply_inv = None
+        gen.jac6_inv = jinv if square else None
+        gen.jac6_cond = self.condition if jinv is not None and square else None
         tool = gen.tool
         self._tool = tool
         maps = self._maps.of(tool)
@@ -187,7 +205,9 @@ class AdaptiveControl:
             return Command(q_nominal)
         jac6 = self._jac6
         maps = self._maps.of(self._tool)
-        j6inv = self._jac6_inv
+        # 6x7 (7 joints): J's inverse with q7 held (functional.joint_map): compliance moves and force-servoes
+        # joints 1-6 (q7's score in select_joints is 0), q7 stays where the free-parameter rule puts it
+        j6inv = self._jac6_inv if self._square else self._comply_inv
         if j6inv is None:
             raise ForceEstimateError("comply: the Jacobian is singular here; no joint can be chosen")
         c.release(self.dt)

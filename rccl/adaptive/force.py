@@ -139,12 +139,13 @@ def gravity_vector(kin, coeffs) -> np.ndarray:
 def condition_1(jac: np.ndarray, jac_inv: np.ndarray, work: np.ndarray | None = None) -> float:
     """cond_1(J) = ||J||_1 ||J^-1||_1 (max column sums): within a factor 6 of the 2-norm condition of
     4.57 for a 6x6 matrix, bounds the same error amplification, and costs microseconds, not an SVD.
-    ``work`` (optional) is a scratch array of J's shape."""
+    A 6x7 J (7 joints) takes its pseudo-inverse J^+ (7x6) for J^-1. ``work`` (optional) is a scratch array of J's shape."""
     work = np.empty(jac.shape) if work is None else work
     np.abs(jac, out=work)
     n1 = max(np.add.reduce(work, 0).tolist())
-    np.abs(jac_inv, out=work)
-    return float(n1 * max(np.add.reduce(work, 0).tolist()))
+    inv_work = work if jac_inv.shape == work.shape else work.T   # a 6x7 J: J^+ is 7x6
+    np.abs(jac_inv, out=inv_work)
+    return float(n1 * max(np.add.reduce(inv_work, 0).tolist()))
 
 
 class ForceEstimator:
@@ -220,9 +221,10 @@ class ForceEstimator:
 
     @staticmethod
     def frame6_force(jac6: np.ndarray, t_a: np.ndarray, where: str = "force estimate") -> np.ndarray:
-        """q6 = J6^-T t_a (4.56): the force/torque in frame 6 that the joint torques t_a exert."""
-        try:
-            f6 = np.linalg.solve(jac6.T, t_a)
+        """q6 = J6^-T t_a (4.56): the force/torque in frame 6 that the joint torques t_a exert
+        (a 6x7 J6: the least-squares force; t_a's part in J's null space is self-motion, no force)."""
+        try:     # 6x7 (7 joints): the least-squares f, nearest J^T f = t_a
+            f6 = np.linalg.solve(jac6.T, t_a) if jac6.shape[1] == 6 else np.linalg.pinv(jac6.T) @ t_a
         except np.linalg.LinAlgError:
             raise ForceEstimateError(f"{where}: the Jacobian is singular, forces cannot be recovered (4.56)") from None
         return f6
@@ -237,7 +239,7 @@ class ForceEstimator:
         j = self.kin.jacobian6(q) if jac6 is None else jac6
         if check:
             try:
-                c = condition_1(j, np.linalg.inv(j))
+                c = condition_1(j, np.linalg.inv(j) if j.shape[1] == 6 else np.linalg.pinv(j))
             except np.linalg.LinAlgError:
                 c = np.inf
             self.check_condition(q, c)
@@ -266,5 +268,5 @@ class ForceEstimator:
 
         |F J6^-T| |dt|: the worst case of each row, the honest error bar of an estimate.
         """
-        m = force_map(t6_to_tool) @ np.linalg.inv(jac6.T)
+        m = force_map(t6_to_tool) @ (np.linalg.inv(jac6.T) if jac6.shape[1] == 6 else np.linalg.pinv(jac6.T))
         return np.abs(m) @ np.abs(torque_error)

@@ -4,7 +4,8 @@
 ``positions`` exactly once (a transform in several equations, or in both segments of a
 transition, is still called once), then limits the change of the first position's T6
 over the sample: the change dC (frame 6) maps to joint motion through E.8,
-dtheta = J^-1 dC, and every joint's share of that is kept under ``share`` x its velocity
+dtheta = J^-1 dC (on a 7-joint arm through ``joint_map``: the free joint q7 held, as the
+free-parameter rule holds or sets it apart from the pose), and every joint's share of that is kept under ``share`` x its velocity
 limit x dt, and (given acceleration limits) may change from one sample to the next by at
 most ``share`` x its acceleration limit x dt^2. If some joint would move more, every transform changed this sample is moved
 only part of the way from its old value to its new one (translation and rotation angle
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..redundancy import FREE_JOINT
 from ..transform import axis_angle, inverse, rot_matrix
 from .exceptions import FunctionalError
 
@@ -55,9 +57,28 @@ def interpolate(m0: np.ndarray, m1: np.ndarray, s: float) -> np.ndarray:
     return m0 @ part
 
 
+def joint_map(jac6: np.ndarray) -> np.ndarray:
+    """E.8's J^-1 (n x 6, rad per m or rad) for a 6 x n frame-6 Jacobian: the inverse of a 6x6 one;
+    for a 7-joint arm the inverse of its six columns other than the free joint (``FREE_JOINT``,
+    q7), with a zero row for q7. That is the joint change the inverse kinematics makes for a
+    pose change dC at a given q7, which is what every free-parameter rule does (rccl.redundancy:
+    q7 held, a function of time, or a small step of its own), so the limiter bounds the joints
+    the target's change really moves. Raises numpy's LinAlgError where those columns are singular."""
+    n = jac6.shape[1]
+    if n == 6:
+        return np.linalg.inv(jac6)
+    if n != 7:
+        raise np.linalg.LinAlgError(f"E.8 joint map: a 6x{n} Jacobian (only 6 joints, or 7 with a free q7)")
+    keep = [j for j in range(n) if j != FREE_JOINT]
+    out = np.zeros((n, 6))
+    out[keep] = np.linalg.inv(jac6[:, keep])
+    return out
+
+
 def step_scale(jac6: np.ndarray, dc6: np.ndarray, max_step: np.ndarray) -> tuple[float, np.ndarray]:
-    """Largest s in [0, 1] with |s (J^-1 dc6)_i| <= max_step_i (E.8); also returns dtheta = J^-1 dc6."""
-    dtheta = np.linalg.solve(jac6, dc6)
+    """Largest s in [0, 1] with |s (J^-1 dc6)_i| <= max_step_i (E.8); also returns dtheta = J^-1 dc6
+    (``joint_map``: on a 7-joint arm q7 held)."""
+    dtheta = joint_map(jac6) @ dc6
     worst = float(np.max(np.abs(dtheta) / max_step))
     return (1.0 if worst <= 1.0 else 1.0 / worst), dtheta
 
@@ -143,7 +164,8 @@ class FunctionalUpdater:
         ``jac6`` is the frame-6 Jacobian where the arm is, or a function returning it (called
         only if there is a functional transform), or None (no limiting). Raises
         FunctionalError if a function leaves a non-rigid or non-finite transform. ``jac6_inv``
-        (optional) is its inverse, if the caller already has it, and ``condition`` its cond_1.
+        (optional) is its inverse (``joint_map``'s), if the caller already has it, and ``condition``
+        its cond_1.
         """
         trs = self._functional_now(positions)
         info = UpdateInfo(called=len(trs))
@@ -190,7 +212,7 @@ class FunctionalUpdater:
             self.prev_dtheta[:] = 0.0
             return info
         try:
-            jinv = np.linalg.inv(jac6) if jac6_inv is None else jac6_inv
+            jinv = joint_map(jac6) if jac6_inv is None else jac6_inv
             # the 1-norm condition number: as good a bound in E.8 as the 2-norm one and far cheaper
             info.condition = (float(np.abs(jac6).sum(axis=0).max() * np.abs(jinv).sum(axis=0).max())
                               if condition is None or jac6_inv is None else float(condition))
