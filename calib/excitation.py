@@ -19,17 +19,24 @@ The objective is a smooth stand-in for the condition number: with the stacked re
 columns scaled to unit length (A D^-1, D the column norms, so that the result does not depend on
 the units of the parameters), it minimises -log det((A D^-1)^T (A D^-1)) / p, which is zero
 only when the scaled columns are orthogonal (condition number 1) and grows as the smallest
-singular value falls, on ``DESIGN_POINTS`` instants per period. Its value and gradient come
-from numpy through a CasADi callback (:func:`_objective`): d(-log det C)/dA = -2 A (G^-1 -
-diag(G)^-1) / p with G = A^T A, carried back to the coefficients by CasADi's reverse mode through
-the generated regressor (a vector-Jacobian product, mapped over the instants). The limits are a
-sparse matrix (each row holds one joint's coefficients), which keeps IPOPT's steps cheap.
+singular value falls, on ``DESIGN_POINTS`` instants per period. While the condition number
+stays above ``COND_TARGET``, a second objective (``CRITERIA``) starts from the best design: the
+log of the mean of 1 / eigenvalue of the same unit-column Gram matrix (log(tr(D G^-1 D) / p)),
+which weighs the weakest direction far more than the log-det does (the Stanford arm's MY2 and
+MZ3R columns differ only by a small inertial term: reports/identification-stanford-designs.md).
+Each value and gradient comes from numpy through a CasADi callback (:func:`_objective`):
+d(-log det C)/dA = -2 A (G^-1 - diag(G)^-1) / p and d tr(D G^-1 D)/dA = 2 A (diag(G^-1) -
+G^-1 diag(G) G^-1) with G = A^T A, carried back to the coefficients by CasADi's reverse mode
+through the generated regressor (a vector-Jacobian product, mapped over the instants). The
+limits are a sparse matrix (each row holds one joint's coefficients), which keeps IPOPT's
+steps cheap.
 
 The regressor is the one the fit uses (rcci.calib.identification.regressor_columns): the generated
-base regressor, the coupling of the wrist motors' rotor inertias and the friction columns,
-here with tanh(qd / ``SIGN_SPEED``) for the sign and one Coulomb and one viscous column per
-joint (the fit's per-direction columns need each joint to move both ways, which a periodic
-motion does).
+base regressor, the coupling of the wrist motors' rotor inertias and the per-direction friction
+columns (Coulomb and viscous, for qd > 0 and qd < 0), here with (1 +- tanh(qd / ``SIGN_SPEED``)) / 2
+standing for the direction. The two Coulomb columns of a joint add up to a constant, which a
+gravity column nearly matches where a joint stays near one pose (the Stanford boom near
+vertical): a sign-only column would hide that.
 """
 from __future__ import annotations
 
