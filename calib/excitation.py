@@ -335,9 +335,9 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
            max_iter: int = ROUND_ITER, rounds: int = ROUNDS, spread: float = 0.0,
            criteria: tuple[str, ...] = CRITERIA) -> Excitation:
     """Design the excitation of ``robot`` (deterministic for ``seed``), CasADi + IPOPT: for each
-    of ``criteria`` in turn, rounds of ``max_iter`` iterations, each from the best so far, until
-    the condition number (unit columns) is at most COND_TARGET or ``rounds`` are done;
-    ``spread``: the start's offsets (``_start``)."""
+    of ``criteria`` in turn (the next from the best design so far), rounds of ``max_iter``
+    iterations, each from the last, until the condition number (unit columns) is at most
+    COND_TARGET or ``rounds`` are done; ``spread``: the start's offsets (``_start``)."""
     from rcci.models import load_robot
 
     t0 = time.monotonic()
