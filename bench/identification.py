@@ -98,13 +98,15 @@ def design_report(robot: str, seeds: list[int], spread: float) -> str:
          f"`python -m bench.identification --robot {robot} --designs {','.join(map(str, seeds))} --spread {spread:g}` "
          f"({time.strftime('%H:%M', time.gmtime())} UTC, load average {os.getloadavg()[0]:.1f} on 2 cores)", "",
          "| seed | condition number (unit columns) | joint swing, min..max (rad; m on a slide) | weakest directions "
-         "(singular value / largest: vector) |", "|---|---|---|---|"]
+         "(singular value / largest: vector) | design: wall, CPU (s) |", "|---|---|---|---|---|"]
     for seed in seeds:
+        c0 = time.process_time()
         exc = design(robot, seed=seed, spread=spread)
+        cpu = time.process_time() - c0
         q = exc.state(np.linspace(0, exc.period, 400, endpoint=False))[0]
         swing = ", ".join(f"{a:.2f}..{b:.2f}" for a, b in zip(q.min(axis=0), q.max(axis=0)))
         weak = "; ".join(f"{v:.4f}: {d}" for v, d in weakest_directions(exc))
-        L.append(f"| {seed} | {exc.cond_scaled:.1f} | {swing} | {weak} |")
+        L.append(f"| {seed} | {exc.cond_scaled:.1f} | {swing} | {weak} | {exc.seconds:.0f}, {cpu:.0f} |")
     L += ["", f"({time.monotonic() - t0:.0f} s)", ""]
     return "\n".join(L)
 
