@@ -98,15 +98,42 @@ def design_report(robot: str, seeds: list[int], spread: float) -> str:
          f"`python -m bench.identification --robot {robot} --designs {','.join(map(str, seeds))} --spread {spread:g}` "
          f"({time.strftime('%H:%M', time.gmtime())} UTC, load average {os.getloadavg()[0]:.1f} on 2 cores)", "",
          "| seed | condition number (unit columns) | joint swing, min..max (rad; m on a slide) | weakest directions "
-         "(singular value / largest: vector) |", "|---|---|---|---|"]
+         "(singular value / largest: vector) | design: wall, CPU (s) |", "|---|---|---|---|---|"]
     for seed in seeds:
+        c0 = time.process_time()
         exc = design(robot, seed=seed, spread=spread)
+        cpu = time.process_time() - c0
         q = exc.state(np.linspace(0, exc.period, 400, endpoint=False))[0]
         swing = ", ".join(f"{a:.2f}..{b:.2f}" for a, b in zip(q.min(axis=0), q.max(axis=0)))
         weak = "; ".join(f"{v:.4f}: {d}" for v, d in weakest_directions(exc))
-        L.append(f"| {seed} | {exc.cond_scaled:.1f} | {swing} | {weak} |")
+        L.append(f"| {seed} | {exc.cond_scaled:.1f} | {swing} | {weak} | {exc.seconds:.0f}, {cpu:.0f} |")
     L += ["", f"({time.monotonic() - t0:.0f} s)", ""]
     return "\n".join(L)
+
+
+def columns_report(robot: str, names: list[str]) -> str:
+    """The named columns of the generated base regressor (``rccl.kinematics`` BASE_PARAMETERS) as
+    the CasADi kernel writes them: per joint torque, 0-based q_k, qd_k, qdd_k (joint k + 1)."""
+    import casadi as ca
+
+    import rccl.kinematics as kin
+    from rcci.calib.excitation import casadi_kernel
+
+    base = kin.load(robot).BASE_PARAMETERS
+    unknown = [x for x in names if x not in base]
+    if unknown:
+        raise SystemExit(f"bench.identification --columns: {unknown} are not base parameters of {robot} ({base})")
+    f = casadi_kernel(robot, "base_regressor")
+    n = f.size1_in(0)
+    q, qd, qdd = (ca.SX.sym(s, n) for s in ("q", "qd", "qdd"))
+    Y = f(q, qd, qdd)
+    L = [f"### Columns of the {robot}'s base regressor", "",
+         f"`python -m bench.identification --robot {robot} --columns {','.join(names)}` (CasADi's print of the "
+         "generated kernel; q_k, qd_k, qdd_k are joint k + 1's; 0.154 m is d2, 9.81 g)", ""]
+    for name in names:
+        k = base.index(name)
+        L += [f"- {name}, torque of joint {i + 1}: `{Y[i, k]}`" for i in range(n) if not Y[i, k].is_zero()]
+    return "\n".join(L + [""])
 
 
 def coverage_report(robot: str, seeds: list[int], sim_seed: int, ablate: tuple[str, ...]) -> str:
@@ -206,7 +233,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--designs", metavar="SEEDS", help="comma-separated design seeds: the design diagnosis only")
     p.add_argument("--spread", type=float, default=0.0, help="with --designs: move the start offsets (share of "
                    "half the range)")
+    p.add_argument("--columns", metavar="NAMES", help="comma-separated base parameters: their regressor columns")
     args = p.parse_args(argv)
+    if args.columns:
+        emit(columns_report(args.robot, [x for x in args.columns.split(",") if x.strip()]), args.out)
+        return 0
     if args.designs:
         emit(design_report(args.robot, [int(x) for x in args.designs.split(",") if x.strip()], args.spread), args.out)
         return 0

@@ -245,3 +245,60 @@ def test_zero_phase_lowpass_and_lag() -> None:
     assert np.allclose(y[mid, 2], x[mid, 2], atol=1e-3)              # in band: unchanged, unshifted
     lag = first_order_lag(np.ones(50), 0.9, np.zeros(1))
     assert np.allclose(lag, 1 - 0.9 ** np.arange(1, 51))
+
+
+def test_design_objectives_gradients_match_finite_differences() -> None:
+    """Both design objectives' analytic gradients (the CasADi callback's) against central
+    differences, and an unknown objective refused by name."""
+    from rcci.calib.excitation import CRITERIA, _Problem, _start
+
+    n, L, hz = 6, 3, 0.1
+    x = _start(ROBOT, 0, n, L, hz)
+    d = np.random.default_rng(3).normal(size=x.size) * 1e-6
+    for criterion in CRITERIA:
+        problem = _Problem(ROBOT, hz, n, L, criterion)
+        f, g = problem.value_grad(x, True)
+        numeric = (problem.value_grad(x + d, False)[0] - problem.value_grad(x - d, False)[0]) / 2
+        assert np.isfinite(f)
+        assert g @ d == pytest.approx(numeric, rel=1e-4, abs=1e-12)
+    with pytest.raises(Exception, match="unknown criterion 'volume'"):
+        _Problem(ROBOT, hz, n, L, "volume")
+
+
+@pytest.mark.slow
+def test_stanford_design_meets_the_condition_goal() -> None:
+    """The Stanford arm's excitation (MY2 and MZ3R nearly opposite columns, reports/
+    identification-stanford-designs.md) reaches the goal within its limits: 1-3 min on a loaded machine."""
+    robot = "stanford"
+    exc = design(robot, seed=0)
+    m = load_robot(robot)
+    t = np.arange(CHECK_POINTS) * exc.period / CHECK_POINTS
+    q, qd, qdd = exc.state(t)
+    lo, hi = range_limits(robot)
+    assert np.all(q >= lo - 1e-9) and np.all(q <= hi + 1e-9)
+    assert np.all(np.abs(qd) <= SPEED_SHARE * np.asarray(m.max_velocity) + 1e-9)
+    assert np.all(np.abs(qdd) <= acceleration_limits(robot) + 1e-9)
+    assert exc.cond_scaled <= COND_GOAL
+    assert condition_numbers(exc) == pytest.approx((exc.cond_scaled, exc.cond_raw))
+
+
+def test_stanford_my2_and_mz3r_differ_by_the_boom_inertia_term_only() -> None:
+    """reports/identification-stanford-designs.md: the Stanford arm's MY2 and MZ3R columns add
+    up to the Lagrange equations of MZ3 d (qd2^2 + sin^2 q2 qd1^2) (d = q3, the boom): gravity
+    and the shoulder offset cancel, so only that term separates them."""
+    import rccl.kinematics as kin
+
+    mod = kin.load("stanford")
+    names = mod.BASE_PARAMETERS
+    rng = np.random.default_rng(0)
+    N = 200
+    q, qd, qdd = rng.uniform(-1.5, 1.5, (N, 6)), rng.uniform(-1, 1, (N, 6)), rng.uniform(-2, 2, (N, 6))
+    Y = np.asarray(mod.base_regressor(q, qd, qdd)).reshape(N, 6, -1)
+    total = Y[:, :, names.index("MY2")] + Y[:, :, names.index("MZ3R")]
+    s2, c2, d = np.sin(q[:, 1]), np.cos(q[:, 1]), q[:, 2]
+    lagrange = np.zeros((N, 6))
+    lagrange[:, 0] = 2 * qd[:, 2] * s2 ** 2 * qd[:, 0] + 4 * d * s2 * c2 * qd[:, 1] * qd[:, 0] + 2 * d * s2 ** 2 * qdd[:, 0]
+    lagrange[:, 1] = 2 * qd[:, 2] * qd[:, 1] + 2 * d * qdd[:, 1] - 2 * d * qd[:, 0] ** 2 * s2 * c2
+    lagrange[:, 2] = -(qd[:, 1] ** 2 + s2 ** 2 * qd[:, 0] ** 2)
+    assert np.abs(total).max() > 1.0                          # the columns are not both zero
+    assert np.allclose(total, lagrange, atol=1e-10)
