@@ -51,8 +51,14 @@ def _window_gravity(res, traces, info, params, notes) -> list:
             out.append(r)
             continue
         pose = np.asarray(tr.need("pose", (list, tuple)), dtype=float)
-        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)))
+        loaded = bool(tr.meta.get("gravity_loaded", False))
+        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)),
+                                       loaded=loaded)
         sources.add(source)
+        if loaded:
+            notes.append(f"joint {r.joint}: gravity works over its friction window (its centres of mass lie off "
+                         f"the link's line): its mean there, {g:+.4f} +- {3 * sd:.4f} N m, is taken off F_c+- "
+                         f"({source})")
         out.append(r.with_window_gravity(g, sd))
     if any(not s.startswith("the fitted kinematics") or "data file" in s for s in sources):
         notes.append("gravity's mean over the friction windows (their axes lean by the DH errors) from "
