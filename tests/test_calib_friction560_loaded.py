@@ -63,3 +63,5 @@ def test_puma560_friction_of_joints_2_3_with_gravity_taken_off(tmp_path):
             assert abs(fit.coulomb - fc) <= fit.coulomb_err, (r.joint, key, fit.coulomb, fit.coulomb_err, fc)
             assert abs(fit.viscous - fv) <= fit.viscous_err, (r.joint, key, fit.viscous, fit.viscous_err, fv)
             assert np.isfinite(fit.coulomb_err) and fit.coulomb_err < 0.2 * fc
+            print(f"joint {r.joint} {key}: F_c {fit.coulomb:.3f} +- {fit.coulomb_err:.3f} (truth {fc:.3f}), "
+                  f"F_v {fit.viscous:.2f} +- {fit.viscous_err:.2f} (truth {fv:.2f}), g_w {fit.window_gravity:+.3f} N m")
