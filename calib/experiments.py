@@ -260,7 +260,9 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
     lower, upper, vmax = _robot_limits(info.name)
     plans = []
     for j in joints:
-        q, _ = pose_for(robot, j, lower, upper)
+        # a gravity-loaded pose serves too: gravity's work cancels between the + and - passes and
+        # again between the loaded and unloaded runs (4.43), only the motor must carry it (checked below)
+        q, _ = pose_for(robot, j, lower, upper, loaded=True)
         prismatic = info.kinds[j - 1] == "prismatic"
         # a prismatic joint: a 0.2 m stroke, the string over a pulley fixed to the base pulls
         # the slide with the mass's weight (radius 1: the load's "torque" m g r is m g newtons)
