@@ -54,7 +54,7 @@ def _window_gravity(res, traces, info, params, notes) -> list:
         loaded = bool(tr.meta.get("gravity_loaded", False))
         g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)),
                                        loaded=loaded)
-        sources.add(source)
+        sources.add(source.split("; ")[0])      # the coefficients' share is named per joint below
         if loaded:
             notes.append(f"joint {r.joint}: gravity works over its friction window (its centres of mass lie off "
                          f"the link's line): its mean there, {g:+.4f} +- {3 * sd:.4f} N m, is taken off F_c+- "
