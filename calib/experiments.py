@@ -199,6 +199,9 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             fast = [v for v in speeds if v >= start]
             groups = [(f"friction-j{j}", FRICTION_RATE_HZ, [v for v, _ in slow], [n for _, n in slow]),
                       (f"friction-j{j}-servo", SERVO_RATE_HZ, fast, list(fast_trips[-len(fast):]))]
+            # an arm whose joint never reaches the threshold (the PUMA 560's joint 4 tops at 52 deg/s
+            # of 200) has no servo-rate log: a plan without a pass would be a path of no segments
+            groups = [g for g in groups if g[2]]
         for name, rate, vs, ns in groups:
             plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns, float(vmax[j - 1]))
             plan.meta["log_set"] = [g[0] for g in groups]   # the fit warns when one is missing

@@ -209,3 +209,22 @@ def test_the_thesis_poses_are_checked_on_the_arm_they_are_given():
     q = np.radians(qdeg)
     with pytest.raises(CalibError, match=r"robot puma560: gravity does work on joint 2 .*through cy2, cx3"):
         check_friction_pose(other, 2, q[1] - np.radians(half), q[1] + np.radians(half), q)
+
+
+@pytest.mark.parametrize("robot", ["puma260", "puma560", "stanford", "microbo"])
+def test_every_friction_plan_has_passes(robot):
+    """A joint whose top speed stays under its servo-rate threshold (the PUMA 560's joint 4: 52 of
+    200 deg/s) gets no empty `friction-jN-servo` plan (its path of no segments stopped the PUMA 560
+    campaign with an IndexError), and each log set names only the logs planned."""
+    from rcci.calib.exceptions import CalibError
+
+    info = robot_info(robot)
+    for j in range(1, len(info.lower) + 1):
+        try:
+            plans = friction_plans([j], robot=info)
+        except CalibError:
+            continue                                   # refused with its reason (Microbo 2-3)
+        names = [p.name for p in plans]
+        for p in plans:
+            assert p.path.segments and p.meta["speeds"] and len(p.path.sample(p.rate_hz)) > 1, p.name
+            assert p.meta["log_set"] == names
