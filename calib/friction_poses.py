@@ -1,4 +1,4 @@
-"""Friction poses for any arm: where a joint can sweep a long window over which gravity does no work (or little, taken off).
+"""Friction poses for any arm: long windows over which gravity does no work, or little that the fit takes off.
 
 The thesis's poses (rcci.calib.experiments.FRICTION_POSES) were chosen for the PUMA 260 and are
 kept wherever they serve an arm. Elsewhere (the PUMA 560's narrower joint 1 and 4 ranges, the
