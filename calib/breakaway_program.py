@@ -112,6 +112,12 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     done = threading.Event()
     rec, session = open_measurement(url, robot, rate, log_path, meta, timeout)
 
+    def back_from(held: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Setpoints from where a ramp's breakaway left the joint back to the ramp's pose: the
+        joint may have slid degrees past it (a heavy joint that breaks away at a high torque),
+        more than one cycle's step at its velocity limit (R_REQVEL)."""
+        return Path((PathSegment(np.asarray(held, dtype=float), q, 0.6, ACCEL, 0.2),)).sample(rate)
+
     def pos_all(qd: np.ndarray) -> None:
         command_joints(session, conv, qd)
 
@@ -152,6 +158,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
                 session.record(None)
                 state["step"] += 1
                 state["k"] = 0
+                steps.insert(state["step"], ("warm", back_from(state["hold"], q)))
             return
         # the motor torques that hold the arm against gravity, t_s = G^-T t_g: on the
         # coupled wrist the motors of the later joints, holding theirs, also load this one

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rcci.calib.friction_poses import check_friction_pose, friction_pose
+from rcci.calib.friction_poses import check_friction_pose, friction_pose, loaded_friction_pose
 from rcci.calib.paths import Path, PathSegment, sweep_path
 from rcci.calib.plan import MeasurementPlan
 from rcci.calib.poses import (TABLE_4_7, TABLE_4_8_SWEEPS, identifying_sweeps, main_sweep, repeat_sweep,
@@ -116,11 +116,13 @@ def _robot_limits(robot: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(m.lower, float), np.array(m.upper, float), np.array(m.max_velocity, float)
 
 
-def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, float]:
+def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray, loaded: bool = False) -> tuple[np.ndarray, float]:
     """(pose rad, half window rad) of joint ``j``'s friction sweeps on the arm of ``robot``
     (rcci.calib.robot.RobotInfo; None: the thesis's): FRICTION_POSES where they serve it (gravity
     does no work over the window, and the window with its turns fits the range), else
-    rcci.calib.friction_poses.friction_pose's; CalibError when neither does."""
+    rcci.calib.friction_poses.friction_pose's; with ``loaded`` (the friction sweeps, whose fit takes
+    gravity's mean over the window off) then rcci.calib.friction_poses.loaded_friction_pose's;
+    CalibError when none does."""
     from rcci.calib.exceptions import CalibError
 
     qdeg, half = FRICTION_POSES[j]
@@ -133,9 +135,13 @@ def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray) -> tuple[np.nd
         return q, half * DEG
     except (CalibError, ValueError):
         found = friction_pose(robot, j)
+    if found is None and loaded:
+        heavy = loaded_friction_pose(robot, j)
+        found = None if heavy is None else heavy[:2]
     if found is None:
         raise CalibError(f"robot {robot.name}: no pose found for joint {j}'s friction window over which "
-                         "gravity does no work (rcci.calib.friction_poses)")
+                         "gravity does no work" + (" or only little the fit can take off" if loaded else "")
+                         + " (rcci.calib.friction_poses)")
     return found
 
 
@@ -160,9 +166,10 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
     lower, upper, vmax = _robot_limits(THESIS_ARM if robot is None else robot.name)
     plans = []
     for j in joints:
-        q, half_rad = pose_for(robot, j, lower, upper)
+        q, half_rad = pose_for(robot, j, lower, upper, loaded=True)
         half = half_rad / DEG
         lo, hi = q[j - 1] - half_rad, q[j - 1] + half_rad
+        loaded = robot is not None and _gravity_works(robot, j, lo, hi, q)
         if speeds_deg is None:
             try:
                 top = friction_top_speed(j, lo, hi, lower, upper, vmax) / DEG
@@ -192,11 +199,27 @@ def friction_plans(joints=range(1, 7), speeds_deg=None,
             fast = [v for v in speeds if v >= start]
             groups = [(f"friction-j{j}", FRICTION_RATE_HZ, [v for v, _ in slow], [n for _, n in slow]),
                       (f"friction-j{j}-servo", SERVO_RATE_HZ, fast, list(fast_trips[-len(fast):]))]
+            # an arm whose joint never reaches the threshold (the PUMA 560's joint 4 tops at 52 deg/s
+            # of 200) has no servo-rate log: a plan without a pass would be a path of no segments
+            groups = [g for g in groups if g[2]]
         for name, rate, vs, ns in groups:
             plan = _friction_plan(name, rate, j, q, lo, hi, vs, ns, float(vmax[j - 1]))
             plan.meta["log_set"] = [g[0] for g in groups]   # the fit warns when one is missing
+            if loaded:         # the fit must take gravity's mean over the window off (window_gravity)
+                plan.meta["gravity_loaded"] = True
             plans.append(plan)
     return plans
+
+
+def _gravity_works(robot, j: int, lo: float, hi: float, q: np.ndarray) -> bool:
+    """Whether gravity does work on joint ``j`` over [lo, hi] at ``q`` for some coefficients."""
+    from rcci.calib.exceptions import CalibError
+
+    try:
+        check_friction_pose(robot, j, lo, hi, q)
+    except CalibError:
+        return True
+    return False
 
 
 def _friction_plan(name: str, rate: int, j: int, q: np.ndarray, lo: float, hi: float,
@@ -240,7 +263,9 @@ def sensitivity_plans(mass_kg: float | None, radius_m: float, joints=range(1, 7)
     lower, upper, vmax = _robot_limits(info.name)
     plans = []
     for j in joints:
-        q, _ = pose_for(robot, j, lower, upper)
+        # a gravity-loaded pose serves too: gravity's work cancels between the + and - passes and
+        # again between the loaded and unloaded runs (4.43), only the motor must carry it (checked below)
+        q, _ = pose_for(robot, j, lower, upper, loaded=True)
         prismatic = info.kinds[j - 1] == "prismatic"
         # a prismatic joint: a 0.2 m stroke, the string over a pulley fixed to the base pulls
         # the slide with the mass's weight (radius 1: the load's "torque" m g r is m g newtons)

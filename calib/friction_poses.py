@@ -1,4 +1,4 @@
-"""Friction poses for any arm: where a joint can sweep a long window over which gravity does no work.
+"""Friction poses for any arm: long windows over which gravity does no work, or little that the fit takes off.
 
 The thesis's poses (rcci.calib.experiments.FRICTION_POSES) were chosen for the PUMA 260 and are
 kept wherever they serve an arm. Elsewhere (the PUMA 560's narrower joint 1 and 4 ranges, the
@@ -9,6 +9,14 @@ mid-range), the window as long as the range leaves room for the turns (at most t
 150 deg, at least MIN_HALF); a candidate is kept when every column of the joint's regressor
 row averages to zero over the window (:func:`check_friction_pose`: no net work
 whatever the coefficients). The longest window wins, then the pose nearest the arm's ready pose.
+
+Where no window is free of gravity's work (the PUMA 560's joints 2 and 3: their links' centres
+of mass lie off the links' lines, so gravity's torque is a cos + b sin of the angle and no window
+shorter than a turn averages both to zero), :func:`loaded_friction_pose` takes the same candidates
+and keeps a window over which the large terms cancel (the link's weight along it, odd about the
+upright link) and only small ones are left: gravity's mean torque over it, g_w (N m), is then
+taken off with the fitted gravity coefficients and their errors carried into F_c
+(rcci.calib.window_gravity), as the thesis took its own fitted values into later measurements.
 """
 from __future__ import annotations
 
@@ -20,6 +28,8 @@ DEG = np.pi / 180
 MAX_HALF = 150 * DEG         # rad, the thesis's longest half window (joints 4 and 6)
 MIN_HALF = 20 * DEG          # rad: shorter windows average too few readings per pass
 TURN_ROOM = 8 * DEG          # rad beyond the window: the turn margin, sweep_path's 2 deg, a short ramp
+LOADED_SHARE = 0.10         # of the joint's Coulomb friction: the most gravity's mean torque over a loaded window
+                            # may be, coefficients at their data-file sizes (what g_w's error scales with)
 PRISMATIC_ROOM = 0.15        # m beyond a prismatic joint's window: its turns at the sweeps' 12 m/s^2 and margins
 
 
@@ -60,6 +70,68 @@ def friction_pose(info, j: int) -> tuple[np.ndarray, float] | None:
             continue
         return q, half
     return None
+
+
+def loaded_friction_pose(info, j: int) -> tuple[np.ndarray, float, float] | None:
+    """(pose (n,) rad, half window rad, nominal g_w N m) for revolute joint ``j`` (1-based) of the arm
+    of ``info`` (rcci.calib.robot.RobotInfo) when gravity works over every window: the candidates of
+    :func:`friction_pose` whose window leaves gravity's mean torque, each coefficient counted at its
+    data-file size (sum |mean row_k c_k|), under LOADED_SHARE of the joint's smaller data-file Coulomb
+    friction, and whose gravity torque the motor carries (rcci.calib.headroom, at 0.9 of the
+    velocity limit both ways); the longest window, then the pose nearest ready. None when no
+    candidate does."""
+    if info.kinds[j - 1] != "revolute":
+        return None
+    lower, upper = np.asarray(info.lower), np.asarray(info.upper)
+    n = len(lower)
+    ready = _ready(info.name)
+    nom = info.nominal
+    coeffs = np.array([float(nom["gravity_coeffs"][k]["value"]) for k in info.gravity_names])
+    fc = min(float(nom["friction"][k]["values"][j - 1]) for k in ("coulomb_pos", "coulomb_neg"))
+    cands = []
+    for combo in itertools.product(*[_levels(lower[k], upper[k], info.kinds[k]) for k in range(n)]):
+        q = np.array(combo, dtype=float)
+        half = _half(q[j - 1], lower[j - 1], upper[j - 1], "revolute")
+        if half >= MIN_HALF:
+            cands.append((-half, float(np.abs(q - ready).sum()), q, half))
+    cands.sort(key=lambda c: (c[0], c[1]))
+    for _, _, q, half in cands:
+        m = mean_gravity_row(info, j, q[j - 1] - half, q[j - 1] + half, q)
+        if np.sum(np.abs(m * coeffs)) > LOADED_SHARE * fc or not _carried(info, j, q, half):
+            continue
+        return q, half, float(m @ coeffs)
+    return None
+
+
+def mean_gravity_row(info, joint: int, lo: float, hi: float, q: np.ndarray, points: int = 61,
+                     taper: float = 0.0) -> np.ndarray:
+    """The joint's (1-based) gravity regressor row averaged over [lo, hi] rad at the pose ``q``,
+    weighted by Hann edges of ``taper`` rad as the friction passes' means are (N m per coefficient)."""
+    from rcci.calib.work import hann_edge_weights
+
+    th = np.linspace(lo, hi, points)
+    w = hann_edge_weights(th, lo, hi, taper)
+    rows = []
+    for x in th:
+        qq = np.array(q, dtype=float)
+        qq[joint - 1] = x
+        rows.append(np.asarray(info.regressor(qq))[joint - 1])
+    return np.asarray(w @ np.array(rows) / np.sum(w))
+
+
+def _carried(info, j: int, q: np.ndarray, half: float) -> bool:
+    """Whether the motors carry joint ``j``'s sweeps over the window (gravity, friction at 0.9 of
+    the velocity limit both ways; rcci.calib.headroom's margins)."""
+    from rcci.calib.headroom import HEADROOM, max_current, peak_currents
+    from rcci.models import load_robot
+
+    v = 0.9 * float(load_robot(info.name).max_velocity[j - 1])
+    th = np.linspace(q[j - 1] - half, q[j - 1] + half, 41)
+    path = np.tile(q, (len(th), 1))
+    path[:, j - 1] = th
+    rate = v / float(th[1] - th[0])                        # samples one step apart at speed v
+    cur = np.vstack([peak_currents(info, p, rate) for p in (path, path[::-1])])   # A, both directions
+    return bool(np.all(cur <= HEADROOM * max_current(info.name)))
 
 
 def check_friction_pose(info, joint: int, lo: float, hi: float, q: np.ndarray, points: int = 61) -> None:

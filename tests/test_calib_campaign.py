@@ -121,20 +121,26 @@ def test_simula_options_are_honoured_and_a_campaign_resumes(truth, tmp_path):
 
 
 def test_record_all_names_what_an_arm_cannot_support(tmp_path):
-    """The Stanford arm: joint 2's sensitivity is left out by name (no friction window without
-    gravity's work) and the others planned; the touches are planned on its own fixture
-    (rcci.calib.touch.FIXTURES: the PUMA 260's corner is out of its reach)."""
+    """The Microbo: its prismatic joints 2 and 3 are left out of friction and sensitivity by name;
+    the Stanford arm's joint 2, whose every window gravity works on, is planned on a gravity-loaded
+    arc (its work cancels in 4.43); the touches are planned on each arm's own fixture
+    (rcci.calib.touch.FIXTURES: the PUMA 260's corner is out of their reach)."""
     from rcci.calib.regen import campaign_plans
     from rcci.calib.registry import RegenContext
 
     ctx = RegenContext(str(tmp_path), str(tmp_path), 4, None, robot_info("stanford"))
     plans, refused = campaign_plans(ctx, ("kinematics", "sensitivity", "gravity", "static"), skip_refused=True)
-    assert refused == {}
-    assert any(n.startswith("sensitivity: not recorded") and "joint 2" in n for n in ctx.notes)
+    assert refused == {} and not any(n.startswith("sensitivity: not recorded") for n in ctx.notes)
     names = {p.name for _, p in plans}
-    assert "sensitivity-j3-loaded" in names and "sensitivity-j2-loaded" not in names
+    assert {"sensitivity-j3-loaded", "sensitivity-j2-loaded"} <= names
     assert {p.meta["experiment"] for _, p in plans if hasattr(p, "meta")} >= {"gravity", "static", "sensitivity"}
     assert "kinematics" in names
+    ctx = RegenContext(str(tmp_path), str(tmp_path), 4, None, robot_info("microbo"))
+    plans, _ = campaign_plans(ctx, ("kinematics", "friction", "sensitivity"), skip_refused=True)
+    for kind in ("friction", "sensitivity"):
+        for j in (2, 3):
+            assert any(n.startswith(f"{kind}: not recorded") and f"joint {j}" in n for n in ctx.notes)
+    assert "kinematics" in {p.name for _, p in plans}
 
 
 def _fits_name_their_truth(out: str, static_log: str, tmp: str) -> None:
@@ -195,7 +201,8 @@ def test_sensitivity_at_the_adc_rail_is_named():
 def test_other_arms_get_friction_and_sensitivity_plans_where_gravity_allows():
     """Stanford's prismatic joint 3: a window inside its range, the axis horizontal (no work by
     gravity), speeds in m/s, the pulley pulling the slide with m g; PUMA 560 joint 1: a window of
-    its own inside +-160 deg; joints whose centres of mass lie off the links are refused by name."""
+    its own inside +-160 deg; joints whose centres of mass lie off the links get gravity-loaded windows
+    (the friction fit takes g_w off; in the sensitivity arcs it cancels)."""
     from rcci.calib.experiments import check_friction_pose, friction_plans
 
     stanford = robot_info("stanford")
@@ -211,5 +218,9 @@ def test_other_arms_get_friction_and_sensitivity_plans_where_gravity_allows():
     j1 = friction_plans([1], robot=puma560)[0]
     assert puma560.lower[0] < j1.meta["window"][0] and j1.meta["window"][1] < puma560.upper[0]
     for robot, j in ((puma560, 2), (puma560, 3), (stanford, 2)):
-        with pytest.raises(CalibError, match=f"no pose found for joint {j}"):
-            friction_plans([j], robot=robot)
+        # no window frees these joints of gravity's work: one with little of it, taken off by the fit
+        fr = friction_plans([j], robot=robot)[0]
+        lo, hi = fr.meta["window"]
+        assert fr.meta["gravity_loaded"] and robot.lower[j - 1] < lo < hi < robot.upper[j - 1]
+        arcs = sensitivity_plans(None, 0.05, joints=[j], robot=robot)       # gravity cancels in 4.43
+        assert [p.meta["pose"] for p in arcs] == [fr.meta["pose"]] * 2

@@ -1,5 +1,6 @@
-"""Issue 30: the PUMA 560's friction on the joints whose windows lie inside its ranges (1, 4, 5, 6;
-2 and 3 are refused with the reason, tests/test_calib_programs.py), recorded on a lockstep simula
+"""Issue 30: the PUMA 560's friction on the joints with gravity-free windows inside its ranges
+(1, 4, 5, 6; 2 and 3, whose windows gravity works on: tests/test_calib_friction560_loaded.py),
+recorded on a lockstep simula
 of a hidden truth (rcci.calib.hidden_truth seed 4: friction 10-30 % away from the data file) with
 simula seed 8, and fitted as `calib fit friction` fits with the truth's own sensitivities: the
 Coulomb and viscous coefficients of both directions within their printed intervals. Joint 1

@@ -51,8 +51,14 @@ def _window_gravity(res, traces, info, params, notes) -> list:
             out.append(r)
             continue
         pose = np.asarray(tr.need("pose", (list, tuple)), dtype=float)
-        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)))
-        sources.add(source)
+        loaded = bool(tr.meta.get("gravity_loaded", False))
+        g, sd, source = window_gravity(info.name, params, r.joint, pose, (lo, hi), min(TAPER, 0.25 * (hi - lo)),
+                                       loaded=loaded)
+        sources.add(source.split("; ")[0])      # the coefficients' share is named per joint below
+        if loaded:
+            notes.append(f"joint {r.joint}: gravity works over its friction window (its centres of mass lie off "
+                         f"the link's line): its mean there, {g:+.4f} +- {3 * sd:.4f} N m, is taken off F_c+- "
+                         f"({source})")
         out.append(r.with_window_gravity(g, sd))
     if any(not s.startswith("the fitted kinematics") or "data file" in s for s in sources):
         notes.append("gravity's mean over the friction windows (their axes lean by the DH errors) from "
@@ -124,7 +130,8 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
         j = r.joint - 1
         peak, rms = vt.get(r.joint, (float("nan"), float("nan")))
         vb = "-" if truth is None else f"{100 * truth.variation[j]:.0f} %"
-        L.append(f"| {r.joint} | {100 * fr['variation']['values'][j]:.0f} % | {vb} | {100 * peak:.1f} % | "
+        thesis = f"{100 * fr['variation']['values'][j]:.0f} %" if "variation" in fr else "-"   # a thesis arm's
+        L.append(f"| {r.joint} | {thesis} | {vb} | {100 * peak:.1f} % | "
                  f"{100 * rms:.1f} % | {100 * r.variation:.1f} % |")
     L += ["", "Appendix B: friction against speed per direction (points: passes; line: the fit; "
           "band: the printed uncertainty of F_c)", ""]
@@ -140,14 +147,16 @@ def _rows(res, fr, truth, check, table: str, what: str, scale: float, fmt: str, 
         j = r.joint - 1
         for name, fit, d_key in (("+", r.plus, "pos"), ("-", r.minus, "neg")):
             key = f"{what}_{d_key}"
-            th, te = fr[key]["values"][j], fr[key]["uncertainty"][j]
+            th = fr[key]["values"][j]
+            te = fr[key].get("uncertainty", [float("nan")] * len(fr[key]["values"]))[j]   # none: not a thesis arm
             value, err = getattr(fit, what), getattr(fit, f"{what}_err")
             tv = float("nan") if truth is None else float(getattr(truth, key)[j])
             d = abs(value - tv)
             v = lambda x: format(scale * x, fmt)  # noqa: E731
-            L.append(f"| {r.joint} | {name} | {v(th)} +- {v(te)} | {'-' if truth is None else v(tv)} | "
+            thesis = f"{v(th)} +- {v(te)}" if np.isfinite(te) else f"{v(th)} (no bound)"
+            L.append(f"| {r.joint} | {name} | {thesis} | {'-' if truth is None else v(tv)} | "
                      f"{v(value)} +- {v(err)}{extra(fit)} | {v(d)} | "
-                     + (f"{check(table, d <= te)} | {check(table + ' fit', d <= err)} |"
+                     + (f"{check(table, d <= te) if np.isfinite(te) else '-'} | {check(table + ' fit', d <= err)} |"
                         if truth is not None else "- | - |"))
     return L
 

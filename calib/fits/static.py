@@ -29,12 +29,13 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in res:
         j = r.joint - 1
-        t = [fr[k]["values"][j] for k in ("static_typical_max", "static_typical_min",
-                                           "static_typical_mean", "static_typical_std")]
+        # the thesis's Table 4.6; "-" where the data file has none (an arm the thesis did not measure)
+        t = [f"{fr[k]['values'][j]:.3f}" if k in fr else "-"
+             for k in ("static_typical_max", "static_typical_min", "static_typical_mean", "static_typical_std")]
         tm, _ = joint_truth(ctx.truth, "hold_mean", j, ".3f")
         ts, _ = joint_truth(ctx.truth, "hold_std", j, ".3f")
-        L.append(f"| {r.joint} | {t[0]:.3f} | {r.maximum:.3f} | {t[1]:.3f} | {r.minimum:.3f} | "
-                 f"{t[2]:.3f} | {tm} | {r.mean:.3f} | {t[3]:.3f} | {ts} | {r.std:.3f} |")
+        L.append(f"| {r.joint} | {t[0]} | {r.maximum:.3f} | {t[1]} | {r.minimum:.3f} | "
+                 f"{t[2]} | {tm} | {r.mean:.3f} | {t[3]} | {ts} | {r.std:.3f} |")
     return L + [""]
 
 
