@@ -76,9 +76,19 @@ GOAL_OPS = ("fk", "jacobian6", "jacobian4")
 #: issue 27's goals for the dynamics (eq. 4.6): (one configuration per call, batched)
 DYNAMICS_GOALS = {"inverse_dynamics": (3.0, 10.0), "inertia_matrix": (3.0, 10.0)}
 OPS = ("fk", "jacobian6", "jacobian4", "gravity", "inverse_dynamics", "inertia_matrix")
-#: (name, doubles) of the results file: Pinocchio's then the kernel's, per configuration
-RESULT_LAYOUT = (("fk", 16), ("jacobian6", 36), ("jacobian4", 36), ("gravity", 6),
-                 ("inverse_dynamics", 6), ("inertia_matrix", 36))
+#: the results file's computations, in its order (Pinocchio's then the kernel's, per configuration)
+RESULT_NAMES = ("fk", "jacobian6", "jacobian4", "gravity", "inverse_dynamics", "inertia_matrix")
+
+
+def result_layout(nj: int) -> tuple[tuple[str, int], ...]:
+    """(name, doubles) of the results file of an ``nj``-joint robot: T (16), the two 6 x nj
+    Jacobians, gravity and inverse dynamics (nj torques) and the nj x nj inertia matrix."""
+    sizes = (16, 6 * nj, 6 * nj, nj, nj, nj * nj)
+    return tuple(zip(RESULT_NAMES, sizes))
+
+
+#: the six-joint arms' layout (the thesis's arms)
+RESULT_LAYOUT = result_layout(6)
 
 
 def goals(op: str) -> tuple[float, float] | None:
@@ -166,30 +176,49 @@ def kernels_source(robot: str) -> str:
     return text[:cut]
 
 
+def joint_count(robot: str) -> int:
+    """The robot's joint count (models/<robot>.toml), which the programs are compiled for."""
+    from rcci.models import load_robot
+    return int(load_robot(robot).n_joints)
+
+
+def end_frame(nj: int) -> str:
+    """The last link's frame of an ``nj``-joint robot's URDF, where its generated fk and
+    Jacobian end (link6 for the thesis's arms, link7 for the Panda)."""
+    return f"link{nj}"
+
+
+def robot_defines(nj: int) -> list[str]:
+    """The compile-time constants of an ``nj``-joint robot's programs (both sides)."""
+    return [f"-DNJ={nj}", f'-DEND_FRAME="{end_frame(nj)}"']
+
+
 def build(robot: str, tc: Toolchain | None = None, profile: Profile = BENCH) -> Path:
     """The comparison program of ``robot`` in ``profile.folder``, compiled unless an identical build exists."""
     tc = tc or toolchain()
     out = profile.folder
     out.mkdir(parents=True, exist_ok=True)
     cxx_inc = [f"-I{tc.prefix / 'include'}", f"-I{tc.eigen}", f"-I{SRC}"]
-    # Pinocchio's side does not depend on the robot: one object for every robot
+    defines = robot_defines(joint_count(robot))
+    # Pinocchio's side depends on the robot only through its joint count: one object per count
     pin_key = _digest(SRC / "vs_pinocchio.cpp", SRC / "kernel_rows.h", list(profile.cxx_flags), PIN_DEFINES, cxx_inc,
-                      _compiler_id(tc.cxx), (tc.prefix / "include" / "pinocchio" / "config.hpp"))
+                      defines, _compiler_id(tc.cxx), (tc.prefix / "include" / "pinocchio" / "config.hpp"))
     pin_obj = out / f"vs_pinocchio-{pin_key}.o"
     if not pin_obj.exists():
         tmp = pin_obj.with_suffix(f".{os.getpid()}.tmp")
-        _compile([tc.cxx, *profile.cxx_flags, *PIN_DEFINES, *cxx_inc, "-c", str(SRC / "vs_pinocchio.cpp"), "-o", str(tmp)],
+        _compile([tc.cxx, *profile.cxx_flags, *PIN_DEFINES, *defines, *cxx_inc, "-c", str(SRC / "vs_pinocchio.cpp"),
+                  "-o", str(tmp)],
                  "bench/cpp/vs_pinocchio.cpp")
         tmp.replace(pin_obj)
     src = kernels_source(robot)
     k_key = _digest(src, *(KERNEL_DIR / h for h in ("kin_prelude.h",)), SRC / "kernel_rows.c", SRC / "kernel_rows.h",
-                    C_FLAGS, _compiler_id(tc.cc), str(tc.python_include))
+                    C_FLAGS, defines, _compiler_id(tc.cc), str(tc.python_include))
     inc = out / f"{robot}-{k_key}.inc"
     k_obj = out / f"{robot}-kernels-{k_key}.o"
     if not k_obj.exists():
         inc.write_text(src)
         tmp = k_obj.with_suffix(f".{os.getpid()}.tmp")
-        _compile([tc.cc, *C_FLAGS, f"-I{KERNEL_DIR}", f"-I{tc.python_include}", f"-I{SRC}",
+        _compile([tc.cc, *C_FLAGS, *defines, f"-I{KERNEL_DIR}", f"-I{tc.python_include}", f"-I{SRC}",
                   f'-DRCCL_KERNELS="{inc}"', "-c", str(SRC / "kernel_rows.c"), "-o", str(tmp)],
                  f"the {robot} kernels")
         tmp.replace(k_obj)
@@ -212,7 +241,8 @@ def model_text(robot: str) -> str:
     program's model file format (bench/cpp/vs_pinocchio.cpp): per joint its type, axis, parent,
     placement in the parent joint (rotation row-major, then translation, m) and the link
     inertia in the joint frame (mass kg, centre of mass m, rotational inertia kg m^2 about
-    it); then the frames link4 and link6 (parent joint, placement). Printed with 17 digits:
+    it); then the frames link4 and the last link's (link6, the Panda's link7; parent joint,
+    placement). Printed with 17 digits:
     the program reads back the same doubles."""
     import pinocchio as pin
     model = pin.buildModelFromUrdf(str(ROOT / "models" / "urdf" / f"{robot}.urdf"))
@@ -225,7 +255,7 @@ def model_text(robot: str) -> str:
         lines.append(f"joint {model.names[j]} {joint.shortname()} {_numbers(axis)} {model.parents[j]} "
                      f"{_numbers(m.rotation.ravel())} {_numbers(m.translation)} {_numbers([y.mass])} "
                      f"{_numbers(y.lever)} {_numbers([i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])}")
-    for name in ("link4", "link6"):
+    for name in ("link4", end_frame(model.nq)):
         if not model.existFrame(name):
             raise ToolchainError(f"models/urdf/{robot}.urdf: no frame {name}")
         f = model.frames[model.getFrameId(name)]
@@ -263,11 +293,13 @@ class Run:
 
 def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False, tc: Toolchain | None = None,
         profile: Profile = BENCH) -> Run:
-    """Build (if needed) and run the comparison on configurations ``q`` (N x 6, rad and m);
-    ``profile`` CHECK for agreement only (its timings are not make bench's)."""
+    """Build (if needed) and run the comparison on configurations ``q`` (N x n for an n-joint
+    robot, rad and m); ``profile`` CHECK for agreement only (its timings are not make bench's)."""
     q = np.ascontiguousarray(q, dtype=float)
-    if q.ndim != 2 or q.shape[1] != 6 or len(q) == 0:
-        raise ValueError(f"bench.cpp_pinocchio.run: q must be N x 6 with N >= 1, got shape {q.shape}")
+    nj = joint_count(robot)
+    if q.ndim != 2 or q.shape[1] != nj or len(q) == 0:
+        raise ValueError(f"bench.cpp_pinocchio.run: q must be N x {nj} ({robot}'s joints) with N >= 1, "
+                         f"got shape {q.shape}")
     exe = build(robot, tc, profile)
     tag = f"{robot}-{os.getpid()}"
     qf, cf, rf, mf = (profile.folder / f"{tag}.{x}" for x in ("q.bin", "c.bin", "res.bin", "model.txt"))
@@ -288,10 +320,11 @@ def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False,
                 ns[(what, who)] = float(value)
         out = Run(robot, int(meta["configurations"]), repeats, meta["vector_trig"] == "1", ns)
         if with_results:
-            per = sum(2 * k for _, k in RESULT_LAYOUT)
+            layout = result_layout(nj)
+            per = sum(2 * k for _, k in layout)
             data = np.fromfile(rf).reshape(len(q), per)
             at = 0
-            for name, k in RESULT_LAYOUT:
+            for name, k in layout:
                 out.results[name] = (data[:, at:at + k], data[:, at + k:at + 2 * k])
                 at += 2 * k
         return out
@@ -301,23 +334,20 @@ def run(robot: str, q: np.ndarray, repeats: int = 5, with_results: bool = False,
 
 
 def robots() -> list[str]:
-    """Every six-joint robot under models/ with a URDF and compiled C kernels. The programs
-    (bench/cpp/) are written for six joint variables and frames link4/link6; a seven-joint
-    arm (the Panda) is compared with Pinocchio in bench/ik_redundant.py (fk) and in the
-    tests' cross-checks, not here."""
-    from rcci.models import load_robot
+    """Every robot under models/ with a URDF and compiled C kernels, of any joint count (the
+    programs are compiled per robot for its joint count and last link's frame)."""
     from rcci.models.catalogue import available_robots
     from rccl.kinematics import backend
     return [r for r in available_robots()
-            if load_robot(r).n_joints == 6
-            and (ROOT / "models" / "urdf" / f"{r}.urdf").is_file() and (KERNEL_DIR / f"{r}.c").is_file()
+            if (ROOT / "models" / "urdf" / f"{r}.urdf").is_file() and (KERNEL_DIR / f"{r}.c").is_file()
             and backend.c_module(r) is not None]
 
 
 def random_q(robot: str, n: int, rng: np.random.Generator) -> np.ndarray:
     from rccl.kinematics import load
     mod = load(robot)
-    return rng.uniform(np.asarray(mod.LOWER), np.asarray(mod.UPPER), size=(n, 6))
+    lower, upper = np.asarray(mod.LOWER, dtype=float), np.asarray(mod.UPPER, dtype=float)
+    return rng.uniform(lower, upper, size=(n, len(lower)))
 
 
 def measure(n: int = 10000, repeats: int = 25, n_check: int = 500, seed: int = 11) -> tuple[list[Run], Toolchain]:
@@ -384,13 +414,15 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
          "- `one per call`: the kernel's batched loop called for one configuration at a time (the path of a single "
          "call of the extension, without its argument checks); `batched`: one call over all N configurations (the "
          "extension's loop over rows, one thread; blocks of 32 rows share their sine/cosine and row vector code).",
-         "- Pinocchio's computations: fk = forwardKinematics + updateFramePlacement(link6) (T6); jacobian6 = "
-         "computeFrameJacobian(link6, LOCAL), which is Paul's 6J; jacobian4 = the thesis's link-4 Jacobian 4J, "
-         "which Pinocchio has no call for: 6J from computeFrameJacobian(link6, LOCAL), then updateFramePlacement of "
-         "link4 and link6 and both 3-row blocks rotated by R46; gravity = computeGeneralizedGravity (the generated "
+         "- Each robot's program is compiled for its joint count n (-DNJ=n) and last link's frame linkn "
+         "(link6; the Panda's link7, its flange, where its generated fk and Jacobians end: 6 x 7 Jacobians, a 7 x 7 "
+         "inertia matrix). Pinocchio's computations: fk = forwardKinematics + updateFramePlacement(linkn) (T6 for six "
+         "joints); jacobian6 = computeFrameJacobian(linkn, LOCAL), which is Paul's 6J; jacobian4 = the thesis's "
+         "link-4 Jacobian 4J, which Pinocchio has no call for: computeFrameJacobian(linkn, LOCAL), then "
+         "updateFramePlacement of link4 and linkn and both 3-row blocks rotated into frame 4's axes; gravity = computeGeneralizedGravity (the generated "
          "gravity kernel with the coefficients of the model file's link masses and centres of mass); "
          "inverse_dynamics = rnea(q, qd, qdd) and inertia_matrix = crba(q) (Pinocchio fills the upper triangle, "
-         "the generated kernel all 36 entries), with qd = sin(q + 1), qdd = 2 cos(1.5 q) on both sides.",
+         "the generated kernel all n x n entries), with qd = sin(q + 1), qdd = 2 cos(1.5 q) on both sides.",
          f"- Goal (issue 16): the generated C at least {GOAL:g}x faster per configuration than Pinocchio's C++ "
          "for FK and the Jacobian; issue 27: inverse dynamics and the inertia matrix at least 3x per "
          "configuration and 10x batched.", "",
@@ -405,8 +437,8 @@ def section(runs: list[Run], tc: Toolchain) -> list[str]:
     n_check = len(next(iter(runs[0].results.values()))[0]) if runs[0].results else 0
     L += ["", f"Agreement, same program, {n_check} other random configurations per robot (largest element "
           "difference between Pinocchio's C++ and the generated kernel, single-configuration path):", "",
-          "| robot | " + " | ".join(name for name, _ in RESULT_LAYOUT) + " |",
-          "|---|" + "---:|" * len(RESULT_LAYOUT)]
+          "| robot | " + " | ".join(RESULT_NAMES) + " |",
+          "|---|" + "---:|" * len(RESULT_NAMES)]
     for r in runs:
         L.append(f"| {r.robot} | " + " | ".join(f"{np.abs(a - b).max():.1e}" for a, b in r.results.values()) + " |")
     L.append("")

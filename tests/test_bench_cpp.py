@@ -1,6 +1,7 @@
 """make bench's C++ comparison (bench/cpp_pinocchio.py): the program builds against the pin
 wheel, and Pinocchio's C++ (on the model its URDF parser builds) and the generated kernels it
-links compute the same T6, 6J, 4J and gravity. Correctness only; the speeds are make bench's,
+links compute the same T6, 6J, 4J, gravity, inverse dynamics and inertia matrix, for every arm
+of any joint count (the Panda's seven: its program compiled with -DNJ=7 and frame link7). Correctness only; the speeds are make bench's,
 so the program is the CHECK build (Pinocchio's side without optimisation, on the wheel's
 compiled algorithms, its own cache build/bench/check/): the first run compiles it, about a
 third of the CPU of make bench's build; later runs reuse it."""
@@ -23,7 +24,22 @@ DEFAULT_ROBOT = ROBOTS[0]
 
 
 def test_every_robot_with_kernels_is_compared():
-    assert {"puma260", "microbo", "puma560"} <= set(ROBOTS)
+    assert {"puma260", "microbo", "puma560", "panda"} <= set(ROBOTS)
+
+
+def test_the_results_layout_and_configurations_are_sized_by_the_joint_count():
+    assert cpp_pinocchio.result_layout(6) == cpp_pinocchio.RESULT_LAYOUT
+    assert dict(cpp_pinocchio.result_layout(7)) == {"fk": 16, "jacobian6": 42, "jacobian4": 42, "gravity": 7,
+                                                    "inverse_dynamics": 7, "inertia_matrix": 49}
+    assert cpp_pinocchio.joint_count("panda") == 7 and cpp_pinocchio.end_frame(7) == "link7"
+    q = cpp_pinocchio.random_q("panda", 5, np.random.default_rng(1))
+    lower, upper = np.asarray(rccl.kinematics.load("panda").LOWER), np.asarray(rccl.kinematics.load("panda").UPPER)
+    assert q.shape == (5, 7) and np.all(q >= lower) and np.all(q <= upper)
+    assert cpp_pinocchio.robot_defines(7) == ["-DNJ=7", '-DEND_FRAME="link7"']
+    text = cpp_pinocchio.model_text("panda")
+    assert [line.split()[:2] for line in text.splitlines() if line.startswith("frame")] == [["frame", "link4"],
+                                                                                           ["frame", "link7"]]
+    assert sum(line.startswith("joint") for line in text.splitlines()) == 7
 
 
 @pytest.mark.parametrize("robot", [pytest.param(r, marks=() if r == DEFAULT_ROBOT else pytest.mark.slow)
@@ -31,10 +47,11 @@ def test_every_robot_with_kernels_is_compared():
 def test_pinocchio_cpp_agrees_with_the_generated_kernels(robot):
     """The default suite compares the first robot (the microbo: revolute and prismatic joints,
     the Pinocchio object's compile and one kernel build); ``-m slow`` adds the PUMA 260, PUMA 560
-    and Stanford arms, each its own -O3 kernel compile and link."""
+    and Stanford arms, each its own -O3 kernel compile and link, and the seven-joint Panda (its
+    own Pinocchio object too, -DNJ=7)."""
     mod = rccl.kinematics.load(robot)
     rng = np.random.default_rng(5)
-    q = np.vstack([np.zeros(6), cpp_pinocchio.random_q(robot, 11, rng)])
+    q = np.vstack([np.zeros(cpp_pinocchio.joint_count(robot)), cpp_pinocchio.random_q(robot, 11, rng)])
     run = cpp_pinocchio.run(robot, q, repeats=1, with_results=True, profile=cpp_pinocchio.CHECK)
     assert run.n == len(q)
     tol = {"fk": 1e-12, "jacobian6": 1e-12, "jacobian4": 1e-12, "gravity": 1e-10,
@@ -65,6 +82,8 @@ def test_missing_headers_are_named(monkeypatch, tmp_path):
 def test_bad_configurations_are_refused():
     with pytest.raises(ValueError, match="N x 6"):
         cpp_pinocchio.run(ROBOTS[0], np.zeros((3, 5)), profile=cpp_pinocchio.CHECK)
+    with pytest.raises(ValueError, match="N x 7 \\(panda's joints\\)"):
+        cpp_pinocchio.run("panda", np.zeros((3, 6)), profile=cpp_pinocchio.CHECK)
 
 
 def test_the_model_file_is_pinocchios_model_and_bad_lines_are_named(tmp_path):

@@ -9,6 +9,10 @@
 #include RCCL_KERNELS
 #include "kernel_rows.h"
 
+#ifndef NJ
+#error "NJ (the robot's joint count) must be defined: bench/cpp_pinocchio.py passes -DNJ=<n>"
+#endif
+
 static const kernel_entry *find(const char *name)
 {
     for (size_t i = 0; i < sizeof KERNELS / sizeof KERNELS[0]; ++i)
@@ -43,12 +47,12 @@ static void rows(const char *name, long n, const double *q, const double *c, dou
     k->fn((Py_ssize_t)n, in, is, outs, os);
 }
 
-void rccl_fk_one(const double *q, double *T) { batch_fk(1, (const double *const[]){q}, (const Py_ssize_t[]){6}, (double *const[]){T}, (const Py_ssize_t[]){16}); }
-void rccl_jacobian6_one(const double *q, double *J) { batch_jacobian6(1, (const double *const[]){q}, (const Py_ssize_t[]){6}, (double *const[]){J}, (const Py_ssize_t[]){36}); }
-void rccl_jacobian4_one(const double *q, double *J) { batch_jacobian4(1, (const double *const[]){q}, (const Py_ssize_t[]){6}, (double *const[]){J}, (const Py_ssize_t[]){36}); }
+void rccl_fk_one(const double *q, double *T) { batch_fk(1, (const double *const[]){q}, (const Py_ssize_t[]){NJ}, (double *const[]){T}, (const Py_ssize_t[]){16}); }
+void rccl_jacobian6_one(const double *q, double *J) { batch_jacobian6(1, (const double *const[]){q}, (const Py_ssize_t[]){NJ}, (double *const[]){J}, (const Py_ssize_t[]){6 * NJ}); }
+void rccl_jacobian4_one(const double *q, double *J) { batch_jacobian4(1, (const double *const[]){q}, (const Py_ssize_t[]){NJ}, (double *const[]){J}, (const Py_ssize_t[]){6 * NJ}); }
 void rccl_gravity_one(const double *q, const double *c, double *tau)
 {
-    batch_gravity(1, (const double *const[]){q, c}, (const Py_ssize_t[]){6, 0}, (double *const[]){tau}, (const Py_ssize_t[]){6});
+    batch_gravity(1, (const double *const[]){q, c}, (const Py_ssize_t[]){NJ, 0}, (double *const[]){tau}, (const Py_ssize_t[]){NJ});
 }
 
 void rccl_fk_rows(long n, const double *q, double *T) { rows("fk", n, q, NULL, T); }
@@ -58,20 +62,20 @@ void rccl_gravity_rows(long n, const double *q, const double *c, double *tau) { 
 
 void rccl_inverse_dynamics_one(const double *q, const double *qd, const double *qdd, double *tau)
 {
-    batch_inverse_dynamics(1, (const double *const[]){q, qd, qdd}, (const Py_ssize_t[]){6, 6, 6},
-                           (double *const[]){tau}, (const Py_ssize_t[]){6});
+    batch_inverse_dynamics(1, (const double *const[]){q, qd, qdd}, (const Py_ssize_t[]){NJ, NJ, NJ},
+                           (double *const[]){tau}, (const Py_ssize_t[]){NJ});
 }
 void rccl_inertia_matrix_one(const double *q, double *D)
 {
-    batch_inertia_matrix(1, (const double *const[]){q}, (const Py_ssize_t[]){6}, (double *const[]){D}, (const Py_ssize_t[]){36});
+    batch_inertia_matrix(1, (const double *const[]){q}, (const Py_ssize_t[]){NJ}, (double *const[]){D}, (const Py_ssize_t[]){NJ * NJ});
 }
 void rccl_inverse_dynamics_rows(long n, const double *q, const double *qd, const double *qdd, double *tau)
 {
     const kernel_entry *k = find("inverse_dynamics");
     const double *in[3] = {q, qd, qdd};
-    const Py_ssize_t is[3] = {6, 6, 6};
+    const Py_ssize_t is[3] = {NJ, NJ, NJ};
     double *outs[1] = {tau};
-    const Py_ssize_t os[1] = {6};
+    const Py_ssize_t os[1] = {NJ};
     k->fn((Py_ssize_t)n, in, is, outs, os);
 }
 void rccl_inertia_matrix_rows(long n, const double *q, double *D) { rows("inertia_matrix", n, q, NULL, D); }

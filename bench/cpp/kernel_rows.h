@@ -1,9 +1,10 @@
 /* The generated C kernels of one robot as plain C functions, for bench/cpp/vs_pinocchio.cpp.
  * kernel_rows.c defines them around the robot's generated rccl/kinematics/_c/<robot>.c
- * (its kernels only, without the CPython runtime). Arrays are row-major doubles:
- * q[6] joint variables (rad, m), T[16] = T6 (link 6 in the base frame, m), J[36] = 6J or
- * 4J (rows dx dy dz dx_rot dy_rot dz_rot, columns joints 1-6), c[] the robot's gravity
- * coefficients, tau[6] gravity torques (N m, N). */
+ * (its kernels only, without the CPython runtime), compiled with -DNJ=<the robot's joint
+ * count n> (6 for the thesis's arms, 7 for the Panda). Arrays are row-major doubles:
+ * q[n] joint variables (rad, m), T[16] = the last link's frame (link n) in the base frame (m),
+ * J[6n] = the Jacobian in frame n or in frame 4's axes (rows dx dy dz dx_rot dy_rot dz_rot,
+ * columns joints 1-n), c[] the robot's gravity coefficients, tau[n] gravity torques (N m, N). */
 #ifndef RCCL_BENCH_KERNEL_ROWS_H
 #define RCCL_BENCH_KERNEL_ROWS_H
 #ifdef __cplusplus
@@ -31,8 +32,8 @@ void rccl_jacobian6_rows(long n, const double *q, double *J);
 void rccl_jacobian4_rows(long n, const double *q, double *J);
 void rccl_gravity_rows(long n, const double *q, const double *c, double *tau);
 
-/* The dynamics (thesis eq. 4.6): qd[6], qdd[6] joint rates and accelerations, tau[6] the
- * rigid-body joint torques of the data file's inertials, D[36] the inertia matrix. */
+/* The dynamics (thesis eq. 4.6): qd[n], qdd[n] joint rates and accelerations, tau[n] the
+ * rigid-body joint torques of the data file's inertials, D[n*n] the inertia matrix. */
 void rccl_inverse_dynamics_one(const double *q, const double *qd, const double *qdd, double *tau);
 void rccl_inertia_matrix_one(const double *q, double *D);
 void rccl_inverse_dynamics_rows(long n, const double *q, const double *qd, const double *qdd, double *tau);

@@ -8,23 +8,28 @@
 //          `joint NAME TYPE AX AY AZ PARENT R(9, row-major) P(3) MASS LEVER(3) I(xx xy yy xz yz zz)`
 //          and per frame `frame NAME PARENT_JOINT R(9) P(3)`, rebuilt here with addJoint,
 //          appendBodyToJoint and addFrame (the parser's own header costs most of a compile)
-// Q.bin    N configurations, N x 6 doubles (rad, m), row-major, native byte order
+// Q.bin    N configurations, N x NJ doubles (rad, m), row-major, native byte order
+//
+// Built per robot: -DNJ=<joint count> (6 for the thesis's arms, 7 for the Panda) and
+// -DEND_FRAME="link<NJ>" (the last link's frame, where the generated fk and Jacobian end).
 // C.bin    the gravity coefficients of the generated gravity kernel (doubles)
 // REPEATS  rounds: each timing is the best of its passes over the N configurations, one per
 //          round; a round runs every pass once, in turn
-// RESULTS  optional: per configuration, Pinocchio's then the kernel's T6 (16), 6J (36),
-//          4J (36) and gravity (6), row-major doubles, for the agreement test
+// RESULTS  optional: per configuration, Pinocchio's then the kernel's T (16), the Jacobian in
+//          END_FRAME (6 NJ), in frame 4's axes (6 NJ), gravity (NJ), inverse dynamics (NJ) and
+//          the inertia matrix (NJ NJ), row-major doubles, for the agreement test
 //
 // Prints one line per timing: `<computation> <implementation> <ns per configuration>`.
 // What is compared (Pinocchio side):
-//   fk        forwardKinematics(q) + updateFramePlacement(link6): T6 = data.oMf[link6]
-//   jacobian6 computeFrameJacobian(q, link6, LOCAL): Paul's frame-6 Jacobian 6J
-//   jacobian4 the thesis's link-4 Jacobian 4J: 6J with both 3-row blocks rotated into
-//             frame 4 (R46 = oMf[link4].R^T oMf[link6].R; updateFramePlacement of link4
-//             and link6 after the Jacobian pass)
+//   fk        forwardKinematics(q) + updateFramePlacement(END_FRAME): T6 = data.oMf[link6]
+//             for a six-joint arm
+//   jacobian6 computeFrameJacobian(q, END_FRAME, LOCAL): Paul's frame-6 Jacobian 6J (six joints)
+//   jacobian4 the thesis's link-4 Jacobian 4J: that Jacobian with both 3-row blocks rotated
+//             into frame 4 (R46 = oMf[link4].R^T oMf[END_FRAME].R; updateFramePlacement of
+//             link4 and END_FRAME after the Jacobian pass)
 //   gravity   computeGeneralizedGravity(q)
 //   inverse_dynamics  rnea(q, qd, qdd); inertia_matrix  crba(q) (its upper triangle, which
-//             is what Pinocchio fills; the generated kernel writes all 36 entries)
+//             is what Pinocchio fills; the generated kernel writes all NJ x NJ entries)
 //   (qd, qdd: fixed functions of q, the same for both sides)
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
@@ -47,10 +52,22 @@
 
 #include "kernel_rows.h"
 
+#ifndef NJ
+#error "NJ (the robot's joint count) must be defined: bench/cpp_pinocchio.py passes -DNJ=<n>"
+#endif
+#ifndef END_FRAME
+#error "END_FRAME (the last link's frame name) must be defined: bench/cpp_pinocchio.py passes it"
+#endif
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using RowMajor6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
+using RowMajorJ = Eigen::Matrix<double, 6, NJ, Eigen::RowMajor>;
+using ColN = Eigen::Matrix<double, NJ, 1>;
+using MatN = Eigen::Matrix<double, NJ, NJ>;
+using RowMajorN = Eigen::Matrix<double, NJ, NJ, Eigen::RowMajor>;
+// the largest result of one configuration (T 16, a Jacobian 6 NJ, the inertia matrix NJ NJ)
+constexpr int ROW = (NJ * NJ > 16 ? NJ * NJ : 16) > 6 * NJ ? (NJ * NJ > 16 ? NJ * NJ : 16) : 6 * NJ;
 using RowMajor4 = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
 #ifdef PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION
 // The agreement-only build (bench/cpp_pinocchio.py CHECK): the algorithms the wheel's
@@ -59,7 +76,7 @@ using RowMajor4 = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
 using QArg = Eigen::VectorXd;
 #else
 // The timed build: the configuration read in place, the algorithms compiled here at -O3.
-using QArg = Eigen::Map<const Eigen::Matrix<double, 6, 1>>;
+using QArg = Eigen::Map<const ColN>;
 #endif
 
 std::vector<double> read_doubles(const std::string &path)
@@ -157,12 +174,12 @@ std::vector<double> best_per_config(int repeats, long n, const std::vector<Pass>
     return best;
 }
 
-// The link-4 Jacobian from Pinocchio's frame-6 one (rows v then omega, as Paul's 6J).
-RowMajor6 jacobian4_from(const pinocchio::Data &data, pinocchio::FrameIndex f4, pinocchio::FrameIndex f6,
+// The link-4 Jacobian from Pinocchio's END_FRAME one (rows v then omega, as Paul's 6J).
+RowMajorJ jacobian4_from(const pinocchio::Data &data, pinocchio::FrameIndex f4, pinocchio::FrameIndex f6,
                          const pinocchio::Data::Matrix6x &j6)
 {
     const Eigen::Matrix3d r46 = data.oMf[f4].rotation().transpose() * data.oMf[f6].rotation();
-    RowMajor6 j4;
+    RowMajorJ j4;
     j4.topRows<3>().noalias() = r46 * j6.topRows<3>();
     j4.bottomRows<3>().noalias() = r46 * j6.bottomRows<3>();
     return j4;
@@ -180,22 +197,23 @@ int main(int argc, char **argv)
         pinocchio::Model model;
         read_model(argv[1], model);
         pinocchio::Data data(model);
-        if (model.nq != 6 || model.nv != 6)
-            throw std::runtime_error(std::string(argv[1]) + ": expected 6 joint variables, Pinocchio finds nq = "
-                                     + std::to_string(model.nq));
-        const pinocchio::FrameIndex f6 = model.getFrameId("link6"), f4 = model.getFrameId("link4");
+        if (model.nq != NJ || model.nv != NJ)
+            throw std::runtime_error(std::string(argv[1]) + ": this program is built for " + std::to_string(NJ)
+                                     + " joint variables, Pinocchio finds nq = " + std::to_string(model.nq));
+        const pinocchio::FrameIndex f6 = model.getFrameId(END_FRAME), f4 = model.getFrameId("link4");
         if (f6 >= model.frames.size() || f4 >= model.frames.size())
-            throw std::runtime_error(std::string(argv[1]) + ": no frame link4 or link6");
+            throw std::runtime_error(std::string(argv[1]) + ": no frame link4 or " END_FRAME);
         const std::vector<double> q = read_doubles(argv[2]);
         const std::vector<double> c = read_doubles(argv[3]);
         const int repeats = std::atoi(argv[4]);
-        if (q.empty() || q.size() % 6 != 0) throw std::runtime_error(std::string(argv[2]) + ": not N x 6 doubles");
+        if (q.empty() || q.size() % NJ != 0)
+            throw std::runtime_error(std::string(argv[2]) + ": not N x " + std::to_string(NJ) + " doubles");
         if (int(c.size()) != rccl_gravity_ncoeffs())
             throw std::runtime_error(std::string(argv[3]) + ": " + std::to_string(c.size()) + " coefficients, the "
                                      + rccl_robot() + " gravity kernel takes " + std::to_string(rccl_gravity_ncoeffs()));
         if (repeats < 1) throw std::runtime_error("REPEATS must be >= 1");
-        const long n = long(q.size() / 6);
-        auto qi = [&](long i) { return QArg(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(q.data() + 6 * i)); };
+        const long n = long(q.size() / NJ);
+        auto qi = [&](long i) { return QArg(Eigen::Map<const ColN>(q.data() + NJ * i)); };
 
         const int vector_trig = rccl_vector_trig(1);
         std::printf("vector_trig - %d\n", vector_trig);
@@ -203,8 +221,8 @@ int main(int argc, char **argv)
 
         pinocchio::Data::Matrix6x j6 = pinocchio::Data::Matrix6x::Zero(6, model.nv);
         double sink = 0.0;  // every result feeds it, so no pass is optimised away
-        std::vector<double> out(std::size_t(n) * 36);
-        double row[36];
+        std::vector<double> out(std::size_t(n) * ROW);
+        double row[ROW];
 
         // Every pass of every side, then the best of `repeats` rounds, each round running them
         // all in turn: both sides see the same moments of a loaded machine.
@@ -218,7 +236,7 @@ int main(int argc, char **argv)
                }});
         passes.push_back({"fk", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
-                       rccl_fk_one(q.data() + 6 * i, row);
+                       rccl_fk_one(q.data() + NJ * i, row);
                        sink += row[3];
                    }
                }});
@@ -236,7 +254,7 @@ int main(int argc, char **argv)
                }});
         passes.push_back({"jacobian6", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
-                       rccl_jacobian6_one(q.data() + 6 * i, row);
+                       rccl_jacobian6_one(q.data() + NJ * i, row);
                        sink += row[0];
                    }
                }});
@@ -256,7 +274,7 @@ int main(int argc, char **argv)
                }});
         passes.push_back({"jacobian4", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
-                       rccl_jacobian4_one(q.data() + 6 * i, row);
+                       rccl_jacobian4_one(q.data() + NJ * i, row);
                        sink += row[0];
                    }
                }});
@@ -272,7 +290,7 @@ int main(int argc, char **argv)
                }});
         passes.push_back({"gravity", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
-                       rccl_gravity_one(q.data() + 6 * i, c.data(), row);
+                       rccl_gravity_one(q.data() + NJ * i, c.data(), row);
                        sink += row[1];
                    }
                }});
@@ -288,7 +306,7 @@ int main(int argc, char **argv)
             qdd[i] = 2.0 * std::cos(1.5 * q[i]);
         }
         auto vi = [&](const std::vector<double> &v, long i) {
-            return QArg(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(v.data() + 6 * i));
+            return QArg(Eigen::Map<const ColN>(v.data() + NJ * i));
         };
         passes.push_back({"inverse_dynamics", "pinocchio", [&] {
                    for (long i = 0; i < n; ++i)
@@ -296,7 +314,7 @@ int main(int argc, char **argv)
                }});
         passes.push_back({"inverse_dynamics", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
-                       rccl_inverse_dynamics_one(q.data() + 6 * i, qd.data() + 6 * i, qdd.data() + 6 * i, row);
+                       rccl_inverse_dynamics_one(q.data() + NJ * i, qd.data() + NJ * i, qdd.data() + NJ * i, row);
                        sink += row[1];
                    }
                }});
@@ -310,7 +328,7 @@ int main(int argc, char **argv)
                }});
         passes.push_back({"inertia_matrix", "c_one", [&] {
                    for (long i = 0; i < n; ++i) {
-                       rccl_inertia_matrix_one(q.data() + 6 * i, row);
+                       rccl_inertia_matrix_one(q.data() + NJ * i, row);
                        sink += row[1];
                    }
                }});
@@ -330,33 +348,33 @@ int main(int argc, char **argv)
                 pinocchio::forwardKinematics(model, data, qi(i));
                 const RowMajor4 t = pinocchio::updateFramePlacement(model, data, f6).toHomogeneousMatrix();
                 put(t.data(), 16);
-                rccl_fk_one(q.data() + 6 * i, row);
+                rccl_fk_one(q.data() + NJ * i, row);
                 put(row, 16);
                 pinocchio::computeFrameJacobian(model, data, qi(i), f6, pinocchio::LOCAL, j6);
-                const RowMajor6 j6r = j6;
-                put(j6r.data(), 36);
-                rccl_jacobian6_one(q.data() + 6 * i, row);
-                put(row, 36);
+                const RowMajorJ j6r = j6;
+                put(j6r.data(), 6 * NJ);
+                rccl_jacobian6_one(q.data() + NJ * i, row);
+                put(row, 6 * NJ);
                 pinocchio::updateFramePlacement(model, data, f4);
                 pinocchio::updateFramePlacement(model, data, f6);
-                const RowMajor6 j4 = jacobian4_from(data, f4, f6, j6);
-                put(j4.data(), 36);
-                rccl_jacobian4_one(q.data() + 6 * i, row);
-                put(row, 36);
-                const Eigen::Matrix<double, 6, 1> g = pinocchio::computeGeneralizedGravity(model, data, qi(i));
-                put(g.data(), 6);
-                rccl_gravity_one(q.data() + 6 * i, c.data(), row);
-                put(row, 6);
-                const Eigen::Matrix<double, 6, 1> torques = pinocchio::rnea(model, data, qi(i), vi(qd, i), vi(qdd, i));
-                put(torques.data(), 6);
-                rccl_inverse_dynamics_one(q.data() + 6 * i, qd.data() + 6 * i, qdd.data() + 6 * i, row);
-                put(row, 6);
-                Eigen::Matrix<double, 6, 6> mm = pinocchio::crba(model, data, qi(i));
+                const RowMajorJ j4 = jacobian4_from(data, f4, f6, j6);
+                put(j4.data(), 6 * NJ);
+                rccl_jacobian4_one(q.data() + NJ * i, row);
+                put(row, 6 * NJ);
+                const ColN g = pinocchio::computeGeneralizedGravity(model, data, qi(i));
+                put(g.data(), NJ);
+                rccl_gravity_one(q.data() + NJ * i, c.data(), row);
+                put(row, NJ);
+                const ColN torques = pinocchio::rnea(model, data, qi(i), vi(qd, i), vi(qdd, i));
+                put(torques.data(), NJ);
+                rccl_inverse_dynamics_one(q.data() + NJ * i, qd.data() + NJ * i, qdd.data() + NJ * i, row);
+                put(row, NJ);
+                MatN mm = pinocchio::crba(model, data, qi(i));
                 mm.triangularView<Eigen::StrictlyLower>() = mm.transpose();
-                const RowMajor6 md = mm;
-                put(md.data(), 36);
-                rccl_inertia_matrix_one(q.data() + 6 * i, row);
-                put(row, 36);
+                const RowMajorN md = mm;
+                put(md.data(), NJ * NJ);
+                rccl_inertia_matrix_one(q.data() + NJ * i, row);
+                put(row, NJ * NJ);
             }
             if (!res) throw std::runtime_error(std::string("cannot write ") + argv[5]);
         }
