@@ -15,7 +15,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class PathSegment:
-    """A move from ``start`` to ``end`` (rad, (6,)) with cruise speed ``speed`` (rad/s,
+    """A move from ``start`` to ``end`` (rad, (n_joints,)) with cruise speed ``speed`` (rad/s,
     along the largest joint change), acceleration ``accel`` (rad/s^2), then ``dwell`` s
     standing still at ``end``."""
 
@@ -46,7 +46,7 @@ class PathSegment:
         return 2 * t_ramp + t_cruise + self.dwell
 
     def at(self, t: np.ndarray) -> np.ndarray:
-        """Poses (N,6) at times ``t`` (s) from the segment's start."""
+        """Poses (N, n_joints) at times ``t`` (s) from the segment's start."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, None)
         t_ramp, t_cruise, v = self._profile()
         d = self.distance
@@ -71,10 +71,10 @@ class Path:
         return float(sum(s.duration for s in self.segments))
 
     def sample(self, rate_hz: float) -> np.ndarray:
-        """Setpoints (N,6) rad at t = k / rate_hz until the path ends."""
+        """Setpoints (N, n_joints) rad at t = k / rate_hz until the path ends."""
         n = int(np.ceil(self.duration * rate_hz)) + 1
         t = np.arange(n) / rate_hz
-        out = np.empty((n, 6))
+        out = np.empty((n, len(self.segments[-1].end)))
         t0 = 0.0
         for seg in self.segments:
             sel = (t >= t0) & (t < t0 + seg.duration)

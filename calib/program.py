@@ -17,6 +17,7 @@ import numpy as np
 from rcci.calib.exceptions import CalibError
 from rcci.calib.experiments import ACCEL, MeasurementPlan
 from rcci.calib.paths import Path, PathSegment, approach_path
+from rcci.models import load_robot
 from rci import codes
 from rci.conversions import Conversions
 from rci.exceptions import RCIError
@@ -49,8 +50,8 @@ def open_measurement(url: str, robot: str, rate_hz: int, log_path: str, meta: di
     """The recorder (writing in the background) and the RCI session every measurement
     program runs on: errors raised, overruns counted (a lockstep simula on a busy machine
     is slow, not late), ``timeout`` s without a HOW before R_TIMEOUT."""
-    rec = Recorder(log_path, robot=robot, rate_hz=rate_hz, meta=meta, block_records=1024,
-                   user_fields=user_fields)
+    rec = Recorder(log_path, robot=robot, nj=load_robot(robot).n_joints, rate_hz=rate_hz, meta=meta,
+                   block_records=1024, user_fields=user_fields)
     rec.start_writer(0.5)
     session = Session(url, robot, rate_hz=rate_hz, realtime=realtime, lock_memory=False,
                       on_error="raise", gc="leave", overrun="count", timeout=timeout)

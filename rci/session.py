@@ -189,7 +189,11 @@ class Session:
 
     def record(self, recorder) -> None:
         """Log every control cycle into ``recorder`` (an ``rci.recorder.Recorder``); None stops.
-        Takes effect at the next cycle of a running control, and for every later control."""
+        Takes effect at the next cycle of a running control, and for every later control.
+        A recorder made for another joint count than the robot's is refused (ValueError)."""
+        if recorder is not None and self.link is not None and getattr(recorder, "nj", self.nj) != self.nj:
+            raise ValueError(f"record: the recorder of {recorder.path} holds {recorder.nj} joints, the "
+                             f"{self.robot} has {self.nj}: make it with Recorder(..., nj={self.nj})")
         self.config = self.config.changed(recorder=recorder)
         t = self._task
         if t is not None and not t.ended:

@@ -173,10 +173,10 @@ def test_drive_terms_are_the_runtime_models(robot: str) -> None:
     mod, _ = ARMS[robot]
     model = load_robot(robot)
     truth = truth_from_model(model)
-    truth = replace(truth, variation=np.zeros(6), disturbances=replace(truth.disturbances, start_warm=True))
+    truth = replace(truth, variation=np.zeros(model.n_joints), disturbances=replace(truth.disturbances, start_warm=True))
     sim = FrictionState(truth, np.random.default_rng(0))
     rng = np.random.default_rng(3)
-    qd = rng.uniform(-2.0, 2.0, (40, 6))
+    qd = rng.uniform(-2.0, 2.0, (40, model.n_joints))
     qd[1::7, 2] = -1e-9                    # just moving: the Coulomb step
     qd[::5, :] = 0.0                       # at rest: no kinetic friction
     f = mod.friction(qd)
@@ -184,7 +184,7 @@ def test_drive_terms_are_the_runtime_models(robot: str) -> None:
     want = friction_torque(qd, fr.coulomb_pos.values, fr.coulomb_neg.values, fr.viscous_pos.values,
                            fr.viscous_neg.values)
     np.testing.assert_allclose(f, want, rtol=1e-12, atol=1e-12)
-    q = rng.uniform(mod.LOWER, mod.UPPER, (40, 6))
+    q = rng.uniform(mod.LOWER, mod.UPPER, (40, model.n_joints))
     np.testing.assert_allclose(f, [sim.kinetic(q[k], qd[k]) for k in range(40)], rtol=1e-12, atol=1e-12)
     assert np.all(f[::5] == 0.0)
     cas = ca.Function.load(f"rccl/kinematics/casadi/{robot}/friction.casadi")
@@ -192,7 +192,7 @@ def test_drive_terms_are_the_runtime_models(robot: str) -> None:
         np.testing.assert_allclose(mod.friction(qd[k]), f[k], rtol=0, atol=0)
         np.testing.assert_allclose(np.ravel(mod._friction_one(qd[k])), f[k], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(np.asarray(cas(qd[k])).ravel(), f[k], rtol=1e-12, atol=1e-12)
-    qdd = rng.uniform(-5.0, 5.0, (40, 6))
+    qdd = rng.uniform(-5.0, 5.0, (40, model.n_joints))
     np.testing.assert_allclose(mod.rotor_torque(qdd), qdd @ model.rotor_matrix().T, rtol=1e-12, atol=1e-14)
     cas = ca.Function.load(f"rccl/kinematics/casadi/{robot}/rotor_torque.casadi")
     np.testing.assert_allclose(np.asarray(cas(qdd[3])).ravel(), model.rotor_matrix() @ qdd[3], rtol=1e-12, atol=1e-14)

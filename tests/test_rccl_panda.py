@@ -4,8 +4,9 @@ A joint-mode program moves the redundant arm through joint-defined positions
 (``rccl.position.joint_position``: the targets carry their joints, so no inverse kinematics is
 needed) and the encoders must reach each target. The world side is simula's Pinocchio model
 of models/urdf/panda.urdf; the generated kinematics (rccl.kinematics.panda) give the tool
-frame T7. The Panda's closed-form inverse needs the free value q7, for which RCCL has no rule
-yet (issue 28 item 3): a move that needs inverse kinematics is refused naming the free value.
+frame T7. The Panda's closed-form inverse needs the free value q7: a Cartesian target is
+reached with q7 held by the default rule (docs/redundancy.md). An RCI recorder logs the Panda's
+seven encoders; one made for six joints is refused before it could drop a cycle.
 """
 from __future__ import annotations
 
@@ -97,3 +98,26 @@ def test_the_example_reaches_its_targets(sim, capsys):
         assert error < 2e-3 and MODEL.within_limits(q), (name, error)
     out = capsys.readouterr().out
     assert all(f"{name}: joints" in out for name in ex.TARGETS)
+
+
+def test_the_recorder_logs_seven_joints_and_refuses_a_six_joint_one(sim, tmp_path):
+    """rci.recorder on a 7-joint arm: Recorder(nj=7) logs every cycle's seven encoder counts; a
+    six-joint recorder is refused by Session.record with the count to use (it would have failed
+    in the control cycle, ending the control)."""
+    from rci.recorder import Recorder, read_log
+
+    with open_arm(sim, "panda") as arm:
+        with pytest.raises(ValueError, match="holds 6 joints, the panda has 7: make it with Recorder"):
+            arm.rci.record(Recorder(tmp_path / "six.rcilog", robot="panda"))
+        rec = Recorder(tmp_path / "seven.rcilog", robot="panda", nj=7)
+        arm.rci.record(rec)
+        arm.setmod("joint")
+        arm.setvel(0.2, math.radians(60.0))
+        p = joint_position("A", arm.kinematics, TARGETS["A"])
+        arm.move(p)
+        arm.waitfor(p.end)
+        arm.rci.record(None)
+        rec.close()
+    log = read_log(tmp_path / "seven.rcilog")
+    assert len(log) > 10 and log.records["how_pos"].shape[1] == 7
+    assert len(np.unique(log.records["how_pos"][:, 6])) > 1      # joint 7 moved and was logged
