@@ -139,12 +139,16 @@ class RedundantRobot(Robot):
         ok = np.all((q >= lo - RANGE_TOL) & (q <= hi + RANGE_TOL), axis=-1)
         return q, ok
 
-    def _reproduces(self, q: np.ndarray, t: np.ndarray, context) -> None:
-        """Raise KinematicsError unless fk(q) equals t within REPRODUCE_TOL (q (..., 7), t (..., 4, 4))."""
+    def _misses(self, q: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """The largest element of |fk(q) - t| (rotation and position rows), per solution; NaN where q is not finite."""
         with np.errstate(all="ignore"):
             tq = self.kernels["fk"].many(q if q.ndim == 2 else q[None])[0]  # q finite: from a checked solve
         tq = tq if q.ndim == 2 else tq[0]
-        err = np.abs(np.asarray(tq)[..., :3, :] - t[..., :3, :]).reshape(q.shape[:-1] + (12,)).max(axis=-1)
+        return np.abs(np.asarray(tq)[..., :3, :] - t[..., :3, :]).reshape(q.shape[:-1] + (12,)).max(axis=-1)
+
+    def _reproduces(self, q: np.ndarray, t: np.ndarray, context) -> None:
+        """Raise KinematicsError unless fk(q) equals t within REPRODUCE_TOL (q (..., 7), t (..., 4, 4))."""
+        err = self._misses(q, t)
         if np.any(~(err <= REPRODUCE_TOL)):
             i = int(np.argmax(np.atleast_1d(~(err <= REPRODUCE_TOL))))
             raise exceptions.KinematicsError(f"{self.name}: a solution misses the pose by "
@@ -202,8 +206,9 @@ class RedundantRobot(Robot):
         q_all, in_range = self._in_range(q_all, None if ref2 is None else ref2[:, None, :])
         ok &= in_range
         if ok.any():
-            self._reproduces(q_all[ok], np.broadcast_to(t3[:, None], q_all.shape[:2] + (4, 4))[ok],
-                             lambda i: "in ik_all")
+            # a branch that does not reproduce T within REPRODUCE_TOL (round-off where two branches
+            # meet, near a singular configuration) is left out: every solution returned reproduces T
+            ok[ok] = self._misses(q_all[ok], np.broadcast_to(t3[:, None], q_all.shape[:2] + (4, 4))[ok]) <= REPRODUCE_TOL
         # equal solutions (2 pi apart on a joint) kept once: pairwise over the configurations
         same = (np.abs(_wrap(q_all[:, :, None, :] - q_all[:, None, :, :])) < SAME_SOLUTION_TOL).all(axis=-1)
         out = []
