@@ -15,8 +15,8 @@ rcci.calib.identification's JM columns). Friction coefficients are bounded at ze
 
 The cost is the weighted least squares cost of the unconstrained fit, written with its normal
 matrix: (x(theta) - x_wls)^T A_w^T A_w (x(theta) - x_wls), x(theta) the base parameters of the
-generated ``base_parameters`` (CasADi) with the rotor and friction columns. It starts from the
-data file's inertials.
+generated ``base_parameters`` (CasADi) with the rotor and friction columns, grouped as the fit's
+columns are (rcci.calib.grouping). It starts from the data file's inertials.
 """
 from __future__ import annotations
 
@@ -87,7 +87,8 @@ def fit_consistent(robot: str, x_wls: np.ndarray, H: np.ndarray, rss: float,
     import casadi as ca
 
     from rcci.calib.excitation import casadi_kernel
-    from rcci.calib.identification import rotor_coupling_motors
+    from rcci.calib.grouping import grouping
+    from rcci.calib.regressor import rotor_coupling_motors
     from rcci.calib.robot import robot_info
     from rcci.models import load_robot
 
@@ -109,7 +110,7 @@ def fit_consistent(robot: str, x_wls: np.ndarray, H: np.ndarray, rss: float,
     rotor_diag = ca.mtimes(ca.DM(G.T ** 2), jr)       # sum_m J_m G_mj^2
     beta = casadi_kernel(robot, "base_parameters")(ca.vertcat(*ms), ca.vertcat(*coms), ca.vertcat(*rows),
                                                     rotor_diag)
-    x = ca.vertcat(beta, *[jr[m] for m in coupled], fr)
+    x = ca.mtimes(ca.DM(grouping(robot).K), ca.vertcat(beta, *[jr[m] for m in coupled], fr))
     e = x - ca.DM(x_wls)
     cost = ca.mtimes([e.T, ca.DM(H), e])
     z = ca.vertcat(th, r, fr)

@@ -69,7 +69,7 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray 
     t, rate, lp, q, qd, qdd, tau = joint_motion(trace, drive, offset)
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
     inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
-    noise = current_noise(t, tau, lp, rate)
+    noise = current_noise(t, tau, rate)
 
     moving = (np.abs(qd) >= still_speeds(robot)) & inner[:, None]
     err = tau - pred

@@ -43,9 +43,11 @@ def link_inertials(arm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def truth_parameters(robot: str, params: dict | None) -> np.ndarray:
-    """The true value of each column of rcci.calib.identification.column_names."""
+    """The true value of each column of rcci.calib.identification.column_names (grouped as
+    rcci.calib.grouping folds them)."""
     import rccl.kinematics as kin
-    from rcci.calib.identification import column_names, rotor_coupling_motors
+    from rcci.calib.grouping import grouping
+    from rcci.calib.regressor import full_column_names, rotor_coupling_motors
     from rci.simula.params import motor_inertia
 
     arm = simula_arm(robot, params)
@@ -60,6 +62,6 @@ def truth_parameters(robot: str, params: dict | None) -> np.ndarray:
     for j in range(n):
         fric += [t.coulomb_pos[j], t.coulomb_neg[j], t.viscous_pos[j], t.viscous_neg[j]]
     out = np.concatenate([beta, coupling, fric])
-    if len(out) != len(column_names(robot)):
-        raise CalibError(f"robot {robot}: {len(out)} true values for {len(column_names(robot))} columns")
-    return out
+    if len(out) != len(full_column_names(robot)):
+        raise CalibError(f"robot {robot}: {len(out)} true values for {len(full_column_names(robot))} columns")
+    return grouping(robot).K @ out

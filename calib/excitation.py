@@ -173,7 +173,8 @@ def design_rows(robot: str):
     """A CasADi function (q, qd, qdd) -> (n, p) of one instant: the design regressor (SX)."""
     import casadi as ca
 
-    from rcci.calib.identification import rotor_coupling_motors
+    from rcci.calib.grouping import grouping
+    from rcci.calib.regressor import rotor_coupling_motors
     from rcci.calib.robot import robot_info
 
     f = casadi_kernel(robot, "base_regressor")
@@ -187,7 +188,9 @@ def design_rows(robot: str):
     pos = 0.5 * (1 + ca.tanh(qd / SIGN_SPEED))        # the fit's per-direction friction columns
     neg = 1 - pos
     cols += [ca.diag(pos), -ca.diag(neg), ca.diag(qd * pos), ca.diag(qd * neg)]
-    return ca.Function("design_rows", [q, qd, qdd], [ca.horzcat(*cols)])
+    g = grouping(robot)                        # the fit's columns (rcci.calib.grouping)
+    rows = ca.times(ca.horzcat(*cols), ca.DM(g.mask))[:, list(g.keep)]
+    return ca.Function("design_rows", [q, qd, qdd], [rows])
 
 
 class _Problem:

@@ -29,14 +29,16 @@ channel of its motors is at its rail, and ``STILL_WINDOW_S`` either side of such
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
 from rcci.calib.exceptions import CalibError, LogError
+from rcci.calib.grouping import grouping
+from rcci.calib.regressor import full_regressor_columns, gear
 
 ORDER = 4
 CUTOFF_HZ = 4.0          # Hz: 8 x the excitation's highest harmonic (0.5 Hz)
+NOISE_CUTOFF_HZ = 4.0    # Hz: what the measured torque holds above it is taken as its noise (current_noise)
 DECIMATE_HZ = 20.0       # Hz: rows kept after the low-pass (5 x the cut-off)
 EDGE_S = 1.0             # s trimmed at each end (the zero-phase filter's start-up)
 STILL_SPEED = 0.1        # rad/s (m/s), or STILL_SHARE of the joint's velocity limit where smaller (slides)
@@ -54,31 +56,20 @@ def still_speeds(robot: str) -> np.ndarray:
 
 
 def identifiable(robot: str) -> str | None:
-    """None when random moving states separate every column of the fit, else why not
-    (:func:`inseparable`): checked before an arm's excitation is designed or recorded."""
-    from rcci.models import load_robot
-
-    m = load_robot(robot)
-    rng = np.random.default_rng(1)
-    q = rng.uniform(m.lower, m.upper, (400, len(m.lower)))
-    qd = rng.choice((-1.0, 1.0), q.shape) * rng.uniform(0.2, 1.0, q.shape)
-    A = regressor_columns(robot, q, qd, rng.normal(size=q.shape)).reshape(-1, regressor_width(robot))
+    """None when random moving states separate every column of the fit (after the grouping of
+    rcci.calib.grouping), else why not (:func:`inseparable`): checked before an arm's excitation
+    is designed or recorded."""
+    A = _random_rows(robot, seed=1)
     nrm = np.linalg.norm(A, axis=0)
     if np.all(nrm > 0) and np.linalg.cond(A / nrm) < 1e8:
         return None
     return inseparable(robot)
 
 
-def inseparable(robot: str, samples: int = 400) -> str:
+def inseparable(robot: str) -> str:
     """Which columns of the fit no motion separates (a null vector of the unit-column regressor
     on random states, moving joints only), in words."""
-    from rcci.models import load_robot
-
-    m = load_robot(robot)
-    rng = np.random.default_rng(0)
-    q = rng.uniform(m.lower, m.upper, (samples, len(m.lower)))
-    qd = rng.choice((-1.0, 1.0), q.shape) * rng.uniform(0.2, 1.0, q.shape)
-    A = regressor_columns(robot, q, qd, rng.normal(size=q.shape)).reshape(-1, regressor_width(robot))
+    A = _random_rows(robot, seed=0)
     nrm = np.linalg.norm(A, axis=0)
     names = column_names(robot)
     dead = [names[k] for k in np.flatnonzero(nrm == 0)]
@@ -87,36 +78,23 @@ def inseparable(robot: str, samples: int = 400) -> str:
     v = np.linalg.svd(A / nrm, full_matrices=False)[2][-1]
     big = [f"{v[k]:+.2f} {names[k]}" for k in np.argsort(-np.abs(v)) if abs(v[k]) > 0.05]
     return ("on every motion the columns combine to zero as " + " ".join(big)
-            + " (e.g. the weight of a vertical slide is a constant force, which the per-direction "
-              "Coulomb friction of that joint also is)")
+            + " (friction and rotor columns alone: no rigid-body parameter to fold into them)")
 
 
-def rotor_coupling_motors(G: np.ndarray) -> list[int]:
-    """Motors (0-based) whose row of G reaches more than one joint."""
-    return [m for m in range(G.shape[0]) if np.count_nonzero(G[m]) > 1]
+def _random_rows(robot: str, seed: int) -> np.ndarray:
+    """The fit's regressor stacked over rcci.calib.grouping.random_states."""
+    from rcci.calib.grouping import random_states
+    from rcci.models import load_robot
+
+    m = load_robot(robot)
+    q, qd, qdd = random_states(len(m.lower), np.asarray(m.lower, float), np.asarray(m.upper, float), seed=seed)
+    return regressor_columns(robot, q, qd, qdd).reshape(-1, regressor_width(robot))
 
 
-@cache
-def _kin(robot: str):
-    import rccl.kinematics as kin
-
-    return kin.load(robot)
-
-
-@cache
-def _gear(robot: str) -> np.ndarray:
-    from rcci.calib.robot import robot_info
-
-    return np.asarray(robot_info(robot).drive.G, float)
-
-
-@cache
 def column_names(robot: str) -> tuple[str, ...]:
-    """Names of the fit's columns: base parameters, rotor couplings, friction."""
-    n = len(_gear(robot))
-    fric = tuple(f"{k}{j}{s}" for j in range(1, n + 1) for k in ("FC", "FV") for s in ("+", "-"))
-    return (tuple(_kin(robot).BASE_PARAMETERS) + tuple(f"JM{m + 1}" for m in rotor_coupling_motors(_gear(robot)))
-            + fric)
+    """Names of the fit's columns: :func:`full_column_names` after the grouping
+    (rcci.calib.grouping: e.g. the Microbo's M2 folded into IA2R, FC2+R, FC2-R)."""
+    return grouping(robot).names
 
 
 def regressor_width(robot: str) -> int:
@@ -125,24 +103,7 @@ def regressor_width(robot: str) -> int:
 
 def regressor_columns(robot: str, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
     """(N, n, p): joint torques = this @ the parameters of :func:`column_names`, at each row."""
-    q, qd, qdd = (np.atleast_2d(np.asarray(x, float)) for x in (q, qd, qdd))
-    N, n = q.shape
-    Y = np.asarray(_kin(robot).base_regressor(q, qd, qdd)).reshape(N, n, -1)
-    G = _gear(robot)
-    cols = [Y]
-    for m in rotor_coupling_motors(G):
-        full = np.outer(G[m], G[m])
-        off = full - np.diag(np.diag(full))
-        cols.append((qdd @ off.T)[:, :, None])
-    fr = np.zeros((N, n, 4 * n))
-    pos, neg = qd > 0, qd < 0
-    for j in range(n):
-        fr[:, j, 4 * j] = pos[:, j]
-        fr[:, j, 4 * j + 1] = -neg[:, j].astype(float)
-        fr[:, j, 4 * j + 2] = qd[:, j] * pos[:, j]
-        fr[:, j, 4 * j + 3] = qd[:, j] * neg[:, j]
-    cols.append(fr)
-    return np.concatenate(cols, axis=2)
+    return grouping(robot).columns(full_regressor_columns(robot, q, qd, qdd))
 
 
 @dataclass
@@ -173,8 +134,9 @@ def lowpass(rate_hz: float):
     (rcci.calib.filters)."""
     from rcci.calib.filters import zero_phase_lowpass
 
-    if rate_hz <= 4 * CUTOFF_HZ:
-        raise CalibError(f"a dynamics log needs a rate above {4 * CUTOFF_HZ:g} Hz, not {rate_hz:g} Hz")
+    if rate_hz <= 4 * max(CUTOFF_HZ, NOISE_CUTOFF_HZ):
+        raise CalibError(f"a dynamics log needs a rate above {4 * max(CUTOFF_HZ, NOISE_CUTOFF_HZ):g} Hz, "
+                         f"not {rate_hz:g} Hz")
     return lambda x: zero_phase_lowpass(x, ORDER, CUTOFF_HZ, rate_hz)
 
 
@@ -217,11 +179,14 @@ def joint_motion(trace, drive, offset: np.ndarray | None = None):
     return t, rate, lp, q, qd, qdd, tau
 
 
-def current_noise(t: np.ndarray, tau: np.ndarray, lp, rate: float) -> np.ndarray:
-    """Per joint, the sd (N m) of the measured torque's noise: what the low-pass removes inside the
-    log's edges, scaled up for the band it keeps."""
+def current_noise(t: np.ndarray, tau: np.ndarray, rate: float) -> np.ndarray:
+    """Per joint, the sd (N m) of the measured torque's noise: what a zero-phase low-pass at
+    ``NOISE_CUTOFF_HZ`` removes inside the log's edges, scaled up for the band it keeps."""
+    from rcci.calib.filters import zero_phase_lowpass
+
     inner = (t >= t[0] + EDGE_S) & (t <= t[-1] - EDGE_S)
-    return np.std((tau - lp(tau))[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - CUTOFF_HZ))
+    high = tau - zero_phase_lowpass(tau, ORDER, NOISE_CUTOFF_HZ, rate)
+    return np.std(high[inner], axis=0) * np.sqrt(rate / 2 / (rate / 2 - NOISE_CUTOFF_HZ))
 
 
 def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) -> Rows:
@@ -236,11 +201,11 @@ def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) ->
     N, n, p = Y.shape
     Yf = lp(current_filter(Y.reshape(N, n * p), rate, FILTER_TAU)).reshape(N, n, p)
     tf = lp(tau)
-    noise = current_noise(t, tau, lp, rate)
+    noise = current_noise(t, tau, rate)
     step = max(1, int(round(rate / DECIMATE_HZ)))
     keep = np.arange(0, N, step)
     keep = keep[(t[keep] >= t[0] + EDGE_S) & (t[keep] <= t[-1] - EDGE_S)]
-    G = _gear(robot)
+    G = gear(robot)
     rail = np.abs(trace.adc) >= ADC_RAIL                       # (N, n) motors
     joint_rail = (rail.astype(float) @ (G != 0).astype(float)) > 0
     A, y, js, ts = [], [], [], []

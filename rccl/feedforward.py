@@ -221,7 +221,52 @@ def fitted_columns(path: str | os.PathLike, kin) -> dict[str, float]:
     if not isinstance(dyn, Mapping) or "names" not in dyn or "values" not in dyn:
         raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r} has no [dynamics] names and values "
                          "(run calib fit dynamics LOGS -p FILE first: docs/calib.md)")
-    return dict(zip(dyn["names"], dyn["values"]))
+    fitted = dict(zip(dyn["names"], dyn["values"]))
+    if not dyn.get("grouped"):
+        return fitted
+    try:
+        grouped = {name: dict(zip(of, coef, strict=True))
+                   for name, of, coef in zip(dyn["grouped"], dyn["grouped_of"], dyn["grouped_coefficients"], strict=True)}
+    except (KeyError, TypeError, ValueError):
+        raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r}: [dynamics] grouped, grouped_of and "
+                         "grouped_coefficients must be lists of one length (what calib fit dynamics writes)") from None
+    return ungrouped(fitted, grouped, kin, os.fspath(path))
+
+
+def ungrouped(fitted: Mapping, grouped: Mapping, kin, where: str) -> dict[str, float]:
+    """``fitted`` with the values calib grouped split again (rcci.calib.grouping: e.g. the
+    Microbo's ``FC2+R = FC2+ + 9.81 M2 + 9.81 M3R``): a parameter fitted in a column of its own
+    (M3R) keeps its fitted value; one left with none (M2) takes the data file's, since no motion
+    determines it apart from the others; each grouped column gives its own parameter the rest.
+    The torques in motion are the grouped fit's either way; at rest the weight of M2 is the data
+    file's."""
+    prior = dict(zip(kin.BASE_PARAMETERS, data_file_base_parameters(kin.ROBOT)))
+    out = {k: float(v) for k, v in fitted.items() if k not in grouped}
+    for name, part in grouped.items():
+        own = name[:-1] if name.endswith("R") and name[:-1] in part else name
+        folded = [k for k in part if k != own]
+        if name not in fitted or own not in part or any(k not in prior for k in folded):
+            raise BadRequest(f"feedforward: parameter file {where!r}: [dynamics] grouped {name} = {dict(part)} "
+                             f"does not match its names (expected {name} among them, made of {own} and base "
+                             f"parameters of the {kin.ROBOT})")
+        value = {k: float(fitted[k]) if k in fitted else prior[k] for k in folded}   # fitted in its own column, or not
+        out.update(value)
+        out[own] = (float(fitted[name]) - sum(float(part[k]) * value[k] for k in folded)) / float(part[own])
+    return out
+
+
+def data_file_base_parameters(robot: str) -> np.ndarray:
+    """The base parameters (``BASE_PARAMETERS`` order) of the data file's inertials and rotors."""
+    from rcci.models import load_robot
+    import rccl.kinematics as kinematics
+
+    rm = load_robot(robot)
+    masses = np.array([li.mass for li in rm.links])
+    coms = np.array([li.com for li in rm.links])
+    inertia = np.array([[i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+                        for i in (np.asarray(li.inertia, dtype=float) for li in rm.links)])
+    rotor = np.diag(data_file_rotor(robot))
+    return np.asarray(kinematics.load(robot).base_parameters(masses, coms, inertia, rotor), dtype=float)
 
 
 def fitted_drive_terms(path: str | os.PathLike, kin) -> tuple[np.ndarray, tuple[np.ndarray, ...] | None]:

@@ -16,6 +16,7 @@ SECTION = "dynamics"
 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
     from rcci.calib.dynamics import fit_dynamics
+    from rcci.calib.grouping import grouping
 
     drive = info.drive.with_sigma(inputs.sigma(list(range(len(info.lower)))))
     kin = params.get("kinematics", {})
@@ -38,6 +39,7 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
                              "the jackknife over 10 spans of time; with the fitted sensitivities' scale "
                              "error; docs/calib.md",
                  "unit": "SI: kg m^2, kg m, N m, N m s/rad (names: rcci.calib.identification.column_names)"}
+    sec.update(grouping(info.name).as_section())     # columns folded into others (rcci.calib.grouping)
     if res.consistent is not None:
         sec["consistent_values"] = [float(v) for v in res.consistent.value]
         sec["consistent_masses"] = [float(v) for v in res.consistent.masses]
@@ -70,6 +72,7 @@ def table(res, truth: np.ndarray | None = None) -> str:
 
 def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     from rcci.calib.dynamics import GOAL_RMS_NOISE, coverage, truth_vector
+    from rcci.calib.grouping import grouping
 
     res = out.results
     logs = [t for t in ctx.traces if t.experiment == "dynamics"]
@@ -84,7 +87,12 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          f"intervals 99.73 % (the larger of Student's t x sd, the sd inflated by the residuals' "
          "autocorrelation, and a jackknife over 10 spans of time). "
          "What the generated base regressor lacks (the wrist motors' rotor coupling, friction) is "
-         "computed in rcci.calib.identification.", "",
+         "computed in rcci.calib.identification.", ""]
+    formulas = grouping(res.robot).formulas()
+    if formulas:
+        L += ["Columns no motion separates, folded into others (rcci.calib.grouping; the interval and the "
+              "truth are of the grouped value): " + "; ".join(formulas) + ".", ""]
+    L += [
          f"- condition number of the designed excitations (unit columns): "
          + ", ".join(f"{c:.1f}" for c in res.cond_design),
          f"- condition number of the weighted fit's regressor (unit columns): {res.wls.cond_scaled:.1f}",
