@@ -177,3 +177,24 @@ def test_static_samples_sized_by_the_arm() -> None:
     s = halt_samples(tr, info.drive, lambda q: np.zeros(7))
     assert s.shape == (1, 7)
     assert np.allclose(s[0], info.drive.joint_torques(np.full((1, 7), 10.0))[0])
+
+
+def test_one_blas_thread_sets_and_restores_the_count() -> None:
+    """rcci.calib.blas_threads: numpy's OpenBLAS at one thread inside, its count back after
+    (also when the body raises); an SVD inside gives what it gives outside."""
+    from rcci.calib.blas_threads import blas_controls, one_blas_thread
+
+    controls = blas_controls()
+    assert controls, "numpy's wheel loads an OpenBLAS: its thread count should be found"
+    before = [g() for g, _ in controls]
+    A = np.random.default_rng(0).normal(size=(1500, 76))
+    s_out = np.linalg.svd(A, compute_uv=False)
+    with one_blas_thread():
+        assert [g() for g, _ in controls] == [1] * len(controls)
+        s_in = np.linalg.svd(A, compute_uv=False)
+    assert [g() for g, _ in controls] == before
+    assert np.allclose(s_in, s_out, rtol=1e-12)
+    with pytest.raises(ZeroDivisionError):
+        with one_blas_thread():
+            1 / 0
+    assert [g() for g, _ in controls] == before
