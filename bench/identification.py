@@ -213,8 +213,9 @@ def run(robot: str, truth_seed: int, sim_seed: int, plots: str) -> str:
          f"--seed {sim_seed}`; do not edit by hand. Truth: `calib hidden-truth --seed {truth_seed} --inertials` "
          f"(not the data file's values); simula seed {sim_seed}, lockstep, `--dynamic --warm`. The torque "
          "sensitivities and joint offsets the fit takes from its parameter file are the truth's (standing "
-         "for `calib fit sensitivity` and `calib fit kinematics` on logs of the same truth). Recording took {:.0f} s of wall time (designs included); the machine's load "
-         "average was {:.1f} on its 2 cores.".format(record_s, load), "",
+         "for `calib fit sensitivity` and `calib fit kinematics` on logs of the same truth). Run at {} UTC; recording took {:.0f} s of wall "
+         "time (designs included); the machine's load average was {:.1f} on its 2 cores.".format(
+             time.strftime("%Y-%m-%d %H:%M", time.gmtime()), record_s, load), "",
          "| figure | measured | goal | met |", "|---|---|---|---|"]
     L += [f"| {a} | {b} | {c} | {'yes' if d else '**no**'} |" for a, b, c, d in rows]
     L += ["", "Where the truth falls outside: " + (", ".join(n for n, ok in zip(res.names, inside) if not ok) or "nowhere")

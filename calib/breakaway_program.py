@@ -128,7 +128,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
                 session.chg.power_on.issue()
             state["power"] = True
             # from wherever the arm is to the start of the warm-up (not recorded)
-            start = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            start = conv.counts_to_angles(np.asarray(how.pos[:conv.n], dtype=float))
             steps.insert(0, ("warm", Path((PathSegment(start, steps[0][1][0], 0.6, ACCEL, 0.5),))
                              .sample(rate)))
         if state["step"] >= len(steps):
@@ -167,8 +167,8 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
             state["onset"] = k
         if state["onset"] is not None and k - state["onset"] >= AFTER_ONSET or k / rate > 2 * RAMP_S:
             state["onset"] = k if state["onset"] is None else state["onset"]
-            qh = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
-            qh[np.arange(6) != j] = q[np.arange(6) != j]
+            qh = conv.counts_to_angles(np.asarray(how.pos[:conv.n], dtype=float))
+            qh[np.arange(conv.n) != j] = q[np.arange(conv.n) != j]
             state["hold"] = qh
             pos_all(qh)
             return

@@ -23,8 +23,9 @@ SERVO_PERIOD = 0.001    # s, joint microcontroller period (Appendix C: 1000 Hz)
 class Drive:
     """Linear maps between raw readings and joint quantities (SI units).
 
-    R: encoder counts per radian (6,6), lower triangular (coupled wrist), e = R theta + e0.
-    G: motor shaft angle per joint angle (6,6), theta_s = G theta.
+    R: encoder counts per radian (n,n), lower triangular (coupled wrist), e = R theta + e0
+      (n the robot's joints: 6, or 7 for the Panda; the arrays below are sized alike).
+    G: motor shaft angle per joint angle (n,n), theta_s = G theta.
     amps_per_adc: V_g / R_i per channel (A per ADC count).
     sigma: torque sensitivity per motor (N m / A), Table 4.1.
     current_lag: delay (s) of the ADC readings behind the joint angle they describe:
@@ -37,11 +38,11 @@ class Drive:
     G: np.ndarray
     amps_per_adc: np.ndarray
     sigma: np.ndarray
-    encoder_offset: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    encoder_offset: np.ndarray | None = None     # (n,) counts; None: zero
     current_lag: float = FILTER_TAU + SERVO_PERIOD / 2
 
     def current_angles(self, t: np.ndarray, counts: np.ndarray) -> np.ndarray:
-        """Joint angles (rad), (N,6), where the joints were when the ADC readings of the
+        """Joint angles (rad), (N,n), where the joints were when the ADC readings of the
         same records were formed: ``current_lag`` s earlier.
 
         The current-sense filter of Appendix C is a first-order low-pass of 15 ms; for a
@@ -58,20 +59,22 @@ class Drive:
         return np.column_stack([np.interp(back, t, theta[:, j]) for j in range(theta.shape[1])])
 
     def joint_angles(self, counts: np.ndarray) -> np.ndarray:
-        """Joint angles (rad), (N,6), from encoder counts (N,6) (4.30)."""
-        e = np.asarray(counts, dtype=float) - self.encoder_offset
+        """Joint angles (rad), (N,n), from encoder counts (N,n) (4.30)."""
+        e = np.asarray(counts, dtype=float)
+        if self.encoder_offset is not None:
+            e = e - self.encoder_offset
         return np.linalg.solve(self.R, e.T).T
 
     def motor_angles(self, theta: np.ndarray) -> np.ndarray:
-        """Motor shaft angles (rad), (N,6), from joint angles (4.28)."""
+        """Motor shaft angles (rad), (N,n), from joint angles (4.28)."""
         return np.asarray(theta, dtype=float) @ self.G.T
 
     def motor_currents(self, adc: np.ndarray) -> np.ndarray:
-        """Motor currents (A), (N,6), from ADC readings (Appendix C, 4.32)."""
+        """Motor currents (A), (N,n), from ADC readings (Appendix C, 4.32)."""
         return np.asarray(adc, dtype=float) * self.amps_per_adc
 
     def joint_torques(self, adc: np.ndarray) -> np.ndarray:
-        """Joint torques (N m), (N,6): t_j = G^T K_adc v_adc (4.31, 4.36)."""
+        """Joint torques (N m), (N,n): t_j = G^T K_adc v_adc (4.31, 4.36)."""
         motor_torque = self.motor_currents(adc) * self.sigma
         return motor_torque @ self.G
 

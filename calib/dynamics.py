@@ -82,7 +82,16 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray 
 def fit_dynamics(traces, drive, robot: str, consistent: bool = True,
                  offset: np.ndarray | None = None) -> DynamicsResult:
     """Fit the ``fit`` logs among ``traces``, validate on the ``heldout`` ones; ``offset`` the
-    fitted joint offsets (rad) when the parameter file has a kinematic calibration."""
+    fitted joint offsets (rad) when the parameter file has a kinematic calibration. numpy's BLAS
+    runs one thread meanwhile (rcci.calib.blas_threads: its workers stall on a busy machine)."""
+    from rcci.calib.blas_threads import one_blas_thread
+
+    with one_blas_thread():
+        return _fit_dynamics(traces, drive, robot, consistent, offset)
+
+
+def _fit_dynamics(traces, drive, robot: str, consistent: bool, offset: np.ndarray | None) -> DynamicsResult:
+    """:func:`fit_dynamics`'s work."""
     t0 = time.monotonic()
     names = column_names(robot)
     fit_logs = [tr for tr in traces if _role(tr) == "fit"]

@@ -340,7 +340,17 @@ def design(robot: str = "puma260", seed: int = 0, base_hz: float = BASE_HZ, harm
     """Design the excitation of ``robot`` (deterministic for ``seed``), CasADi + IPOPT: for each
     of ``criteria`` in turn (the next from the best design so far), rounds of ``max_iter``
     iterations, each from the last, until the condition number (unit columns) is at most
-    COND_TARGET or ``rounds`` are done; ``spread``: the start's offsets (``_start``)."""
+    COND_TARGET or ``rounds`` are done; ``spread``: the start's offsets (``_start``). numpy's
+    BLAS runs one thread meanwhile (rcci.calib.blas_threads: its workers stall on a busy machine)."""
+    from rcci.calib.blas_threads import one_blas_thread
+
+    with one_blas_thread():
+        return _design(robot, seed, base_hz, harmonics, max_iter, rounds, spread, criteria)
+
+
+def _design(robot: str, seed: int, base_hz: float, harmonics: int, max_iter: int, rounds: int, spread: float,
+            criteria: tuple[str, ...]) -> Excitation:
+    """:func:`design`'s rounds."""
     from rcci.models import load_robot
 
     t0 = time.monotonic()

@@ -435,7 +435,7 @@ def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: in
     def walk(n: int, dwell: float, here: np.ndarray) -> list[PathSegment]:
         segs = []
         for _ in range(n):
-            q = np.clip(here + rng.uniform(-step_deg, step_deg, 6) * DEG, lo, hi)
+            q = np.clip(here + rng.uniform(-step_deg, step_deg, len(here)) * DEG, lo, hi)
             segs.append(PathSegment(here, q, speed_deg * DEG, 3 * ACCEL, dwell))
             here = q
         return segs

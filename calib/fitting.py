@@ -67,10 +67,10 @@ class Inputs:
             "and the parameter file will then say were assumed")
 
     def sigma(self, joints: list[int]) -> np.ndarray:
-        """Torque sensitivities (6,) N m/A for the motors that load ``joints`` (0-based)."""
+        """Torque sensitivities (n,) N m/A for the motors that load ``joints`` (0-based)."""
         nominal = np.asarray(self.info.drive.sigma, dtype=float)
         got = self.params.get("motors", {}).get("torque_sensitivity")
-        sigma = np.full(6, np.nan) if got is None else np.asarray(got, dtype=float)
+        sigma = np.full(len(nominal), np.nan) if got is None else np.asarray(got, dtype=float)
         need = motors_of(joints, self.info.drive.G)
         gap = [m for m in need if not np.isfinite(sigma[m])]
         if gap:
@@ -97,9 +97,10 @@ class Inputs:
         from rcci.calib.lsq import coverage_factor
 
         m = self.params.get("motors", {})
-        sigma = np.asarray(m.get("torque_sensitivity", [np.nan] * 6), dtype=float)
-        std = np.asarray(m.get("torque_sensitivity_std", [np.nan] * 6), dtype=float)
-        trials = np.asarray(m.get("torque_sensitivity_trials", [0] * 6), dtype=float)
+        n = len(self.info.drive.sigma)
+        sigma = np.asarray(m.get("torque_sensitivity", [np.nan] * n), dtype=float)
+        std = np.asarray(m.get("torque_sensitivity_std", [np.nan] * n), dtype=float)
+        trials = np.asarray(m.get("torque_sensitivity_trials", [0] * n), dtype=float)
         worst = 0.0
         for k in motors_of(joints, self.info.drive.G):
             if np.isfinite(sigma[k]) and np.isfinite(std[k]) and trials[k] >= 2:

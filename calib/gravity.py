@@ -101,8 +101,9 @@ def sweep_passes(trace: Trace, drive: Drive, notes: list[str] | None = None) -> 
     at an ADC rail are left out (noted in ``notes``)."""
     i = trace.joint_index()
     q_start = np.asarray(trace.need("q_start", (list, tuple)), dtype=float)
-    if q_start.shape != (6,):
-        raise LogError(trace.path, None, f"metadata 'q_start' has {q_start.size} angles, not 6")
+    n = len(drive.G)
+    if q_start.shape != (n,):
+        raise LogError(trace.path, None, f"metadata 'q_start' has {q_start.size} angles, not {n}")
     lo = float(trace.need("phi_low", (int, float)))
     hi = lo + np.pi
     position = str(trace.need("position", str))
@@ -246,10 +247,10 @@ def robust_sd(A: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def sweep_friction(passes: Sequence[SweepPass], traces: list[Trace], drive: Drive) -> np.ndarray:
-    """Each swept joint's friction (N m, (6,), NaN where not swept), from the sweeps
+    """Each swept joint's friction (N m, (n,), NaN where not swept), from the sweeps
     themselves: over the same 180 degrees gravity's work cancels between a pass up and a
     pass down, so (W_up + W_down) / (2 pi) is the mean friction."""
-    out = np.full(6, np.nan)
+    out = np.full(len(drive.G), np.nan)
     per: dict[int, list[float]] = {}
     for tr in traces:
         i = tr.joint_index()

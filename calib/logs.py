@@ -51,24 +51,26 @@ def load_trace(path: str, allow_truncated: bool = False) -> Trace:
         raise LogError(path, None, "the log holds no records")
     counts = np.asarray(rec["how_pos"], dtype=float)
     adc = np.asarray(rec["how_adcr"], dtype=float)
-    if counts.ndim != 2 or counts.shape[1] < 6 or adc.ndim != 2 or adc.shape[1] < 6:
+    nj = counts.shape[1] if counts.ndim == 2 else 0      # the log's joints (its header's nj)
+    if counts.ndim != 2 or nj < 6 or adc.ndim != 2 or adc.shape[1] < nj:
         raise LogError(path, None, f"records hold {counts.shape[1:]} positions and "
-                       f"{adc.shape[1:]} ADC channels; a 6-joint robot is needed")
+                       f"{adc.shape[1:]} ADC channels; a robot of 6 or more joints, with an ADC "
+                       "channel per joint, is needed")
     rate_hz = header.get("rate_hz", 0) or 0
     if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not np.isfinite(rate_hz) or rate_hz < 0:
         raise LogError(path, None, f"header 'rate_hz' = {rate_hz!r} is not a sample rate in Hz")
     trace = Trace(path=str(path), robot=str(header.get("robot", "")),
                   rate_hz=float(rate_hz), meta=meta,
                   t=_cycle_times(path, rec),
-                  counts=counts[:, :6], adc=adc[:, :6])
+                  counts=counts, adc=adc[:, :nj])
     if "how_inport1" in names:
         trace.extra["inport1"] = np.asarray(rec["how_inport1"])
     if "u_touch" in names:                   # the touch index of a kinematics log
         trace.extra["touch"] = np.asarray(rec["u_touch"])
     if "chg_motion_com" in names and "chg_motion_value" in names:
         # the commands sent each cycle: a breakaway log's ramps are its CUR cycles
-        trace.extra["motion_com"] = np.asarray(rec["chg_motion_com"])[:, :6]
-        trace.extra["motion_value"] = np.asarray(rec["chg_motion_value"], dtype=float)[:, :6]
+        trace.extra["motion_com"] = np.asarray(rec["chg_motion_com"])[:, :nj]
+        trace.extra["motion_value"] = np.asarray(rec["chg_motion_value"], dtype=float)[:, :nj]
     check_samples(trace)
     return trace
 

@@ -118,7 +118,7 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
     def f1() -> None:
         how, chg = session.how, session.chg
         if state["approach"] is None:
-            here = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            here = conv.counts_to_angles(np.asarray(how.pos[:conv.n], dtype=float))
             state["approach"] = approach_path(here, plan.via, first, ACCEL, speed).sample(rate_hz)
             state["recording_from"] = len(state["approach"]) + len(tail) - len(body)
             if not how.state & codes.POWER_ON:

@@ -55,12 +55,12 @@ def _ampere_radians(trace: Trace, drive: Drive,
     lo, hi = _window(trace)
     theta = drive.current_angles(trace.t, trace.counts)[:, i]
     current = drive.motor_currents(trace.adc)[:, i] * drive.G[i, i]
-    clipped = saturated_mask(trace, [i], np.eye(6))     # only motor i's current enters 4.43
+    clipped = saturated_mask(trace, [i], np.eye(len(drive.G)))     # only motor i's current enters 4.43
     plus, minus = [], []
     passes = find_passes(theta, lo, hi)
     keep = [p for p in passes if not clipped[p.first - 1:p.last + 2].any()]
     if notes is not None and len(keep) < len(passes):
-        notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], np.eye(6)))
+        notes.append(clipped_note(trace, "passes", len(passes) - len(keep), len(passes), [i], np.eye(len(drive.G))))
     for p in keep:
         (plus if p.direction > 0 else minus).append(window_work(theta, current, p, lo, hi))
     if not plus or not minus:

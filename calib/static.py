@@ -53,16 +53,17 @@ def find_halts(counts: np.ndarray, t: np.ndarray, min_duration: float,
 
 def halt_samples(trace: Trace, drive: Drive, gravity: Callable[[np.ndarray], np.ndarray],
                  min_duration: float = 0.4, notes: list[str] | None = None) -> np.ndarray:
-    """Static friction (N m), (H,6): per halt, joint torque minus gravity loading; halts
+    """Static friction (N m), (H,n): per halt, joint torque minus gravity loading; halts
     with a reading at an ADC rail are left out (noted in ``notes``)."""
     theta = drive.joint_angles(trace.counts)
     tau = drive.joint_torques(trace.adc)
     rows = []
-    clipped = saturated_mask(trace, range(6), drive.G)
+    n = len(drive.G)
+    clipped = saturated_mask(trace, range(n), drive.G)
     halts = find_halts(trace.counts, trace.t, min_duration)
     keep = [(a, b) for a, b in halts if not clipped[a:b + 1].any()]
     if notes is not None and len(keep) < len(halts):
-        notes.append(clipped_note(trace, "halts", len(halts) - len(keep), len(halts), range(6), drive.G))
+        notes.append(clipped_note(trace, "halts", len(halts) - len(keep), len(halts), range(n), drive.G))
     for first, last in keep:
         settled = trace.t >= trace.t[first] + FILTER_SETTLE_S
         idx = np.arange(first, last + 1)
@@ -71,18 +72,18 @@ def halt_samples(trace: Trace, drive: Drive, gravity: Callable[[np.ndarray], np.
             continue
         q = theta[idx].mean(axis=0)
         rows.append(tau[idx].mean(axis=0) - np.asarray(gravity(q)))
-    return np.array(rows).reshape(-1, 6)
+    return np.array(rows).reshape(-1, n)
 
 
 def fit_static(traces: list[Trace], drive: Drive, gravity: Callable[[np.ndarray], np.ndarray],
                notes: list[str] | None = None) -> tuple[list[StaticResult], np.ndarray]:
-    """Table 4.6 over every halt of every log; also returns the samples (H,6)."""
+    """Table 4.6 over every halt of every log; also returns the samples (H,n)."""
     samples = np.vstack([halt_samples(tr, drive, gravity, notes=notes) for tr in traces])
     if len(samples) < 2:
         raise FitError(f"{len(samples)} halt(s) found in the static-friction logs; "
                        "Table 4.6 needs many (the thesis used 275)")
     out = []
-    for j in range(6):
+    for j in range(samples.shape[1]):
         s = samples[:, j]
         out.append(StaticResult(j + 1, len(s), float(s.max()), float(s.min()),
                                 float(s.mean()), float(s.std(ddof=1))))

@@ -151,7 +151,7 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
             if not how.state & codes.POWER_ON:
                 session.chg.power_on.issue()
             state["power"] = True
-            here = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            here = conv.counts_to_angles(np.asarray(how.pos[:conv.n], dtype=float))
             steps.insert(0, (to_first_hub, False, None, "the start"))
             state["q"] = here
             begin(here)
@@ -162,7 +162,7 @@ def run_touches(url: str, plan: TouchPlan, log_path: str, robot: str = "puma260"
         _, guarded, touch, where = steps[state["step"]]
         if guarded and how.inport1 & bit:
             # the switch is closed: hold here (the arm stands on the counts it reached)
-            q = conv.counts_to_angles(np.asarray(how.pos[:6], dtype=float))
+            q = conv.counts_to_angles(np.asarray(how.pos[:conv.n], dtype=float))
             begin(q)
             sp, k = state["sp"], 0
         elif k >= len(sp):

@@ -11,7 +11,8 @@ from rcci.calib.exceptions import LogError
 
 @dataclass
 class Trace:
-    """Samples of one log: time (s), encoder counts and ADC readings, both (N,6).
+    """Samples of one log: time (s), encoder counts and ADC readings, both (N, n), n the
+    robot's joints (6, or 7 for the Panda).
 
     ``meta`` is the run's metadata as the measurement program wrote it (see
     docs/calib.md: experiment, joint, window, load, start position, ...).
@@ -43,19 +44,22 @@ class Trace:
         return value
 
     def joint_index(self) -> int:
-        """The measured joint as a 0-based index (metadata 'joint' is thesis 1..6)."""
+        """The measured joint as a 0-based index (metadata 'joint' is thesis 1..6, 1..n on an arm
+        of n joints)."""
         joint = self.need("joint", int)
-        if not 1 <= joint <= 6:
-            raise LogError(self.path, None, f"metadata 'joint' = {joint} is not 1..6")
+        n = self.counts.shape[1] if np.ndim(self.counts) == 2 else 6
+        if not 1 <= joint <= n:
+            raise LogError(self.path, None, f"metadata 'joint' = {joint} is not 1..{n}")
         return joint - 1
 
 
 def check_samples(trace: Trace) -> None:
     """Raise LogError naming the first bad record: NaN, time going back, wrong shape."""
     n = len(trace.t)
+    nj = trace.counts.shape[1] if np.ndim(trace.counts) == 2 and trace.counts.shape[1] >= 6 else 6
     for name, arr in (("encoder counts", trace.counts), ("ADC readings", trace.adc)):
-        if arr.shape != (n, 6):
-            raise LogError(trace.path, None, f"{name} have shape {arr.shape}, expected ({n}, 6)")
+        if arr.shape != (n, nj):
+            raise LogError(trace.path, None, f"{name} have shape {arr.shape}, expected ({n}, {nj})")
         bad = ~np.isfinite(arr).all(axis=1)
         if bad.any():
             k = int(np.argmax(bad))
