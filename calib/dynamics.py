@@ -36,6 +36,11 @@ class Heldout:
     rms_moving: np.ndarray       # (n,)
     rms_all: np.ndarray          # (n,)
     noise: np.ndarray            # (n,)
+    fitted: tuple[int, ...] = ()  # joints (0-based) whose equations were fitted (the others: nan RMS)
+
+    def ratios(self) -> np.ndarray:
+        """RMS (moving) / noise of the fitted joints, in joint order."""
+        return np.array([self.rms_moving[j] / self.noise[j] for j in self.fitted])
 
 
 @dataclass
@@ -65,6 +70,7 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray 
     """Measured against predicted torque on one log (module docstring)."""
     from rcci.calib.drive import FILTER_TAU
     from rcci.calib.identification import EDGE_S, current_noise, joint_motion, still_speeds
+    from rcci.calib.regressor import fitted_joints
 
     t, rate, lp, q, qd, qdd, tau = joint_motion(trace, drive, offset)
     pred = current_filter(regressor_columns(robot, q, qd, qdd) @ x, rate, FILTER_TAU)
@@ -76,7 +82,10 @@ def heldout_figures(trace, drive, robot: str, x: np.ndarray, offset: np.ndarray 
     rms_m = np.array([np.sqrt(np.mean(err[moving[:, j], j] ** 2)) if moving[:, j].any() else np.nan
                       for j in range(err.shape[1])])
     rms_a = np.sqrt(np.mean(err[inner] ** 2, axis=0))
-    return Heldout(trace.path, t, tau, pred, moving, rms_m, rms_a, noise)
+    used = fitted_joints(robot)
+    out = [j for j in range(err.shape[1]) if j not in used]     # no prediction there: the fit left them out
+    rms_m[out], rms_a[out], pred[:, out] = np.nan, np.nan, np.nan
+    return Heldout(trace.path, t, tau, pred, moving, rms_m, rms_a, noise, tuple(used))
 
 
 def fit_dynamics(traces, drive, robot: str, consistent: bool = True,

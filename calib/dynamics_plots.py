@@ -22,8 +22,9 @@ def heldout_plot(h, folder: str, name: str) -> str:
         ax.plot(h.t, h.predicted[:, j], color="k", lw=0.9, label="predicted")
         ax.set_ylabel(f"joint {j + 1}\nN m", fontsize=8)
         ax.tick_params(labelsize=7)
-        ax.set_title(f"RMS (moving) {h.rms_moving[j]:.4f} N m, noise {h.noise[j]:.4f} N m",
-                     fontsize=7, loc="right")
+        title = (f"RMS (moving) {h.rms_moving[j]:.4f} N m, noise {h.noise[j]:.4f} N m" if j in h.fitted
+                 else "equation not fitted (rcci.calib.regressor.LEFT_OUT): measured only")
+        ax.set_title(title, fontsize=7, loc="right")
     axes[0].legend(fontsize=7, loc="upper left")
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"held-out excitation {os.path.basename(h.path)}: measured vs predicted joint torque", fontsize=9)

@@ -187,7 +187,8 @@ def design_rows(robot: str):
         cols.append(ca.mtimes(ca.DM(full - np.diag(np.diag(full))), qdd))
     pos = 0.5 * (1 + ca.tanh(qd / SIGN_SPEED))        # the fit's per-direction friction columns
     neg = 1 - pos
-    cols += [ca.diag(pos), -ca.diag(neg), ca.diag(qd * pos), ca.diag(qd * neg)]
+    fric = ca.horzcat(ca.diag(pos), -ca.diag(neg), ca.diag(qd * pos), ca.diag(qd * neg))
+    cols.append(fric[:, [t * n + j for j in range(n) for t in range(4)]])    # the fit's order: per joint
     g = grouping(robot)                        # the fit's columns (rcci.calib.grouping)
     rows = ca.times(ca.horzcat(*cols), ca.DM(g.mask))[:, list(g.keep)]
     return ca.Function("design_rows", [q, qd, qdd], [rows])

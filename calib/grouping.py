@@ -19,6 +19,13 @@ joint j's equation is exactly (to 1e-9, on random moving states) a combination o
 rotor and friction columns, that part moves into them (signs and factors found, not assumed).
 The grouped values are what the arm's currents determine; splitting them again needs a value
 from elsewhere (rccl.feedforward takes an eliminated parameter from the data file, and says so).
+
+The equations the fit leaves out (rcci.calib.regressor.LEFT_OUT: the Microbo's slides, for the
+thesis's reason) take no part: their columns are masked, and a parameter left in no equation
+the fit uses is eliminated as not identified (the Microbo: M2, its slides' rotor and friction
+terms). So on the shipped arms nothing is folded today; the rule is there for an arm whose
+vertical slide's torque is measured (a SCARA's quill, or the Microbo with its slides fitted:
+tests/test_calib_grouping.py).
 """
 from __future__ import annotations
 
@@ -63,14 +70,19 @@ class Grouping:
 
     def as_section(self) -> dict:
         """The keys of a parameter file's ``[dynamics]`` that say how its values are grouped
-        (none when nothing is): ``grouped`` (names), ``grouped_of`` (the full names each is made
-        of, its own first), ``grouped_coefficients``, ``grouped_formulas`` (in words)."""
-        if not self.eliminated:
-            return {}
+        (none when nothing is): ``not_identified`` (parameters in no equation the fit uses),
+        ``grouped`` (names), ``grouped_of`` (the full names each is made of, its own first),
+        ``grouped_coefficients``, ``grouped_formulas`` (in words)."""
         parts = self.parts()
-        return {"grouped": list(parts), "grouped_of": [list(p) for p in parts.values()],
-                "grouped_coefficients": [list(p.values()) for p in parts.values()],
-                "grouped_formulas": self.formulas()}
+        out: dict = {}
+        lone = [e for e in self.eliminated if not any(e in p for p in parts.values())]
+        if lone:          # in no equation the fit uses (rcci.calib.regressor.LEFT_OUT)
+            out["not_identified"] = lone
+        if parts:
+            out.update({"grouped": list(parts), "grouped_of": [list(p) for p in parts.values()],
+                        "grouped_coefficients": [list(p.values()) for p in parts.values()],
+                        "grouped_formulas": self.formulas()})
+        return out
 
     def formulas(self) -> list[str]:
         """The grouped columns in words, e.g. ``FC2+R = FC2+ + 9.80665 M2``."""
@@ -104,12 +116,16 @@ def drive_columns(full: tuple[str, ...], joint: int) -> list[int]:
 
 @cache
 def grouping(robot: str) -> Grouping:
-    """The fit's grouping for ``robot`` (module docstring): in each joint's equation, the part of
-    a rigid-body column that is exactly a combination of that joint's own drive columns
-    (:func:`drive_columns`) moves into them; a column left with no part in any equation is
-    eliminated. A dependence that remains (among friction and rotor columns alone) is left for
-    rcci.calib.identification.identifiable to refuse."""
-    from rcci.calib.regressor import full_column_names, full_regressor_columns
+    """The fit's grouping for ``robot`` (module docstring), in two steps: (1) in each joint's
+    equation, the part of a rigid-body column that is exactly a combination of that joint's own
+    drive columns (:func:`drive_columns`) moves into them, and a column left in no equation the
+    fit uses is eliminated; (2) while the remaining columns are exactly dependent (a null vector
+    on random moving states), the rigid-body column that weighs most in it is folded into the
+    others of the null vector (the Microbo without its slides' equations: MZ3R into M3R and
+    ZZ1R, which joint 1's equation alone cannot tell apart). A dependence among friction and rotor
+    columns alone is left for rcci.calib.identification.identifiable to refuse."""
+    import rccl.kinematics as kinematics
+    from rcci.calib.regressor import fitted_joints, full_column_names, full_regressor_columns
     from rcci.models import load_robot
 
     m = load_robot(robot)
@@ -119,23 +135,61 @@ def grouping(robot: str) -> Grouping:
     Y = full_regressor_columns(robot, q, qd, qdd)                 # (N, n, P)
     K = np.eye(P)
     mask = np.ones((n, P))
-    for j in range(n):
-        drive = drive_columns(full, j)
-        D = Y[:, j, drive]
-        for c in range(P):
-            part = Y[:, j, c]
-            if c in drive or not np.any(part) or any(c in drive_columns(full, i) for i in range(n)):
-                continue
-            a, *_ = np.linalg.lstsq(D, part, rcond=None)
-            if np.linalg.norm(D @ a - part) > EXACT_RTOL * np.linalg.norm(part):
-                continue
-            for k, coef in zip(drive, np.round(a, 10)):   # x_k' = x_k + coef x_c: rows carrying c pass it on
-                if coef != 0.0:
-                    K[k] += coef * K[c]
-            mask[j, c] = 0.0
-    left = np.linalg.norm((Y * mask[None]).reshape(-1, P), axis=0)
+    used = fitted_joints(robot)
+    mask[[j for j in range(n) if j not in used]] = 0.0      # equations the fit leaves out
+    for j in used:
+        _fold_into_drive(Y, full, n, j, K, mask)
+    A = (Y * mask[None]).reshape(-1, P)
+    left = np.linalg.norm(A, axis=0)
     keep = [k for k in range(P) if left[k] > 0 or not np.any(Y[:, :, k])]
+    _fold_dependent(A, full, set(kinematics.load(robot).BASE_PARAMETERS), K, keep, robot)
     eliminated = tuple(full[k] for k in range(P) if k not in keep)
-    grouped = {k for k in keep if np.count_nonzero(K[k]) > 1}
-    names = tuple(full[k] + ("R" if k in grouped and not full[k].endswith("R") else "") for k in keep)
+    names = tuple(full[k] + ("R" if np.count_nonzero(K[k]) > 1 else "") for k in keep)
     return Grouping(full, tuple(keep), names, K[keep], eliminated, mask)
+
+
+def _fold_into_drive(Y: np.ndarray, full: tuple[str, ...], n: int, j: int, K: np.ndarray, mask: np.ndarray) -> None:
+    """Step (1) of :func:`grouping` for joint ``j``'s equation (updates ``K`` and ``mask``)."""
+    drive = drive_columns(full, j)
+    every_drive = {c for i in range(n) for c in drive_columns(full, i)}
+    D = Y[:, j, drive]
+    for c in range(len(full)):
+        part = Y[:, j, c]
+        if c in every_drive or not np.any(part):
+            continue
+        a, *_ = np.linalg.lstsq(D, part, rcond=None)
+        if np.linalg.norm(D @ a - part) > EXACT_RTOL * np.linalg.norm(part):
+            continue
+        for k, coef in zip(drive, np.round(a, 10)):   # x_k' = x_k + coef x_c: rows carrying c pass it on
+            if coef != 0.0:
+                K[k] += coef * K[c]
+        mask[j, c] = 0.0
+
+
+def _fold_dependent(A: np.ndarray, full: tuple[str, ...], rigid: set[str], K: np.ndarray, keep: list[int],
+                    robot: str) -> None:
+    """Step (2) of :func:`grouping` on the stacked regressor ``A`` (updates ``K`` and ``keep``)."""
+    while True:
+        sub = A[:, keep]
+        nrm = np.linalg.norm(sub, axis=0)
+        if np.any(nrm == 0):
+            return
+        s, Vt = np.linalg.svd(sub / nrm, full_matrices=False)[1:]
+        if s[-1] > NULL_RTOL * s[0]:
+            return
+        v = np.abs(Vt[-1])
+        candidates = [i for i in np.argsort(-v) if v[i] > 1e-6 and full[keep[i]] in rigid]
+        if not candidates:
+            return
+        e = keep[candidates[0]]
+        support = [keep[i] for i in np.flatnonzero(v > 1e-6) if keep[i] != e]
+        a, *_ = np.linalg.lstsq(A[:, support], A[:, e], rcond=None)
+        gap = np.linalg.norm(A[:, support] @ a - A[:, e])
+        if gap > EXACT_RTOL * np.linalg.norm(A[:, e]):
+            raise CalibError(f"robot {robot}: the fit's column {full[e]} depends on "
+                             f"{', '.join(full[k] for k in support)} only approximately ({gap:.1e}): "
+                             "no exact grouping")
+        for k, coef in zip(support, np.round(a, 10)):
+            if coef != 0.0:
+                K[k] += coef * K[e]
+        keep.remove(e)

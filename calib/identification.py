@@ -34,7 +34,7 @@ import numpy as np
 
 from rcci.calib.exceptions import CalibError, LogError
 from rcci.calib.grouping import grouping
-from rcci.calib.regressor import full_regressor_columns, gear
+from rcci.calib.regressor import fitted_joints, full_regressor_columns, gear
 
 ORDER = 4
 CUTOFF_HZ = 4.0          # Hz: 8 x the excitation's highest harmonic (0.5 Hz)
@@ -210,7 +210,7 @@ def rows_of_trace(trace, drive, robot: str, offset: np.ndarray | None = None) ->
     joint_rail = (rail.astype(float) @ (G != 0).astype(float)) > 0
     A, y, js, ts = [], [], [], []
     slow = _dilate(np.abs(qd) < still_speeds(robot), int(round(STILL_WINDOW_S * rate)))
-    for j in range(n):
+    for j in fitted_joints(robot):
         ok = keep[~slow[keep, j] & ~joint_rail[keep, j]]
         A.append(Yf[ok, j, :])
         y.append(tf[ok, j])
@@ -328,7 +328,7 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     sd = np.sqrt(np.diag(cov))
     eff = int(max(p + 1, round(sum(np.sum(js == j) / infl[j] for j in range(n)))))
     factor = coverage_factor(eff - p)
-    resid_sd = np.array([np.std((y - A @ x)[js == j]) for j in range(n)])
+    resid_sd = np.array([np.std((y - A @ x)[js == j]) if np.any(js == j) else np.nan for j in range(n)])
     jk = jackknife_error(rows, sd_j)
     return WlsResult(names, x, np.maximum(factor * sd, jk), sd, cov, resid_sd, infl, eff - p, factor, m, cond, jk)
 

@@ -200,7 +200,7 @@ def fitted_base_parameters(path: str | os.PathLike, kin) -> dict[str, float]:
     missing = [n for n in kin.BASE_PARAMETERS if n not in fitted]
     if missing:
         raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r}: [dynamics] lacks the base parameters "
-                         f"{missing} of the {kin.ROBOT}")
+                         f"{missing} of the {kin.ROBOT} (and does not name them in not_identified)")
     return {n: fitted[n] for n in kin.BASE_PARAMETERS}
 
 
@@ -222,6 +222,9 @@ def fitted_columns(path: str | os.PathLike, kin) -> dict[str, float]:
         raise BadRequest(f"feedforward: parameter file {os.fspath(path)!r} has no [dynamics] names and values "
                          "(run calib fit dynamics LOGS -p FILE first: docs/calib.md)")
     fitted = dict(zip(dyn["names"], dyn["values"]))
+    unfitted = [k for k in dyn.get("not_identified", []) if k not in fitted]
+    if unfitted:        # equations the fit left out (rcci.calib.regressor.LEFT_OUT): the data file's values
+        fitted.update(data_file_columns(kin.ROBOT, unfitted))
     if not dyn.get("grouped"):
         return fitted
     try:
@@ -253,6 +256,24 @@ def ungrouped(fitted: Mapping, grouped: Mapping, kin, where: str) -> dict[str, f
         out.update(value)
         out[own] = (float(fitted[name]) - sum(float(part[k]) * value[k] for k in folded)) / float(part[own])
     return out
+
+
+def data_file_columns(robot: str, names: list[str]) -> dict[str, float]:
+    """The data file's values of calib's columns ``names``: base parameters (``BASE_PARAMETERS``)
+    and friction (``FC<j>+-``, ``FV<j>+-``); a BadRequest for another name."""
+    from rcci.models import load_robot
+    import rccl.kinematics as kinematics
+
+    values = dict(zip(kinematics.load(robot).BASE_PARAMETERS, data_file_base_parameters(robot)))
+    fr = load_robot(robot).friction
+    for key, field in (("FC", "coulomb"), ("FV", "viscous")):
+        for sign, part in (("+", "pos"), ("-", "neg")):
+            for j, v in enumerate(getattr(fr, f"{field}_{part}").values):
+                values[f"{key}{j + 1}{sign}"] = float(v)
+    bad = [n for n in names if n not in values]
+    if bad:
+        raise BadRequest(f"feedforward: the data file of the {robot} has no value for the columns {bad}")
+    return {n: values[n] for n in names}
 
 
 def data_file_base_parameters(robot: str) -> np.ndarray:

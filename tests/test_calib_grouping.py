@@ -1,7 +1,8 @@
-"""The dynamics fit's grouping of columns no motion separates (rcci.calib.grouping): the Microbo's
-vertical-slide weight folded into its rotor and Coulomb columns, nothing folded on the other arms,
-the truth and the feed-forward read through it, and the refusal when only friction and rotor
-columns are dependent."""
+"""The dynamics fit's grouping (rcci.calib.grouping): the Microbo's slides' equations left out
+(the thesis's reason) and what only they determine not identified; with them in, the vertical
+slide's weight folded into its rotor and Coulomb columns; nothing folded on the other arms; the
+truth and the feed-forward read through it; the refusal when only friction and rotor columns are
+dependent."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,7 +21,28 @@ def _states(robot: str, seed: int):
     return random_states(len(m.lower), np.asarray(m.lower, float), np.asarray(m.upper, float), samples=50, seed=seed)
 
 
-def test_the_microbo_slide_weight_is_folded_into_its_rotor_and_coulomb_columns() -> None:
+@pytest.fixture
+def slides_fitted(monkeypatch):
+    """The Microbo with its slides' equations in the fit (as an arm whose slide torques can be measured)."""
+    import rcci.calib.regressor as regressor
+
+    monkeypatch.setattr(regressor, "LEFT_OUT", {})
+    grouping.cache_clear()
+    yield
+    grouping.cache_clear()
+
+
+def test_the_microbo_slides_equations_are_left_out() -> None:
+    from rcci.calib.regressor import fitted_joints, left_out
+
+    g = grouping("microbo")
+    assert fitted_joints("microbo") == [0, 3, 4, 5] and "impractical" in left_out("microbo")
+    assert set(g.eliminated) == {"M2", "IA2", "IA3", "FC2+", "FC2-", "FV2+", "FV2-", "FC3+", "FC3-", "FV3+", "FV3-"}
+    assert g.as_section()["not_identified"] == list(g.eliminated) and g.formulas() == []
+    assert "M3R" in g.names and identifiable("microbo") is None
+
+
+def test_the_microbo_slide_weight_is_folded_into_its_rotor_and_coulomb_columns(slides_fitted) -> None:
     g = grouping("microbo")
     grav = float(load_robot("microbo").gravity)
     assert g.eliminated == ("M2",)
@@ -36,15 +58,42 @@ def test_grouped_columns_give_the_full_models_torques(robot: str) -> None:
     """Y_full x = Y (K x) on moving states never used to find the grouping, any parameters x."""
     g = grouping(robot)
     q, qd, qdd = _states(robot, seed=7)
+    from rcci.calib.regressor import fitted_joints
+    used = fitted_joints(robot)
     x = np.random.default_rng(3).normal(size=len(full_column_names(robot)))
-    full = full_regressor_columns(robot, q, qd, qdd) @ x
-    grouped = regressor_columns(robot, q, qd, qdd) @ (g.K @ x)
+    full = (full_regressor_columns(robot, q, qd, qdd) @ x)[:, used]
+    grouped = (regressor_columns(robot, q, qd, qdd) @ (g.K @ x))[:, used]
     assert np.max(np.abs(full - grouped)) <= 1e-9 * max(1.0, np.max(np.abs(full)))
     if robot != "microbo":
         assert g.eliminated == () and np.array_equal(g.K, np.eye(len(g.full)))
 
 
-def test_truth_of_the_microbo_is_grouped() -> None:
+def test_feedforward_takes_what_the_fit_did_not_identify_from_the_data_file(tmp_path) -> None:
+    """The Microbo's file names its slides' parameters not identified: the model takes the data
+    file's for them (masses, rotors, friction of joints 2 and 3) and the fit's for the rest."""
+    import rccl.kinematics as kin
+    from rcci.calib.params import dumps
+    from rcci.models.params import SCHEMA
+    from rccl.feedforward import DynamicsModel, data_file_base_parameters
+
+    g = grouping("microbo")
+    x = np.random.default_rng(2).uniform(0.1, 1.0, len(g.names))
+    path = tmp_path / "p.toml"
+    path.write_text(dumps({"calib": {"schema": SCHEMA, "robot": "microbo"},
+                           "dynamics": {"names": list(g.names), "values": [float(v) for v in x],
+                                        "errors": [0.0] * len(x), **g.as_section()}}))
+    km = kin.load("microbo")
+    model = DynamicsModel(km, str(path))
+    base = dict(zip(km.BASE_PARAMETERS, data_file_base_parameters("microbo")))
+    fitted = dict(zip(g.names, x))
+    for k, name in enumerate(km.BASE_PARAMETERS):
+        assert model.theta[k] == pytest.approx(base[name] if name in g.eliminated else fitted[name], rel=1e-12)
+    fr = load_robot("microbo").friction
+    assert model.fitted_friction[0][1] == pytest.approx(fr.coulomb_pos.values[1])
+    assert model.fitted_friction[0][3] == pytest.approx(fitted["FC4+"])
+
+
+def test_truth_of_the_microbo_is_grouped(slides_fitted) -> None:
     """simula's truth read through the grouping: IA2 + M2 + M3R, F_c2+- +- g (M2 + M3R); M3R itself."""
     import rccl.kinematics as kin
     from rcci.calib.dynamics_truth import link_inertials, simula_arm, truth_parameters
@@ -65,7 +114,7 @@ def test_truth_of_the_microbo_is_grouped() -> None:
     assert t["M3R"] == pytest.approx(beta["M3R"], rel=1e-12) and t["MX3"] == pytest.approx(beta["MX3"], rel=1e-12)
 
 
-def test_feedforward_splits_the_grouped_values_with_the_data_files_weight(tmp_path) -> None:
+def test_feedforward_splits_the_grouped_values_with_the_data_files_weight(slides_fitted, tmp_path) -> None:
     """A parameter file with the grouped columns: in motion the model's torques are the grouped
     fit's; the weight M2 is the data file's."""
     import rccl.kinematics as kin
@@ -111,3 +160,17 @@ def test_dependent_friction_columns_alone_are_refused(monkeypatch, tmp_path, cap
     assert "robot puma260: the dynamics fit cannot identify" in err and "FV6+" in err and "FV6-" in err
     assert "friction and rotor columns alone" in err
     assert not list((tmp_path / "a").glob("*.rcilog*")) if (tmp_path / "a").exists() else True
+
+
+@pytest.mark.parametrize("robot", ("microbo", "puma260"))
+def test_the_designs_regressor_is_the_fits(robot: str) -> None:
+    """rcci.calib.excitation.design_rows has the fit's columns in the fit's order, grouped and
+    masked alike (its tanh stands for the direction: equal where |qd| >> SIGN_SPEED)."""
+    from rcci.calib.excitation import SIGN_SPEED, design_rows
+
+    q, qd, qdd = _states(robot, seed=13)
+    f = design_rows(robot)
+    A = np.stack([np.asarray(f(a, b, c)) for a, b, c in zip(q, qd, qdd)])
+    B = regressor_columns(robot, q, qd, qdd)
+    assert A.shape == B.shape and np.abs(qd).min() >= 4 * SIGN_SPEED
+    assert np.max(np.abs(A - B)) <= 1e-3 * max(1.0, np.max(np.abs(B)))

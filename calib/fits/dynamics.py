@@ -65,6 +65,9 @@ def table(res, truth: np.ndarray | None = None) -> str:
               "|---|---|---|---|---|"]
         for h in res.heldout:
             for j in range(len(h.noise)):
+                if j not in h.fitted:
+                    L.append(f"| {j + 1} | - | - | {h.noise[j]:.4f} | not fitted |")
+                    continue
                 L.append(f"| {j + 1} | {h.rms_moving[j]:.4f} | {h.rms_all[j]:.4f} | {h.noise[j]:.4f} | "
                          f"{h.rms_moving[j] / h.noise[j]:.2f} |")
     return "\n".join(L)
@@ -73,6 +76,7 @@ def table(res, truth: np.ndarray | None = None) -> str:
 def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
     from rcci.calib.dynamics import GOAL_RMS_NOISE, coverage, truth_vector
     from rcci.calib.grouping import grouping
+    from rcci.calib.regressor import fitted_joints, left_out
 
     res = out.results
     logs = [t for t in ctx.traces if t.experiment == "dynamics"]
@@ -88,6 +92,11 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
          "autocorrelation, and a jackknife over 10 spans of time). "
          "What the generated base regressor lacks (the wrist motors' rotor coupling, friction) is "
          "computed in rcci.calib.identification.", ""]
+    why = left_out(res.robot)
+    if why:
+        L += [f"The equations of joints {', '.join(str(j + 1) for j in range(len(res.noise)) if j not in fitted_joints(res.robot))} "
+              f"are left out of the fit: {why}. The parameters only they depend on are not identified "
+              f"({', '.join(grouping(res.robot).eliminated)}).", ""]
     formulas = grouping(res.robot).formulas()
     if formulas:
         L += ["Columns no motion separates, folded into others (rcci.calib.grouping; the interval and the "
@@ -105,9 +114,9 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
                  f"({int(inside[:nb].sum())} of {nb} base parameters and rotor couplings)")
         ctx.check("dynamics coverage", n_in == n_all)
     for h in res.heldout:
-        ratio = h.rms_moving / h.noise
-        L.append(f"- held-out {os.path.basename(h.path)}: RMS / noise per joint "
-                 + ", ".join(f"{r:.2f}" for r in ratio)
+        ratio = h.ratios()
+        L.append(f"- held-out {os.path.basename(h.path)}: RMS / noise per fitted joint "
+                 + ", ".join(f"{j + 1}: {r:.2f}" for j, r in zip(h.fitted, ratio))
                  + f" (goal <= {GOAL_RMS_NOISE:g}: {ctx.check('dynamics held-out', bool(np.all(ratio <= GOAL_RMS_NOISE)))})")
     plots = ctx.plots.get("dynamics", [])
     L += [""] + [f"![{p}]({p})" for p in plots] + ["", table(res, truth), ""]
