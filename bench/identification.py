@@ -238,13 +238,13 @@ def main(argv: list[str] | None = None) -> int:
                    "half the range)")
     p.add_argument("--columns", metavar="NAMES", help="comma-separated base parameters: their regressor columns")
     p.add_argument("--all-equations", action="store_true", help="fit every joint's equation, those of "
-                   "rcci.calib.regressor.LEFT_OUT too (what leaving them out changes)")
+                   "rcci.calib.unmeasured too (what leaving them out changes)")
     args = p.parse_args(argv)
     if args.all_equations:
-        import rcci.calib.regressor as regressor
+        import rcci.calib.unmeasured as unmeasured
         from rcci.calib.grouping import grouping
 
-        regressor.LEFT_OUT = {}
+        unmeasured.TORQUE_UNMEASURED = {}
         grouping.cache_clear()
     if args.columns:
         emit(columns_report(args.robot, [x for x in args.columns.split(",") if x.strip()]), args.out)

@@ -62,11 +62,12 @@ def breakaway_plans(static_pos: np.ndarray, G: np.ndarray, joints=range(1, 7)) -
     return plans
 
 
-def _sweep(q: np.ndarray, j: int, half: float, seconds: float, rate: int) -> np.ndarray:
-    """Setpoints sweeping joint j (0-based) +-half rad about q for about ``seconds``."""
+def _sweep(q: np.ndarray, j: int, half: float, seconds: float, rate: int, vmax: np.ndarray) -> np.ndarray:
+    """Setpoints sweeping joint j (0-based) +-half rad about q for about ``seconds``, within
+    0.8 of the velocity limits ``vmax``."""
     lo, hi = q.copy(), q.copy()
     lo[j], hi[j] = q[j] - half, q[j] + half
-    v = 30 * DEG
+    v = min(30 * DEG, 0.8 * float(vmax[j]))
     segs, n = [PathSegment(q, lo, v, ACCEL)], max(1, int(seconds * v / (4 * half)))
     for _ in range(n):
         segs += [PathSegment(lo, hi, v, ACCEL), PathSegment(hi, lo, v, ACCEL)]
@@ -83,7 +84,10 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     """
     from rcci.calib.robot import robot_info
 
+    from rcci.models import load_robot
+
     info = robot_info(robot)
+    vmax = np.asarray(load_robot(robot).max_velocity, dtype=float)
     gravity = info.gravity(np.array([info.nominal["gravity_coeffs"][n]["value"]
                                      for n in info.gravity_names]))
     conv = Conversions.for_robot(robot)
@@ -97,16 +101,16 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     first = plan.pose.copy()
     first[j] = plan.positions[0]
     warm = sweep_warmup(first, j, first[j] - 10 * DEG, first[j] + 10 * DEG,
-                        seconds=FRICTION_WARMUP_S, dwell=0.0)
+                        seconds=FRICTION_WARMUP_S, dwell=0.0).within(vmax)
     steps.append(("warm", warm.sample(rate)))
     here = warm.segments[-1].end
     for x in plan.positions:
         q = plan.pose.copy()
         q[j] = x
         for d in (1, -1):
-            steps.append(("move", Path((PathSegment(here, q, 0.6, ACCEL, 0.5),)).sample(rate)))
+            steps.append(("move", Path((PathSegment(here, q, 0.6, ACCEL, 0.5),)).within(vmax).sample(rate)))
             steps.append(("ramp", (q, d)))
-            steps.append(("warm", _sweep(q, j, 8 * DEG, BETWEEN_S, rate)))
+            steps.append(("warm", _sweep(q, j, 8 * DEG, BETWEEN_S, rate, vmax)))
             here = q
     state = {"step": 0, "k": 0, "hold": None, "onset": None, "c0": None, "power": False}
     done = threading.Event()
@@ -116,7 +120,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
         """Setpoints from where a ramp's breakaway left the joint back to the ramp's pose: the
         joint may have slid degrees past it (a heavy joint that breaks away at a high torque),
         more than one cycle's step at its velocity limit (R_REQVEL)."""
-        return Path((PathSegment(np.asarray(held, dtype=float), q, 0.6, ACCEL, 0.2),)).sample(rate)
+        return Path((PathSegment(np.asarray(held, dtype=float), q, 0.6, ACCEL, 0.2),)).within(vmax).sample(rate)
 
     def pos_all(qd: np.ndarray) -> None:
         command_joints(session, conv, qd)
@@ -130,7 +134,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
             # from wherever the arm is to the start of the warm-up (not recorded)
             start = conv.counts_to_angles(np.asarray(how.pos[:conv.n], dtype=float))
             steps.insert(0, ("warm", Path((PathSegment(start, steps[0][1][0], 0.6, ACCEL, 0.5),))
-                             .sample(rate)))
+                             .within(vmax).sample(rate)))
         if state["step"] >= len(steps):
             session.record(None)
             done.set()

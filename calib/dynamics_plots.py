@@ -23,7 +23,7 @@ def heldout_plot(h, folder: str, name: str) -> str:
         ax.set_ylabel(f"joint {j + 1}\nN m", fontsize=8)
         ax.tick_params(labelsize=7)
         title = (f"RMS (moving) {h.rms_moving[j]:.4f} N m, noise {h.noise[j]:.4f} N m" if j in h.fitted
-                 else "equation not fitted (rcci.calib.regressor.LEFT_OUT): measured only")
+                 else "equation not fitted (rcci.calib.unmeasured): measured only")
         ax.set_title(title, fontsize=7, loc="right")
     axes[0].legend(fontsize=7, loc="upper left")
     axes[-1].set_xlabel("time (s)")

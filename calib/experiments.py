@@ -125,10 +125,15 @@ def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray, loaded: bool =
     CalibError when none does."""
     from rcci.calib.exceptions import CalibError
 
+    from rcci.calib.unmeasured import why_unmeasured
+
     qdeg, half = FRICTION_POSES[j]
     q = np.array(qdeg, float) * DEG
     if robot is None:
         return q, half * DEG
+    why = why_unmeasured(robot.name, j)
+    if why is not None:
+        raise CalibError(f"robot {robot.name}: joint {j}: its torque is not measured: {why}")
     try:
         check_friction_pose(robot, j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, q)
         friction_top_speed(j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, lower, upper, np.full(len(q), 1.0))

@@ -20,7 +20,7 @@ rotor and friction columns, that part moves into them (signs and factors found, 
 The grouped values are what the arm's currents determine; splitting them again needs a value
 from elsewhere (rccl.feedforward takes an eliminated parameter from the data file, and says so).
 
-The equations the fit leaves out (rcci.calib.regressor.LEFT_OUT: the Microbo's slides, for the
+The equations the fit leaves out (rcci.calib.unmeasured: the Microbo's slides, for the
 thesis's reason) take no part: their columns are masked, and a parameter left in no equation
 the fit uses is eliminated as not identified (the Microbo: M2, its slides' rotor and friction
 terms). So on the shipped arms nothing is folded today; the rule is there for an arm whose
@@ -76,7 +76,7 @@ class Grouping:
         parts = self.parts()
         out: dict = {}
         lone = [e for e in self.eliminated if not any(e in p for p in parts.values())]
-        if lone:          # in no equation the fit uses (rcci.calib.regressor.LEFT_OUT)
+        if lone:          # in no equation the fit uses (rcci.calib.unmeasured)
             out["not_identified"] = lone
         if parts:
             out.update({"grouped": list(parts), "grouped_of": [list(p) for p in parts.values()],

@@ -70,6 +70,23 @@ class Path:
     def duration(self) -> float:
         return float(sum(s.duration for s in self.segments))
 
+    def within(self, vmax, share: float = 0.8) -> "Path":
+        """The same path with each segment's speed lowered where needed so that every joint moves
+        at most ``share`` of its velocity limit ``vmax`` ((n_joints,) rad/s, m/s on a slide):
+        a segment's speed is along its largest joint change, which on an arm with a slide (metres)
+        or slow joints need not be the joint nearest its limit."""
+        lim = share * np.asarray(vmax, dtype=float)
+        out = []
+        for seg in self.segments:
+            d = np.abs(seg.end - seg.start)
+            big = float(d.max()) if d.size else 0.0
+            moving = d > 1e-12
+            speed = seg.speed
+            if big > 0 and np.any(moving):
+                speed = float(min(speed, np.min(lim[moving] * big / d[moving])))
+            out.append(PathSegment(seg.start, seg.end, speed, seg.accel, seg.dwell))
+        return Path(tuple(out))
+
     def sample(self, rate_hz: float) -> np.ndarray:
         """Setpoints (N, n_joints) rad at t = k / rate_hz until the path ends."""
         n = int(np.ceil(self.duration * rate_hz)) + 1

@@ -93,6 +93,22 @@ class RegenContext:
         """The joints to record (1-based): the options' or all."""
         return list(self.options.joints or range(1, len(self.info.lower) + 1))
 
+    def measured_joints(self, kind: str) -> list[int]:
+        """:meth:`joints` less those whose torque calib does not measure (rcci.calib.unmeasured):
+        without --joints each is left out with its reason in ``notes``, with --joints refused."""
+        from rcci.calib.unmeasured import why_unmeasured
+
+        out = [j for j in self.joints() if why_unmeasured(self.info.name, j) is None]
+        left = [j for j in self.joints() if j not in out]
+        if left:
+            why = (f"robot {self.info.name}: joint(s) {', '.join(map(str, left))}: torque not measured: "
+                   f"{why_unmeasured(self.info.name)}")
+            if self.options.joints or not out:
+                raise CalibError(why)
+            if why not in self.notes and f"{kind}: not recorded: {why}" not in self.notes:
+                self.notes.append(f"{kind}: not recorded: {why}")
+        return out
+
     def per_joint(self, kind: str, plan: Callable[[int], list]) -> list:
         """``plan(j)`` for each joint; without --joints a joint the arm cannot support is left
         out with its reason in ``notes`` (CalibError when none is left), with --joints refused."""

@@ -4,7 +4,7 @@ that drives several joints (its rotor inertia J_m reflected off the diagonal, G_
 diagonal: ``JM<m>``, kg m^2 at the motor) and the friction of eq. 4.27 per joint and direction
 (``FC<j>+``/``FC<j>-`` Coulomb, N m; ``FV<j>+``/``FV<j>-`` viscous, N m s/rad). SI, joint level:
 joint torques = columns @ parameters. rcci.calib.grouping folds what no motion separates. Which
-joints' equations the fit uses: :func:`fitted_joints` (``LEFT_OUT``: the Microbo's slides)."""
+joints' equations the fit uses: :func:`fitted_joints` (rcci.calib.unmeasured: the Microbo's slides)."""
 from __future__ import annotations
 
 from functools import cache
@@ -63,23 +63,28 @@ def full_regressor_columns(robot: str, q: np.ndarray, qd: np.ndarray, qdd: np.nd
     return np.concatenate(cols, axis=2)
 
 
-#: joints (0-based) whose equations the fit leaves out, and why
-LEFT_OUT = {
-    "microbo": ((1, 2), "the Microbo's prismatic joints 2 and 3: \"the mechanical gearing on the Microbo's "
-                        "prismatic joints make force control and measurement using joint torques impractical\" "
-                        "(thesis, chapter 1); on simula their friction varies along the travel with periods of "
-                        "centimetres (Table 4.4's pattern on a slide, 3-7 N), a force the model lacks that biases "
-                        "the parameters their equations share with the wrist's (measured: docs/calib.md)"),
+#: what the simulated arm adds to the thesis's reason for leaving a joint's equation out
+DYNAMICS_DETAIL = {
+    "microbo": "on simula their friction varies along the travel with periods of centimetres (Table 4.4's "
+               "pattern on a slide, 3-7 N), a force the model lacks that biases the parameters their equations "
+               "share with the wrist's (measured: docs/calib.md)",
 }
 
 
 def fitted_joints(robot: str) -> list[int]:
-    """Joints (0-based) whose equations the fit uses: all but those of ``LEFT_OUT``."""
-    n = len(gear(robot))
-    out = set(LEFT_OUT.get(robot, ((), ""))[0])
-    return [j for j in range(n) if j not in out]
+    """Joints (0-based) whose equations the fit uses: all but those whose torque calib does not
+    measure (rcci.calib.unmeasured)."""
+    from rcci.calib.unmeasured import unmeasured_joints
+
+    out = {j - 1 for j in unmeasured_joints(robot)}
+    return [j for j in range(len(gear(robot))) if j not in out]
 
 
 def left_out(robot: str) -> str | None:
     """Why some joints' equations are not fitted (None: every joint's is)."""
-    return LEFT_OUT[robot][1] if robot in LEFT_OUT else None
+    from rcci.calib.unmeasured import why_unmeasured
+
+    why = why_unmeasured(robot)
+    if why is None:
+        return None
+    return why + ("; " + DYNAMICS_DETAIL[robot] if robot in DYNAMICS_DETAIL else "")

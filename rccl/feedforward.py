@@ -223,7 +223,7 @@ def fitted_columns(path: str | os.PathLike, kin) -> dict[str, float]:
                          "(run calib fit dynamics LOGS -p FILE first: docs/calib.md)")
     fitted = dict(zip(dyn["names"], dyn["values"]))
     unfitted = [k for k in dyn.get("not_identified", []) if k not in fitted]
-    if unfitted:        # equations the fit left out (rcci.calib.regressor.LEFT_OUT): the data file's values
+    if unfitted:        # equations the fit left out (rcci.calib.unmeasured): the data file's values
         fitted.update(data_file_columns(kin.ROBOT, unfitted))
     if not dyn.get("grouped"):
         return fitted

@@ -24,9 +24,9 @@ def _states(robot: str, seed: int):
 @pytest.fixture
 def slides_fitted(monkeypatch):
     """The Microbo with its slides' equations in the fit (as an arm whose slide torques can be measured)."""
-    import rcci.calib.regressor as regressor
+    import rcci.calib.unmeasured as unmeasured
 
-    monkeypatch.setattr(regressor, "LEFT_OUT", {})
+    monkeypatch.setattr(unmeasured, "TORQUE_UNMEASURED", {})
     grouping.cache_clear()
     yield
     grouping.cache_clear()

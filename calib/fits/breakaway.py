@@ -66,14 +66,14 @@ def record(req: RecordRequest) -> None:
 
 
 def regen(ctx: RegenContext) -> list:
-    """The ramps, every joint, on a simula of their own (so that `--kinds breakaway` alone
+    """The ramps, every joint whose torque calib measures, on a simula of their own (so that `--kinds breakaway` alone
     records the same logs); recorded here, nothing left for the shared simula."""
     from rcci.calib.breakaway_program import breakaway_plans
     from rcci.calib.regen import record_breakaway
     from rcci.calib.registry import OwnSimula
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
-    names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.joints()))
+    names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.measured_joints("breakaway")))
     return [(("own",), OwnSimula("breakaway", lambda: record_breakaway(ctx), names))]
 
 
