@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rcci.calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, sweep_warmup
+from rcci.calib.experiments import ACCEL, DEG, FRICTION_POSES, FRICTION_WARMUP_S, WARMUP_SPEED, sweep_warmup
 from rcci.calib.paths import Path, PathSegment
 from rcci.calib.program import command_joints, drive_recorded, open_measurement
 from rci import codes
@@ -30,6 +30,9 @@ RAMP_TOP = 1.6
 MOVED_COUNTS = 3          # encoder counts from the ramp's start that mean "it moved"
 AFTER_ONSET = 6           # cycles the ramp goes on after the onset (the fit reads up to it)
 POSITIONS_DEG = (-20.0, 0.0, 20.0)   # offsets from the friction pose's angle
+POSITIONS_M = (-0.05, 0.0, 0.05)     # on a prismatic joint (m)
+WARM_DEG, SWEEP_DEG = 10.0, 8.0      # half widths of the warm-up and of the sweeps between ramps
+WARM_M, SWEEP_M = 0.04, 0.03         # on a prismatic joint (m)
 BETWEEN_S = 6.0           # s of sweeping between ramps (keeps the joint warm)
 
 
@@ -44,22 +47,57 @@ class BreakawayPlan:
     ramp_rate: float               # N m/s of motor torque on motor ``joint``
     meta: dict = field(default_factory=dict)
     rate_hz: int = BREAKAWAY_RATE_HZ
+    warm_half: float = WARM_DEG * DEG      # rad (m): the warm-up's half width
+    sweep_half: float = SWEEP_DEG * DEG    # rad (m): the sweeps' between ramps
 
 
-def breakaway_plans(static_pos: np.ndarray, G: np.ndarray, joints=range(1, 7)) -> list[BreakawayPlan]:
+def breakaway_plans(static_pos: np.ndarray, G: np.ndarray, joints=range(1, 7), robot=None) -> list[BreakawayPlan]:
     """One plan per joint, at the friction pose (axis vertical or gravity-free at the
-    centre) and POSITIONS_DEG around it; the ramp reaches RAMP_TOP x ``static_pos`` (the
-    data file's Table 4.5, joint N m) through G's diagonal in RAMP_S."""
+    centre) and POSITIONS_DEG around it (POSITIONS_M on a prismatic joint); the ramp reaches
+    RAMP_TOP x ``static_pos`` (the data file's Table 4.5, joint N m) through G's diagonal in
+    RAMP_S. ``robot`` (rcci.calib.robot.RobotInfo; None: the thesis's PUMA 260): the thesis's
+    pose where the ramps, the warm-up and the sweeps fit the arm's ranges, else the friction
+    pose found for that arm (rcci.calib.experiments.pose_for)."""
     plans = []
     for j in joints:
-        qdeg, _ = FRICTION_POSES[j]
-        q = np.array(qdeg, float) * DEG
-        pos = [float(q[j - 1] + d * DEG) for d in POSITIONS_DEG]
+        q, offsets, warm, sweep = _pose(j, robot)
+        pos = [float(q[j - 1] + d) for d in offsets]
         rate = RAMP_TOP * float(static_pos[j - 1]) / abs(float(G[j - 1, j - 1])) / RAMP_S
         meta = {"experiment": "breakaway", "joint": j, "pose": list(q), "positions": pos,
                 "ramp_motor_torque_rate": rate, "moved_counts": MOVED_COUNTS}
-        plans.append(BreakawayPlan(f"breakaway-j{j}", j, q, pos, rate, meta))
+        plans.append(BreakawayPlan(f"breakaway-j{j}", j, q, pos, rate, meta, warm_half=warm, sweep_half=sweep))
     return plans
+
+
+def _pose(j: int, robot) -> tuple[np.ndarray, list[float], float, float]:
+    """(pose rad, position offsets, warm-up half width, sweep half width) of joint ``j``'s ramps."""
+    from rcci.calib.exceptions import CalibError
+    from rcci.calib.experiments import pose_for
+
+    q = np.array(FRICTION_POSES[j][0], float) * DEG
+    prismatic = robot is not None and robot.kinds[j - 1] == "prismatic"
+    offsets = list(POSITIONS_M) if prismatic else [d * DEG for d in POSITIONS_DEG]
+    warm, sweep = (WARM_M, SWEEP_M) if prismatic else (WARM_DEG * DEG, SWEEP_DEG * DEG)
+    if robot is None or (len(q) == len(robot.lower) and _fits(q, j, offsets, warm, robot)):
+        return q, offsets, warm, sweep
+    # the ramp starts from the gravity balance of the data file's model: a pose where gravity
+    # works on the joint (the Stanford boom's joint 2) serves when none is free of it
+    found, _ = pose_for(robot, j, np.asarray(robot.lower, float), np.asarray(robot.upper, float), loaded=True)
+    if not _fits(found, j, offsets, warm, robot):
+        raise CalibError(f"robot {robot.name}: joint {j}: the breakaway ramps at {offsets} from its friction "
+                         f"pose with a +-{warm:g} warm-up leave the joint's range")
+    return found, offsets, warm, sweep
+
+
+def _fits(q: np.ndarray, j: int, offsets: list[float], warm: float, robot, turn: float = 0.15) -> bool:
+    """Every joint of ``q`` inside its range, and joint ``j``'s ramp positions with the warm-up
+    (``warm`` either side) and its turns (``turn`` rad or m, at most a tenth of the range) too."""
+    lo, hi = np.asarray(robot.lower, float), np.asarray(robot.upper, float)
+    if np.any(q < lo) or np.any(q > hi):
+        return False
+    k = j - 1
+    room = warm + min(turn, 0.1 * (hi[k] - lo[k]))
+    return all(lo[k] + room <= q[k] + d <= hi[k] - room for d in offsets)
 
 
 def _sweep(q: np.ndarray, j: int, half: float, seconds: float, rate: int, vmax: np.ndarray) -> np.ndarray:
@@ -100,8 +138,9 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
     steps: list[tuple[str, object]] = []
     first = plan.pose.copy()
     first[j] = plan.positions[0]
-    warm = sweep_warmup(first, j, first[j] - 10 * DEG, first[j] + 10 * DEG,
-                        seconds=FRICTION_WARMUP_S, dwell=0.0).within(vmax)
+    warm = sweep_warmup(first, j, first[j] - plan.warm_half, first[j] + plan.warm_half,
+                        speed=min(WARMUP_SPEED, 0.8 * float(vmax[j])), seconds=FRICTION_WARMUP_S,
+                        dwell=0.0).within(vmax)
     steps.append(("warm", warm.sample(rate)))
     here = warm.segments[-1].end
     for x in plan.positions:
@@ -110,7 +149,7 @@ def run_breakaway(url: str, plan: BreakawayPlan, log_path: str, robot: str = "pu
         for d in (1, -1):
             steps.append(("move", Path((PathSegment(here, q, 0.6, ACCEL, 0.5),)).within(vmax).sample(rate)))
             steps.append(("ramp", (q, d)))
-            steps.append(("warm", _sweep(q, j, 8 * DEG, BETWEEN_S, rate, vmax)))
+            steps.append(("warm", _sweep(q, j, plan.sweep_half, BETWEEN_S, rate, vmax)))
             here = q
     state = {"step": 0, "k": 0, "hold": None, "onset": None, "c0": None, "power": False}
     done = threading.Event()

@@ -135,6 +135,8 @@ def pose_for(robot, j: int, lower: np.ndarray, upper: np.ndarray, loaded: bool =
     if why is not None:
         raise CalibError(f"robot {robot.name}: joint {j}: its torque is not measured: {why}")
     try:
+        if len(q) != len(lower) or np.any(q < lower) or np.any(q > upper):
+            raise ValueError("the thesis's pose is outside this arm's ranges")
         check_friction_pose(robot, j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, q)
         friction_top_speed(j, q[j - 1] - half * DEG, q[j - 1] + half * DEG, lower, upper, np.full(len(q), 1.0))
         return q, half * DEG

@@ -122,7 +122,7 @@ def record_breakaway(ctx: RegenContext) -> None:
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
     args = _simula_args(ctx.params, [])
-    todo = [p for p in breakaway_plans(static, ctx.info.drive.G, ctx.measured_joints("breakaway"))
+    todo = [p for p in breakaway_plans(static, ctx.info.drive.G, ctx.measured_joints("breakaway"), ctx.info)
             if not (ctx.resume and finished(ctx.out_dir, p.name))]
     if not todo:
         return

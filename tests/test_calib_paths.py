@@ -36,3 +36,23 @@ def test_breakaway_moves_of_an_arm_with_a_slide_stay_within_its_limits() -> None
     q = 0.5 * (np.asarray(m.lower) + np.asarray(m.upper))
     sp = _sweep(q, 2, 0.1, 6.0, 500, vmax)
     assert np.max(np.abs(np.diff(sp[:, 2]))) * 500 <= 0.8 * vmax[2] + 1e-6
+
+
+def test_breakaway_plans_fit_every_arms_ranges() -> None:
+    """The thesis's poses where they fit (the PUMAs: unchanged), else the arm's own friction pose:
+    every pose, ramp position and warm-up inside the ranges (the Stanford arm's slide in metres)."""
+    from rcci.calib.breakaway_program import FRICTION_POSES, breakaway_plans
+    from rcci.calib.experiments import DEG
+    from rcci.calib.robot import robot_info
+    from rcci.calib.unmeasured import unmeasured_joints
+
+    for robot in ("puma260", "puma560", "stanford", "microbo"):
+        info = robot_info(robot)
+        joints = [j for j in range(1, 7) if j not in unmeasured_joints(robot)]
+        lo, hi = np.asarray(info.lower), np.asarray(info.upper)
+        for p in breakaway_plans(info.nominal["friction"]["static_pos"]["values"], info.drive.G, joints, info):
+            assert np.all(p.pose >= lo) and np.all(p.pose <= hi), (robot, p.joint)
+            k = p.joint - 1
+            assert all(lo[k] + p.warm_half <= x <= hi[k] - p.warm_half for x in p.positions), (robot, p.joint)
+            if robot.startswith("puma"):
+                np.testing.assert_allclose(p.pose, np.array(FRICTION_POSES[p.joint][0]) * DEG)

@@ -59,7 +59,7 @@ def record(req: RecordRequest) -> None:
     from rcci.calib.breakaway_program import breakaway_plans, run_breakaway
 
     static = req.info.nominal["friction"]["static_pos"]["values"]
-    for plan in breakaway_plans(static, req.info.drive.G, req.joints):
+    for plan in breakaway_plans(static, req.info.drive.G, req.joints, req.info):
         path = os.path.join(req.out, plan.name + ".rcilog")
         n = run_breakaway(req.url, plan, path, req.robot, extra_meta=req.extra_meta)
         print(f"{plan.name}: {n} records -> {path}")
@@ -73,7 +73,7 @@ def regen(ctx: RegenContext) -> list:
     from rcci.calib.registry import OwnSimula
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
-    names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.measured_joints("breakaway")))
+    names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.measured_joints("breakaway"), ctx.info))
     return [(("own",), OwnSimula("breakaway", lambda: record_breakaway(ctx), names))]
 
 
