@@ -7,31 +7,25 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hidden_truth_runs import HiddenTruth
 
 from rcci.calib.breakaway import TOLERANCE, fit_breakaway
 from rcci.calib.breakaway_program import POSITIONS_DEG, breakaway_plans, run_breakaway
-from rcci.calib.hidden_truth import write_hidden_truth
 from rcci.calib.logs import load_traces
-from rcci.calib.robot import robot_info
-from rcci.calib.truth import truth_meta, truth_of
+from rcci.calib.truth import truth_of
 
 ROBOT, TRUTH_SEED, SIMULA_SEED = "puma560", 3, 7
 
 
 @pytest.mark.slow
 def test_puma560_breakaway_of_joint_1_runs_through_and_fits_table_4_5(tmp_path):
-    from rci.simula.process import SimulaProcess
-
-    truth_file = str(tmp_path / "truth.toml")
-    data = write_hidden_truth(truth_file, ROBOT, TRUTH_SEED)
-    info = robot_info(ROBOT)
+    ht = HiddenTruth(ROBOT, TRUTH_SEED, SIMULA_SEED, tmp_path, warm=False)
+    data, info = ht.data, ht.info
     static = info.nominal["friction"]["static_pos"]["values"]
     (plan,) = breakaway_plans(static, info.drive.G, joints=[1])
-    log = str(tmp_path / "breakaway-j1.rcilog")
-    args = ["--params", truth_file]
-    with SimulaProcess("-p", *args, robot=ROBOT, lockstep=True, seed=SIMULA_SEED) as sim:
-        run_breakaway(sim.url, plan, log, ROBOT, extra_meta={"truth": truth_meta(SIMULA_SEED, truth_file, args)},
-                      timeout=120.0)
+    log = ht.log_path("breakaway-j1")
+    with ht.simula() as sim:
+        run_breakaway(sim.url, plan, log, ROBOT, extra_meta=ht.meta, timeout=120.0)
     traces = load_traces([log])
     drive = info.drive.with_sigma(np.asarray(data["motors"]["torque_sensitivity"], dtype=float))  # the truth's
     (res,), points = fit_breakaway(traces, drive, lambda q: np.zeros(6))   # joint 1's axis is vertical

@@ -8,46 +8,27 @@ sweeps +-150 deg about 0 (the PUMA 260's pose leaves its +-160 deg range), joint
 A few minutes of recording under load: `-m slow`."""
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 import pytest
+from hidden_truth_runs import HiddenTruth
 
 from rcci.calib.experiments import friction_plans
 from rcci.calib.fitting import run_fit
-from rcci.calib.hidden_truth import write_hidden_truth
-from rcci.calib.logs import load_trace
-from rcci.calib.program import run_plan
-from rcci.calib.robot import robot_info
-from rcci.calib.truth import truth_meta, truth_of
 
 ROBOT, TRUTH_SEED, SIMULA_SEED = "puma560", 4, 8
 
 
 @pytest.mark.slow
 def test_puma560_friction_of_joints_1_4_5_6_within_their_intervals(tmp_path):
-    from rci.simula.process import SimulaProcess
-
-    truth_file = str(tmp_path / "truth.toml")
-    data = write_hidden_truth(truth_file, ROBOT, TRUTH_SEED)
-    info = robot_info(ROBOT)
-    args = ["--warm", "--params", truth_file]
-
-    def record(j: int) -> str:
+    ht = HiddenTruth(ROBOT, TRUTH_SEED, SIMULA_SEED, tmp_path)
+    data, info = ht.data, ht.info
+    plans = []
+    for j in (1, 4, 5, 6):
         (plan,) = friction_plans([j], speeds_deg=(20, 40, 70), trips=(1, 2, 3), robot=info)
         lo, hi = plan.meta["window"]
         assert info.lower[j - 1] < lo < hi < info.upper[j - 1]          # the window inside the range
-        plan.warmup = None                                               # a warm simula
-        path = str(tmp_path / f"{plan.name}.rcilog")
-        with SimulaProcess("-p", *args, robot=ROBOT, lockstep=True, seed=SIMULA_SEED) as sim:
-            run_plan(sim.url, plan, path, ROBOT, rate_hz=plan.rate_hz,
-                     extra_meta={"truth": truth_meta(SIMULA_SEED, truth_file, args)})
-        return path
-
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        paths = list(pool.map(record, (1, 4, 5, 6)))
-    traces = [load_trace(p) for p in paths]
-    truth = truth_of(traces, info)
+        plans.append(plan)
+    traces, truth = ht.traces_and_truth(ht.record_each_on_its_own_simula(plans))
     params = {"calib": {"robot": ROBOT}, "motors": {"torque_sensitivity": data["motors"]["torque_sensitivity"]}}
     res = run_fit("friction", traces, info, params).results
     assert [r.joint for r in res] == [1, 4, 5, 6]

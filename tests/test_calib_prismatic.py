@@ -6,42 +6,25 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hidden_truth_runs import HiddenTruth
 
 from rcci.calib.experiments import friction_plans, sensitivity_plans
 from rcci.calib.fitting import run_fit
-from rcci.calib.hidden_truth import hidden_truth, write_hidden_truth
-from rcci.calib.logs import load_trace
+from rcci.calib.hidden_truth import hidden_truth
 from rcci.calib.lsq import coverage_factor
-from rcci.calib.program import run_plan
-from rcci.calib.robot import robot_info
-from rcci.calib.truth import truth_meta, truth_of
 
 ROBOT, TRUTH_SEED, SIMULA_SEED = "stanford", 2, 6
 
 
 @pytest.mark.slow
 def test_prismatic_joint_sensitivity_and_friction(tmp_path):
-    from rci.simula.process import SimulaProcess
-
-    truth_file = str(tmp_path / "truth.toml")
-    data = write_hidden_truth(truth_file, ROBOT, TRUTH_SEED)
-    info = robot_info(ROBOT)
-    args = ["--warm", "--params", truth_file]
-    meta = {"truth": truth_meta(SIMULA_SEED, truth_file, args)}
+    ht = HiddenTruth(ROBOT, TRUTH_SEED, SIMULA_SEED, tmp_path)
+    data, info = ht.data, ht.info
     plans = (sensitivity_plans(None, 0.05, joints=[3], speeds_deg=(10, 20), trips=3, robot=info)
              + friction_plans([3], speeds_deg=(5, 10, 18, 25), trips=(1, 1, 2, 2), robot=info))
-    paths = []
-    with SimulaProcess("-p", *args, "--test-channel", robot=ROBOT, lockstep=True, seed=SIMULA_SEED) as sim:
-        for plan in plans:
-            plan.warmup = None                    # a warm simula
-            load = plan.meta.get("load", {"mass_kg": 0})
-            spec = (f"pulley:joint=3,mass={load['mass_kg']},radius={load['radius_m']}"
-                    if load["mass_kg"] > 0 else "none")
-            assert sim.command(f"load {spec}")["ok"]
-            paths.append(str(tmp_path / f"{plan.name}.rcilog"))
-            run_plan(sim.url, plan, paths[-1], ROBOT, rate_hz=plan.rate_hz, extra_meta=meta)
-    traces = [load_trace(p) for p in paths]
-    truth = truth_of(traces, info)
+    # the pulley pulls the slide in the loaded sensitivity runs only (friction sweeps: no load)
+    assert all(p.meta["joint"] == 3 for p in plans if p.meta.get("load", {"mass_kg": 0})["mass_kg"] > 0)
+    traces, truth = ht.traces_and_truth(ht.record_with_loads(plans))
     (s,) = run_fit("sensitivity", [t for t in traces if t.experiment == "sensitivity"], info, {}).results
     assert abs(s.mean - truth.sigma[2]) <= coverage_factor(s.trials - 1) * s.std / np.sqrt(s.trials)
     sigma = list(data["motors"]["torque_sensitivity"])

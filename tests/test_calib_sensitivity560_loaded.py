@@ -9,41 +9,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hidden_truth_runs import HiddenTruth
 
 from rcci.calib.experiments import sensitivity_plans
 from rcci.calib.fitting import run_fit
-from rcci.calib.hidden_truth import write_hidden_truth
-from rcci.calib.logs import load_trace
 from rcci.calib.lsq import coverage_factor
-from rcci.calib.program import run_plan
-from rcci.calib.robot import robot_info
-from rcci.calib.truth import truth_meta, truth_of
 
 ROBOT, TRUTH_SEED, SIMULA_SEED = "puma560", 4, 8
 
 
 @pytest.mark.slow
 def test_puma560_sensitivity_of_motors_2_3_on_gravity_loaded_arcs(tmp_path):
-    from rci.simula.process import SimulaProcess
-
-    truth_file = str(tmp_path / "truth.toml")
-    data = write_hidden_truth(truth_file, ROBOT, TRUTH_SEED)
-    info = robot_info(ROBOT)
-    args = ["--warm", "--params", truth_file]
-    meta = {"truth": truth_meta(SIMULA_SEED, truth_file, args)}
+    ht = HiddenTruth(ROBOT, TRUTH_SEED, SIMULA_SEED, tmp_path)
+    data, info = ht.data, ht.info
     plans = sensitivity_plans(None, 0.05, joints=[2, 3], speeds_deg=(15, 30), trips=3, robot=info)
-    paths = []
-    with SimulaProcess("-p", *args, "--test-channel", robot=ROBOT, lockstep=True, seed=SIMULA_SEED) as sim:
-        for plan in plans:
-            plan.warmup = None                    # a warm simula
-            load = plan.meta["load"]
-            spec = (f"pulley:joint={plan.meta['joint']},mass={load['mass_kg']},radius={load['radius_m']}"
-                    if load["mass_kg"] > 0 else "none")
-            assert sim.command(f"load {spec}")["ok"]
-            paths.append(str(tmp_path / f"{plan.name}.rcilog"))
-            run_plan(sim.url, plan, paths[-1], ROBOT, rate_hz=plan.rate_hz, extra_meta=meta)
-    traces = [load_trace(p) for p in paths]
-    truth = truth_of(traces, info)
+    assert all("load" in plan.meta for plan in plans)
+    traces, truth = ht.traces_and_truth(ht.record_with_loads(plans))
     res = run_fit("sensitivity", traces, info, {}).results
     assert [s.joint for s in res] == [2, 3]
     for s in res:

@@ -6,11 +6,17 @@ other packages. ``derive`` and ``rci`` stand on it and not on each other; ``rccl
 uses ``rccl``'s kinematics and calibrated arm, which share its floor). The 3D view (``view``,
 installed as ``rcci.view``) is the top floor: it shows rci's logs and rccl's plans, and nothing
 imports it (a viewed process feeds it through ``rci.view_link``).
+
+Each file is parsed once for the whole module (``_import_statements``, a cache that
+tests/conftest.py empties when the module ends): the four tests used to parse every file again,
+the generated kinematics among them, 9-12 s each in the suite at load 8.
 """
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parent.parent
 FLOOR = {"models": 0, "derive": 1, "rci": 1, "rccl": 2, "calib": 2, "view": 3}
@@ -21,20 +27,43 @@ INSTALLED_ELSEWHERE = ("models", "calib", "view")
 ALLOWED_SIDEWAYS = {("calib", "rccl")}
 
 
+class ImportStatement(NamedTuple):
+    """One ``import a, b`` (``module`` None, ``level`` 0) or ``from .module import a, b`` of a file."""
+
+    lineno: int
+    names: tuple[str, ...]
+    module: str | None
+    level: int
+
+
+@functools.cache
+def _import_statements(path: Path) -> tuple[ImportStatement, ...]:
+    """Every import statement of ``path``, at any depth (only these are kept, not the tree)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out.append(ImportStatement(node.lineno, tuple(a.name for a in node.names), None, 0))
+        elif isinstance(node, ast.ImportFrom):
+            out.append(ImportStatement(node.lineno, tuple(a.name for a in node.names), node.module, node.level))
+    return tuple(out)
+
+
+def _is_from(st: ImportStatement) -> bool:
+    return st.module is not None or st.level > 0
+
+
 def _imports(path: Path, module: str) -> set[str]:
     """Absolute names of the project modules that ``path`` (module ``module``) imports."""
-    tree = ast.parse(path.read_text(), str(path))
     package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
     out: set[str] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            out.update(a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package[:len(package) - (node.level - 1)]
-                out.add(".".join(base + ([node.module] if node.module else [])))
-            elif node.module:
-                out.add(node.module)
+    for st in _import_statements(path):
+        if not _is_from(st):
+            out.update(st.names)
+        elif st.level:
+            base = package[:len(package) - (st.level - 1)]
+            out.add(".".join(base + ([st.module] if st.module else [])))
+        elif st.module:
+            out.add(st.module)
     out = {name.removeprefix(INSTALLED_PREFIX) for name in out}
     return {name for name in out if name.split(".")[0] in FLOOR}
 
@@ -71,9 +100,8 @@ def test_no_module_of_the_project_imports_the_old_robot_model_path():
         for path in (ROOT / pkg).rglob("*.py"):
             if path == ROOT / "rci" / "robot_model.py":
                 continue
-            tree = ast.parse(path.read_text(), str(path))
-            for node in ast.walk(tree):
-                if isinstance(node, ast.ImportFrom) and node.module and node.module.endswith("robot_model"):
+            for st in _import_statements(path):
+                if _is_from(st) and st.module and st.module.endswith("robot_model"):
                     users.append(str(path.relative_to(ROOT)))
     assert not users, users
 
@@ -85,10 +113,8 @@ def test_the_project_imports_its_folders_by_their_installed_names():
     bare = []
     for top in (*FLOOR, "bench", "examples", "tests", "docs"):
         for path in (ROOT / top).rglob("*.py"):
-            tree = ast.parse(path.read_text(), str(path))
-            for node in ast.walk(tree):
-                names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
-                         [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else [])
-                bare += [f"{path.relative_to(ROOT)}:{node.lineno} {n}" for n in names
+            for st in _import_statements(path):
+                names = (list(st.names) if not _is_from(st) else [st.module] if st.module and not st.level else [])
+                bare += [f"{path.relative_to(ROOT)}:{st.lineno} {n}" for n in names
                          if n.split(".")[0] in INSTALLED_ELSEWHERE]
     assert not bare, "imports of a folder by a name that is not installed: " + ", ".join(bare)
