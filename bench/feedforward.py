@@ -1,7 +1,7 @@
 """Tracking error of a fast Cartesian tour in three servo modes: position, gravity-only and computed torque.
 
     .venv/bin/python -m bench.feedforward                          # puma260, 250 Hz
-    .venv/bin/python -m bench.feedforward --robot puma260 --robot microbo --robot puma560 --robot stanford \\
+    .venv/bin/python -m bench.feedforward --robot puma260 --robot microbo --robot puma560 --robot stanford --robot panda \\
         --report reports/feedforward.md --plot reports/feedforward.png
     .venv/bin/python -m bench.feedforward --robot puma260 --hidden-truth 5 \\
         --report reports/feedforward-identified.md --plot reports/feedforward-identified.png
@@ -187,7 +187,7 @@ def identified_truth(robot: str, truth_seed: int, sim_seed: int, folder: str) ->
 
 def table(runs: list[Run]) -> list[str]:
     """Markdown rows: per run the RMS/max of the wrist-centre error (mm) and of each joint (mrad, mm)."""
-    out = ["| arm | mode | cart RMS (mm) | cart max (mm) | joint RMS, 1..6 (mrad / mm) | joint max, 1..6 | "
+    out = ["| arm | mode | cart RMS (mm) | cart max (mm) | joint RMS, 1..n (mrad / mm) | joint max, 1..n | "
            "peak speed (m/s) | samples | DAC clipped | fault |", "|---|---|---:|---:|---|---|---:|---:|---:|---|"]
     for r in runs:
         e = r.joint_err * 1e3
@@ -316,7 +316,7 @@ def main(argv: list[str] | None = None) -> int:
             runs.append(r)
             print("\n".join(table([r])[2:]), flush=True)
         if a.no_rotor:
-            r = run_one(robot, "computed", a.rate, a.seed, gains=gains, rotor=np.zeros(6))
+            r = run_one(robot, "computed", a.rate, a.seed, gains=gains, rotor=np.zeros(len(START[robot])))
             runs.append(r)
             print("\n".join(table([r])[2:]), flush=True)
     wall = time.monotonic() - t0

@@ -11,7 +11,7 @@ import os
 import numpy as np
 import pytest
 
-from rcci.calib.dynamics import GOAL_RMS_NOISE, coverage, fit_dynamics, truth_vector
+from rcci.calib.dynamics import coverage, fit_dynamics, truth_vector
 from rcci.calib.exceptions import LogError
 from rcci.calib.excitation import SPEED_SHARE, acceleration_limits, design, range_limits
 from rcci.calib.hidden_truth import write_hidden_truth
@@ -89,48 +89,6 @@ def test_panda_log_reads_seven_joints_and_fit_recovers_the_truth(recorded) -> No
     c = res.consistent
     assert c.masses.shape == (7,) and np.all(c.masses > 0) and np.all(c.rotor > 0)
     assert any("no held-out log" in note for note in res.notes)
-
-
-@pytest.mark.slow
-def test_panda_campaign_through_the_cli(tmp_path) -> None:
-    """`calib hidden-truth --robot panda --inertials`, `calib record dynamics --robot panda
-    --simula`, `calib fit dynamics -p` and `calib report` at full length (two designs, the
-    held-out log and its plot): 1-3 min on a loaded machine."""
-    import tomllib
-
-    from rcci.calib.__main__ import main
-    from rcci.calib.params import dumps
-    from rcci.models.params import SCHEMA
-
-    truth = str(tmp_path / "truth.toml")
-    assert main(["hidden-truth", "--robot", ROBOT, "--seed", "5", "--inertials", "-o", truth]) == 0
-    out = str(tmp_path / "logs")
-    assert main(["record", "dynamics", "--robot", ROBOT, "--simula", f"--seed 7 --params {truth}",
-                 "--out", out, "-q"]) == 0
-    with open(truth, "rb") as f:
-        data = tomllib.load(f)
-    params = tmp_path / "fitted.toml"
-    params.write_text(dumps({"calib": {"schema": SCHEMA, "robot": ROBOT},
-                             "motors": {"torque_sensitivity": data["motors"]["torque_sensitivity"]},
-                             "kinematics": {"dtheta": data["kinematics"]["dtheta"]}}))
-    logs = [os.path.join(out, f"dynamics-{r}.rcilog.xz") for r in ("fit", "heldout")]
-    assert main(["fit", "dynamics", *logs, "-p", str(params), "--plots", str(tmp_path / "plots"), "-q"]) == 0
-    fitted = tomllib.loads(params.read_text())
-    assert len(fitted["dynamics"]["values"]) == len(fitted["dynamics"]["names"]) == 76
-    assert os.path.exists(tmp_path / "plots" / "calib-dynamics-heldout-0.png")
-    traces = [load_trace(p) for p in logs]
-    drive = robot_info(ROBOT).drive.with_sigma(np.asarray(data["motors"]["torque_sensitivity"], float))
-    res = fit_dynamics(traces, drive, ROBOT, offset=np.asarray(data["kinematics"]["dtheta"], float))
-    assert all(c <= COND_GOAL for c in res.cond_design)
-    inside, total, _ = coverage(res, truth_vector(traces, ROBOT))
-    assert inside >= total - 2
-    h = res.heldout[0]
-    assert h.measured.shape[1] == 7 and np.all(h.rms_moving <= GOAL_RMS_NOISE * h.noise)
-    report = str(tmp_path / "report" / "calibration.md")
-    assert main(["report", "--logs", out, "--params", str(params), "--out", report, "--no-accuracy", "-q"]) == 0
-    with open(report) as f:
-        text = f.read()
-    assert "## Dynamics: base parameters" in text and "| 7 |" in text
 
 
 def _trace(n_joints: int, rows: int = 5, **kw) -> Trace:
