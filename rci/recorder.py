@@ -19,6 +19,7 @@ its last whole block either way.
 """
 from __future__ import annotations
 
+import errno
 import gzip
 import json
 import lzma
@@ -46,6 +47,7 @@ _BLOCK = struct.Struct("<4sIII")  # magic, n records, payload bytes, crc32 of pa
 _END = struct.Struct("<4sQ")      # magic, total records
 FORMAT_VERSION = 1
 WRITE_ERROR_CHOICES = ("warn", "raise")
+MARKS_KEPT = 8                    # flush ends remembered: how far close() may cut back for the end marker
 OnWriteError = Union[str, Callable[[LogWriteError], None]]
 
 
@@ -162,6 +164,7 @@ class Recorder:
             os.close(self._fd)
             raise LogWriteError(self.path, e, written=0, lost=0, where="the header") from None
         self._end = os.lseek(self._fd, 0, os.SEEK_CUR)
+        self._marks = [(self._end, 0)]   # (file end, records written) after the header and each flush
         self.closed = False
 
     # --- control level ------------------------------------------------------------
@@ -257,6 +260,8 @@ class Recorder:
                 return 0
             self.written += n_total
             self._end = os.lseek(self._fd, 0, os.SEEK_CUR)
+            if n_total:
+                self._marks = (self._marks + [(self._end, self.written)])[-MARKS_KEPT:]
             return n_total
 
     def _fail(self, e: OSError) -> None:
@@ -334,19 +339,39 @@ class Recorder:
             if self.error is not None:
                 self._discard()
             try:
-                self._write_all(_END.pack(END_MAGIC, self.written))
-                os.fsync(self._fd)
+                self._write_end_marker()
             except OSError as e:
-                try:
-                    os.ftruncate(self._fd, self._end)       # no half end marker
-                except OSError:
-                    pass
                 if self.error is None:
                     self.error = LogWriteError(self.path, e, written=self.written, lost=self.lost,
                                                where="the end marker")
             os.close(self._fd)
             self.closed = True
         self._report()
+
+    def _write_end_marker(self) -> None:
+        """The end marker after the last whole block; on a full disk the last flush's blocks are
+        given up (counted in ``lost``) to make room for it, as often as ``_marks`` allows: a log
+        that says it is complete is worth a few records (the cut falls where a page frees)."""
+        while True:
+            try:
+                self._write_all(_END.pack(END_MAGIC, self.written))
+                os.fsync(self._fd)
+                return
+            except OSError as e:
+                try:
+                    os.ftruncate(self._fd, self._end)       # no half end marker
+                except OSError:
+                    pass
+                if e.errno not in (errno.ENOSPC, errno.EDQUOT) or len(self._marks) < 2:
+                    raise
+                self._marks.pop()
+                end, written = self._marks[-1]
+                os.ftruncate(self._fd, end)
+                os.lseek(self._fd, end, os.SEEK_SET)
+                self.lost += self.written - written
+                self.written, self._end = written, end
+                if self.error is not None:
+                    self.error.written, self.error.lost = self.written, self.lost
 
     def __enter__(self) -> "Recorder":
         return self

@@ -129,3 +129,30 @@ def test_the_program_can_end_the_control_when_the_log_cannot_be_written(small_di
 def test_on_write_error_is_checked():
     with pytest.raises(ValueError, match="on_write_error='ignore'"):
         Recorder("/dev/null", robot="puma260", on_write_error="ignore")
+
+
+def test_close_gives_up_the_last_flush_to_make_room_for_the_end_marker(tmp_path, monkeypatch):
+    """A disk that fills up just before the end marker (the page the marker needs is the one that
+    is not there: it happened on the tmpfs above, now and then): ``close`` cuts back the last
+    flush's blocks, counts them lost, and the file reads back complete with ``written`` records."""
+    import rci.recorder as recorder
+
+    path = tmp_path / "run.rcilog"
+    rec = Recorder(path, robot="puma260", block_records=10, on_write_error="warn")
+    _append(rec, 0, 30)
+    assert rec.flush() == 30
+    _append(rec, 30, 20)
+    assert rec.flush() == 20
+    real, failed = recorder.Recorder._write_all, []
+
+    def full_once(self, data: bytes) -> None:
+        if data.startswith(recorder.END_MAGIC) and not failed:
+            failed.append(True)
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(self, data)
+
+    monkeypatch.setattr(recorder.Recorder, "_write_all", full_once)
+    rec.close()
+    assert failed and rec.written == 30 and rec.lost == 20 and rec.error is None
+    log = read_log(path, strict=True)
+    assert len(log) == 30 and log.complete
