@@ -428,11 +428,13 @@ def _identifying_plans(regressor, lower, upper, speed_deg, trips, names, kinds, 
 
 def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: int = 1985,
                 speed_deg: float = 60.0, halt_s: float = 0.6, step_deg: float = 40.0,
-                start: np.ndarray | None = None) -> MeasurementPlan:
+                start: np.ndarray | None = None, vmax: np.ndarray | None = None) -> MeasurementPlan:
     """4.5.5, second method: the arm brought to a halt at random poses.
 
     Each pose is a random step of up to ``step_deg`` per joint from the last (kept 10 %
-    inside the joint ranges), so the 275 halts take minutes rather than an hour.
+    inside the joint ranges), so the 275 halts take minutes rather than an hour; with the
+    velocity limits ``vmax`` every joint moves within 0.8 of its own (a slide's, in m/s, may be
+    below ``speed_deg``: the Microbo's 0.2 m/s).
     """
     rng = np.random.default_rng(seed)
     margin = 0.1 * (upper - lower)
@@ -451,4 +453,7 @@ def static_plan(lower: np.ndarray, upper: np.ndarray, halts: int = 275, seed: in
     here = warm[-1].end
     segs = [PathSegment(here, here, 1.0, ACCEL, halt_s)] + walk(halts - 1, halt_s, here)
     meta = {"experiment": "static", "halts": halts, "seed": seed, "halt_s": halt_s}
-    return MeasurementPlan("static", Path(tuple(segs)), meta, warmup=Path(tuple(warm)))
+    path, warmup = Path(tuple(segs)), Path(tuple(warm))
+    if vmax is not None:
+        path, warmup = path.within(vmax), warmup.within(vmax)
+    return MeasurementPlan("static", path, meta, warmup=warmup)

@@ -56,3 +56,19 @@ def test_breakaway_plans_fit_every_arms_ranges() -> None:
             assert all(lo[k] + p.warm_half <= x <= hi[k] - p.warm_half for x in p.positions), (robot, p.joint)
             if robot.startswith("puma"):
                 np.testing.assert_allclose(p.pose, np.array(FRICTION_POSES[p.joint][0]) * DEG)
+
+
+def test_static_halts_keep_every_joint_within_its_limit() -> None:
+    """Table 4.6's random halts: the Microbo's slides (0.2 m/s) and the Stanford boom within 0.8
+    of their limits (the Microbo's campaign stopped on R_REQVEL, 0.224 m/s), the PUMAs' unchanged."""
+    from rcci.calib.experiments import static_plan
+    from rcci.models import load_robot
+
+    for robot in ("puma260", "puma560", "stanford", "microbo"):
+        m = load_robot(robot)
+        lo, hi, v = (np.asarray(x, float) for x in (m.lower, m.upper, m.max_velocity))
+        plan = static_plan(lo, hi, halts=30, vmax=v)
+        for path in (plan.warmup, plan.path):
+            assert np.all(_peak_speeds(path, 100.0) <= 0.8 * v + 1e-6), robot
+        if robot.startswith("puma"):
+            np.testing.assert_array_equal(plan.path.sample(100.0), static_plan(lo, hi, halts=30).path.sample(100.0))

@@ -43,14 +43,23 @@ def record(req: RecordRequest) -> None:
     from rcci.calib.experiments import static_plan
     from rcci.calib.program import record_plans
 
-    record_plans(req, [static_plan(req.info.lower, req.info.upper, halts=req.args.halts or 275)])
+    record_plans(req, [static_plan(req.info.lower, req.info.upper, halts=req.args.halts or 275,
+                                   vmax=_vmax(req.info.name))])
 
 
 def regen(ctx: RegenContext) -> list:
     from rcci.calib.experiments import static_plan
 
     halts = ctx.options.halts
-    return [((), static_plan(ctx.info.lower, ctx.info.upper, **({} if halts is None else {"halts": halts})))]
+    return [((), static_plan(ctx.info.lower, ctx.info.upper, vmax=_vmax(ctx.info.name),
+                             **({} if halts is None else {"halts": halts})))]
+
+
+def _vmax(robot: str):
+    """The arm's joint velocity limits (rad/s, m/s on a slide): the halts' moves stay within them."""
+    from rcci.models import load_robot
+
+    return load_robot(robot).max_velocity
 
 
 KIND = FitKind(
