@@ -322,7 +322,7 @@ def wls(rows: Rows, names: tuple[str, ...]) -> WlsResult:
     res = yw - Aw @ x
     s2 = float(res @ res) / (m - p)
     infl = np.array([_inflation(res[js == j]) * _repeat(res[js == j], rows.time[js == j], rows.period, rows.seconds)
-                     for j in range(n)])
+                     if np.any(js == j) else 1.0 for j in range(n)])      # a joint left out has no rows
     Ainv = (Vt.T / s) @ U.T / scale[:, None]                 # x = Ainv @ yw
     cov = s2 * (Ainv * infl[js][None, :]) @ Ainv.T
     sd = np.sqrt(np.diag(cov))

@@ -70,7 +70,10 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
         sd = np.tile(DH_TOLERANCE, (n, 1))
         source = ("no kinematic calibration: an a priori DH spread (0.1 deg, 0.5 mm)"
                   + ("" if grav else " and the data file's gravity coefficients"))
-    sd = sd * np.array([[k == "revolute"] for k in model.kinds])   # simula has no DH errors for a slide
+    revolute = np.array([[k == "revolute"] for k in model.kinds])
+    if have_kin and np.any(e * ~revolute):
+        source += " (a slide's fitted DH errors left out: simula's arm models none)"
+    e, sd = e * revolute, sd * revolute                  # simula has no DH errors for a slide
     th = np.linspace(window[0], window[1], POINTS)
     w = hann_edge_weights(th, window[0], window[1], taper)
     q = np.tile(np.asarray(pose, dtype=float), (POINTS, 1))

@@ -69,8 +69,11 @@ def regen(ctx: RegenContext) -> list:
     """The ramps, every joint whose torque calib measures, on a simula of their own (so that `--kinds breakaway` alone
     records the same logs); recorded here, nothing left for the shared simula."""
     from rcci.calib.breakaway_program import breakaway_plans
+    from rcci.calib.fits.gravity import require_gravity
     from rcci.calib.regen import record_breakaway
     from rcci.calib.registry import OwnSimula
+
+    require_gravity(ctx.info, "breakaway")
 
     static = ctx.info.nominal["friction"]["static_pos"]["values"]
     names = tuple(p.name for p in breakaway_plans(static, ctx.info.drive.G, ctx.measured_joints("breakaway"), ctx.info))

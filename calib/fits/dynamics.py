@@ -18,7 +18,10 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
     from rcci.calib.dynamics import fit_dynamics
     from rcci.calib.grouping import grouping
 
-    drive = info.drive.with_sigma(inputs.sigma(list(range(len(info.lower)))))
+    from rcci.calib.regressor import fitted_joints
+
+    joints = fitted_joints(info.name)          # the equations the fit uses (rcci.calib.unmeasured)
+    drive = info.drive.with_sigma(inputs.sigma(joints))
     kin = params.get("kinematics", {})
     offset = None
     if "dtheta" in kin:
@@ -28,7 +31,7 @@ def fit(traces, info, params, inputs, notes) -> FitOutcome:
                      "evaluated at the encoder angles (fit kinematics first: an offset turns the links' "
                      "first moments into each other)")
     res = fit_dynamics(traces, drive, info.name, offset=offset)
-    scale = inputs.sigma_scale_error(list(range(len(info.lower))))
+    scale = inputs.sigma_scale_error(joints)
     if scale > 0:     # every torque scales with the sensitivities: so does every parameter
         res.wls.error = np.sqrt(res.wls.error ** 2 + (scale * res.wls.value) ** 2)
     notes += res.notes

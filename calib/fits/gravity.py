@@ -118,6 +118,17 @@ def regen(ctx: RegenContext) -> list:
     return [((), p) for p in plans(ctx.info)]
 
 
+def require_gravity(info, kind: str) -> None:
+    """CalibError before ``kind``'s programs are planned when its fit needs the fitted gravity
+    coefficients and the arm's sweeps cannot identify them (the Microbo's c12)."""
+    from rcci.calib.exceptions import CalibError
+
+    try:
+        plans(info)
+    except CalibError as exc:
+        raise CalibError(f"the {kind} fit subtracts gravity with the fitted coefficients, and {exc}") from None
+
+
 KIND = FitKind(
     name="gravity", title="gravity loading coefficients (Tables 4.8, 4.9)", section="gravity_coeffs",
     merge_keys=(), order=2, record_order=3, report_order=4, fit=fit, report=report, record=record, regen=regen,

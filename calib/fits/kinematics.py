@@ -52,6 +52,9 @@ def _accuracy(ctx: ReportContext) -> dict:
     from rccl.session import load_kinematics
 
     robot = ctx.info.name
+    if any(k != "revolute" for k in ctx.info.kinds):
+        return {"skipped": "calibrated kinematics at run time (rccl.calibrated) are for revolute arms; "
+                           "this arm has a slide"}
     nominal = load(robot)
     t = log_truth(next(tr for tr in ctx.traces if tr.experiment == "kinematics"))
     with tempfile.TemporaryDirectory(prefix="calib-truth-") as tmp:

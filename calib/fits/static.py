@@ -9,8 +9,15 @@ from rcci.calib.tables import table_4_6
 
 
 def fit(traces, info, params, inputs, notes) -> FitOutcome:
-    drive = info.drive.with_sigma(inputs.sigma(list(range(6))))
+    from rcci.calib.unmeasured import unmeasured_joints, why_unmeasured
+
+    left = unmeasured_joints(info.name)
+    joints = [j for j in range(len(info.lower)) if j + 1 not in left]
+    drive = info.drive.with_sigma(inputs.sigma(joints))
     res, samples = fit_static(traces, drive, inputs.gravity_model(), notes)
+    if left:            # halted with the others, but their torque is not measured
+        res = [r for r in res if r.joint not in left]
+        notes.append(f"static: joint(s) {', '.join(map(str, left))} not fitted: {why_unmeasured(info.name)}")
     sec = {"samples": int(res[0].samples),
            "maximum": [r.maximum for r in res], "minimum": [r.minimum for r in res],
            "mean": [r.mean for r in res], "std": [r.std for r in res], "unit": "N*m"}
@@ -49,6 +56,9 @@ def record(req: RecordRequest) -> None:
 
 def regen(ctx: RegenContext) -> list:
     from rcci.calib.experiments import static_plan
+    from rcci.calib.fits.gravity import require_gravity
+
+    require_gravity(ctx.info, "static")
 
     halts = ctx.options.halts
     return [((), static_plan(ctx.info.lower, ctx.info.upper, vmax=_vmax(ctx.info.name),
