@@ -72,6 +72,10 @@ def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, n
         rec.close()
 
 
+#: a plan's moves keep every joint under this share of its velocity limit (the friction sweeps'
+#: 90 % pass unchanged; a prismatic joint's sweep planned in degrees per second does not)
+SPEED_SHARE_MAX = 0.95
+
 def approach_speed(robot: str) -> float:
     """Speed (rad/s or m/s, of the joint that moves most) of the moves to a plan's start: 0.6, or
     80 % of the slowest joint's limit where that is less (the Stanford arm's 0.5 m/s slide)."""
@@ -97,16 +101,19 @@ def run_plan(url: str, plan: MeasurementPlan, log_path: str, robot: str = "puma2
     cycles, in the control loop: it must be quick) with the cycles done of all ``n`` (approach,
     warm-up and path): rcci.calib.progress.Steps.within shows it.
     """
+    from rcci.models import load_robot
+
     conv = Conversions.for_robot(robot)
     speed = approach_speed(robot)
-    body = plan.path.sample(rate_hz)
+    vmax = load_robot(robot).max_velocity            # no joint past 95 % of its limit (a slide's, m/s)
+    body = plan.path.within(vmax, SPEED_SHARE_MAX).sample(rate_hz)
     meta = dict(plan.meta)
     meta.update(extra_meta or {})
     meta.update({"program": f"calib record {plan.name}", "log_name": plan.name, "rate_hz": rate_hz})
     # everything but the approach (which starts where the arm is) is sampled before the control
     # starts: at 1 kHz a friction log is 10^5 setpoints, and building them in the first cycle took
     # over 2 s at a load of 20 (R_OVERRUN: rci ends a control function hung that long)
-    parts = [] if plan.warmup is None else [plan.warmup.sample(rate_hz)]
+    parts = [] if plan.warmup is None else [plan.warmup.within(vmax, SPEED_SHARE_MAX).sample(rate_hz)]
     first = parts[0][0] if parts else body[0]
     last = parts[0][-1] if parts else first
     settle = Path((PathSegment(last, body[0], speed, ACCEL, 0.5),)).sample(rate_hz)

@@ -72,3 +72,24 @@ def test_static_halts_keep_every_joint_within_its_limit() -> None:
             assert np.all(_peak_speeds(path, 100.0) <= 0.8 * v + 1e-6), robot
         if robot.startswith("puma"):
             np.testing.assert_array_equal(plan.path.sample(100.0), static_plan(lo, hi, halts=30).path.sample(100.0))
+
+
+def test_measurement_plans_pass_no_joint_past_95_percent_of_its_limit() -> None:
+    """run_plan keeps every move under SPEED_SHARE_MAX of the joints' limits: the Stanford boom's
+    sensitivity arc (planned in degrees per second) is slowed, the PUMAs' plans are unchanged."""
+    from rcci.calib import registry
+    from rcci.calib.plan import MeasurementPlan
+    from rcci.calib.program import SPEED_SHARE_MAX
+    from rcci.calib.regen import campaign_plans
+    from rcci.calib.registry import RegenContext
+    from rcci.calib.robot import robot_info
+    from rcci.models import load_robot
+
+    for robot in ("puma260", "stanford"):
+        ctx = RegenContext("/nonexistent", "/nonexistent/.work", 1, None, robot_info(robot))
+        kinds = ("sensitivity", "friction")
+        plans, _ = campaign_plans(ctx, kinds, skip_refused=True)
+        v = np.asarray(load_robot(robot).max_velocity, float)
+        slowed = {p.name for _, p in plans if isinstance(p, MeasurementPlan)
+                  and p.path.within(v, SPEED_SHARE_MAX).segments != p.path.segments}
+        assert slowed == (set() if robot == "puma260" else {"sensitivity-j3-unloaded", "sensitivity-j3-loaded"})
