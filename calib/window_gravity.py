@@ -48,7 +48,6 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
     ``loaded``: a window gravity works on by design (g_w computed even without kinematics)."""
     from rcci.models import load_robot
     from rci.simula.arm import SimulatedArm
-    from rci.simula.params import apply_params, truth_from_model
 
     model = load_robot(robot)
     n = model.n_joints
@@ -57,9 +56,9 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
             if not k.endswith(("_error", "unit")) and np.isfinite(float(v))} if "gravity_coeffs" in params else {}
     kin = params.get("kinematics", {})
     have_kin = all(k in kin for k in ("dtheta", "dd", "da", "dalpha"))
-    base = truth_from_model(model)
-    if grav:
-        base = apply_params({**head, "gravity_coeffs": grav}, "the parameter file", robot, base)
+    base, dropped = _tuned(model, robot, head, grav)
+    if dropped:
+        grav = {k: v for k, v in grav.items() if k not in dropped}
     if have_kin:
         e = np.nan_to_num(np.array([kin[k] for k in ("dtheta", "dd", "da", "dalpha")], dtype=float).T)
         sd = np.array([kin.get(f"{k}_std", [np.nan] * n) for k in ("dtheta", "dd", "da", "dalpha")], dtype=float).T
@@ -70,6 +69,8 @@ def window_gravity(robot: str, params: dict, joint: int, pose: np.ndarray, windo
         sd = np.tile(DH_TOLERANCE, (n, 1))
         source = ("no kinematic calibration: an a priori DH spread (0.1 deg, 0.5 mm)"
                   + ("" if grav else " and the data file's gravity coefficients"))
+    if dropped:
+        source += f" (the data file's {', '.join(dropped)}: simula fixes link masses, not that coefficient)"
     revolute = np.array([[k == "revolute"] for k in model.kinds])
     if have_kin and np.any(e * ~revolute):
         source += " (a slide's fitted DH errors left out: simula's arm models none)"
@@ -119,3 +120,29 @@ def coefficient_sd(robot: str, params: dict, joint: int, pose: np.ndarray, windo
     how = ("the gravity coefficients' fitted errors" if not fallback else
            f"{100 * GRAVITY_TOLERANCE:.0f} % of the data file's {', '.join(fallback)} as their error")
     return bound / 3.0, how
+
+
+def _tuned(model, robot: str, head: dict, grav: dict):
+    """simula's truth with the fitted gravity coefficients ``grav`` where simula can take them;
+    the names it cannot (a mass-type coefficient such as the Stanford arm's cm3) keep the data
+    file's value and are returned."""
+    import re
+
+    from rci.simula.arm import SimulatedArm
+    from rci.simula.exceptions import ParamsError
+    from rci.simula.params import apply_params, truth_from_model
+
+    dropped: list[str] = []
+    while True:
+        keep = {k: v for k, v in grav.items() if k not in dropped}
+        base = truth_from_model(model)
+        if keep:
+            base = apply_params({**head, "gravity_coeffs": keep}, "the parameter file", robot, base)
+        try:
+            SimulatedArm(model, base, seed=0, start="ready")
+            return base, dropped
+        except ParamsError as exc:
+            m = re.search(r"gravity coefficient (\S+) of robot", str(exc))
+            if m is None or m.group(1) not in keep:
+                raise
+            dropped.append(m.group(1))

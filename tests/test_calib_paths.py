@@ -77,7 +77,6 @@ def test_static_halts_keep_every_joint_within_its_limit() -> None:
 def test_measurement_plans_pass_no_joint_past_95_percent_of_its_limit() -> None:
     """run_plan keeps every move under SPEED_SHARE_MAX of the joints' limits: the Stanford boom's
     sensitivity arc (planned in degrees per second) is slowed, the PUMAs' plans are unchanged."""
-    from rcci.calib import registry
     from rcci.calib.plan import MeasurementPlan
     from rcci.calib.program import SPEED_SHARE_MAX
     from rcci.calib.regen import campaign_plans
@@ -93,3 +92,18 @@ def test_measurement_plans_pass_no_joint_past_95_percent_of_its_limit() -> None:
         slowed = {p.name for _, p in plans if isinstance(p, MeasurementPlan)
                   and p.path.within(v, SPEED_SHARE_MAX).segments != p.path.segments}
         assert slowed == (set() if robot == "puma260" else {"sensitivity-j3-unloaded", "sensitivity-j3-loaded"})
+
+
+def test_window_gravity_keeps_the_data_files_value_of_a_coefficient_simula_cannot_take() -> None:
+    """The Stanford arm's fitted cm3 (a mass-type coefficient): calib report stopped on simula's
+    ParamsError; the window's gravity now uses the data file's cm3 and says so."""
+    from rcci.calib.robot import robot_info
+    from rcci.calib.window_gravity import window_gravity
+
+    info = robot_info("stanford")
+    coeffs = {n: 1.05 * float(info.nominal["gravity_coeffs"][n]["value"]) for n in info.gravity_names}
+    assert "cm3" in coeffs
+    params = {"calib": {"schema": "rcci-calib-params/1", "robot": "stanford"}, "gravity_coeffs": coeffs}
+    q = np.array([0.0, 0.0, 0.787, 1.571, 0.0, 0.0])
+    g, sd, source = window_gravity("stanford", params, 2, q, (-0.3, 0.3), 0.1, loaded=True)
+    assert np.isfinite(g) and np.isfinite(sd) and "cm3" in source

@@ -105,7 +105,7 @@ def report(ctx: ReportContext, out: FitOutcome) -> list[str]:
         L += ["Columns no motion separates, folded into others (rcci.calib.grouping; the interval and the "
               "truth are of the grouped value): " + "; ".join(formulas) + ".", ""]
     L += [
-         f"- condition number of the designed excitations (unit columns): "
+         "- condition number of the designed excitations (unit columns): "
          + ", ".join(f"{c:.1f}" for c in res.cond_design),
          f"- condition number of the weighted fit's regressor (unit columns): {res.wls.cond_scaled:.1f}",
          f"- wall time: design {res.design_seconds:.1f} s (both trajectories), fit {res.seconds_fit:.1f} s",
