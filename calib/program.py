@@ -76,6 +76,7 @@ def drive_recorded(session: Session, f1, done: threading.Event, rec: Recorder, n
 #: 90 % pass unchanged; a prismatic joint's sweep planned in degrees per second does not)
 SPEED_SHARE_MAX = 0.95
 
+
 def approach_speed(robot: str) -> float:
     """Speed (rad/s or m/s, of the joint that moves most) of the moves to a plan's start: 0.6, or
     80 % of the slowest joint's limit where that is less (the Stanford arm's 0.5 m/s slide)."""
