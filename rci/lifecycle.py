@@ -231,7 +231,12 @@ def _interrupt_all() -> None:
 
 def _interrupt(lifecycles: list[Lifecycle]) -> None:
     """Ctrl-C: each host's ``on_interrupt``; the hosts without one are released with power off
-    and closed, and then the program prints TERMINATE and exits with status 130."""
+    and closed, and then the program prints TERMINATE and exits with status 130. With no host
+    left (a Ctrl-C that came during the last one's close, kept until that primitive returned),
+    the program gets Python's own KeyboardInterrupt: it was dropped before, and a campaign that
+    opens one session after another went on as if nothing had been pressed."""
+    if not lifecycles:
+        raise KeyboardInterrupt
     plain = [lc for lc in lifecycles if lc.host.on_interrupt is None]
     for lc in lifecycles:
         if lc.host.on_interrupt is not None:
