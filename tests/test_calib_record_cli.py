@@ -70,8 +70,13 @@ def test_options_of_the_other_path_are_refused(words, why, tmp_path, capsys):
 
 
 def _calib(args: list[str], out: str, err: str) -> subprocess.Popen:
+    """`calib ARGS` as a terminal starts it: with Ctrl-C's default disposition. A suite run in the
+    background (a shell's `&`, nohup) ignores SIGINT, and a child inherits that: its Python then
+    keeps ignoring Ctrl-C except while rci's handler is installed (inside a session), so the test's
+    SIGINT between two programs did nothing and the campaign ran to its end."""
     return subprocess.Popen([sys.executable, "-m", "rcci.calib", *args], cwd=ROOT,
-                            stdout=open(out, "w"), stderr=open(err, "w"), text=True)
+                            stdout=open(out, "w"), stderr=open(err, "w"), text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _wait_for(cond, proc: subprocess.Popen, what: str, timeout: float = 240.0) -> None:
