@@ -105,7 +105,7 @@ class RegenContext:
                    f"{why_unmeasured(self.info.name)}")
             if self.options.joints or not out:
                 raise CalibError(why)
-            if why not in self.notes and f"{kind}: not recorded: {why}" not in self.notes:
+            if f"{kind}: not recorded: {why}" not in self.notes:
                 self.notes.append(f"{kind}: not recorded: {why}")
         return out
 

@@ -123,26 +123,17 @@ def coefficient_sd(robot: str, params: dict, joint: int, pose: np.ndarray, windo
 
 
 def _tuned(model, robot: str, head: dict, grav: dict):
-    """simula's truth with the fitted gravity coefficients ``grav`` where simula can take them;
-    the names it cannot (a mass-type coefficient such as the Stanford arm's cm3) keep the data
-    file's value and are returned."""
-    import re
-
-    from rci.simula.arm import SimulatedArm
-    from rci.simula.exceptions import ParamsError
+    """simula's truth with the fitted gravity coefficients ``grav`` where simula can take them
+    (rci.simula.arm.gravity_moves: those a centre of mass carries); the others (a mass-type
+    coefficient such as the Stanford arm's cm3) keep the data file's value and are returned."""
+    from rci.simula.arm import gravity_moves
     from rci.simula.params import apply_params, truth_from_model
 
-    dropped: list[str] = []
-    while True:
-        keep = {k: v for k, v in grav.items() if k not in dropped}
-        base = truth_from_model(model)
-        if keep:
-            base = apply_params({**head, "gravity_coeffs": keep}, "the parameter file", robot, base)
-        try:
-            SimulatedArm(model, base, seed=0, start="ready")
-            return base, dropped
-        except ParamsError as exc:
-            m = re.search(r"gravity coefficient (\S+) of robot", str(exc))
-            if m is None or m.group(1) not in keep:
-                raise
-            dropped.append(m.group(1))
+    movable = gravity_moves(model)
+    dropped = [k for k, v in grav.items()
+               if k not in movable and abs(float(v) - model.gravity_coeffs[k].value) >= 1e-15]
+    keep = {k: v for k, v in grav.items() if k not in dropped}
+    base = truth_from_model(model)
+    if keep:
+        base = apply_params({**head, "gravity_coeffs": keep}, "the parameter file", robot, base)
+    return base, dropped
